@@ -1,0 +1,1 @@
+"""Generated protobuf bindings of `schemas/*.proto` (do not edit; run `just schemas`)."""
