@@ -1,0 +1,60 @@
+"""What an impactlab log holds: topics, schema names and metadata keys, shared by every stage.
+
+One MCAP file per run. log_time (= publish_time) is simulation time in integer nanoseconds.
+
+| topic                       | schema                  | when                                |
+|-----------------------------|-------------------------|-------------------------------------|
+| /bodies/<body>/state        | impactlab.BodyState     | every logged step                   |
+| /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
+| /energy                     | impactlab.Energy        | every logged step                   |
+| /tf                         | foxglove.FrameTransforms| every logged step                   |
+| /scene                      | foxglove.SceneUpdate    | once, at t = 0                      |
+| /events                     | foxglove.Log            | at the end (outcome, warnings)      |
+
+Metadata record `impactlab.run` (string map, JSON values where structured) and the
+attachment `model.xml` (the compiled MJCF, keyframe `initial` holds the initial state).
+"""
+
+from __future__ import annotations
+
+LOG_FORMAT_VERSION = "1"
+PROFILE = ""  # no MCAP well-known profile fits protobuf logs of a simulator
+ENCODING = "protobuf"
+
+BODY_STATE_TOPIC = "/bodies/{body}/state"
+CONTACT_TOPIC_PREFIX = "/contacts/"
+ENERGY_TOPIC = "/energy"
+TF_TOPIC = "/tf"
+SCENE_TOPIC = "/scene"
+EVENTS_TOPIC = "/events"
+WORLD_FRAME = "world"
+
+BODY_STATE_SCHEMA = "impactlab.BodyState"
+CONTACT_SCHEMA = "impactlab.Contact"
+ENERGY_SCHEMA = "impactlab.Energy"
+
+RUN_METADATA = "impactlab.run"
+MODEL_ATTACHMENT = "model.xml"
+
+# keys of the run metadata record
+META_KEYS = (
+    "log_format_version",
+    "impactlab_version",
+    "mujoco_version",
+    "experiment",
+    "description",
+    "source",
+    "run_id",
+    "spec",  # JSON: the resolved spec document (or the MJCF path and duration)
+    "sweep",  # JSON: {dotted path: value} of this run's sweep point
+    "spec_hash",
+    "timestep_s",
+    "log_every",
+    "gravity",  # JSON [gx, gy, gz], m/s^2
+    "bodies",  # JSON [{name, mass, inertia, radius}], kg, kg m^2, m
+    "plane_z",  # height of the plane in m, or "" when there is none
+    "outcome",  # completed | unstable
+    "reason",
+    "warnings",  # JSON list of sentences
+    "steps",  # number of simulated steps
+)

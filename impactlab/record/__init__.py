@@ -1,0 +1,1 @@
+"""Record stage: experiment specs -> MuJoCo simulation -> one MCAP log per run."""

@@ -1,0 +1,179 @@
+"""Record jobs: specs or MJCF files -> validated runs -> one MCAP log per run in an output folder.
+
+Everything is validated before the first simulation, so a wrong input writes nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from impactlab.errors import SpecError
+from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
+from impactlab.record.simulate import Trajectory, simulate
+from impactlab.record.spec import RunSpec, spec_hash
+from impactlab.record.sweep import load_runs
+from impactlab.record.writer import RunInfo, write_log
+
+MJCF_SUFFIXES = (".xml", ".mjcf")
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """A run ready to simulate: its file name, metadata and how to build and stop it."""
+
+    info: RunInfo
+    build: Callable[[], InstrumentedModel]
+    spec: RunSpec | None
+    max_time: float
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What recording one run produced."""
+
+    path: Path
+    trajectory: Trajectory
+    wall_s: float
+
+
+def plan(inputs: Sequence[Path], *, overrides: Sequence[str] = (), duration: float | None = None):
+    """Validate every input and return the runs to record, in order.
+
+    Args:
+        inputs: experiment specs (.toml) and/or MJCF models (.xml).
+        overrides: `PATH=VALUE` settings for specs.
+        duration: time limit in s for MJCF models (required for them).
+
+    Raises:
+        SpecError: any input, override or option is wrong.
+    """
+    runs: list[PlannedRun] = []
+    for path in inputs:
+        if path.suffix.lower() in MJCF_SUFFIXES:
+            runs.append(_plan_mjcf(path, overrides=overrides, duration=duration))
+        elif path.suffix.lower() == ".toml":
+            if duration is not None:
+                raise SpecError(
+                    str(path),
+                    "--duration",
+                    "applies to MJCF models; for specs use --set stop.max_time=...",
+                )
+            runs += [_plan_spec(run) for run in load_runs(path, overrides)]
+        else:
+            raise SpecError(
+                str(path), "", "expected an experiment spec (.toml) or an MJCF model (.xml)"
+            )
+    ids = [r.info.run_id for r in runs]
+    dup = next((i for i in ids if ids.count(i) > 1), None)
+    if dup is not None:
+        raise SpecError(dup, "", "two inputs give the same run; remove one of them")
+    return runs
+
+
+def _plan_spec(run: RunSpec) -> PlannedRun:
+    digest = run.spec_hash
+    info = RunInfo(
+        run_id=run_name(run.experiment, run.sweep_values, digest),
+        experiment=run.experiment,
+        description=run.description,
+        source=run.source,
+        spec=run.document,
+        sweep=run.sweep_values,
+        spec_hash=digest,
+        log_every=run.log_every,
+    )
+    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time)
+
+
+def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
+    if overrides:
+        raise SpecError(str(path), "--set", "overrides apply to experiment specs, not MJCF models")
+    if duration is None or not duration > 0:
+        raise SpecError(str(path), "--duration", "an MJCF model needs --duration SECONDS > 0")
+    inst = model_from_mjcf(path)  # validate now; rebuilt when run
+    document = {"mjcf": str(path), "duration": duration, "xml_sha256": _sha256(inst.xml)}
+    digest = spec_hash(document)
+    info = RunInfo(
+        run_id=run_name(path.stem, {}, digest),
+        experiment=path.stem,
+        description=f"user model {path.name}",
+        source=str(path),
+        spec=document,
+        sweep={},
+        spec_hash=digest,
+        log_every=1,
+    )
+    return PlannedRun(info, lambda: inst, None, duration)
+
+
+def _sha256(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -> str:
+    """A readable, unique file stem: experiment, sweep values, first 8 hex of the spec hash."""
+    parts = [experiment]
+    for key, value in sweep_values.items():
+        leaf = key.removeprefix("bodies.").removeprefix("contact.").removeprefix("options.")
+        text = "_".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)
+        parts.append(f"{leaf}={text}")
+    stem = "-".join(parts + [digest[:8]])
+    return re.sub(r"[^A-Za-z0-9._=+-]", "_", stem)
+
+
+def check_writable(out_dir: Path) -> None:
+    """Create the output folder and prove a file can be written there, before any simulation."""
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".impactlab-write-test-"):
+            pass
+    except OSError as exc:
+        raise SpecError(str(out_dir), "-o", f"cannot write there: {exc.strerror or exc}") from None
+
+
+def record_run(run: PlannedRun, out_dir: Path) -> RunResult:
+    """Simulate one planned run and write its log atomically."""
+    start = time.perf_counter()
+    inst = run.build()
+    stop = run.spec.stop if run.spec else None
+    traj = simulate(inst, max_time=run.max_time, stop=stop, log_every=run.info.log_every)
+    path = write_log(out_dir / f"{run.info.run_id}.mcap", inst, run.info, traj)
+    return RunResult(path, traj, time.perf_counter() - start)
+
+
+def record(
+    runs: Sequence[PlannedRun], out_dir: Path, *, echo: Callable[[str], None] = print
+) -> list[RunResult]:
+    """Record planned runs one after the other, with a progress bar when there are several."""
+    check_writable(out_dir)
+    results = []
+    bar = tqdm(total=len(runs), unit="run", disable=len(runs) < 2 or None, leave=False)
+    for run in runs:
+        result = record_run(run, out_dir)
+        results.append(result)
+        bar.update()
+        for line in summary_lines(result):
+            bar.write(line) if not bar.disable else echo(line)
+    bar.close()
+    return results
+
+
+def summary_lines(result: RunResult) -> list[str]:
+    """One line per run, plus one per warning."""
+    traj = result.trajectory
+    v = traj.verdict
+    t_end = traj.t_ns[-1] / 1e9 if traj.t_ns.size else 0.0
+    line = (
+        f"{result.path.name}: {v.outcome} ({v.reason}), t = {t_end:.4g} s, "
+        f"{v.last_step + 1} steps, {traj.t_ns.size} logged, {result.wall_s:.2f} s"
+    )
+    return [line] + [f"warning: {result.path.stem}: {w}" for w in traj.warnings]

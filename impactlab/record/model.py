@@ -1,0 +1,278 @@
+"""Build MuJoCo models for recording: from an experiment spec, or any user MJCF, instrumented.
+
+Instrumenting adds the sensors the recorder reads, so a batched `mujoco.rollout` captures
+everything without a Python loop: per free body its pose and world-frame velocities, MuJoCo's
+kinetic and potential energy, and one `contact` sensor per pair of geoms that can touch.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from impactlab.errors import SpecError
+from impactlab.record.spec import RunSpec
+
+SENSOR_PREFIX = "impactlab:"
+# contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
+CONTACT_DATA_BITS = 1 | 2 | 8 | 16 | 32 | 64
+CONTACT_SLOT_SIZE = 1 + 3 + 1 + 3 + 3 + 3
+BODY_STATE_SIZE = 13  # pos 3, quat 4, linvel 3, angvel 3
+PLANE_NAME = "plane"
+
+
+@dataclass(frozen=True)
+class BodyChannel:
+    """A free body and where its 13 state values start in sensordata."""
+
+    name: str
+    body_id: int
+    adr: int
+    radius: float | None
+
+
+@dataclass(frozen=True)
+class ContactChannel:
+    """A geom pair and where its contact sensor's `num` slots start in sensordata."""
+
+    geom1: str
+    geom2: str
+    body1: str
+    body2: str
+    adr: int
+    num: int
+
+    @property
+    def topic(self) -> str:
+        """The MCAP topic of this pair's contacts."""
+        return f"/contacts/{self.geom1}/{self.geom2}"
+
+
+@dataclass(frozen=True)
+class GeomShape:
+    """A geom's shape for viewers: type name, size (MuJoCo's), body name and rgba."""
+
+    name: str
+    body: str
+    type: str
+    size: tuple[float, float, float]
+    pos: tuple[float, float, float]
+    rgba: tuple[float, float, float, float]
+
+
+@dataclass
+class InstrumentedModel:
+    """A compiled model, its MJCF text and the layout of what the recorder reads."""
+
+    model: mujoco.MjModel
+    xml: str
+    bodies: list[BodyChannel]
+    contacts: list[ContactChannel]
+    geoms: list[GeomShape]
+    energy_adr: int
+    keyframe: int | None
+
+    def initial_state(self) -> np.ndarray:
+        """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
+        data = mujoco.MjData(self.model)
+        if self.keyframe is None:
+            mujoco.mj_resetData(self.model, data)
+        else:
+            mujoco.mj_resetDataKeyframe(self.model, data, self.keyframe)
+        kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.empty(mujoco.mj_stateSize(self.model, kind))
+        mujoco.mj_getState(self.model, data, state, kind)
+        return state
+
+
+def mjcf_from_spec(run: RunSpec) -> str:
+    """The MJCF text of a spec's model, with the handout's `<default><geom>` contact."""
+    opt, con = run.options, run.contact
+    lines = [
+        f'<mujoco model="{run.experiment}">',
+        f'  <option timestep="{opt.timestep!r}" integrator="{opt.integrator}" '
+        f'gravity="{_fmt(opt.gravity)}"/>',
+        "  <default>",
+        f'    <geom condim="{con.condim}" solref="{_fmt(con.solref)}" solimp="{_fmt(con.solimp)}" '
+        f'friction="{_fmt(con.friction)}"/>',
+        "  </default>",
+        "  <worldbody>",
+    ]
+    if run.plane.enabled:
+        lines.append(
+            f'    <geom name="{PLANE_NAME}" type="plane" size="{_fmt(run.plane.size)}" '
+            f'rgba="{_fmt(run.plane.rgba)}"/>'
+        )
+    for b in run.bodies:
+        lines += [
+            f'    <body name="{b.name}" pos="{_fmt(b.pos)}">',
+            f'      <freejoint name="{b.name}"/>',
+            f'      <geom name="{b.name}" type="sphere" size="{b.radius!r}" mass="{b.mass!r}" '
+            f'rgba="{_fmt(b.rgba)}"/>',
+            "    </body>",
+        ]
+    lines.append("  </worldbody>")
+    qpos = " ".join(_fmt((*b.pos, 1.0, 0.0, 0.0, 0.0)) for b in run.bodies)
+    qvel = " ".join(_fmt((*b.vel, *b.angvel)) for b in run.bodies)
+    lines += ["  <keyframe>", f'    <key name="initial" qpos="{qpos}" qvel="{qvel}"/>']
+    lines += ["  </keyframe>", "</mujoco>", ""]
+    return "\n".join(lines)
+
+
+def _fmt(values: tuple[float, ...] | list[float]) -> str:
+    return " ".join(repr(float(v)) for v in values)
+
+
+def model_from_spec(run: RunSpec) -> InstrumentedModel:
+    """Compile a spec's model with the recorder's sensors."""
+    spec = mujoco.MjSpec.from_string(mjcf_from_spec(run))
+    radii = {b.name: b.radius for b in run.bodies}
+    return instrument(spec, run.source, radii=radii, keyframe="initial")
+
+
+def model_from_mjcf(path: Path) -> InstrumentedModel:
+    """Load a user's MJCF file and instrument every free body and every possible contact."""
+    if not path.is_file():
+        raise SpecError(str(path), "", "file not found")
+    try:
+        spec = mujoco.MjSpec.from_file(str(path))
+    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
+        raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
+    return instrument(spec, str(path), radii={}, keyframe=None)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
+def instrument(
+    spec: mujoco.MjSpec, source: str, *, radii: dict[str, float], keyframe: str | None
+) -> InstrumentedModel:
+    """Name unnamed bodies and geoms, add the recorder's sensors, compile.
+
+    Raises:
+        SpecError: the model does not compile or has no free body.
+    """
+    _name_unnamed(spec)
+    try:
+        plain = spec.compile()
+    except Exception as exc:
+        raise SpecError(source, "", f"invalid MJCF: {_one_line(exc)}") from None
+    free_bodies = [
+        int(plain.jnt_bodyid[j])
+        for j in range(plain.njnt)
+        if plain.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
+    ]
+    if not free_bodies:
+        raise SpecError(source, "", "the model has no free body (a body with a <freejoint/>)")
+    body_names = [plain.body(b).name for b in free_bodies]
+    for name in body_names:
+        for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
+            spec.add_sensor(
+                name=f"{SENSOR_PREFIX}{name}:{kind.lower()}",
+                type=getattr(mujoco.mjtSensor, f"mjSENS_{kind}"),
+                objtype=mujoco.mjtObj.mjOBJ_BODY,
+                objname=name,
+            )
+    spec.add_sensor(name=f"{SENSOR_PREFIX}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
+    spec.add_sensor(name=f"{SENSOR_PREFIX}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
+    pairs = _contact_pairs(plain, set(free_bodies))
+    for g1, g2, num in pairs:
+        spec.add_sensor(
+            name=f"{SENSOR_PREFIX}contact:{plain.geom(g1).name}:{plain.geom(g2).name}",
+            type=mujoco.mjtSensor.mjSENS_CONTACT,
+            objtype=mujoco.mjtObj.mjOBJ_GEOM,
+            objname=plain.geom(g1).name,
+            reftype=mujoco.mjtObj.mjOBJ_GEOM,
+            refname=plain.geom(g2).name,
+            intprm=[CONTACT_DATA_BITS, 0, num],
+        )
+    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    model = spec.compile()
+    xml = spec.to_xml()
+
+    def adr(name: str) -> int:
+        return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])
+
+    bodies = [
+        BodyChannel(name, b, adr(f"{name}:framepos"), radii.get(name))
+        for name, b in zip(body_names, free_bodies, strict=True)
+    ]
+    contacts = [
+        ContactChannel(
+            geom1=model.geom(g1).name,
+            geom2=model.geom(g2).name,
+            body1=model.body(model.geom_bodyid[g1]).name,
+            body2=model.body(model.geom_bodyid[g2]).name,
+            adr=adr(f"contact:{model.geom(g1).name}:{model.geom(g2).name}"),
+            num=num,
+        )
+        for g1, g2, num in pairs
+    ]
+    key = None if keyframe is None else int(model.key(keyframe).id)
+    return InstrumentedModel(
+        model=model,
+        xml=xml,
+        bodies=bodies,
+        contacts=contacts,
+        geoms=_geom_shapes(model),
+        energy_adr=adr("e_potential"),
+        keyframe=key,
+    )
+
+
+def _name_unnamed(spec: mujoco.MjSpec) -> None:
+    for i, body in enumerate(spec.bodies):
+        if i > 0 and not body.name:
+            body.name = f"body{i}"
+    for i, geom in enumerate(spec.geoms):
+        if not geom.name:
+            geom.name = f"geom{i}"
+
+
+def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
+    """Geom pairs (g1, g2, slots) that may collide and involve a free body.
+
+    g1 is the geom of the static or lower-numbered body, so normals point into g2.
+    Sphere-sphere and sphere-plane pairs touch at one point; other pairs get four slots.
+    """
+
+    def root(g: int) -> int:
+        return int(model.body_rootid[model.geom_bodyid[g]])
+
+    pairs = []
+    for g1, g2 in itertools.combinations(range(model.ngeom), 2):
+        b1, b2 = root(g1), root(g2)
+        if b1 == b2 or (b1 not in free and b2 not in free):
+            continue
+        if not (model.geom_contype[g1] & model.geom_conaffinity[g2]) and not (
+            model.geom_contype[g2] & model.geom_conaffinity[g1]
+        ):
+            continue
+        if (b1 in free, b1) > (b2 in free, b2):
+            g1, g2 = g2, g1
+        simple = {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_PLANE}
+        types = {int(model.geom_type[g1]), int(model.geom_type[g2])}
+        pairs.append((g1, g2, 1 if types <= {int(t) for t in simple} else 4))
+    return pairs
+
+
+def _geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:
+    names = {
+        int(v): k.removeprefix("mjGEOM_").lower() for k, v in mujoco.mjtGeom.__members__.items()
+    }
+    return [
+        GeomShape(
+            name=model.geom(g).name,
+            body=model.body(model.geom_bodyid[g]).name,
+            type=names.get(int(model.geom_type[g]), "unknown"),
+            size=tuple(float(x) for x in model.geom_size[g]),
+            pos=tuple(float(x) for x in model.geom_pos[g]),
+            rgba=tuple(float(x) for x in model.geom_rgba[g]),
+        )
+        for g in range(model.ngeom)
+    ]

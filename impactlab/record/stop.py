@@ -1,0 +1,180 @@
+"""Stop rules evaluated on chunks of sensordata, vectorised, with state carried between chunks.
+
+Each rule sees every simulated step (not only the logged ones) as rows of sensordata, and
+returns the global step index of the last row to keep when it fires.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from impactlab.record.model import PLANE_NAME, InstrumentedModel
+from impactlab.record.spec import Stop
+
+
+@dataclass
+class Verdict:
+    """Why a run stopped: the last step kept, the outcome and a sentence for people."""
+
+    last_step: int
+    outcome: str  # "completed" or "unstable"
+    reason: str
+
+
+class _Rule:
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        raise NotImplementedError
+
+
+def _first(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+@dataclass
+class _Finite(_Rule):
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        bad = _first(~np.isfinite(rows).all(axis=1))
+        if bad is None:
+            return None
+        return Verdict(
+            step0 + bad - 1, "unstable", f"state became non-finite at step {step0 + bad}"
+        )
+
+
+@dataclass
+class _Bounces(_Rule):
+    """Stop at the apex after the N-th bounce of every body that touches the plane."""
+
+    n: int
+    contact_cols: list[int]
+    vz_cols: list[int]
+    in_contact: list[bool] = field(default_factory=list)
+    count: list[int] = field(default_factory=list)
+    done_step: list[int | None] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        k = len(self.contact_cols)
+        self.in_contact, self.count, self.done_step = [False] * k, [0] * k, [None] * k
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        for b, (ccol, vcol) in enumerate(zip(self.contact_cols, self.vz_cols, strict=True)):
+            if self.done_step[b] is not None:
+                continue
+            touching = rows[:, ccol] > 0
+            before = np.concatenate([[self.in_contact[b]], touching[:-1]])
+            released = before & ~touching
+            total = self.count[b] + np.cumsum(released)
+            self.in_contact[b] = bool(touching[-1])
+            reached = total >= self.n
+            apex = _first(reached & ~touching & (rows[:, vcol] <= 0.0))
+            self.count[b] = int(total[-1])
+            if apex is not None:
+                self.done_step[b] = step0 + apex
+        if self.done_step and all(s is not None for s in self.done_step):
+            last = max(s for s in self.done_step if s is not None)
+            return Verdict(last, "completed", f"apex after bounce {self.n}")
+        return None
+
+
+@dataclass
+class _AtRest(_Rule):
+    """Stop once every body is slower than `speed` for `steps` consecutive steps."""
+
+    speed: float
+    steps: int
+    vel_cols: list[int]
+    run: int = 0
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        speeds = np.stack([np.linalg.norm(rows[:, c : c + 3], axis=1) for c in self.vel_cols])
+        slow = (speeds < self.speed).all(axis=0)
+        # length of the run of slow steps ending at each row, continuing the previous chunk's
+        breaks = np.flatnonzero(~slow)
+        idx = np.arange(slow.size)
+        last_break = np.full(slow.size, -1 - self.run)
+        if breaks.size:
+            marks = np.full(slow.size, -1 - self.run)
+            marks[breaks] = breaks
+            last_break = np.maximum.accumulate(marks)
+        length = idx - last_break
+        hit = _first(length >= self.steps)
+        self.run = int(length[-1])
+        if hit is None:
+            return None
+        return Verdict(step0 + hit, "completed", "bodies at rest")
+
+
+@dataclass
+class _Separated(_Rule):
+    """Stop once two bodies have touched and their surfaces are `gap_m` apart again."""
+
+    gap_m: float
+    contact_cols: list[int]
+    pos_cols: list[tuple[int, int]]
+    radii: list[tuple[float, float]]
+    touched: bool = False
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        touching = np.zeros(rows.shape[0], dtype=bool)
+        for c in self.contact_cols:
+            touching |= rows[:, c] > 0
+        seen = self.touched | (np.cumsum(touching) > 0)
+        self.touched = bool(seen[-1])
+        gaps = np.stack(
+            [
+                np.linalg.norm(rows[:, p1 : p1 + 3] - rows[:, p2 : p2 + 3], axis=1) - r1 - r2
+                for (p1, p2), (r1, r2) in zip(self.pos_cols, self.radii, strict=True)
+            ]
+        ).min(axis=0)
+        hit = _first(seen & ~touching & (gaps >= self.gap_m))
+        if hit is None:
+            return None
+        return Verdict(step0 + hit, "completed", f"bodies separated by {self.gap_m:g} m")
+
+
+class StopMonitor:
+    """Evaluates a run's stop rules chunk by chunk; the earliest firing rule wins."""
+
+    def __init__(self, inst: InstrumentedModel, stop: Stop | None, *, timestep: float) -> None:
+        self.rules: list[_Rule] = [_Finite()]
+        self.bodybody_cols: list[int] = []
+        if stop is None:
+            return
+        by_name = {b.name: b for b in inst.bodies}
+        plane = [c for c in inst.contacts if c.geom1 == PLANE_NAME and c.body2 in by_name]
+        bodybody = [c for c in inst.contacts if c.body1 in by_name and c.body2 in by_name]
+        self.bodybody_cols = [c.adr for c in bodybody]
+        if stop.bounces is not None:
+            self.rules.append(
+                _Bounces(
+                    n=stop.bounces,
+                    contact_cols=[c.adr for c in plane],
+                    vz_cols=[by_name[c.body2].adr + 9 for c in plane],
+                )
+            )
+        if stop.at_rest:
+            self.rules.append(
+                _AtRest(
+                    speed=stop.rest_speed,
+                    steps=max(1, round(stop.rest_time / timestep)),
+                    vel_cols=[b.adr + 7 for b in inst.bodies],
+                )
+            )
+        if stop.separation is not None:
+            pairs = [(by_name[c.body1], by_name[c.body2]) for c in bodybody]
+            self.rules.append(
+                _Separated(
+                    gap_m=stop.separation,
+                    contact_cols=self.bodybody_cols,
+                    pos_cols=[(a.adr, b.adr) for a, b in pairs],
+                    radii=[(a.radius or 0.0, b.radius or 0.0) for a, b in pairs],
+                )
+            )
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        """Feed rows for steps step0.. ; return the earliest verdict, if any rule fired."""
+        verdicts = [v for rule in self.rules if (v := rule.update(rows, step0)) is not None]
+        return min(verdicts, key=lambda v: v.last_step) if verdicts else None
