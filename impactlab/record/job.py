@@ -126,7 +126,7 @@ def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -
         leaf = key.removeprefix("bodies.").removeprefix("contact.").removeprefix("options.")
         text = "_".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)
         parts.append(f"{leaf}={text}")
-    stem = "-".join(parts + [digest[:8]])
+    stem = "-".join([*parts, digest[:8]])
     return re.sub(r"[^A-Za-z0-9._=+-]", "_", stem)
 
 

@@ -1,4 +1,4 @@
-"""The static scene for viewers (`foxglove.SceneUpdate`): spheres locked to their bodies, the plane."""
+"""The static scene for viewers (`foxglove.SceneUpdate`): spheres on their bodies, the plane."""
 
 from __future__ import annotations
 
