@@ -32,6 +32,9 @@ def describe(path: Path) -> str:
         raise LogError(str(path), "no summary (truncated or still being written)")
     stats = summary.statistics
     run = metadata.get(logformat.RUN_METADATA, {})
+    ending = {"outcome": "incomplete", "reason": "no outcome record: the run did not finish"}
+    if run:
+        run = {**run, **metadata.get(logformat.OUTCOME_METADATA, ending)}
     lines = [f"file:       {path}"]
     if run:
         sweep = json.loads(run.get("sweep", "{}"))

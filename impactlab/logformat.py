@@ -11,8 +11,10 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /scene                      | foxglove.SceneUpdate    | once, at t = 0                      |
 | /events                     | foxglove.Log            | at the end (outcome, warnings)      |
 
-Metadata record `impactlab.run` (string map, JSON values where structured) and the
-attachment `model.xml` (the compiled MJCF, keyframe `initial` holds the initial state).
+Metadata records: `impactlab.run` right after the header (what the run is: spec, sweep,
+versions, bodies), `impactlab.outcome` at the end (how it ended), so a truncated log still
+says what it was and, by lacking the outcome, that it is incomplete. Attachment `model.xml`:
+the compiled MJCF, whose keyframe `initial` holds the initial state.
 """
 
 from __future__ import annotations
@@ -34,10 +36,11 @@ CONTACT_SCHEMA = "impactlab.Contact"
 ENERGY_SCHEMA = "impactlab.Energy"
 
 RUN_METADATA = "impactlab.run"
+OUTCOME_METADATA = "impactlab.outcome"
 MODEL_ATTACHMENT = "model.xml"
 
 # keys of the run metadata record
-META_KEYS = (
+RUN_KEYS = (
     "log_format_version",
     "impactlab_version",
     "mujoco_version",
@@ -53,6 +56,9 @@ META_KEYS = (
     "gravity",  # JSON [gx, gy, gz], m/s^2
     "bodies",  # JSON [{name, mass, inertia, radius}], kg, kg m^2, m
     "plane_z",  # height of the plane in m, or "" when there is none
+)
+# keys of the outcome metadata record
+OUTCOME_KEYS = (
     "outcome",  # completed | unstable
     "reason",
     "warnings",  # JSON list of sentences

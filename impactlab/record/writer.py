@@ -87,6 +87,7 @@ def _write(stream: Any, inst: InstrumentedModel, info: RunInfo, traj: Trajectory
         profile=logformat.PROFILE,
         library=f"impactlab {__version__}; mcap-python {mcap.__version__}",
     )
+    writer.add_metadata(logformat.RUN_METADATA, run_metadata(inst, info))
     channels = _Channels(writer)
     t_ns = traj.t_ns
     rows = traj.sensordata
@@ -124,11 +125,11 @@ def _write(stream: Any, inst: InstrumentedModel, info: RunInfo, traj: Trajectory
         media_type="application/xml",
         data=inst.xml.encode(),
     )
-    writer.add_metadata(logformat.RUN_METADATA, run_metadata(inst, info, traj))
+    writer.add_metadata(logformat.OUTCOME_METADATA, outcome_metadata(traj))
     writer.finish()
 
 
-def run_metadata(inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> dict[str, str]:
+def run_metadata(inst: InstrumentedModel, info: RunInfo) -> dict[str, str]:
     """The `impactlab.run` metadata record (every value a string)."""
     import mujoco
 
@@ -159,12 +160,20 @@ def run_metadata(inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> di
         "gravity": json.dumps([float(x) for x in model.opt.gravity]),
         "bodies": json.dumps(bodies),
         "plane_z": repr(plane[0].pos[2]) if plane else "",
+    }
+    assert tuple(meta) == logformat.RUN_KEYS
+    return meta
+
+
+def outcome_metadata(traj: Trajectory) -> dict[str, str]:
+    """The `impactlab.outcome` metadata record, written last."""
+    meta = {
         "outcome": traj.verdict.outcome,
         "reason": traj.verdict.reason,
         "warnings": json.dumps(traj.warnings),
         "steps": str(traj.verdict.last_step + 1),
     }
-    assert tuple(meta) == logformat.META_KEYS
+    assert tuple(meta) == logformat.OUTCOME_KEYS
     return meta
 
 

@@ -1,0 +1,1 @@
+"""Analysis stage: MCAP logs -> polars frames -> bounces, energy, collisions, tables, report."""

@@ -1,0 +1,321 @@
+"""Read impactlab MCAP logs into polars frames. All decoding of log files happens here.
+
+Each channel family becomes one frame with one row per message (per contact point for
+contacts), with the run's id and the time (`t_ns`, integer ns; `t_s`, float s) as columns.
+The log is read as a stream of records, so a truncated or damaged file still yields every
+complete message before the damage; such a run is marked `partial`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+from mcap.exceptions import McapError
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+from impactlab import logformat
+from impactlab.errors import LogError
+from impactlab.proto import impactlab_pb2 as pb
+
+BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
+POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields)
+ENERGY_FIELDS = ("kinetic", "potential", "total")
+
+
+@dataclass(frozen=True)
+class BodyInfo:
+    """A free body as the log's metadata describes it (kg, kg m^2 principal, m)."""
+
+    name: str
+    mass: float
+    inertia: tuple[float, float, float]
+    radius: float | None
+
+
+@dataclass
+class RunLog:
+    """One decoded log.
+
+    Attributes:
+        path: the file.
+        run_id: the run's id (file stem when the metadata lacks it).
+        meta: the `impactlab.run` record merged with `impactlab.outcome` (strings).
+        bodies: per body name, a frame (run_id, t_ns, t_s, x .. wz), world frame, SI units.
+        contacts: one row per contact point (run_id, t_ns, t_s, geom1, geom2, body1, body2,
+            point, x .. fz), see `schemas/impactlab.proto`.
+        energy: MuJoCo's energy (run_id, t_ns, t_s, kinetic, potential, total), J.
+        events: the log's text events (run_id, t_ns, level, message).
+        partial: the file is damaged or incomplete; `problems` says how.
+    """
+
+    path: Path
+    run_id: str
+    meta: dict[str, str]
+    bodies: dict[str, pl.DataFrame]
+    contacts: pl.DataFrame
+    energy: pl.DataFrame
+    events: pl.DataFrame
+    partial: bool = False
+    problems: list[str] = field(default_factory=list)
+
+    @property
+    def experiment(self) -> str:
+        """The experiment's name."""
+        return self.meta.get("experiment", "")
+
+    @property
+    def sweep(self) -> dict[str, Any]:
+        """This run's sweep point: {dotted path: value}."""
+        return json.loads(self.meta.get("sweep", "{}"))
+
+    @property
+    def spec(self) -> dict[str, Any]:
+        """The resolved spec document the run was made from."""
+        return json.loads(self.meta.get("spec", "{}"))
+
+    @property
+    def body_info(self) -> dict[str, BodyInfo]:
+        """Mass, inertia and radius of each free body."""
+        return {
+            b["name"]: BodyInfo(b["name"], b["mass"], tuple(b["inertia"]), b.get("radius"))
+            for b in json.loads(self.meta.get("bodies", "[]"))
+        }
+
+    @property
+    def gravity(self) -> np.ndarray:
+        """Gravity vector, m/s^2, (3,)."""
+        return np.array(json.loads(self.meta.get("gravity", "[0, 0, -9.81]")), dtype=float)
+
+    @property
+    def plane_z(self) -> float | None:
+        """Height of the ground plane in m, or None without a plane."""
+        value = self.meta.get("plane_z", "")
+        return float(value) if value else None
+
+    @property
+    def timestep_s(self) -> float:
+        """The simulation timestep in s."""
+        return float(self.meta["timestep_s"])
+
+    @property
+    def outcome(self) -> str:
+        """completed, unstable, or incomplete (the log has no outcome record)."""
+        return self.meta.get("outcome", "incomplete")
+
+
+def find_logs(inputs: Sequence[str | Path]) -> list[Path]:
+    """Expand files, folders (their *.mcap, recursively) and glob patterns, sorted, unique."""
+    out: list[Path] = []
+    for item in inputs:
+        path = Path(item)
+        if path.is_dir():
+            out += sorted(path.rglob("*.mcap"))
+        elif any(c in str(item) for c in "*?["):
+            out += (
+                sorted(Path().glob(str(item)))
+                if not path.is_absolute()
+                else sorted(Path(path.anchor).glob(str(path.relative_to(path.anchor))))
+            )
+        else:
+            out.append(path)
+    return list(dict.fromkeys(out))
+
+
+def load_log(path: Path) -> RunLog:
+    """Decode one log into frames.
+
+    Raises:
+        LogError: the file does not exist, is not MCAP, or holds no impactlab channel.
+    """
+    try:
+        raw = _read_records(path)
+    except FileNotFoundError:
+        raise LogError(str(path), "file not found") from None
+    except IsADirectoryError:
+        raise LogError(str(path), "is a folder, not a log") from None
+    except OSError as exc:
+        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    if raw.not_mcap:
+        raise LogError(str(path), "not an MCAP file (bad magic bytes)")
+    if logformat.RUN_METADATA not in raw.metadata and not raw.payloads:
+        reason = raw.problems[0] if raw.problems else "no impactlab channels or metadata"
+        raise LogError(str(path), f"not an impactlab log ({reason})")
+    meta = dict(raw.metadata.get(logformat.RUN_METADATA, {}))
+    problems = list(raw.problems)
+    if not meta:
+        problems.append("no impactlab.run metadata")
+    if logformat.OUTCOME_METADATA in raw.metadata:
+        meta.update(raw.metadata[logformat.OUTCOME_METADATA])
+    else:
+        problems.append("no outcome record: the log is incomplete")
+    run_id = meta.get("run_id", path.stem)
+    bodies: dict[str, pl.DataFrame] = {}
+    contact_frames: list[pl.DataFrame] = []
+    energy = _empty(ENERGY_FIELDS, run_id)
+    events = pl.DataFrame(
+        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
+    )
+    known = 0
+    for (topic, schema), (times, payloads) in raw.payloads.items():
+        t = np.asarray(times, dtype=np.int64)
+        if schema == logformat.BODY_STATE_SCHEMA:
+            body = topic.split("/")[2]
+            bodies[body] = _frame(run_id, t, decode_body_states(payloads), BODY_FIELDS)
+        elif schema == logformat.CONTACT_SCHEMA:
+            contact_frames.append(decode_contacts(run_id, t, payloads))
+        elif schema == logformat.ENERGY_SCHEMA:
+            energy = _frame(run_id, t, decode_energy(payloads), ENERGY_FIELDS)
+        elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
+            events = decode_events(run_id, t, payloads)
+        else:
+            continue
+        known += 1
+    if not known:
+        raise LogError(str(path), "not an impactlab log (no impactlab channels)")
+    contacts = (
+        pl.concat(contact_frames).sort("t_ns", maintain_order=True)
+        if contact_frames
+        else _empty_contacts(run_id)
+    )
+    return RunLog(
+        path=path,
+        run_id=run_id,
+        meta=meta,
+        bodies=dict(sorted(bodies.items())),
+        contacts=contacts,
+        energy=energy,
+        events=events,
+        partial=bool(problems),
+        problems=problems,
+    )
+
+
+@dataclass
+class _RawLog:
+    metadata: dict[str, dict[str, str]]
+    payloads: dict[tuple[str, str], tuple[list[int], list[bytes]]]
+    problems: list[str]
+    not_mcap: bool = False
+
+
+def _read_records(path: Path) -> _RawLog:
+    """Every complete record of the file, in order; damage stops the read and is reported."""
+    metadata: dict[str, dict[str, str]] = {}
+    payloads: dict[tuple[str, str], tuple[list[int], list[bytes]]] = defaultdict(lambda: ([], []))
+    schemas: dict[int, str] = {}
+    channels: dict[int, tuple[str, str]] = {}
+    problems: list[str] = []
+    with open(path, "rb") as stream:
+        head = stream.read(8)
+        if head != b"\x89MCAP0\r\n":
+            return _RawLog({}, {}, [], not_mcap=True)
+        stream.seek(0)
+        try:
+            for record in StreamReader(stream, skip_magic=False, validate_crcs=True).records:
+                if isinstance(record, Message):
+                    key = channels.get(record.channel_id)
+                    if key is not None:
+                        times, datas = payloads[key]
+                        times.append(record.log_time)
+                        datas.append(record.data)
+                elif isinstance(record, Schema):
+                    schemas[record.id] = record.name
+                elif isinstance(record, Channel):
+                    channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+                elif isinstance(record, Metadata):
+                    metadata[record.name] = dict(record.metadata)
+        except (McapError, EOFError, ValueError, KeyError, OSError, MemoryError) as exc:
+            problems.append(f"damaged after the last complete record ({type(exc).__name__}: {exc})")
+        except Exception as exc:  # zstd and lz4 raise their own error types on corrupt chunks
+            problems.append(f"damaged chunk ({type(exc).__name__}: {exc})")
+    return _RawLog(metadata, dict(payloads), problems)
+
+
+def decode_body_states(payloads: Iterable[bytes]) -> np.ndarray:
+    """BodyState payloads -> (n, 13) float64 in BODY_FIELDS order."""
+    rows = []
+    for data in payloads:
+        m = pb.BodyState.FromString(data)
+        rows.append([getattr(m, f) for f in BODY_FIELDS])
+    return np.asarray(rows, dtype=np.float64).reshape(-1, len(BODY_FIELDS))
+
+
+def decode_energy(payloads: Iterable[bytes]) -> np.ndarray:
+    """Energy payloads -> (n, 3) float64 (kinetic, potential, total)."""
+    rows = []
+    for data in payloads:
+        m = pb.Energy.FromString(data)
+        rows.append([m.kinetic, m.potential, m.total])
+    return np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+
+
+def decode_contacts(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
+    """Contact payloads -> one row per contact point."""
+    cols: dict[str, list[Any]] = defaultdict(list)
+    for t, data in zip(t_ns.tolist(), payloads, strict=True):
+        m = pb.Contact.FromString(data)
+        for i, p in enumerate(m.points):
+            cols["t_ns"].append(t)
+            cols["geom1"].append(m.geom1)
+            cols["geom2"].append(m.geom2)
+            cols["body1"].append(m.body1)
+            cols["body2"].append(m.body2)
+            cols["point"].append(i)
+            for f in POINT_FIELDS:
+                cols[f].append(getattr(p, f))
+    if not cols:
+        return _empty_contacts(run_id)
+    frame = pl.DataFrame(dict(cols)).with_columns(
+        pl.col("t_ns").cast(pl.Int64), pl.col("point").cast(pl.Int32)
+    )
+    return frame.select(
+        pl.lit(run_id).alias("run_id"),
+        "t_ns",
+        (pl.col("t_ns") / 1e9).alias("t_s"),
+        *frame.columns[1:],
+    )
+
+
+def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
+    """foxglove.Log payloads -> (run_id, t_ns, level, message)."""
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+
+    levels, messages = [], []
+    for data in payloads:
+        m = Log.FromString(data)
+        levels.append(Log.Level.Name(m.level))
+        messages.append(m.message)
+    return pl.DataFrame(
+        {"run_id": [run_id] * len(levels), "t_ns": t_ns, "level": levels, "message": messages},
+        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String},
+    )
+
+
+def _frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
+    frame = pl.from_numpy(values, schema=list(names), orient="row")
+    return frame.select(
+        pl.lit(run_id).alias("run_id"),
+        pl.Series("t_ns", t_ns, dtype=pl.Int64),
+        pl.Series("t_s", t_ns / 1e9, dtype=pl.Float64),
+        *names,
+    )
+
+
+def _empty(names: Sequence[str], run_id: str) -> pl.DataFrame:
+    return _frame(run_id, np.empty(0, np.int64), np.empty((0, len(names))), names)
+
+
+def _empty_contacts(run_id: str) -> pl.DataFrame:
+    schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
+    schema |= {k: pl.String for k in ("geom1", "geom2", "body1", "body2")}
+    schema["point"] = pl.Int32
+    schema |= {f: pl.Float64 for f in POINT_FIELDS}
+    return pl.DataFrame(schema=schema)

@@ -1,0 +1,1 @@
+"""Replay stage: logs and their analysis -> Rerun recordings (.rrd)."""

@@ -1,0 +1,192 @@
+"""Tests of the restitution -> MuJoCo contact-parameter translation (measured in MuJoCo)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+import time
+
+import mujoco
+import numpy as np
+import pytest
+
+from impactlab.record import restitution as R
+
+# Schwager-Poeschel column of the table in shared/notes/physics.md
+NOTES_TABLE = {0.02: 0.9398, 0.10: 0.7441, 0.30: 0.4510, 0.50: 0.2984, 0.80: 0.1798}
+TOL = R.RESTITUTION_TOLERANCE
+
+
+def _params(e: float, v: float, *, gravity: float, radius: float = 0.1) -> R.ContactParams:
+    """Calibrated parameters at the coarsest of a few timesteps the check accepts."""
+    for dt in (2e-5, 1e-5, 5e-6):
+        try:
+            return R.contact_params(
+                e, radius_m=radius, impact_speed_mps=v, timestep_s=dt, gravity_mps2=gravity
+            )
+        except R.ContactModelError:
+            continue
+    raise AssertionError(f"no timestep accepted for e={e}, v={v}")
+
+
+@pytest.mark.parametrize(("zeta", "expected"), NOTES_TABLE.items())
+def test_closed_form_matches_notes_and_inverts(zeta: float, expected: float) -> None:
+    assert R.restitution_closed_form(zeta) == pytest.approx(expected, abs=1e-3)
+    assert R.zeta_for_restitution(R.restitution_closed_form(zeta)) == pytest.approx(zeta, abs=1e-9)
+
+
+def test_closed_form_limits_and_floor() -> None:
+    assert R.restitution_closed_form(0.0) == 1.0
+    assert R.restitution_closed_form(1.0) == pytest.approx(math.exp(-2.0))
+    # continuous across the two underdamped branches and across critical damping
+    for z in (math.sqrt(0.5), 1.0):
+        assert R.restitution_closed_form(z - 1e-9) == pytest.approx(
+            R.restitution_closed_form(z + 1e-9), abs=1e-6
+        )
+    zs = np.linspace(0.0, 1.0, 201)
+    es = np.array([R.restitution_closed_form(z) for z in zs])
+    assert np.all(np.diff(es) < 0.0)  # monotone: the floor is the value at critical damping
+    assert es.min() == pytest.approx(R.RESTITUTION_FLOOR, abs=1e-12)
+    # the zero-gravity max penetration factor agrees with a fine integration
+    for z in (0.05, 0.5, 0.9):
+        h, y, u, ymax = 1e-5, 0.0, 1.0, 0.0
+        while u > 0.0:
+            u += h * (-y - 2.0 * z * u)
+            y += h * u
+            ymax = max(ymax, y)
+        assert R.max_penetration_factor(z) == pytest.approx(ymax, rel=1e-4)
+
+
+@pytest.mark.parametrize("bad", [0.1, R.RESTITUTION_FLOOR - 1e-3, 1.01, float("nan"), "x"])
+def test_unreachable_targets_raise_with_floor(bad: object) -> None:
+    with pytest.raises(R.ContactModelError, match=r"0\.1353"):
+        R.contact_params(bad, radius_m=0.1, impact_speed_mps=1.0, timestep_s=1e-5)  # type: ignore[arg-type]
+    assert issubclass(R.ContactModelError, ValueError)
+
+
+def test_table_is_up_to_date(capsys: pytest.CaptureFixture[str]) -> None:
+    assert R.main(["--check"]) == 0
+
+
+def test_emulation_matches_mj_step() -> None:
+    """The numpy emulation the table is built from reproduces MuJoCo step by step."""
+    p = R.contact_params(0.4, radius_m=0.05, impact_speed_mps=2.0, timestep_s=2e-5)
+    w0, v, dt = math.sqrt(p.stiffness), 2.0, p.timestep_s
+    phase = 0.37
+    model = mujoco.MjModel.from_xml_string(
+        R.ball_plane_mjcf(p, radius_m=0.05, mass_kg=3.0, gravity_mps2=9.81)
+    )
+    data = mujoco.MjData(model)
+    data.qpos[2] = 0.05 - phase * v * dt
+    data.qvel[2] = -v
+    while True:
+        mujoco.mj_step(model, data)
+        if data.qvel[2] > 0.0 and not np.any(data.efc_force[: data.nefc] > 0.0):
+            break
+    e_emul, _, _ = R._emulate(np.array([p.zeta]), w0 * dt, np.array([phase]), 9.81 / (w0 * v))
+    # MuJoCo's value is one more free-flight step past the last force step
+    assert data.qvel[2] / v + 9.81 * dt / v == pytest.approx(e_emul[0, 0], abs=1e-12)
+
+
+GRID = list(itertools.product([0.2, 0.5, 0.9, 0.99], [1.0, 10.0], [0.1, 10.0]))
+
+
+@pytest.mark.parametrize(("e", "v", "m"), GRID)
+def test_grid_ball_plane_with_gravity(e: float, v: float, m: float) -> None:
+    p = _params(e, v, gravity=9.81)
+    for gap_steps in (2.13, 2.71):  # two different contact-onset phases
+        meas = R.measure_ball_plane(
+            p, radius_m=0.1, mass_kg=m, impact_speed_mps=v, gap_m=gap_steps * v * p.timestep_s
+        )
+        assert abs(meas.restitution - e) <= TOL, (meas, p)
+        assert meas.max_penetration_m <= 0.02 * 0.1
+        assert meas.max_penetration_m <= p.max_penetration_m * 1.01
+
+
+@pytest.mark.parametrize(("e", "v", "m"), GRID)
+def test_grid_ball_ball_zero_gravity(e: float, v: float, m: float) -> None:
+    p = _params(e, v, gravity=0.0, radius=0.05)
+    meas = R.measure_ball_ball(p, radius_m=(0.05, 0.2), mass_kg=(m, 1.0), velocity_mps=(v, 0.0))
+    assert abs(meas.restitution - e) <= TOL, (meas, p)
+    assert meas.max_penetration_m <= 0.02 * 0.05
+
+
+def test_collision_velocities_and_momentum() -> None:
+    m1, m2, v1, v2, e = 0.3, 1.2, 2.0, -1.0, 0.7
+    p = R.contact_params(e, radius_m=0.1, impact_speed_mps=v1 - v2, timestep_s=1e-5, gravity_mps2=0)
+    meas = R.measure_ball_ball(p, radius_m=(0.1, 0.1), mass_kg=(m1, m2), velocity_mps=(v1, v2))
+    v1p = (m1 * v1 + m2 * v2 + m2 * e * (v2 - v1)) / (m1 + m2)
+    v2p = (m1 * v1 + m2 * v2 + m1 * e * (v1 - v2)) / (m1 + m2)
+    assert meas.v_after_mps[0] == pytest.approx(v1p, rel=5e-3)
+    assert meas.v_after_mps[1] == pytest.approx(v2p, rel=5e-3)
+    p_in = m1 * meas.v_before_mps[0] + m2 * meas.v_before_mps[1]
+    p_out = m1 * meas.v_after_mps[0] + m2 * meas.v_after_mps[1]
+    assert abs(p_out - p_in) <= 1e-9 * (m1 * abs(v1) + m2 * abs(v2))
+
+
+def test_low_speed_gravity_dependence() -> None:
+    """A soft contact designed at 1 m/s: at 0.1 / 0.3 m/s gravity lowers e as predicted."""
+    e = 0.5
+    p = R.contact_params(e, radius_m=0.1, impact_speed_mps=1.0, timestep_s=2e-5, gravity_mps2=0)
+    for v, min_shift in ((0.1, 0.05), (0.3, 0.01)):
+        pred = R.restitution_with_gravity(p, impact_speed_mps=v, gravity_mps2=9.81)
+        pred_dt = R.restitution_with_gravity(
+            p, impact_speed_mps=v, gravity_mps2=9.81, timestep_s=p.timestep_s
+        )
+        dashpot = R.restitution_with_gravity(
+            p, impact_speed_mps=v, gravity_mps2=9.81, contact_law="dashpot"
+        )
+        meas = R.measure_ball_plane(p, radius_m=0.1, mass_kg=1.0, impact_speed_mps=v)
+        assert meas.restitution == pytest.approx(pred_dt, abs=0.004)
+        assert meas.restitution == pytest.approx(pred, abs=0.006)
+        assert e - meas.restitution > min_shift
+        # the physical dashpot (arXiv 2204.10917) loses more: MuJoCo cancels gravity in contact
+        assert dashpot < pred - 0.5 * min_shift
+    assert R.restitution_with_gravity(p, impact_speed_mps=1.0, gravity_mps2=0.0) == pytest.approx(
+        e, abs=0.002
+    )
+
+
+def test_coarse_timestep_raises_with_numbers_and_opt_out_warns() -> None:
+    with pytest.raises(R.ContactModelError, match=r"steps per contact.*timestep <= ") as info:
+        R.contact_params(0.5, radius_m=0.1, impact_speed_mps=10.0, timestep_s=1e-4)
+    dt_max = float(info.value.args[0].split("timestep <= ")[1].split(" s")[0])
+    p = R.contact_params(0.5, radius_m=0.1, impact_speed_mps=10.0, timestep_s=0.98 * dt_max)
+    assert R.check_timestep(p, 0.98 * dt_max) >= 50
+    with pytest.warns(UserWarning, match="steps per contact"):
+        R.contact_params(0.5, radius_m=0.1, impact_speed_mps=10.0, timestep_s=1e-4, allow_coarse=True)
+    # parameters calibrated for one timestep are rejected for a very different one
+    p = R.contact_params(0.3, radius_m=0.1, impact_speed_mps=1.0, timestep_s=2e-5)
+    with pytest.raises(R.ContactModelError, match="calibrated for timestep"):
+        R.check_timestep(p, 1e-6)
+
+
+def test_explicit_duration_and_penetration() -> None:
+    p = R.contact_params(0.8, radius_m=0.1, impact_speed_mps=2.0, timestep_s=1e-5, duration_s=2e-3)
+    assert p.duration_s == pytest.approx(2e-3, rel=1e-6)
+    q = R.contact_params(
+        0.8, radius_m=0.1, impact_speed_mps=2.0, timestep_s=1e-5, max_penetration_m=1e-3
+    )
+    assert q.max_penetration_m <= 1e-3
+    meas = R.measure_ball_plane(q, radius_m=0.1, mass_kg=1.0, impact_speed_mps=2.0)
+    assert meas.max_penetration_m <= 1e-3
+    assert abs(meas.restitution - 0.8) <= TOL
+    with pytest.raises(R.ContactModelError, match="not both"):
+        R.contact_params(
+            0.8, radius_m=0.1, impact_speed_mps=2.0, timestep_s=1e-5,
+            duration_s=1e-3, max_penetration_m=1e-3,
+        )  # fmt: skip
+
+
+def test_contact_params_is_fast_and_runs_no_simulation(monkeypatch: pytest.MonkeyPatch) -> None:
+    def forbidden(*args: object) -> None:
+        raise AssertionError("contact_params must not simulate")
+
+    monkeypatch.setattr(mujoco, "mj_step", forbidden)
+    monkeypatch.setattr(R, "_emulate", forbidden)
+    R.contact_params(0.7, radius_m=0.1, impact_speed_mps=3.0, timestep_s=1e-5)  # warm the cache
+    n = 20
+    t0 = time.perf_counter()
+    for i in range(n):
+        R.contact_params(0.2 + 0.04 * i, radius_m=0.1, impact_speed_mps=3.0, timestep_s=1e-5)
+    print(f"contact_params: {(time.perf_counter() - t0) / n * 1e3:.2f} ms per call")
