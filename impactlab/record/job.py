@@ -17,6 +17,7 @@ from typing import Any
 from tqdm import tqdm
 
 from impactlab.errors import SpecError
+from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
 from impactlab.record.simulate import Trajectory, simulate
 from impactlab.record.spec import RunSpec, spec_hash
@@ -80,6 +81,7 @@ def plan(inputs: Sequence[Path], *, overrides: Sequence[str] = (), duration: flo
 
 
 def _plan_spec(run: RunSpec) -> PlannedRun:
+    calibrated_pairs(run)  # contact targets fail now, before any run is simulated
     digest = run.spec_hash
     info = RunInfo(
         run_id=run_name(run.experiment, run.sweep_values, digest),

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
+from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.spec import RunSpec
 
 SENSOR_PREFIX = "impactlab:"
@@ -116,6 +117,16 @@ def mjcf_from_spec(run: RunSpec) -> str:
             "    </body>",
         ]
     lines.append("  </worldbody>")
+    pairs = calibrated_pairs(run)
+    if pairs:
+        lines.append("  <contact>")
+        for pair in pairs:
+            attrs = pair.params.mjcf_attributes()
+            lines.append(
+                f'    <pair geom1="{pair.geom1}" geom2="{pair.geom2}" condim="1" '
+                f'solref="{attrs["solref"]}" solimp="{attrs["solimp"]}"/>'
+            )
+        lines.append("  </contact>")
     qpos = " ".join(_fmt((*b.pos, 1.0, 0.0, 0.0, 0.0)) for b in run.bodies)
     qvel = " ".join(_fmt((*b.vel, *b.angvel)) for b in run.bodies)
     lines += ["  <keyframe>", f'    <key name="initial" qpos="{qpos}" qvel="{qvel}"/>']

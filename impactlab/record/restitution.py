@@ -588,8 +588,8 @@ def restitution_with_gravity(
     Laws (y = signed distance, negative in contact; k, b from params):
 
     - ``"mujoco"``: what MuJoCo does. The constraint targets y'' = -k y - b y' and cancels
-      gravity while it pushes; it lets go when -(k y + b y') < -g. Gravity shifts e only to
-      second order in g / (w0 v).
+      gravity while it pushes; it lets go when -(k y + b y') < -g or at y = 0. Gravity shifts
+      e only to second order in g / (w0 v) until y = 0 comes first (low speeds).
     - ``"dashpot"``: the physical dashpot on a rigid floor (arXiv 2204.10917):
       y'' = -k y - b y' - g, released when the force -(k y + b y') reaches 0; first order.
 
@@ -629,8 +629,8 @@ def restitution_with_gravity(
 def _release_speed(zeta: float, z0: float, threshold: float) -> float:
     """Release speed of z'' = -z - 2 zeta z' (w0 = v_in = 1) from (z0, -1).
 
-    Released at the first t > 0 with z + 2 zeta z' >= threshold; returns max(z', 0) there
-    (0 if the contact never releases within 20 / w0).
+    Released at the first t > 0 with z + 2 zeta z' >= threshold or z >= z0 (back at the
+    surface); returns max(z', 0) there (0 if the contact never releases within 20 / w0).
     """
     lam = np.roots([1.0, 2.0 * zeta, 1.0]).astype(complex)
     if abs(lam[0] - lam[1]) < 1e-9:  # critical damping: perturb
@@ -641,7 +641,8 @@ def _release_speed(zeta: float, z0: float, threshold: float) -> float:
     ex = np.exp(np.outer(t, lam))
     z = (ex @ c).real
     zd = (ex @ (c * lam)).real
-    s = z + 2.0 * zeta * zd - threshold  # >= 0: the floor no longer pushes
+    # released when the floor no longer pushes or the ball is back at the surface (y = z - z0)
+    s = np.maximum(z + 2.0 * zeta * zd - threshold, z - z0)
     idx = np.flatnonzero(s[1:] >= 0.0)
     if idx.size == 0:
         return 0.0

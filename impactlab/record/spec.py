@@ -38,6 +38,12 @@ DEFAULTS: dict[str, Any] = {
         "solref": [0.02, 1.0],
         "solimp": [0.9, 0.95, 0.001, 0.5, 2.0],
         "friction": [1.0, 0.005, 0.0001],
+        "restitution": None,
+        "impact_speed": None,
+        "duration": None,
+        "max_penetration": None,
+        "allow_coarse_timestep": False,
+        "pairs": {},
     },
     "plane": {"enabled": True, "size": [5.0, 5.0, 0.1], "rgba": [0.8, 0.8, 0.8, 1.0]},
     "stop": {
@@ -75,12 +81,24 @@ class Body:
 
 @dataclass(frozen=True)
 class Contact:
-    """MuJoCo contact parameters applied to every geom (the handout's `<default><geom>`)."""
+    """MuJoCo contact parameters applied to every geom (the handout's `<default><geom>`).
+
+    When `restitution` is set (for every pair, or per pair in `pair_restitution`, keyed by
+    the sorted geom names "a/b"), those pairs get calibrated parameters instead
+    (`impactlab.record.restitution`): design impact speed in m/s (derived from the initial
+    state when None), contact duration in s or max penetration in m (both optional).
+    """
 
     condim: int
     solref: tuple[float, ...]
     solimp: tuple[float, ...]
     friction: tuple[float, float, float]
+    restitution: float | None = None
+    impact_speed: float | None = None
+    duration: float | None = None
+    max_penetration: float | None = None
+    allow_coarse_timestep: bool = False
+    pair_restitution: Mapping[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -242,7 +260,19 @@ def validate(doc: Mapping[str, Any], *, source: str, sweep_values: Mapping[str, 
         solref=solref,
         solimp=solimp,
         friction=v.vector(con["friction"], "contact.friction", 3, min_value=0.0),
+        restitution=v.optional(con["restitution"], "contact.restitution"),
+        impact_speed=v.optional(con["impact_speed"], "contact.impact_speed", positive=True),
+        duration=v.optional(con["duration"], "contact.duration", positive=True),
+        max_penetration=v.optional(
+            con["max_penetration"], "contact.max_penetration", positive=True
+        ),
+        allow_coarse_timestep=v.boolean(
+            con["allow_coarse_timestep"], "contact.allow_coarse_timestep"
+        ),
+        pair_restitution=_pair_restitution(v, con["pairs"]),
     )
+    if contact.duration is not None and contact.max_penetration is not None:
+        raise SpecError(source, "contact.duration", "give duration or max_penetration, not both")
     pl = doc["plane"]
     plane = Plane(
         enabled=v.boolean(pl["enabled"], "plane.enabled"),
@@ -280,6 +310,22 @@ def validate(doc: Mapping[str, Any], *, source: str, sweep_values: Mapping[str, 
     )
 
 
+def _pair_restitution(v: _Validator, pairs: Any) -> dict[str, float]:
+    """`[contact.pairs."a/b"] restitution = e` tables, keyed by sorted geom names."""
+    if not isinstance(pairs, Mapping):
+        raise v.fail("contact.pairs", 'must be a table of "geom1/geom2" = { restitution = e }')
+    out = {}
+    for key, table in pairs.items():
+        field = f"contact.pairs.{key}"
+        names = key.split("/")
+        if len(names) != 2 or not all(names):
+            raise v.fail(field, 'pair keys are two geom names joined by /, e.g. "ball/plane"')
+        if not isinstance(table, Mapping) or set(table) != {"restitution"}:
+            raise v.fail(field, "must be a table with exactly one key, restitution")
+        out["/".join(sorted(names))] = v.number(table["restitution"], f"{field}.restitution")
+    return out
+
+
 def _body(v: _Validator, name: str, body: Mapping[str, Any], index: int) -> Body:
     field = f"bodies.{name}"
     rgba = body["rgba"] if body["rgba"] is not None else DEFAULT_RGBA[index % len(DEFAULT_RGBA)]
@@ -298,12 +344,12 @@ def _check_stop(
     stop: Stop, plane: Plane, bodies: tuple[Body, ...], options: Options, source: str
 ) -> None:
     """Reject stop rules that contradict the model or each other."""
+    if stop.bounces is not None and stop.separation is not None:
+        raise SpecError(source, "stop", "give either bounces (a drop) or separation (a collision)")
     if stop.bounces is not None and not plane.enabled:
         raise SpecError(
             source, "stop.bounces", "counts bounces on the plane, but plane.enabled is false"
         )
-    if stop.bounces is not None and stop.separation is not None:
-        raise SpecError(source, "stop", "give either bounces (a drop) or separation (a collision)")
     if stop.separation is not None and len(bodies) < 2:
         raise SpecError(source, "stop.separation", "a collision needs at least two bodies")
     if stop.at_rest and stop.rest_time >= stop.max_time:
@@ -346,6 +392,11 @@ class _Validator:
         if min_exclusive is not None and value <= min_exclusive:
             raise self.fail(field, f"must be > {min_exclusive:g}, got {value!r}")
         return float(value)
+
+    def optional(self, value: Any, field: str, *, positive: bool = False) -> float | None:
+        if value is None:
+            return None
+        return self.number(value, field, min_exclusive=0.0 if positive else None)
 
     def integer(self, value: Any, field: str, min_value: int | None = None) -> int:
         if isinstance(value, bool) or not isinstance(value, int):

@@ -1,0 +1,8 @@
+"""The committed protobuf bindings are what `just schemas` generates from schemas/*.proto."""
+
+from impactlab.proto.generate import stale_files
+
+
+def test_generated_bindings_are_fresh():
+    stale = stale_files()
+    assert not stale, f"regenerate with `just schemas`: stale {stale}"
