@@ -8,14 +8,13 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import mcap
 import numpy as np
-from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
@@ -23,13 +22,20 @@ from google.protobuf.message import Message
 from mcap.writer import Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from impactlab import __version__, logformat
+from impactlab import __version__, logformat, messages
 from impactlab.proto import impactlab_pb2 as pb
-from impactlab.record.model import CONTACT_SLOT_SIZE, InstrumentedModel
+from impactlab.record.chunks import Block, ChunkWriter
+from impactlab.record.model import (
+    BODY_STATE_SIZE,
+    CONTACT_SLOT_SIZE,
+    ContactChannel,
+    InstrumentedModel,
+)
 from impactlab.record.scene import scene_update
 from impactlab.record.simulate import Trajectory
 
 PARTIAL_SUFFIX = ".partial"
+CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
 
 
 @dataclass(frozen=True)
@@ -82,42 +88,56 @@ class _Channels:
 
 
 def _write(stream: Any, inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> None:
-    writer = Writer(stream)
-    writer.start(
+    out = ChunkWriter(
+        stream,
         profile=logformat.PROFILE,
         library=f"impactlab {__version__}; mcap-python {mcap.__version__}",
     )
+    writer = out.writer
     writer.add_metadata(logformat.RUN_METADATA, run_metadata(inst, info))
     channels = _Channels(writer)
-    t_ns = traj.t_ns
-    rows = traj.sensordata
-
-    def emit(channel: int, times: np.ndarray, payloads: Sequence[bytes]) -> None:
-        for t, data in zip(times.tolist(), payloads, strict=True):
-            writer.add_message(channel, log_time=t, data=data, publish_time=t)
-
+    t_ns, rows = traj.t_ns, traj.sensordata
     scene = channels.add(logformat.SCENE_TOPIC, SceneUpdate)
-    emit(scene, t_ns[:1], [scene_update(inst).SerializeToString()])
-    for body in inst.bodies:
-        topic = logformat.BODY_STATE_TOPIC.format(body=body.name)
-        ch = channels.add(topic, pb.BodyState, {"body": body.name})
-        emit(ch, t_ns, encode_body_states(rows[:, body.adr : body.adr + 13]))
+    bodies = [
+        (
+            channels.add(
+                logformat.BODY_STATE_TOPIC.format(body=b.name), pb.BodyState, {"body": b.name}
+            ),
+            b,
+        )
+        for b in inst.bodies
+    ]
+    pairs = []
     for pair in inst.contacts:
         meta = {"geom1": pair.geom1, "geom2": pair.geom2, "body1": pair.body1, "body2": pair.body2}
-        ch = channels.add(pair.topic, pb.Contact, meta)
-        slots = rows[:, pair.adr : pair.adr + pair.num * CONTACT_SLOT_SIZE]
-        found = slots[:, 0] > 0
-        emit(ch, t_ns[found], encode_contacts(pair_names=meta, slots=slots[found], num=pair.num))
-    ch = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
-    energy = rows[:, inst.energy_adr : inst.energy_adr + 2]
-    emit(ch, t_ns, encode_energy(energy))
-    ch = channels.add(logformat.TF_TOPIC, FrameTransforms)
-    emit(ch, t_ns, encode_transforms(inst, rows, t_ns))
-    ch = channels.add(logformat.EVENTS_TOPIC, Log)
-    end = t_ns[-1:] if t_ns.size else np.zeros(1, dtype=np.int64)
-    events = [_log_message(end[0], Log.INFO, f"{traj.verdict.outcome}: {traj.verdict.reason}")]
-    events += [_log_message(end[0], Log.WARNING, w) for w in traj.warnings]
-    emit(ch, np.repeat(end, len(events)), events)
+        pairs.append((channels.add(pair.topic, pb.Contact, meta), pair))
+    energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
+    tf = channels.add(logformat.TF_TOPIC, FrameTransforms)
+    events = channels.add(logformat.EVENTS_TOPIC, Log)
+    tf_layout = messages.transforms(tuple(b.name for b in inst.bodies))
+    row_bytes = (
+        len(bodies) * messages.body_state().size + messages.energy().size + tf_layout.size + 200
+    )
+    per_chunk = max(1, CHUNK_BYTES // row_bytes)
+    for lo in range(0, max(len(t_ns), 1), per_chunk):
+        t, r = t_ns[lo : lo + per_chunk], rows[lo : lo + per_chunk]
+        blocks = [Block(scene, t[:1], [scene_update(inst).SerializeToString()])] if lo == 0 else []
+        for channel_id, body in bodies:
+            values = r[:, body.adr : body.adr + BODY_STATE_SIZE]
+            blocks.append(Block(channel_id, t, messages.body_state().encode(values)))
+        for channel_id, pair in pairs:
+            blocks += contact_blocks(channel_id, pair, t, r)
+        e = r[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
+        energy_values = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
+        blocks.append(Block(energy, t, messages.energy().encode(energy_values)))
+        poses = np.concatenate([r[:, b.adr : b.adr + 7] for _, b in bodies], axis=1)
+        blocks.append(Block(tf, t, tf_layout.encode(poses)))
+        out.write_chunk(blocks)
+    end = int(t_ns[-1]) if t_ns.size else 0
+    texts = [(Log.INFO, f"{traj.verdict.outcome}: {traj.verdict.reason}")]
+    texts += [(Log.WARNING, w) for w in traj.warnings]
+    payloads = [_log_message(end, level, text) for level, text in texts]
+    out.write_chunk([Block(events, np.full(len(payloads), end, dtype=np.int64), payloads)])
     writer.add_attachment(
         create_time=0,
         log_time=0,
@@ -126,7 +146,29 @@ def _write(stream: Any, inst: InstrumentedModel, info: RunInfo, traj: Trajectory
         data=inst.xml.encode(),
     )
     writer.add_metadata(logformat.OUTCOME_METADATA, outcome_metadata(traj))
-    writer.finish()
+    out.finish()
+
+
+def contact_blocks(channel_id: int, pair: ContactChannel, t: np.ndarray, rows: np.ndarray):
+    """Blocks of Contact payloads for the rows where the pair touches, one per point count."""
+    slots = rows[:, pair.adr : pair.adr + pair.num * CONTACT_SLOT_SIZE]
+    slots = slots.reshape(rows.shape[0], pair.num, CONTACT_SLOT_SIZE)
+    count = np.minimum(slots[:, 0, 0], pair.num).astype(np.int64)
+    force, dist, pos = slots[..., 1:4], slots[..., 4], slots[..., 5:8]
+    normal, t1 = slots[..., 8:11], slots[..., 11:14]
+    t2 = np.cross(normal, t1)
+    world = force[..., 0:1] * normal + force[..., 1:2] * t1 + force[..., 2:3] * t2
+    points = np.concatenate(
+        [pos, normal, -dist[..., None], force, world], axis=2
+    )  # (n, num, 13) in POINT_FIELDS order
+    blocks = []
+    for k in range(1, pair.num + 1):
+        mine = count == k
+        if mine.any():
+            layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, k)
+            values = points[mine, :k].reshape(int(mine.sum()), -1)
+            blocks.append(Block(channel_id, t[mine], layout.encode(values)))
+    return blocks
 
 
 def run_metadata(inst: InstrumentedModel, info: RunInfo) -> dict[str, str]:
@@ -181,68 +223,3 @@ def _log_message(t_ns: int, level: int, text: str) -> bytes:
     msg = Log(level=level, message=text, name="impactlab")
     msg.timestamp.FromNanoseconds(int(t_ns))
     return msg.SerializeToString()
-
-
-def encode_body_states(values: np.ndarray) -> list[bytes]:
-    """BodyState payloads from rows of (pos 3, quat wxyz 4, linvel 3, angvel 3), (n, 13)."""
-    names = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
-    return [
-        pb.BodyState(**dict(zip(names, row, strict=True))).SerializeToString()
-        for row in values.tolist()
-    ]
-
-
-def encode_energy(values: np.ndarray) -> list[bytes]:
-    """Energy payloads from rows of (potential, kinetic) in J, (n, 2)."""
-    return [
-        pb.Energy(kinetic=k, potential=p, total=p + k).SerializeToString()
-        for p, k in values.tolist()
-    ]
-
-
-def encode_contacts(*, pair_names: Mapping[str, str], slots: np.ndarray, num: int) -> list[bytes]:
-    """Contact payloads from contact-sensor slots, (n, num * 14) with found > 0 in slot 0."""
-    out = []
-    for row in slots.reshape(slots.shape[0], num, CONTACT_SLOT_SIZE):
-        count = min(int(row[0, 0]), num)
-        points = []
-        for slot in row[:count]:
-            force, dist, pos, normal, t1 = slot[1:4], slot[4], slot[5:8], slot[8:11], slot[11:14]
-            t2 = np.cross(normal, t1)
-            world = force[0] * normal + force[1] * t1 + force[2] * t2
-            points.append(
-                pb.ContactPoint(
-                    x=pos[0],
-                    y=pos[1],
-                    z=pos[2],
-                    nx=normal[0],
-                    ny=normal[1],
-                    nz=normal[2],
-                    penetration=-dist,
-                    normal_force=force[0],
-                    friction_force_t1=force[1],
-                    friction_force_t2=force[2],
-                    fx=world[0],
-                    fy=world[1],
-                    fz=world[2],
-                )
-            )
-        out.append(pb.Contact(**pair_names, points=points).SerializeToString())
-    return out
-
-
-def encode_transforms(inst: InstrumentedModel, rows: np.ndarray, t_ns: np.ndarray) -> list[bytes]:
-    """foxglove.FrameTransforms payloads (world -> each free body) for every row."""
-    out = []
-    for i, t in enumerate(t_ns.tolist()):
-        msg = FrameTransforms()
-        for body in inst.bodies:
-            pos, quat = rows[i, body.adr : body.adr + 3], rows[i, body.adr + 3 : body.adr + 7]
-            tf: FrameTransform = msg.transforms.add()
-            tf.timestamp.FromNanoseconds(t)
-            tf.parent_frame_id = logformat.WORLD_FRAME
-            tf.child_frame_id = body.name
-            tf.translation.x, tf.translation.y, tf.translation.z = pos.tolist()
-            tf.rotation.w, tf.rotation.x, tf.rotation.y, tf.rotation.z = quat.tolist()
-        out.append(msg.SerializeToString())
-    return out
