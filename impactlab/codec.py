@@ -73,8 +73,10 @@ class Template:
         """Doubles from payloads: (n, size) uint8 -> (n, k) float64; None if any differs."""
         if payloads.ndim != 2 or payloads.shape[1] != self.size:
             return None
-        if not (payloads[:, self.fixed] == self.template[self.fixed]).all():
+        fixed = np.flatnonzero(self.fixed)
+        if not (payloads[:, fixed] == self.template[fixed]).all():
             return None
-        cols = self.slots[:, None] + np.arange(8)
-        raw = np.ascontiguousarray(payloads[:, cols]).reshape(payloads.shape[0], -1)
-        return raw.view("<f8")
+        out = np.empty((payloads.shape[0], self.slots.size), dtype=np.float64)
+        for j, at in enumerate(self.slots.tolist()):
+            out[:, j] = np.ascontiguousarray(payloads[:, at : at + 8]).view("<f8").ravel()
+        return out

@@ -2,32 +2,32 @@
 
 Each channel family becomes one frame with one row per message (per contact point for
 contacts), with the run's id and the time (`t_ns`, integer ns; `t_s`, float s) as columns.
-The log is read as a stream of records, so a truncated or damaged file still yields every
-complete message before the damage; such a run is marked `partial`.
+Records are gathered as arrays (`records.read_mcap`) and the fixed-layout messages decoded
+as whole arrays (`codec.Template`), with the protobuf library as the fallback for any
+other layout. A truncated or damaged file still yields every complete message before the
+damage; such a run is marked `partial`.
 """
 
 from __future__ import annotations
 
 import json
 from collections import defaultdict
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import polars as pl
-from mcap.exceptions import McapError
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 
-from impactlab import logformat
+from impactlab import logformat, messages
+from impactlab.analyze.records import ChannelData, read_mcap
+from impactlab.codec import Template
 from impactlab.errors import LogError
+from impactlab.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 
-BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
-POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields)
-ENERGY_FIELDS = ("kinetic", "potential", "total")
+UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
 
 
 @dataclass(frozen=True)
@@ -129,23 +129,25 @@ def find_logs(inputs: Sequence[str | Path]) -> list[Path]:
     return list(dict.fromkeys(out))
 
 
-def load_log(path: Path) -> RunLog:
+def load_log(path: str | Path) -> RunLog:
     """Decode one log into frames.
 
     Raises:
         LogError: the file does not exist, is not MCAP, or holds no impactlab channel.
     """
+    path = Path(path)
     try:
-        raw = _read_records(path)
+        raw = read_mcap(path, skip_topics=UNREAD_TOPICS)
     except FileNotFoundError:
         raise LogError(str(path), "file not found") from None
     except IsADirectoryError:
         raise LogError(str(path), "is a folder, not a log") from None
     except OSError as exc:
         raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    if raw.not_mcap:
-        raise LogError(str(path), "not an MCAP file (bad magic bytes)")
-    if logformat.RUN_METADATA not in raw.metadata and not raw.payloads:
+    except ValueError as exc:
+        raise LogError(str(path), str(exc)) from None
+    has_messages = any(c.pieces for c in raw.channels.values())
+    if logformat.RUN_METADATA not in raw.metadata and not has_messages:
         reason = raw.problems[0] if raw.problems else "no impactlab channels or metadata"
         raise LogError(str(path), f"not an impactlab log ({reason})")
     meta = dict(raw.metadata.get(logformat.RUN_METADATA, {}))
@@ -164,16 +166,18 @@ def load_log(path: Path) -> RunLog:
         schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
     )
     known = 0
-    for (topic, schema), (times, payloads) in raw.payloads.items():
-        t = np.asarray(times, dtype=np.int64)
+    for channel in raw.channels.values():
+        schema, topic = channel.schema, channel.topic
         if schema == logformat.BODY_STATE_SCHEMA:
-            body = topic.split("/")[2]
-            bodies[body] = _frame(run_id, t, decode_body_states(payloads), BODY_FIELDS)
+            t, values = decode_fixed(channel, messages.body_state(), _body_state_values)
+            bodies[topic.split("/")[2]] = _frame(run_id, t, values, BODY_FIELDS)
         elif schema == logformat.CONTACT_SCHEMA:
-            contact_frames.append(decode_contacts(run_id, t, payloads))
+            contact_frames.append(decode_contacts(run_id, channel))
         elif schema == logformat.ENERGY_SCHEMA:
-            energy = _frame(run_id, t, decode_energy(payloads), ENERGY_FIELDS)
+            t, values = decode_fixed(channel, messages.energy(), _energy_values)
+            energy = _frame(run_id, t, values, ENERGY_FIELDS)
         elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
+            t, payloads = _loose(channel)
             events = decode_events(run_id, t, payloads)
         else:
             continue
@@ -198,67 +202,91 @@ def load_log(path: Path) -> RunLog:
     )
 
 
-@dataclass
-class _RawLog:
-    metadata: dict[str, dict[str, str]]
-    payloads: dict[tuple[str, str], tuple[list[int], list[bytes]]]
-    problems: list[str]
-    not_mcap: bool = False
+def decode_fixed(
+    channel: ChannelData, layout: Template, fallback: Callable[[bytes], list[float]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """A channel's times (n,) and values (n, k), sorted by time.
+
+    Pieces in the template's layout are decoded as arrays; anything else goes through the
+    protobuf library (`fallback` turns one payload into its values).
+    """
+    times, values = [], []
+    for t, data in channel.pieces:
+        decoded = layout.decode(data) if isinstance(data, np.ndarray) else None
+        if decoded is None:
+            rows = data if isinstance(data, list) else [bytes(r) for r in data]
+            decoded = np.asarray([fallback(r) for r in rows], dtype=np.float64)
+        times.append(t)
+        values.append(decoded.reshape(len(t), -1))
+    if not times:
+        return np.empty(0, np.int64), np.empty((0, len(layout.slots)))
+    t_all, v_all = np.concatenate(times), np.concatenate(values)
+    if (np.diff(t_all) >= 0).all():
+        return t_all, v_all
+    order = np.argsort(t_all, kind="stable")
+    return t_all[order], v_all[order]
 
 
-def _read_records(path: Path) -> _RawLog:
-    """Every complete record of the file, in order; damage stops the read and is reported."""
-    metadata: dict[str, dict[str, str]] = {}
-    payloads: dict[tuple[str, str], tuple[list[int], list[bytes]]] = defaultdict(lambda: ([], []))
-    schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, str]] = {}
-    problems: list[str] = []
-    with open(path, "rb") as stream:
-        head = stream.read(8)
-        if head != b"\x89MCAP0\r\n":
-            return _RawLog({}, {}, [], not_mcap=True)
-        stream.seek(0)
-        try:
-            for record in StreamReader(stream, skip_magic=False, validate_crcs=True).records:
-                if isinstance(record, Message):
-                    key = channels.get(record.channel_id)
-                    if key is not None:
-                        times, datas = payloads[key]
-                        times.append(record.log_time)
-                        datas.append(record.data)
-                elif isinstance(record, Schema):
-                    schemas[record.id] = record.name
-                elif isinstance(record, Channel):
-                    channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
-                elif isinstance(record, Metadata):
-                    metadata[record.name] = dict(record.metadata)
-        except (McapError, EOFError, ValueError, KeyError, OSError, MemoryError) as exc:
-            problems.append(f"damaged after the last complete record ({type(exc).__name__}: {exc})")
-        except Exception as exc:  # zstd and lz4 raise their own error types on corrupt chunks
-            problems.append(f"damaged chunk ({type(exc).__name__}: {exc})")
-    return _RawLog(metadata, dict(payloads), problems)
+def _body_state_values(data: bytes) -> list[float]:
+    m = pb.BodyState.FromString(data)
+    return [getattr(m, f) for f in BODY_FIELDS]
 
 
-def decode_body_states(payloads: Iterable[bytes]) -> np.ndarray:
-    """BodyState payloads -> (n, 13) float64 in BODY_FIELDS order."""
-    rows = []
-    for data in payloads:
-        m = pb.BodyState.FromString(data)
-        rows.append([getattr(m, f) for f in BODY_FIELDS])
-    return np.asarray(rows, dtype=np.float64).reshape(-1, len(BODY_FIELDS))
+def _energy_values(data: bytes) -> list[float]:
+    m = pb.Energy.FromString(data)
+    return [m.kinetic, m.potential, m.total]
 
 
-def decode_energy(payloads: Iterable[bytes]) -> np.ndarray:
-    """Energy payloads -> (n, 3) float64 (kinetic, potential, total)."""
-    rows = []
-    for data in payloads:
-        m = pb.Energy.FromString(data)
-        rows.append([m.kinetic, m.potential, m.total])
-    return np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+def _loose(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
+    """A channel's messages as (times, payload bytes), sorted by time."""
+    times, payloads = [], []
+    for t, data in channel.pieces:
+        times += t.tolist()
+        payloads += data if isinstance(data, list) else [bytes(r) for r in data]
+    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
+    return np.asarray(times, dtype=np.int64)[order], [payloads[i] for i in order]
 
 
-def decode_contacts(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
-    """Contact payloads -> one row per contact point."""
+def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
+    """A Contact channel -> one row per contact point."""
+    names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
+    frames = []
+    for t, data in channel.pieces:
+        values = None
+        if isinstance(data, np.ndarray) and all(names.values()):
+            per_point = len(POINT_FIELDS)
+            for k in range(1, 9):
+                layout = messages.contact(*names.values(), k)
+                if layout.size == data.shape[1]:
+                    values = layout.decode(data)
+                    break
+        if values is not None:
+            k = values.shape[1] // per_point
+            points = values.reshape(len(t), k, per_point)
+            frames.append(_contact_frame(run_id, t, names, points))
+        else:
+            rows = data if isinstance(data, list) else [bytes(r) for r in data]
+            frames.append(_contact_frame_slow(run_id, t, rows))
+    if not frames:
+        return _empty_contacts(run_id)
+    return pl.concat(frames).sort(["t_ns", "point"])
+
+
+def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
+    n, k, _ = points.shape
+    frame = pl.from_numpy(points.reshape(n * k, -1), schema=list(POINT_FIELDS), orient="row")
+    t_rep = np.repeat(t, k)
+    return frame.select(
+        pl.lit(run_id).alias("run_id"),
+        pl.Series("t_ns", t_rep, dtype=pl.Int64),
+        pl.Series("t_s", t_rep / 1e9, dtype=pl.Float64),
+        *(pl.lit(v, dtype=pl.String).alias(key) for key, v in names.items()),
+        pl.Series("point", np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32),
+        *POINT_FIELDS,
+    )
+
+
+def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]):
     cols: dict[str, list[Any]] = defaultdict(list)
     for t, data in zip(t_ns.tolist(), payloads, strict=True):
         m = pb.Contact.FromString(data)
