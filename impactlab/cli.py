@@ -49,6 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
     info.add_argument("logs", nargs="+", type=Path, metavar="LOG")
     info.set_defaults(func=_cmd_info)
+    from impactlab.replay.command import register as register_replay
+    register_replay(sub)
+    from impactlab.analyze.command import register as register_analyze
+    register_analyze(sub)
     return parser
 
 

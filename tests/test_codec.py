@@ -116,8 +116,7 @@ def test_chunk_writer_output_passes_the_official_summary_checks(logs):
         assert summary.statistics.chunk_count == len(summary.chunk_indexes)
         for index in summary.chunk_indexes:
             assert index.message_start_time <= index.message_end_time
-        ordered = [
-            m.log_time
-            for _, _, m in make_reader(open(path, "rb")).iter_messages(log_time_order=True)
-        ]
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            ordered = [m.log_time for _, _, m in reader.iter_messages(log_time_order=True)]
         assert ordered == sorted(ordered)
