@@ -2,13 +2,15 @@
 
 Row i of a rollout's sensordata holds the sensors evaluated at the state *before* step i is
 integrated, i.e. at simulation time i * timestep: that is the time every logged row carries.
-Chunks continue from the last state and the solver's warm start, so the result is bitwise the
-same as a plain `mj_step` loop.
+Chunks continue from the last state; the solver's warm start restarts at each chunk boundary
+(every CHUNK_SECONDS of simulated time), which is the only difference from a plain `mj_step`
+loop (about 1e-12 in the state), and what makes a run independent of its batch.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 
 import mujoco
@@ -46,56 +48,108 @@ def timestep_ns(timestep_s: float) -> int:
     return max(1, round(timestep_s * 1e9))
 
 
+@dataclass
+class RunRequest:
+    """One run of a batch: the model, its time limit (s), stop rules and logging stride."""
+
+    inst: InstrumentedModel
+    max_time: float
+    stop: Stop | None = None
+    log_every: int = 1
+
+
+@dataclass
+class _Active:
+    request: RunRequest
+    monitor: StopMonitor
+    total_steps: int
+    state: np.ndarray
+    kept: list[np.ndarray] = field(default_factory=list)
+    touched: bool = False
+    verdict: Verdict | None = None
+
+
 def simulate(
     inst: InstrumentedModel, *, max_time: float, stop: Stop | None = None, log_every: int = 1
 ) -> Trajectory:
-    """Run the model from its initial state until a stop rule fires or `max_time` (s) passes.
+    """Run one model from its initial state until a stop rule fires or `max_time` (s) passes."""
+    return simulate_batch([RunRequest(inst, max_time, stop, log_every)], threads=1)[0]
+
+
+def simulate_batch(requests: list[RunRequest], *, threads: int | None = None) -> list[Trajectory]:
+    """Run several models side by side with multi-threaded `mujoco.rollout`.
+
+    The models must share MuJoCo's size signature (e.g. points of one sweep) and timestep.
+    Every run advances in chunks of the same number of steps from step 0, and the solver's
+    warm start restarts at each chunk, so a run's result does not depend on the batch it is
+    in or on the number of threads.
 
     Args:
-        inst: the instrumented model.
-        max_time: time limit in s.
-        stop: the spec's stop rules (None: run for `max_time`).
-        log_every: keep every n-th step.
+        requests: the runs.
+        threads: rollout threads (default: one per core, at most one per run).
 
     Returns:
-        The kept rows, the verdict and any warnings.
+        One trajectory per request, in order.
     """
-    model = inst.model
-    dt = float(model.opt.timestep)
-    total_steps = max(1, math.ceil(max_time / dt - 1e-9)) + 1  # rows for t = 0 .. max_time
+    model0 = requests[0].inst.model
+    dt = float(model0.opt.timestep)
     chunk = int(np.clip(round(CHUNK_SECONDS / dt), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
-    monitor = StopMonitor(inst, stop, timestep=dt)
-    data = mujoco.MjData(model)
-    state = inst.initial_state()[None]
-    warmstart = None
-    kept: list[np.ndarray] = []
+    nthread = max(1, min(threads or os.cpu_count() or 1, len(requests)))
+    datas = [mujoco.MjData(model0) for _ in range(nthread)]
+    active = [
+        _Active(
+            request=r,
+            monitor=StopMonitor(r.inst, r.stop, timestep=dt),
+            total_steps=max(1, math.ceil(r.max_time / dt - 1e-9)) + 1,
+            state=r.inst.initial_state(),
+        )
+        for r in requests
+    ]
     step0 = 0
-    verdict: Verdict | None = None
-    bodybody_touched = False
-    while step0 < total_steps:
-        n = min(chunk, total_steps - step0)
-        states, sens = rollout.rollout(model, data, state, nstep=n, initial_warmstart=warmstart)
-        rows = sens[0]
-        verdict = monitor.update(rows, step0)
-        end = n if verdict is None else verdict.last_step - step0 + 1
-        steps = np.arange(step0, step0 + end)
-        kept.append(rows[:end][steps % log_every == 0])
-        if monitor.bodybody_cols:
-            bodybody_touched |= bool((rows[:end, monitor.bodybody_cols] > 0).any())
-        if verdict is not None:
-            break
-        state, warmstart = states[:, -1], data.qacc_warmstart[None].copy()
-        step0 += n
-    if verdict is None:
-        verdict = Verdict(total_steps - 1, "completed", f"time limit {max_time:g} s")
+    running = list(active)
+    while running:
+        states, sens = rollout.rollout(
+            [a.request.inst.model for a in running],
+            datas,
+            np.stack([a.state for a in running]),
+            nstep=chunk,
+        )
+        for i, a in enumerate(running):
+            _advance(a, sens[i], states[i, -1], step0)
+        running = [a for a in running if a.verdict is None]
+        step0 += chunk
+    return [_trajectory(a, dt) for a in active]
+
+
+def _advance(a: _Active, rows: np.ndarray, last_state: np.ndarray, step0: int) -> None:
+    """Feed one chunk of a run's rows to its stop rules and keep its logged rows."""
+    n = min(rows.shape[0], a.total_steps - step0)
+    rows = rows[:n]
+    verdict = a.monitor.update(rows, step0)
+    if verdict is None and step0 + n >= a.total_steps:
+        verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
+    end = n if verdict is None else verdict.last_step - step0 + 1
+    steps = np.arange(step0, step0 + end)
+    a.kept.append(rows[:end][steps % a.request.log_every == 0])
+    if a.monitor.bodybody_cols:
+        a.touched |= bool((rows[:end, a.monitor.bodybody_cols] > 0).any())
+    a.state = last_state
+    a.verdict = verdict
+
+
+def _trajectory(a: _Active, dt: float) -> Trajectory:
+    verdict = a.verdict
+    assert verdict is not None
+    stop = a.request.stop
     warnings = []
-    if stop is not None and stop.separation is not None and not bodybody_touched:
+    if stop is not None and stop.separation is not None and not a.touched:
         warnings.append(
             f"no contact between the bodies within {verdict.last_step * dt:g} s: "
             "the collision never happened, so 'after' equals 'before'"
         )
     if verdict.outcome == "unstable":
         warnings.append(f"unstable: {verdict.reason}")
-    rows = np.concatenate(kept) if kept else np.empty((0, model.nsensordata))
-    steps = np.arange(0, verdict.last_step + 1, log_every, dtype=np.int64)[: rows.shape[0]]
+    rows = np.concatenate(a.kept) if a.kept else np.empty((0, a.request.inst.model.nsensordata))
+    every = a.request.log_every
+    steps = np.arange(0, verdict.last_step + 1, every, dtype=np.int64)[: rows.shape[0]]
     return Trajectory(steps * timestep_ns(dt), rows, verdict, warnings)

@@ -1,0 +1,147 @@
+"""Answers to the handout's questions, worded from the computed tables (no fixed conclusions).
+
+Each function takes the tables and returns Markdown sentences; thresholds used for wording are
+named constants so the words follow the numbers.
+"""
+
+from __future__ import annotations
+
+import polars as pl
+
+E_CONSTANT_SPREAD = 0.02
+"""Spread (max - min) of e below which e is called constant."""
+
+APPROACH_FRACTION = 0.1
+"""A sweep approaches the elastic answer when its best run is within this fraction of it."""
+
+
+def _f(x: float | None, fmt: str = ".3g") -> str:
+    return "n/a" if x is None else format(x, fmt)
+
+
+def energy_answer(runs: pl.DataFrame) -> list[str]:
+    """Is energy conserved in flight and lost at contacts?"""
+    out = []
+    for r in runs.filter(pl.col("plane")).iter_rows(named=True):
+        if r["energy_initial_J"] is None:
+            continue
+        drift = r["flight_drift_max_rel"]
+        out.append(
+            f"`{r['run_id']}`: flight phases keep the total energy to "
+            f"{_f(drift and drift * 100)} % "
+            f"of the initial {r['energy_initial_J']:.4g} J (largest flight drift "
+            f"{_f(r['flight_drift_max_J'])} J, the semi-implicit Euler drift m g^2 dt T / 2); the "
+            f"contacts remove {r['contact_loss_sum_J']:.4g} J, i.e. "
+            f"{_f(r['energy_loss_frac'] and r['energy_loss_frac'] * 100, '.1f')} % of it is gone "
+            f"at the end ({r['duration_s']:.3g} s)."
+        )
+    return out
+
+
+def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
+    """Is e constant across bounces (within each run)?"""
+    out = []
+    for r in runs.filter(pl.col("plane")).iter_rows(named=True):
+        rows = bounces.filter((pl.col("run_id") == r["run_id"]) & pl.col("complete"))
+        es = rows["e_velocity"].drop_nulls()
+        if es.len() >= 2:
+            spread = float(es.max() - es.min())
+            word = "constant" if spread < E_CONSTANT_SPREAD else "not constant"
+            vals = ", ".join(f"{e:.3f}" for e in es)
+            out.append(
+                f"`{r['run_id']}`: e is {word} across its {es.len()} complete bounces "
+                f"({vals}; spread {spread:.3f})."
+            )
+        else:
+            out.append(
+                f"`{r['run_id']}`: {es.len()} complete bounce(s) "
+                f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
+                f"cannot be tested: the log ends ({r['reason'] or r['outcome']}) with "
+                f"{r['n_bounces']} contact(s), the last one still open."
+            )
+    return out
+
+
+def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
+    """Does e depend on the drop height (impact speed)?"""
+    out = []
+    for name, study in studies.items():
+        if "first_impact_speed_mps" not in study.columns:
+            continue
+        rows = study.sort("first_impact_speed_mps")
+        parts = []
+        for r in rows.iter_rows(named=True):
+            e = r["e_velocity_first"]
+            parts.append(
+                f"{_f(r['drop_height_m'])} m drop, {_f(r['first_impact_speed_mps'])} m/s impact: "
+                + ("no rebound (the ball stays on the plane)" if e is None else f"e = {e:.3f}")
+            )
+        es = rows.filter(pl.col("e_velocity_first").is_not_null())
+        if es.height >= 2:
+            lo, hi = es["e_velocity_first"][0], es["e_velocity_first"][-1]
+            trend = (
+                "rises"
+                if hi > lo + E_CONSTANT_SPREAD
+                else "falls"
+                if hi < lo - E_CONSTANT_SPREAD
+                else "stays"
+            )
+            verdict = f"e {trend} with the impact speed ({lo:.3f} -> {hi:.3f})"
+        elif es.height == 1:
+            verdict = "only one drop height rebounds at all, so e depends on the impact speed"
+        else:
+            verdict = "no drop height rebounds"
+        out.append(f"`{name}`: {'; '.join(parts)}. So {verdict}.")
+    return out
+
+
+def collision_answer(collisions: pl.DataFrame) -> list[str]:
+    """Is momentum conserved in the collisions, how much kinetic energy is lost?"""
+    out = []
+    for r in collisions.iter_rows(named=True):
+        if not r["complete"]:
+            out.append(f"`{r['run_id']}` ({r['body1']}-{r['body2']}): {r['note']}.")
+            continue
+        out.append(
+            f"`{r['run_id']}`: momentum changes by {r['momentum_rel_change']:.2g} (relative), i.e. "
+            f"it is conserved; the kinetic energy falls from {r['ke_before_J']:.4g} J to "
+            f"{r['ke_after_J']:.4g} J ({r['ke_loss_frac'] * 100:.1f} % lost). Measured e = "
+            f"{r['e_measured']:.3f}; the 1D formula predicts a loss of "
+            f"{r['ke_loss_predicted_J']:.4g} J for it. After: v1' = {r['v1n_after_mps']:.3f}, "
+            f"v2' = {r['v2n_after_mps']:.3f} m/s (elastic: {r['v1n_after_elastic_mps']:.3f}, "
+            f"{r['v2n_after_elastic_mps']:.3f}; perfectly inelastic: "
+            f"{r['v_after_inelastic_mps']:.3f} m/s)."
+        )
+    return out
+
+
+def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]]) -> list[str]:
+    """What does each collision parameter study show?"""
+    out = []
+    for name, study in studies.items():
+        if "e_collision" not in study.columns or not params.get(name):
+            continue
+        param = params[name][0]
+        rows = study.filter(pl.col("e_collision").is_not_null()).sort(param)
+        if rows.is_empty():
+            out.append(f"`{name}`: no run of the sweep has a collision.")
+            continue
+        es = rows["e_collision"]
+        el1, el2 = rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]
+        gap = ((rows["v1n_after_mps"] - el1).abs() / abs(el1 or 1.0)).to_list()
+        approached = min(gap) < APPROACH_FRACTION
+        spread = float(es.max() - es.min())
+        vals = ", ".join(
+            f"{p:g}: e = {e:.3f} (v1' = {a:.3f}, v2' = {b:.3f})"
+            for p, e, a, b in rows.select(
+                param, "e_collision", "v1n_after_mps", "v2n_after_mps"
+            ).iter_rows()
+        )
+        out.append(
+            f"`{name}` over {param} = {vals}. e spans only {spread:.3f} over the sweep"
+            + (" (essentially independent of the knob)" if spread < 0.05 else "")
+            + f"; the elastic answer v1' = {el1:.3f}, v2' = {el2:.3f} m/s is "
+            + ("approached" if approached else "not approached")
+            + f" (closest v1' is {min(gap) * 100:.0f} % of |v1'_elastic| away)."
+        )
+    return out

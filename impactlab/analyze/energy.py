@@ -1,0 +1,211 @@
+"""Energy of each body and of the run: kinetic (translational, rotational), potential, total.
+
+Potential energy is measured from a reference position per body: with a plane, the contact
+height (centre at plane_z + radius, so a ball resting on the plane has zero potential energy);
+without a plane, the body's initial position. MuJoCo's own potential energy is m g z of the
+centre (relative to the world origin), so `mujoco_total_J` is shifted by sum(-m g . r_ref) before
+it is compared.
+
+Flight phases are the runs of logged steps with no contact message of any pair; the energy of
+the run should stay constant there (`drift_J`). Each contact phase loses `loss_J`: the energy at
+the last logged step before it minus that at the first logged step after it, so that
+E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from impactlab.analyze.contacts import states_long
+from impactlab.analyze.load import BodyInfo, RunLog
+
+ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
+
+
+def reference_positions(run: RunLog) -> dict[str, np.ndarray]:
+    """Per body, the position of zero potential energy, m (3,).
+
+    With a plane: (0, 0, plane_z + radius). Without: the body's first logged position.
+    """
+    refs = {}
+    for name, info in run.body_info.items():
+        frame = run.bodies.get(name)
+        if run.plane_z is not None and info.radius is not None:
+            refs[name] = np.array([0.0, 0.0, run.plane_z + info.radius])
+        elif frame is not None and frame.height:
+            refs[name] = frame.select("x", "y", "z").row(0, named=False)
+            refs[name] = np.asarray(refs[name], dtype=float)
+        else:
+            refs[name] = np.zeros(3)
+    return refs
+
+
+def body_frame_omega() -> list[pl.Expr]:
+    """Angular velocity in the body frame (wbx, wby, wbz), rad/s: q* (wx, wy, wz) q.
+
+    The quaternion (qw, qx, qy, qz) rotates body to world, so the world-frame vector is rotated
+    by its conjugate u = -(qx, qy, qz): t = 2 u x w, w_b = w + qw t + u x t.
+    """
+    ux, uy, uz = -pl.col("qx"), -pl.col("qy"), -pl.col("qz")
+    wx, wy, wz = pl.col("wx"), pl.col("wy"), pl.col("wz")
+    tx, ty, tz = 2 * (uy * wz - uz * wy), 2 * (uz * wx - ux * wz), 2 * (ux * wy - uy * wx)
+    return [
+        (wx + pl.col("qw") * tx + (uy * tz - uz * ty)).alias("wbx"),
+        (wy + pl.col("qw") * ty + (uz * tx - ux * tz)).alias("wby"),
+        (wz + pl.col("qw") * tz + (ux * ty - uy * tx)).alias("wbz"),
+    ]
+
+
+def body_energy(
+    states: pl.DataFrame, info: BodyInfo, *, gravity: np.ndarray, ref: np.ndarray
+) -> pl.DataFrame:
+    """Energy of one body at each logged step.
+
+    Args:
+        states: the body's states (run_id, t_ns, t_s, x .. wz), world frame.
+        info: mass (kg) and principal inertia (kg m^2, body frame).
+        gravity: (3,) m/s^2.
+        ref: (3,) position of zero potential energy, m.
+
+    Returns:
+        (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J); height_m is
+        the centre's height above `ref` along -gravity (above the contact height with a plane).
+    """
+    m = info.mass
+    ix, iy, iz = info.inertia
+    g = float(np.linalg.norm(gravity))
+    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+    dx, dy, dz = pl.col("x") - ref[0], pl.col("y") - ref[1], pl.col("z") - ref[2]
+    return (
+        states.with_columns(body_frame_omega())
+        .select(
+            "run_id",
+            pl.lit(info.name).alias("body"),
+            "t_ns",
+            "t_s",
+            (up[0] * dx + up[1] * dy + up[2] * dz).alias("height_m"),
+            (0.5 * m * (pl.col("vx") ** 2 + pl.col("vy") ** 2 + pl.col("vz") ** 2)).alias(
+                "ke_trans_J"
+            ),
+            (
+                0.5 * (ix * pl.col("wbx") ** 2 + iy * pl.col("wby") ** 2 + iz * pl.col("wbz") ** 2)
+            ).alias("ke_rot_J"),
+            (-m * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz)).alias("pe_J"),
+        )
+        .with_columns((pl.col("ke_trans_J") + pl.col("ke_rot_J") + pl.col("pe_J")).alias("total_J"))
+    )
+
+
+def run_energy(run: RunLog) -> pl.DataFrame:
+    """Energy per body and for the whole run (body = "total"), with MuJoCo's total compared.
+
+    Returns:
+        (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
+        mujoco_total_J, mujoco_diff_J, mujoco_diff_lagged_J); the MuJoCo columns are set on the
+        "total" rows only: MuJoCo's total minus sum(-m g . r_ref); that minus total_J; and that
+        minus (potential now + kinetic one step earlier), because the logged MuJoCo kinetic
+        energy is that of the previous step (only computed when every step is logged).
+    """
+    refs = reference_positions(run)
+    states = states_long(run)
+    infos = run.body_info
+    per_body = [
+        body_energy(
+            states.filter(pl.col("body") == name), infos[name], gravity=run.gravity, ref=ref
+        )
+        for name, ref in refs.items()
+        if name in run.bodies
+    ]
+    if not per_body:
+        return empty_energy()
+    bodies = pl.concat(per_body)
+    shift = float(sum(-infos[n].mass * run.gravity @ refs[n] for n in refs))
+    total = (
+        bodies.group_by("run_id", "t_ns", "t_s", maintain_order=True)
+        .agg(
+            pl.lit(None, dtype=pl.Float64).alias("height_m"),
+            *[pl.col(c).sum() for c in ENERGY_COLUMNS],
+        )
+        .with_columns(pl.lit("total").alias("body"))
+        .join(
+            run.energy.select("t_ns", (pl.col("total") - shift).alias("mujoco_total_J")),
+            on="t_ns",
+            how="left",
+        )
+        .with_columns(
+            (pl.col("mujoco_total_J") - pl.col("total_J")).alias("mujoco_diff_J"),
+            (
+                pl.col("mujoco_total_J")
+                - pl.col("pe_J")
+                - (pl.col("ke_trans_J") + pl.col("ke_rot_J")).shift(1)
+            ).alias("mujoco_diff_lagged_J")
+            if run.meta.get("log_every", "1") == "1"
+            else pl.lit(None, dtype=pl.Float64).alias("mujoco_diff_lagged_J"),
+        )
+    )
+    extra = ["mujoco_total_J", "mujoco_diff_J", "mujoco_diff_lagged_J"]
+    return pl.concat([bodies, total.select(bodies.columns + extra)], how="diagonal").sort(
+        "body", "t_ns"
+    )
+
+
+def empty_energy() -> pl.DataFrame:
+    """An energy frame with no rows."""
+    schema = {"run_id": pl.String, "body": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
+    schema |= {c: pl.Float64 for c in ("height_m", *ENERGY_COLUMNS)}
+    schema |= {c: pl.Float64 for c in ("mujoco_total_J", "mujoco_diff_J", "mujoco_diff_lagged_J")}
+    return pl.DataFrame(schema=schema)
+
+
+def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame:
+    """Flight and contact phases of a run with their energy change.
+
+    Args:
+        total: the run's "total" energy rows (t_ns, total_J), sorted by time.
+        contact_times: t_ns of every logged step at which any pair is in contact.
+
+    Returns:
+        One row per phase: (run_id, phase, kind = "flight" | "contact", start_t_s, end_t_s,
+        e_start_J, e_end_J, drift_J (flight: E(end) - E(start)), max_dev_J (flight: max
+        |E - E(start)|), loss_J (contact: E(last step before) - E(first step after); up to the
+        last logged step when the contact is still open), open).
+    """
+    phases = (
+        total.select("run_id", "t_ns", "t_s", "total_J")
+        .with_columns(pl.col("t_ns").is_in(contact_times.implode()).alias("in_contact"))
+        .with_columns(pl.col("in_contact").rle_id().alias("phase"))
+        .group_by("run_id", "phase", maintain_order=True)
+        .agg(
+            pl.col("in_contact").first(),
+            pl.col("t_s").first().alias("start_t_s"),
+            pl.col("t_s").last().alias("end_t_s"),
+            pl.col("total_J").first().alias("e_start_J"),
+            pl.col("total_J").last().alias("e_end_J"),
+            (pl.col("total_J") - pl.col("total_J").first()).abs().max().alias("max_dev_J"),
+        )
+    )
+    n = phases.height
+    return phases.select(
+        "run_id",
+        "phase",
+        pl.when(pl.col("in_contact"))
+        .then(pl.lit("contact"))
+        .otherwise(pl.lit("flight"))
+        .alias("kind"),
+        "start_t_s",
+        "end_t_s",
+        "e_start_J",
+        "e_end_J",
+        pl.when(~pl.col("in_contact"))
+        .then(pl.col("e_end_J") - pl.col("e_start_J"))
+        .alias("drift_J"),
+        pl.when(~pl.col("in_contact")).then(pl.col("max_dev_J")).alias("max_dev_J"),
+        pl.when(pl.col("in_contact"))
+        .then(
+            pl.col("e_end_J").shift(1).fill_null(pl.col("e_start_J"))
+            - pl.col("e_start_J").shift(-1).fill_null(pl.col("e_end_J"))
+        )
+        .alias("loss_J"),
+        (pl.col("in_contact") & (pl.col("phase") == n - 1)).alias("open"),
+    )

@@ -1,0 +1,260 @@
+"""Figures (matplotlib, Agg backend) drawn from the analysis frames; no physics is computed here.
+
+Every function takes frames, a title and an output path, writes one PNG and returns its path.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+import matplotlib.ticker
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+import polars as pl
+
+DPI = 110
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def _shade_contacts(ax, intervals: pl.DataFrame) -> None:
+    for i, (t0, t1) in enumerate(intervals.select("start_t_s", "end_t_s").iter_rows()):
+        ax.axvspan(t0, t1, color="0.85", lw=0, label="contact" if i == 0 else None)
+
+
+def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, path: Path) -> Path:
+    """Height above the contact height per body (top) and the run's energies (bottom).
+
+    Args:
+        energy: `run_energy` of one run.
+        contacts: the run's contact phases (start_t_s, end_t_s), shaded.
+    """
+    fig, (ax_h, ax_e) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
+    for body, frame in energy.filter(pl.col("body") != "total").group_by(
+        "body", maintain_order=True
+    ):
+        ax_h.plot(frame["t_s"], frame["height_m"], label=str(body[0]))
+    _shade_contacts(ax_h, contacts)
+    ax_h.set_ylabel("height above contact (m)")
+    ax_h.set_title(title)
+    ax_h.legend(loc="upper right")
+    ax_h.grid(True, alpha=0.3)
+    total = energy.filter(pl.col("body") == "total")
+    t = total["t_s"]
+    ax_e.plot(t, total["ke_trans_J"] + total["ke_rot_J"], label="kinetic", alpha=0.8)
+    ax_e.plot(t, total["pe_J"], label="potential (zero at contact height)", alpha=0.8)
+    ax_e.plot(t, total["total_J"], label="total", lw=2, color="k")
+    if total["mujoco_total_J"].drop_nulls().len():
+        ax_e.plot(
+            t, total["mujoco_total_J"], "--", lw=1, color="tab:red", label="MuJoCo total (shifted)"
+        )
+    _shade_contacts(ax_e, contacts)
+    ax_e.set_xlabel("time (s)")
+    ax_e.set_ylabel("energy (J)")
+    ax_e.legend(loc="center right")
+    ax_e.grid(True, alpha=0.3)
+    return _save(fig, path)
+
+
+def bounce_decay_figure(
+    bounces: pl.DataFrame, labels: dict[str, str], *, title: str, path: Path
+) -> Path:
+    """Apex height (from the contact height) against bounce number, one line per run.
+
+    Args:
+        bounces: bounce rows of several runs (run_id, bounce, apex_before_m, apex_m).
+        labels: run_id -> legend label.
+    """
+    fig, ax = plt.subplots(figsize=(8, 5))
+    for run_id, label in labels.items():
+        rows = bounces.filter((pl.col("run_id") == run_id) & pl.col("bounce").is_not_null()).sort(
+            "bounce"
+        )
+        if rows.is_empty():
+            ax.plot([], [], "o-", label=f"{label}: no bounce")
+            continue
+        n = [0, *rows["bounce"].to_list()]
+        h = [rows["apex_before_m"][0], *rows["apex_m"].to_list()]
+        pts = [(a, b) for a, b in zip(n, h, strict=True) if b is not None]
+        # the last contact of a run that comes to rest has no apex: show it at 0 (resting)
+        if rows["apex_m"][-1] is None:
+            pts.append((n[-1], 0.0))
+        ax.plot(*zip(*pts, strict=True), "o-", label=f"{label} (h0 = {h[0]:.3g} m)")
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+    ax.set_yscale("symlog", linthresh=1e-3)
+    ax.set_xlabel("bounce number (0: drop)")
+    ax.set_ylabel("apex above contact height (m; 0: at rest)")
+    ax.set_title(title)
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    return _save(fig, path)
+
+
+def collision_figure(
+    states: pl.DataFrame,
+    row: dict,
+    contacts: pl.DataFrame,
+    *,
+    title: str,
+    path: Path,
+) -> Path:
+    """Positions and velocities along the line of centres, and total momentum, against time.
+
+    Args:
+        states: `states_long` of the run.
+        row: the collision row (body1, body2, m1_kg, m2_kg, nx, ny, nz, px_before_Ns ..).
+        contacts: contact phases of the run (start_t_s, end_t_s), shaded.
+    """
+    n = np.array([row["nx"], row["ny"], row["nz"]], dtype=float)
+    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    p = None
+    for k in ("1", "2"):
+        s = states.filter(pl.col("body") == row[f"body{k}"]).sort("t_ns")
+        pos = s.select("x", "y", "z").to_numpy() @ n
+        vel = s.select("vx", "vy", "vz").to_numpy()
+        axes[0].plot(s["t_s"], pos, label=row[f"body{k}"])
+        axes[1].plot(s["t_s"], vel @ n, label=row[f"body{k}"])
+        mom = row[f"m{k}_kg"] * vel
+        p = mom if p is None else p + mom
+        t = s["t_s"]
+    p0 = np.array([row["px_before_Ns"], row["py_before_Ns"], row["pz_before_Ns"]])
+    axes[2].plot(t, p @ n, label="total momentum along n", color="k")
+    axes[2].axhline(p0 @ n, color="tab:red", ls="--", label="before the collision")
+    for key, style, lab in (
+        ("v1n_after_elastic_mps", ":", "elastic"),
+        ("v1n_after_e_mps", "--", "analytic, measured e"),
+    ):
+        if row.get(key) is not None:
+            axes[1].axhline(
+                row[key], color="tab:blue", ls=style, lw=1, label=f"{row['body1']} {lab}"
+            )
+            axes[1].axhline(
+                row[key.replace("v1n", "v2n")],
+                color="tab:orange",
+                ls=style,
+                lw=1,
+                label=f"{row['body2']} {lab}",
+            )
+    for ax in axes:
+        _shade_contacts(ax, contacts)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    axes[0].set_ylabel("position along n (m)")
+    axes[1].set_ylabel("velocity along n (m/s)")
+    axes[2].set_ylabel("momentum along n (kg m/s)")
+    span = max(1e-9, abs(p0 @ n)) * 1e-6
+    axes[2].set_ylim(p0 @ n - max(span, 0.05), p0 @ n + max(span, 0.05))
+    axes[2].set_xlabel("time (s)")
+    axes[0].set_title(title)
+    return _save(fig, path)
+
+
+def restitution_figure(
+    bounces: pl.DataFrame, collisions: pl.DataFrame, labels: dict[str, str], *, path: Path
+) -> Path:
+    """e against impact speed: bounces (from velocities and from apexes) and collisions."""
+    fig, ax = plt.subplots(figsize=(8, 5))
+    b = bounces.filter(pl.col("complete"))
+    for i, (run_id, label) in enumerate(labels.items()):
+        rows = b.filter(pl.col("run_id") == run_id)
+        if rows.is_empty():
+            continue
+        color = f"C{i % 10}"
+        ax.plot(
+            -rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=f"{label} (velocities)"
+        )
+        apex = rows.filter(pl.col("e_apex").is_not_null())
+        ax.plot(
+            -apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color, label=f"{label} (apexes)"
+        )
+    c = collisions.filter(pl.col("complete"))
+    if c.height:
+        ax.plot(
+            c["v1n_before_mps"] - c["v2n_before_mps"],
+            c["e_measured"],
+            "s",
+            color="k",
+            label="body-body collisions (closing speed)",
+        )
+    ax.set_xlabel("impact speed along the normal (m/s)")
+    ax.set_ylabel("coefficient of restitution e")
+    ax.set_ylim(0, 1.05)
+    ax.set_title("Restitution against impact speed")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def collision_study_figure(
+    study: pl.DataFrame, param: str, *, title: str, m1: float, m2: float, path: Path
+) -> Path:
+    """v1', v2' against e: measured runs on the analytic curves; e against the swept parameter.
+
+    Args:
+        study: study table (param, e_collision, v1n/v2n before and after).
+        param: the swept parameter column.
+        m1, m2: the masses (kg) of the analytic curves.
+    """
+    fig, (ax, ax_p) = plt.subplots(1, 2, figsize=(12, 5))
+    rows = study.filter(pl.col("e_collision").is_not_null())
+    v1, v2 = rows["v1n_before_mps"][0], rows["v2n_before_mps"][0]
+    e = np.linspace(0, 1, 101)
+    pm = m1 * v1 + m2 * v2
+    ax.plot(e, (pm + m2 * e * (v2 - v1)) / (m1 + m2), color="tab:blue", label="analytic v1'(e)")
+    ax.plot(e, (pm + m1 * e * (v1 - v2)) / (m1 + m2), color="tab:orange", label="analytic v2'(e)")
+    ax.plot(rows["e_collision"], rows["v1n_after_mps"], "o", color="tab:blue", label="measured v1'")
+    ax.plot(
+        rows["e_collision"], rows["v2n_after_mps"], "o", color="tab:orange", label="measured v2'"
+    )
+    ax.plot(
+        [1, 1],
+        [rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]],
+        "*",
+        ms=14,
+        color="k",
+        label="elastic answer (e = 1)",
+    )
+    ax.set_xlabel("coefficient of restitution e")
+    ax.set_ylabel("velocity after, along the line of centres (m/s)")
+    ax.set_title(f"{title}\nm1 = {m1:g} kg, m2 = {m2:g} kg, v1 = {v1:g} m/s, v2 = {v2:g} m/s")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    ax_p.plot(rows[param], rows["e_collision"], "o-", label="measured e")
+    ax_p.axhline(1.0, color="k", ls=":", label="elastic (e = 1)")
+    ax_p.set_ylim(0, 1.05)
+    ax_p.set_xlabel(param)
+    ax_p.set_ylabel("measured e")
+    ax_p.set_title(f"e against the swept {param}")
+    ax_p.grid(True, alpha=0.3)
+    ax_p.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Path) -> Path:
+    """First-bounce e and impact speed against the swept parameter (e.g. drop height)."""
+    fig, ax = plt.subplots(figsize=(8, 5))
+    rows = study.sort(param)
+    ax.plot(rows[param], rows["e_velocity_first"], "o-", label="e of the first bounce (velocities)")
+    if "e_apex_mean" in rows.columns:
+        ax.plot(rows[param], rows["e_apex_mean"], "x--", ms=9, label="mean e from apexes")
+    for x, e in rows.select(param, "e_velocity_first").iter_rows():
+        if e is None:
+            ax.annotate(
+                "no rebound", (x, 0.0), textcoords="offset points", xytext=(0, 6), ha="center"
+            )
+            ax.plot([x], [0.0], "v", color="tab:red")
+    ax.set_xlabel(param)
+    ax.set_ylabel("coefficient of restitution e")
+    ax.set_ylim(0, max(0.2, float(rows["e_velocity_first"].max() or 0) * 1.5))
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)

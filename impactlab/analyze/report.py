@@ -1,0 +1,233 @@
+"""The Markdown report: tables inline, figures linked relatively, answers from the data."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from impactlab.analyze import answers
+
+METHOD = """\
+- **Contacts** come from the contact channel: a pair is in contact at a logged step when the log
+  holds a message on its topic at that step; consecutive logged steps form one contact interval.
+  No velocity threshold is used. An interval still open at the end of the log (a ball resting on
+  the plane, or a log cut short) is marked incomplete and not used for e.
+- **Velocities in and out** are the body state at the last logged step before the contact and
+  the first logged step after it, along the contact normal (plane to body; for two bodies the
+  line of centres at the first contact step). e = -v_out / v_in (for two bodies, relative normal
+  velocities).
+- **Heights** are measured from the contact height: centre minus radius above the plane (along
+  -gravity). The apex before bounce 1 is the drop height above contact; e from apexes is
+  sqrt(h(n) / h(n-1)). The predicted apex is h_release + v_out^2 / (2 g).
+- **Energy**: kinetic = translational + rotational (angular velocity rotated into the body frame
+  with the logged quaternion, principal inertia from the log's metadata); potential =
+  m g (height above the contact height), zero for a ball resting on the plane; without a plane,
+  potential is relative to each body's initial position. Flight phases are the logged steps
+  with no contact of any pair; a contact's loss is the energy at the last step before it minus
+  that at the first step after, so initial - final energy = sum of losses - sum of flight drifts.
+- **MuJoCo's own energy** (channel /energy) has its potential as m g z of the centre, so it is
+  compared after subtracting sum(m g z_ref) (z_ref = plane + radius): `mujoco_diff_J`.
+- **Impulse** is the sum over logged steps of the normal force times the logged step; peak force
+  and penetration are maxima over logged steps (finer with `logging.every = 1`).
+- **Collisions**: momentum change is |p' - p| / (|m1 v1| + |m2 v2|); the analytic outcome uses
+  the 1D formulas with the measured e, e = 1 (elastic) and e = 0 (perfectly inelastic).
+"""
+
+
+def fmt(value: Any) -> str:
+    """A table cell: floats to 4 significant digits, None as a dash."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float):
+        if value != value:
+            return "-"
+        return f"{value:.4g}"
+    return str(value).replace("|", "\\|")
+
+
+def md_table(frame: pl.DataFrame, columns: Sequence[str] | None = None) -> str:
+    """A Markdown table of the given columns (those present)."""
+    cols = [c for c in (columns or frame.columns) if c in frame.columns]
+    if frame.is_empty() or not cols:
+        return "_(no rows)_\n"
+    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for row in frame.select(cols).iter_rows():
+        lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def image(path: Path, out_dir: Path, alt: str) -> str:
+    """A Markdown image link relative to the report."""
+    return f"![{alt}]({path.relative_to(out_dir).as_posix()})\n"
+
+
+def build_report(
+    *,
+    out_dir: Path,
+    runs: pl.DataFrame,
+    bounces: pl.DataFrame,
+    collisions: pl.DataFrame,
+    phases: pl.DataFrame,
+    studies: dict[str, pl.DataFrame],
+    params: dict[str, list[str]],
+    figures: dict[str, list[Path]],
+    failed: Sequence[tuple[str, str]],
+    energy_stride_note: str,
+) -> str:
+    """The report's Markdown text.
+
+    Args:
+        figures: keyed "energy", "decay", "restitution", "collision", "study".
+        failed: (path, problem) of inputs that could not be analyzed.
+    """
+    out = ["# Impact lab: analysis report\n"]
+    out.append(
+        f"{runs.height} run(s) analyzed from {runs['experiment'].n_unique()} experiment(s)"
+        + (f"; {len(failed)} input(s) could not be read." if failed else ".")
+        + " Units: SI (m, s, m/s, J, N, N s).\n"
+    )
+    if failed:
+        out.append("\n**Inputs not analyzed:**\n")
+        out += [f"- `{p}`: {why}" for p, why in failed]
+        out.append("")
+    partial = runs.filter(pl.col("partial"))
+    if partial.height:
+        out.append("\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n")
+        out += [f"- `{r}`: {why}" for r, why in partial.select("run_id", "problems").iter_rows()]
+        out.append("")
+    out.append("\n## Runs\n")
+    param_cols = sorted({p for ps in params.values() for p in ps})
+    out.append(
+        md_table(
+            runs,
+            [
+                "run_id",
+                "experiment",
+                *param_cols,
+                "outcome",
+                "partial",
+                "duration_s",
+                "n_bounces",
+                "n_collisions",
+                "note",
+            ],
+        )
+    )
+
+    out.append("\n## Step 1: energy\n")
+    out += [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a plane."]
+    gravity_runs = runs.filter(pl.col("plane"))
+    if gravity_runs.height:
+        out.append("\nEnergy bookkeeping per run (J):\n")
+        out.append(
+            md_table(
+                gravity_runs,
+                [
+                    "run_id",
+                    "energy_initial_J",
+                    "energy_final_J",
+                    "energy_loss_frac",
+                    "contact_loss_sum_J",
+                    "flight_drift_max_J",
+                    "flight_drift_max_rel",
+                    "mujoco_diff_max_J",
+                    "mujoco_diff_lagged_max_J",
+                ],
+            )
+        )
+        losses = phases.filter(
+            (pl.col("kind") == "contact") & pl.col("run_id").is_in(gravity_runs["run_id"].implode())
+        )
+        if losses.height:
+            out.append("\nEnergy lost at each contact (J):\n")
+            out.append(md_table(losses, ["run_id", "start_t_s", "end_t_s", "loss_J", "open"]))
+    out.append(
+        "\n`mujoco_diff_max_J` is the largest |MuJoCo total (shifted by the reference) - our "
+        "total| over the run. `mujoco_diff_lagged_max_J` compares MuJoCo's total with our "
+        "potential energy at the same step plus our kinetic energy one step earlier: when it is "
+        "~0, MuJoCo's logged kinetic energy is that of the previous step (it is evaluated before "
+        "the velocities are updated), which explains the whole of the first difference.\n"
+    )
+    out += [image(p, out_dir, "energy") for p in figures.get("energy", [])]
+
+    out.append("\n## Step 2: restitution\n")
+    out.append("**Is e constant across bounces?**\n")
+    out += [f"- {s}" for s in answers.constancy_answer(runs, bounces)] or ["- No bounce data."]
+    out.append("\n**Does e depend on the drop height (impact velocity)?**\n")
+    out += [f"- {s}" for s in answers.height_answer(studies)] or ["- No drop-height study."]
+    if bounces.height:
+        out.append("\nBounces (heights from the contact height):\n")
+        out.append(
+            md_table(
+                bounces,
+                [
+                    "run_id",
+                    "bounce",
+                    "impact_t_s",
+                    "duration_s",
+                    "v_in_mps",
+                    "v_out_mps",
+                    "e_velocity",
+                    "apex_before_m",
+                    "apex_m",
+                    "apex_predicted_m",
+                    "e_apex",
+                    "peak_force_N",
+                    "impulse_Ns",
+                    "max_penetration_m",
+                    "note",
+                ],
+            )
+        )
+    out += [image(p, out_dir, "bounce decay") for p in figures.get("decay", [])]
+    out += [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
+
+    out.append("\n## Step 3: collision\n")
+    out += [f"- {s}" for s in answers.collision_answer(collisions)] or ["- No two-body run."]
+    if collisions.height:
+        out.append("\nCollisions (velocities along the line of centres, m/s):\n")
+        out.append(
+            md_table(
+                collisions,
+                [
+                    "run_id",
+                    "v1n_before_mps",
+                    "v2n_before_mps",
+                    "v1n_after_mps",
+                    "v2n_after_mps",
+                    "e_measured",
+                    "momentum_rel_change",
+                    "ke_before_J",
+                    "ke_after_J",
+                    "ke_loss_frac",
+                    "ke_loss_predicted_J",
+                    "v1n_after_elastic_mps",
+                    "v2n_after_elastic_mps",
+                    "v_after_inelastic_mps",
+                    "note",
+                ],
+            )
+        )
+    out += [image(p, out_dir, "collision") for p in figures.get("collision", [])]
+
+    out.append("\n## Step 4: parameter studies\n")
+    out += [f"- {s}" for s in answers.study_answer(studies, params)] or ["- No collision sweep."]
+    for name, study in studies.items():
+        out.append(f"\n`{name}` (swept: {', '.join(params.get(name, []))}):\n")
+        out.append(md_table(study.drop("partial", "note")))
+    out += [image(p, out_dir, "study") for p in figures.get("study", [])]
+
+    out.append("\n## Method\n")
+    out.append(METHOD)
+    out.append(f"- {energy_stride_note}\n")
+    out.append(
+        "\n## Files\n\n- `runs.parquet`: one row per run (parameters, state of the log, results)"
+        "\n- `bounces.parquet`, `collisions.parquet`, `energy.parquet`, `phases.parquet`"
+        "\n- `summary.json`: the runs, the studies and the answers\n- `figures/`\n"
+    )
+    return "\n".join(out)

@@ -1,0 +1,110 @@
+"""Parameter studies: the runs table with each run's sweep parameters as columns.
+
+A sweep value that is a list (e.g. `contact.solimp` = [0.9, 0.95, 0.001]) becomes one column per
+element that varies across the experiment's runs (`contact.solimp[0]`); a scalar value becomes
+one column named by its dotted path. So a sweep reads as a table: one row per run, its
+parameters, its results.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import polars as pl
+
+BOUNCE_RESULTS = (
+    "drop_height_m",
+    "first_impact_speed_mps",
+    "n_bounces_complete",
+    "e_velocity_first",
+    "e_velocity_mean",
+    "e_apex_mean",
+    "energy_loss_frac",
+)
+COLLISION_RESULTS = (
+    "e_collision",
+    "v1n_before_mps",
+    "v2n_before_mps",
+    "v1n_after_mps",
+    "v2n_after_mps",
+    "v1n_after_elastic_mps",
+    "v2n_after_elastic_mps",
+    "momentum_rel_change",
+    "collision_ke_loss_frac",
+)
+
+
+def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
+    """(run_id, <param columns>) from the runs table's `sweep` JSON, varying elements only."""
+    values: dict[str, dict[str, Any]] = {}
+    for run_id, experiment, sweep in runs.select("run_id", "experiment", "sweep").iter_rows():
+        point = json.loads(sweep or "{}")
+        values[run_id] = {"__experiment": experiment}
+        for key, value in point.items():
+            if isinstance(value, list):
+                for i, item in enumerate(value):
+                    values[run_id][f"{key}[{i}]"] = item
+            else:
+                values[run_id][key] = value
+    columns: dict[str, list[Any]] = {"run_id": list(values)}
+    keys = sorted({k for v in values.values() for k in v if k != "__experiment"})
+    for key in keys:
+        by_exp: dict[str, set[str]] = {}
+        for v in values.values():
+            if key in v:
+                by_exp.setdefault(v["__experiment"], set()).add(json.dumps(v[key]))
+        if not any(len(s) > 1 for s in by_exp.values()) and "[" in key:
+            continue  # a list element that is the same in every run of every experiment
+        columns[key] = [v.get(key) for v in values.values()]
+    schema = {k: _dtype(col) for k, col in columns.items()}
+    for key, dtype in schema.items():
+        if dtype == pl.String and key != "run_id":
+            columns[key] = [
+                c if c is None or isinstance(c, str) else json.dumps(c) for c in columns[key]
+            ]
+    return pl.DataFrame(columns, schema=schema, strict=False)
+
+
+def _dtype(column: list[Any]) -> pl.DataType:
+    present = [c for c in column if c is not None]
+    if present and all(isinstance(c, int | float) and not isinstance(c, bool) for c in present):
+        return pl.Float64
+    return pl.String
+
+
+def with_parameters(runs: pl.DataFrame) -> pl.DataFrame:
+    """The runs table with its sweep parameter columns after `sweep`."""
+    params = sweep_parameters(runs)
+    cols = [c for c in params.columns if c != "run_id"]
+    return runs.join(params, on="run_id", how="left").sort(
+        ["experiment", *cols, "run_id"], nulls_last=True
+    )
+
+
+def study_parameters(runs: pl.DataFrame, experiment: str) -> list[str]:
+    """Parameter columns of one experiment that vary across its runs."""
+    params = [c for c in sweep_parameters(runs).columns if c != "run_id"]
+    sub = with_parameters(runs).filter(pl.col("experiment") == experiment)
+    return [p for p in params if sub[p].drop_nulls().n_unique() > 1]
+
+
+def study_table(runs: pl.DataFrame, experiment: str) -> pl.DataFrame:
+    """One row per run of a swept experiment: its varying parameters and its results."""
+    params = study_parameters(runs, experiment)
+    sub = with_parameters(runs).filter(pl.col("experiment") == experiment)
+    results = [
+        c
+        for c in (*BOUNCE_RESULTS, *COLLISION_RESULTS)
+        if c in sub.columns and sub[c].drop_nulls().len() > 0
+    ]
+    return sub.select("run_id", *params, *results, "partial", "note").sort(params or "run_id")
+
+
+def studies(runs: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """Per experiment with at least two runs that differ in a sweep parameter, its study table."""
+    out = {}
+    for experiment in runs["experiment"].unique(maintain_order=True).to_list():
+        if study_parameters(runs, experiment):
+            out[experiment] = study_table(runs, experiment)
+    return out

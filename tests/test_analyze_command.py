@@ -1,0 +1,111 @@
+"""The analyze command: outputs, bad inputs (one line each, others still analyzed), exit codes,
+and that the analysis stage never imports mujoco."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import polars as pl
+import pytest
+from mcap.writer import Writer
+from test_analyze_bounces import DROP_SPEC
+from test_analyze_collisions import COLLISION_SPEC
+
+from impactlab.analyze.command import run_analysis
+from impactlab.cli import main
+
+
+@pytest.fixture(scope="module")
+def logs(record_spec) -> dict[str, Path]:
+    (drop,) = record_spec("known_drop", DROP_SPEC)
+    (hit,) = record_spec("known_collision", COLLISION_SPEC)
+    (miss,) = record_spec("known_collision_miss", COLLISION_SPEC, overrides=["stop.max_time=0.05"])
+    return {"drop": drop, "hit": hit, "miss": miss}
+
+
+def _not_impactlab_mcap(path: Path) -> Path:
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        schema = w.register_schema("x", "jsonschema", b"{}")
+        channel = w.register_channel("/other", "json", schema)
+        w.add_message(channel, log_time=0, data=b"{}", publish_time=0)
+        w.finish()
+    return path
+
+
+def test_outputs_written(logs, tmp_path):
+    out = tmp_path / "results"
+    result = run_analysis([logs["drop"], logs["hit"], logs["miss"]], out, echo=lambda _: None)
+    assert result.exit_code == 0
+    for name in ("runs", "bounces", "collisions", "energy", "phases"):
+        assert pl.read_parquet(out / f"{name}.parquet").height > 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["runs"]) == 3
+    report = (out / "report.md").read_text()
+    for link in report.split("](")[1:]:
+        target = link.split(")")[0]
+        assert (out / target).is_file(), target  # relative image links resolve
+    assert "never happened" in report  # the run without a collision is reported, with reason
+    pngs = sorted(p.name for p in (out / "figures").glob("*.png"))
+    assert any(p.startswith("energy-") for p in pngs)
+    assert any(p.startswith("collision-") for p in pngs)
+    assert "restitution-vs-speed.png" in pngs
+
+
+def test_bad_inputs(logs, tmp_path, capsys):
+    """Not MCAP, truncated, no impactlab channels, missing: one line each; exit 1; rest analyzed."""
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "text.mcap").write_text("hello, not a log\n")
+    _not_impactlab_mcap(bad / "other.mcap")
+    data = logs["drop"].read_bytes()
+    (bad / "truncated.mcap").write_bytes(data[: len(data) // 2])
+    missing = tmp_path / "missing.mcap"
+    out = tmp_path / "results"
+    code = main(["analyze", str(bad), str(logs["hit"]), str(missing), "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 3, err
+    assert all(line.startswith("impactlab: error: ") for line in err)
+    assert any("text.mcap" in line and "not an MCAP" in line for line in err)
+    assert any("other.mcap" in line and "not an impactlab log" in line for line in err)
+    assert any("missing.mcap" in line and "not found" in line for line in err)
+    runs = pl.read_parquet(out / "runs.parquet")
+    assert runs.height == 2  # the collision and what could be read of the truncated drop
+    partial = runs.filter(pl.col("partial"))
+    assert partial.height == 1 and partial["file"][0].endswith("truncated.mcap")
+    assert partial["duration_s"][0] > 0
+    assert "Partial logs" in (out / "report.md").read_text()
+
+
+def test_unwritable_output(logs, tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    code = main(["analyze", str(logs["hit"]), "-o", str(blocker / "results")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2
+    assert len(err) == 1 and err[0].startswith("impactlab: error: ")
+
+
+def test_no_logs_found(tmp_path, capsys):
+    code = main(["analyze", str(tmp_path / "*.mcap"), "-o", str(tmp_path / "r")])
+    assert code == 1
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_analysis_does_not_import_mujoco(logs, tmp_path):
+    code = (
+        "import sys\n"
+        "from impactlab.analyze.command import run_analysis\n"
+        f"r = run_analysis([{str(logs['drop'])!r}, {str(logs['hit'])!r}], "
+        f"__import__('pathlib').Path({str(tmp_path / 'r')!r}), echo=lambda _: None)\n"
+        "assert r.exit_code == 0\n"
+        "bad = sorted(m for m in sys.modules if m == 'mujoco' or m.startswith('mujoco.'))\n"
+        "assert not bad, bad\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
