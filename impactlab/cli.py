@@ -6,7 +6,9 @@ User mistakes (`ImpactlabError`) become one line on stderr and a non-zero exit c
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -44,15 +46,23 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument(
         "--duration", type=float, help="time limit in s for MJCF models (required for them)"
     )
+    rec.add_argument(
+        "--overwrite", action="store_true", help="re-run runs whose complete log already exists"
+    )
     rec.set_defaults(func=_cmd_record)
 
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
     info.add_argument("logs", nargs="+", type=Path, metavar="LOG")
     info.set_defaults(func=_cmd_info)
     from impactlab.replay.command import register as register_replay
+
     register_replay(sub)
     from impactlab.analyze.command import register as register_analyze
+
     register_analyze(sub)
+    from impactlab.diff_command import register as register_diff
+
+    register_diff(sub)
     return parser
 
 
@@ -60,7 +70,7 @@ def _cmd_record(args: argparse.Namespace) -> int:
     from impactlab.record.job import plan, record
 
     runs = plan(args.inputs, overrides=args.overrides, duration=args.duration)
-    results = record(runs, args.out)
+    results = record(runs, args.out, overwrite=args.overwrite)
     unstable = [r for r in results if r.trajectory.verdict.outcome != "completed"]
     print(f"{len(results)} run(s) written to {args.out}/", end="")
     print(f", {len(unstable)} unstable" if unstable else "")
@@ -82,9 +92,15 @@ def _cmd_info(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # unwinds like Ctrl-C: partial files are removed on the way out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code."""
     args = build_parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     try:
         return int(args.func(args))
     except ImpactlabError as exc:

@@ -1,0 +1,249 @@
+"""`impactlab replay`: logs (and their analysis) -> Rerun recordings (.rrd), optionally viewed.
+
+Each recording is written under a temporary name and renamed when complete, so an
+interrupted replay never leaves a file that looks finished.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import subprocess
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import rerun as rr
+
+from impactlab.analyze.load import RunLog, find_logs, load_log
+from impactlab.errors import ImpactlabError, LogError
+from impactlab.replay.blueprint import replay_blueprint
+from impactlab.replay.convert import log_run, time_base
+from impactlab.replay.events import events_for, load_analysis
+
+APPLICATION_ID = "impactlab"
+PARTIAL_SUFFIX = ".partial"
+DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the `replay` subcommand to the command line's subparsers."""
+    p = sub.add_parser(
+        "replay",
+        help="convert logs (and their analysis) into Rerun recordings (.rrd) and view them",
+        description="Convert each log into a Rerun recording next to it (or into -o FOLDER); "
+        "with -o FILE.rrd, all runs go into one recording, one subtree per run, to compare "
+        "them. Open a recording with `rerun FILE.rrd`.",
+    )
+    p.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="logs, folders or globs")
+    p.add_argument(
+        "-o",
+        "--out",
+        type=Path,
+        help="FILE.rrd: one recording of all runs; otherwise a folder for one .rrd per log",
+    )
+    p.add_argument(
+        "--analysis",
+        type=Path,
+        metavar="DIR",
+        help="analysis output folder (bounces.parquet, collisions.parquet) for the event texts",
+    )
+    view = p.add_mutually_exclusive_group()
+    view.add_argument("--spawn", action="store_true", help="also stream to a new Rerun viewer")
+    view.add_argument(
+        "--serve", action="store_true", help="serve the recordings to a web viewer (blocks)"
+    )
+    view.add_argument(
+        "--connect",
+        nargs="?",
+        const=DEFAULT_URL,
+        metavar="ADDR",
+        help=f"also stream to a running viewer (default {DEFAULT_URL}); put it last",
+    )
+    p.set_defaults(func=_cmd_replay)
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    logs = list(args.logs)
+    connect = args.connect
+    if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
+        logs.append(Path(connect))
+        connect = DEFAULT_URL
+    failed: list[ImpactlabError] = []
+
+    def report(exc: ImpactlabError) -> None:
+        failed.append(exc)
+        print(f"impactlab: error: {exc}", file=sys.stderr)
+
+    sinks: list[Callable[[], rr.GrpcSink]] = []
+    if args.spawn:
+        rr.spawn(connect=False, executable_path=_rerun_executable())
+        sinks.append(rr.GrpcSink)
+    elif connect is not None:
+        url = connect if "://" in connect else f"rerun+http://{connect}/proxy"
+        sinks.append(lambda: rr.GrpcSink(url))
+    written = replay_logs(
+        find_logs(logs),
+        out=args.out,
+        analysis_dir=args.analysis,
+        viewer_sinks=sinks,
+        on_error=report,
+    )
+    for path in written:
+        print(f"wrote {path}")
+    if args.serve and written:
+        subprocess.run([_rerun_executable() or "rerun", "--serve-web", *map(str, written)])
+    return 1 if failed else 0
+
+
+def _print_error(exc: ImpactlabError) -> None:
+    print(f"impactlab: error: {exc}", file=sys.stderr)
+
+
+def _print_warning(path: Path, problem: str) -> None:
+    print(f"impactlab: warning: {path}: {problem}", file=sys.stderr)
+
+
+def replay_logs(
+    logs: Sequence[Path],
+    *,
+    out: Path | None,
+    analysis_dir: Path | None,
+    viewer_sinks: Sequence[Callable[[], rr.GrpcSink]] = (),
+    on_error: Callable[[ImpactlabError], None] = _print_error,
+    on_warning: Callable[[Path, str], None] = _print_warning,
+) -> list[Path]:
+    """Convert logs into .rrd recordings; returns the files written.
+
+    Args:
+        logs: MCAP logs.
+        out: None: `<log>.rrd` next to each log; a path ending in `.rrd`: one recording of
+            all runs (one `/runs/<run_id>` subtree each); otherwise a folder for
+            `<log stem>.rrd` files (created).
+        analysis_dir: analysis output folder whose `bounces.parquet` / `collisions.parquet`
+            rows give the events (the log's contacts otherwise).
+        viewer_sinks: factories of extra sinks (e.g. `rr.GrpcSink`) each recording also goes to.
+        on_error: called with the error of each log that cannot be read or written; the
+            others are converted all the same.
+        on_warning: called with (path, problem) for logs that are damaged or incomplete.
+
+    Raises:
+        LogError: the analysis folder is missing or holds an unreadable table.
+    """
+    tables = load_analysis(analysis_dir) if analysis_dir is not None else None
+    if out is not None and out.suffix.lower() == ".rrd" and not out.is_dir():
+        groups = [(out, list(logs))]
+    else:
+        folder = out
+        groups = [((folder or log.parent) / f"{log.stem}.rrd", [log]) for log in logs]
+    written = []
+    sinks = list(viewer_sinks)
+    for target, group in groups:
+        runs = []
+        for log in group:
+            try:
+                run = load_log(log)
+            except ImpactlabError as exc:
+                on_error(exc)
+                continue
+            for problem in run.problems:
+                on_warning(log, problem)
+            runs.append(run)
+        if not runs:
+            continue
+        try:
+            written.append(write_recording(runs, target, tables=tables))
+        except OSError as exc:
+            on_error(LogError(str(target), f"cannot write: {exc.strerror or exc}"))
+        for make in sinks:
+            try:
+                stream_recording(runs, make(), tables=tables)
+            except RuntimeError as exc:  # the SDK's error when no viewer answers
+                on_error(ImpactlabError(f"viewer: {exc}"))
+                sinks = []  # one error is enough; the files are still written
+    return written
+
+
+def write_recording(runs: Sequence[RunLog], path: Path, *, tables: dict | None = None) -> Path:
+    """Write one recording of `runs` to `path` atomically, with the replay blueprint as default.
+
+    Raises:
+        OSError: the file cannot be written.
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + PARTIAL_SUFFIX)
+    rec = _recording(runs)
+    try:
+        rec.set_sinks(rr.FileSink(str(tmp)))
+        _log_all(rec, runs, tables)
+        rec.disconnect()
+        if not tmp.is_file() or tmp.stat().st_size == 0:
+            raise OSError(f"the recording {tmp} was not written")
+        os.replace(tmp, path)
+    except BaseException:
+        rec.disconnect()
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def stream_recording(runs: Sequence[RunLog], sink: rr.GrpcSink, *, tables=None) -> None:
+    """Send the recording of `runs` to a viewer.
+
+    Raises:
+        RuntimeError: the viewer cannot be reached.
+    """
+    rec = _recording(runs)
+    try:
+        rec.set_sinks(sink)
+        _log_all(rec, runs, tables)
+    finally:
+        rec.disconnect()
+
+
+def _recording(runs: Sequence[RunLog]) -> rr.RecordingStream:
+    ids = [run.run_id for run in runs]
+    recording_id = ids[0] if len(ids) == 1 else "replay-" + _digest(ids)
+    return rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
+
+
+def _log_all(rec: rr.RecordingStream, runs: Sequence[RunLog], tables: dict | None) -> None:
+    """Every run, the recording's name and the default blueprint; flushed."""
+    ids = [run.run_id for run in runs]
+    rec.send_recording_name(ids[0] if len(ids) == 1 else f"{len(ids)} runs")
+    logged = [
+        log_run(rec, run, events_for(run, time_base(run), tables), label=label)
+        for run, label in zip(runs, run_labels(runs), strict=True)
+    ]
+    rec.send_blueprint(replay_blueprint(logged), make_active=False, make_default=True)
+    rec.flush()
+
+
+def run_labels(runs: Sequence[RunLog]) -> list[str]:
+    """Series name prefixes: none for one run; the sweep point for runs of one experiment
+    (`solimp=0.5_0.95_0.001: `); the run id otherwise."""
+    if len(runs) < 2:
+        return [""]
+    if len({run.experiment for run in runs}) == 1 and all(run.sweep for run in runs):
+        labels = [
+            " ".join(
+                f"{key.rsplit('.', 1)[-1]}="
+                + ("_".join(f"{v:g}" for v in value) if isinstance(value, list) else f"{value}")
+                for key, value in run.sweep.items()
+            )
+            for run in runs
+        ]
+        if len(set(labels)) == len(labels):
+            return [f"{label}: " for label in labels]
+    return [f"{run.run_id}: " for run in runs]
+
+
+def _digest(ids: Sequence[str]) -> str:
+    return hashlib.sha256("\n".join(ids).encode()).hexdigest()[:12]
+
+
+def _rerun_executable() -> str | None:
+    """The `rerun` CLI of this Python environment (None: rely on PATH)."""
+    candidate = Path(sys.executable).parent / "rerun"
+    return str(candidate) if candidate.exists() else None

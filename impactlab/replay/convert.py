@@ -1,0 +1,360 @@
+"""Log one decoded run into a Rerun recording, column by column, under ``/runs/<run_id>``.
+
+Entities of a run (P = ``/runs/<run_id>``), all on the duration timeline ``sim_time``:
+
+| entity                                 | what                                            |
+|----------------------------------------|-------------------------------------------------|
+| P/world/plane                          | the plane (static Boxes3D), when there is one   |
+| P/world/bodies/<body>                  | pose (Transform3D); children: sphere, marker    |
+| P/world/trails/<body>                  | centre positions (Points3D; the view shows the  |
+|                                        | last `TRAIL_S` seconds)                         |
+| P/world/velocity/<body>                | velocity arrow, length = v * `VELOCITY_ARROW_S` |
+| P/world/contacts/points, .../force     | contact points and force on geom2 (scaled)      |
+| P/series/gap/<pair>                    | height above the plane / surface gap, m         |
+| P/series/normal_velocity/<pair>[/impacts, /releases] | relative normal velocity, m/s, markers |
+| P/series/velocity/<body>/<vx..vz>      | velocity components that are not all zero, m/s  |
+| P/series/energy/<kinetic..total>       | MuJoCo's energy, J                              |
+| P/series/momentum/<px..pz>             | sum of m v (runs with several bodies), kg m/s   |
+| P/series/contact_force/<pair>          | summed normal force, N (zero without contact)   |
+| P/events/contacts, P/events/log        | impact / release texts; the log's own events    |
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import polars as pl
+import rerun as rr
+
+from impactlab.analyze.load import RunLog
+from impactlab.record.spec import DEFAULT_RGBA
+from impactlab.replay.events import Event, normal_kinematics, pairs
+
+TIMELINE = "sim_time"
+TRAIL_S = 0.25
+VELOCITY_ARROW_S = 0.1
+PLANE_THICKNESS_M = 0.001
+MARKER_COLOR = (255, 255, 255)
+CONTACT_COLOR = (255, 200, 0)
+IMPACT_COLOR = (230, 30, 30)
+RELEASE_COLOR = (30, 160, 30)
+ENERGY_COLORS = {"kinetic": (60, 140, 255), "potential": (240, 160, 30), "total": (230, 230, 230)}
+PAIR_COLOR = (220, 220, 220)
+LOG_LEVELS = {"WARNING": "WARN", "FATAL": "CRITICAL", "UNKNOWN": "INFO"}
+
+
+@dataclass
+class LoggedRun:
+    """What `log_run` wrote for one run; the blueprint is laid out from it."""
+
+    run_id: str
+    prefix: str
+    bodies: list[str]
+    families: list[str] = field(default_factory=list)  # series families under P/series
+    bounds: tuple[np.ndarray, np.ndarray] = (np.full(3, -0.5), np.full(3, 0.5))  # m, (3,) each
+
+
+def run_prefix(run_id: str) -> str:
+    """The entity subtree of a run: ``/runs/<run_id>`` (escaped)."""
+    return f"/runs/{rr.escape_entity_path_part(run_id)}"
+
+
+def time_base(run: RunLog) -> np.ndarray:
+    """The logged steps' times, ns, (nstep,): the body frames' (or the energy's) t_ns."""
+    frame = next(iter(run.bodies.values()), run.energy)
+    return frame["t_ns"].to_numpy().astype(np.int64)
+
+
+def log_run(
+    rec: rr.RecordingStream, run: RunLog, events: Sequence[Event], *, label: str = ""
+) -> LoggedRun:
+    """Log everything of one run.
+
+    `label` prefixes series names to tell runs apart in one recording; series then get the
+    viewer's automatic colours instead of the bodies' (which every run shares).
+    """
+    prefix = run_prefix(run.run_id)
+    t_ns = time_base(run)
+    logged = LoggedRun(run.run_id, prefix, list(run.bodies), bounds=scene_bounds(run))
+    rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    _log_plane(rec, run, prefix, logged.bounds)
+    _log_bodies(rec, run, prefix, t_ns)
+    _log_contacts(rec, run, prefix, t_ns)
+    logged.families = _log_series(rec, run, prefix, t_ns, events, label)
+    _log_events(rec, run, prefix, events)
+    return logged
+
+
+def scene_bounds(run: RunLog) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (m, (3,) each) of the box every body's surface stays in, plane level included."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    info = run.body_info
+    for name, frame in run.bodies.items():
+        pos = frame.select("x", "y", "z").to_numpy()
+        r = (info[name].radius if name in info else None) or 0.0
+        if pos.size:
+            lo, hi = np.minimum(lo, pos.min(axis=0) - r), np.maximum(hi, pos.max(axis=0) + r)
+    if run.plane_z is not None:
+        lo[2], hi[2] = min(lo[2], run.plane_z), max(hi[2], run.plane_z)
+    if not np.all(np.isfinite(lo)):
+        return np.full(3, -0.5), np.full(3, 0.5)
+    return lo, hi
+
+
+def _times(t_ns: np.ndarray) -> rr.TimeColumn:
+    return rr.TimeColumn(TIMELINE, duration=np.asarray(t_ns, np.int64).astype("timedelta64[ns]"))
+
+
+def body_colors(run: RunLog) -> dict[str, tuple[int, int, int]]:
+    """Each body's colour (0-255 RGB) from the spec's rgba, else from the default palette."""
+    spec_bodies = run.spec.get("bodies", {})
+    out = {}
+    for i, name in enumerate(run.bodies):
+        rgba = spec_bodies.get(name, {}).get("rgba") or DEFAULT_RGBA[i % len(DEFAULT_RGBA)]
+        out[name] = tuple(round(255 * c) for c in rgba[:3])
+    return out
+
+
+def _log_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
+    """The plane, cut to 0.5 m around where the bodies go (within its real size)."""
+    if run.plane_z is None:
+        return
+    plane = run.spec.get("plane", {})
+    size = np.asarray((plane.get("size") or [5.0, 5.0])[:2], dtype=float)
+    reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
+    sx, sy = np.minimum(size, reach + 0.5)
+    rgba = plane.get("rgba") or [0.8, 0.8, 0.8, 1.0]
+    rec.log(
+        f"{prefix}/world/plane",
+        rr.Boxes3D(
+            half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
+            centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
+            colors=[[int(255 * c) for c in rgba[:3]]],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+
+
+def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndarray) -> None:
+    """Pose, sphere with a surface marker, trail points and velocity arrow of each body."""
+    times = _times(t_ns)
+    colors = body_colors(run)
+    info = run.body_info
+    for name, frame in run.bodies.items():
+        state = frame.select("x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz").to_numpy()
+        pos, quat_xyzw, vel = state[:, :3], state[:, 3:7], state[:, 7:]
+        radius = (info[name].radius if name in info else None) or 0.05
+        body = f"{prefix}/world/bodies/{rr.escape_entity_path_part(name)}"
+        rec.send_columns(
+            body,
+            indexes=[times],
+            columns=rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw),
+        )
+        rec.log(
+            f"{body}/sphere",
+            rr.Ellipsoids3D(
+                half_sizes=[[radius] * 3],
+                colors=[colors[name]],
+                fill_mode="densewireframe",
+                labels=[name],
+                show_labels=False,
+            ),
+            static=True,
+        )
+        # A solid dot on the surface and a spoke to it: the body's spin is visible.
+        rec.log(
+            f"{body}/marker",
+            rr.Ellipsoids3D(
+                centers=[[0.0, 0.0, radius]],
+                half_sizes=[[radius * 0.18] * 3],
+                colors=[MARKER_COLOR],
+                fill_mode="solid",
+            ),
+            static=True,
+        )
+        rec.log(
+            f"{body}/spoke",
+            rr.LineStrips3D([[[0.0, 0.0, 0.0], [0.0, 0.0, radius]]], colors=[MARKER_COLOR]),
+            static=True,
+        )
+        part = rr.escape_entity_path_part(name)
+        trail = f"{prefix}/world/trails/{part}"
+        rec.send_columns(trail, indexes=[times], columns=rr.Points3D.columns(positions=pos))
+        rec.log(
+            trail,
+            rr.Points3D.from_fields(radii=[radius * 0.05], colors=[colors[name]]),
+            static=True,
+        )
+        arrows = f"{prefix}/world/velocity/{part}"
+        rec.send_columns(
+            arrows,
+            indexes=[times],
+            columns=rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S),
+        )
+        rec.log(arrows, rr.Arrows3D.from_fields(colors=[colors[name]]), static=True)
+
+
+def _log_contacts(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndarray) -> None:
+    """Contact points and force arrows on the steps in contact; cleared on the step after."""
+    contacts = run.contacts.sort("t_ns", maintain_order=True)
+    if contacts.is_empty() or t_ns.size == 0:
+        return
+    data = contacts.select("x", "y", "z", "fx", "fy", "fz").to_numpy()
+    step = np.searchsorted(t_ns, contacts["t_ns"].to_numpy())
+    keep = step < t_ns.size
+    data, step = data[keep], step[keep]
+    counts = np.bincount(step, minlength=t_ns.size)
+    touching = np.flatnonzero(counts)
+    after = touching + 1
+    cleared = after[(after < t_ns.size)]
+    cleared = cleared[counts[cleared] == 0]
+    rows = np.union1d(touching, cleared)
+    lengths = counts[rows]
+    force = data[:, 3:]
+    largest = float(np.max(np.linalg.norm(force, axis=1), initial=0.0))
+    radii = [b.radius for b in run.body_info.values() if b.radius]
+    scale = (2 * max(radii, default=0.1)) / largest if largest > 0 else 0.0
+    times = _times(t_ns[rows])
+    rec.send_columns(
+        f"{prefix}/world/contacts/points",
+        indexes=[times],
+        columns=rr.Points3D.columns(positions=data[:, :3]).partition(lengths),
+    )
+    rec.log(
+        f"{prefix}/world/contacts/points",
+        rr.Points3D.from_fields(radii=[0.01], colors=[CONTACT_COLOR]),
+        static=True,
+    )
+    rec.send_columns(
+        f"{prefix}/world/contacts/force",
+        indexes=[times],
+        columns=rr.Arrows3D.columns(origins=data[:, :3], vectors=force * scale).partition(lengths),
+    )
+    rec.log(
+        f"{prefix}/world/contacts/force",
+        rr.Arrows3D.from_fields(colors=[CONTACT_COLOR]),
+        static=True,
+    )
+
+
+def _series(
+    rec: rr.RecordingStream,
+    path: str,
+    t_ns: np.ndarray,
+    values: np.ndarray,
+    name: str,
+    color: Sequence[int] | None = None,
+) -> None:
+    rec.send_columns(
+        path,
+        indexes=[_times(t_ns)],
+        columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
+    )
+    style = rr.SeriesLines(names=name, colors=[color] if color is not None else None)
+    rec.log(path, style, static=True)
+
+
+def _markers(
+    rec: rr.RecordingStream, path: str, t_ns: np.ndarray, values: np.ndarray, name: str, color
+) -> None:
+    if t_ns.size == 0:
+        return
+    rec.send_columns(
+        path, indexes=[_times(t_ns)], columns=rr.Scalars.columns(scalars=values.astype(float))
+    )
+    rec.log(path, rr.SeriesPoints(names=name, colors=[color], marker_sizes=[5.0]), static=True)
+
+
+def _log_series(
+    rec: rr.RecordingStream,
+    run: RunLog,
+    prefix: str,
+    t_ns: np.ndarray,
+    events: Sequence[Event],
+    label: str,
+) -> list[str]:
+    """The time series; returns the families logged (gap, normal_velocity, ...)."""
+    families: set[str] = set()
+    series = f"{prefix}/series"
+    colors = {} if label else body_colors(run)
+    force = _normal_force(run, t_ns)
+    for pair in pairs(run):
+        gap, vn = normal_kinematics(run, pair)
+        part = rr.escape_entity_path_part(pair.name)
+        what = "height" if pair.first == "world" else "gap"
+        color = (
+            colors.get(pair.second) if pair.first == "world" else (PAIR_COLOR if colors else None)
+        )
+        _series(rec, f"{series}/gap/{part}", t_ns, gap, f"{label}{what} {pair.name}", color)
+        path = f"{series}/normal_velocity/{part}"
+        _series(rec, path, t_ns, vn, f"{label}v_n {pair.name}", color)
+        for kind, mark_color in (("impact", IMPACT_COLOR), ("release", RELEASE_COLOR)):
+            steps = np.array([e.step for e in events if e.kind == kind and e.pair == pair], int)
+            _markers(rec, f"{path}/{kind}s", t_ns[steps], vn[steps], f"{label}{kind}", mark_color)
+        pair_force = force.get((pair.first, pair.second), np.zeros(t_ns.size))
+        path = f"{series}/contact_force/{part}"
+        _series(rec, path, t_ns, pair_force, f"{label}F_n {pair.name}", color)
+        families |= {"gap", "normal_velocity", "contact_force"}
+    masses = run.body_info
+    momentum = np.zeros((t_ns.size, 3))
+    for name, frame in run.bodies.items():
+        vel = frame.select("vx", "vy", "vz").to_numpy()
+        momentum += vel * (masses[name].mass if name in masses else 0.0)
+        body = rr.escape_entity_path_part(name)
+        for i, comp in enumerate(("vx", "vy", "vz")):
+            if np.any(vel[:, i] != 0) and not (comp == "vz" and run.plane_z is not None):
+                path = f"{series}/velocity/{body}/{comp}"
+                _series(rec, path, t_ns, vel[:, i], f"{label}{comp} {name}", colors.get(name))
+                families.add("velocity")
+    if len(run.bodies) > 1:
+        for i, comp in enumerate(("px", "py", "pz")):
+            if np.any(momentum[:, i] != 0) or i == 0:
+                _series(rec, f"{series}/momentum/{comp}", t_ns, momentum[:, i], f"{label}{comp}")
+        families.add("momentum")
+    if not run.energy.is_empty():
+        t_energy = run.energy["t_ns"].to_numpy()
+        for comp, color in ENERGY_COLORS.items():
+            values = run.energy[comp].to_numpy()
+            path = f"{series}/energy/{comp}"
+            _series(rec, path, t_energy, values, f"{label}{comp}", None if label else color)
+        families.add("energy")
+    order = ("gap", "normal_velocity", "velocity", "energy", "momentum", "contact_force")
+    return [f for f in order if f in families]
+
+
+def _normal_force(run: RunLog, t_ns: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
+    """Per (body1, body2) as in `pairs`, the summed normal force on every step (zeros between)."""
+    if run.contacts.is_empty():
+        return {}
+    summed = run.contacts.group_by("body1", "body2", "t_ns").agg(pl.col("normal_force").sum())
+    out: dict[tuple[str, str], np.ndarray] = {}
+    for (body1, body2), frame in summed.group_by("body1", "body2"):
+        key = (body1, body2)
+        if key not in {(p.first, p.second) for p in pairs(run)}:
+            key = (body2, body1)
+        values = np.zeros(t_ns.size)
+        steps = np.searchsorted(t_ns, frame["t_ns"].to_numpy())
+        ok = steps < t_ns.size
+        values[steps[ok]] = frame["normal_force"].to_numpy()[ok]
+        out[key] = out.get(key, 0) + values
+    return out
+
+
+def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Sequence[Event]):
+    """Impact / release texts at P/events/contacts, the log's own events at P/events/log."""
+    if events:
+        rec.send_columns(
+            f"{prefix}/events/contacts",
+            indexes=[_times(np.array([e.t_ns for e in events], np.int64))],
+            columns=rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
+        )
+    if not run.events.is_empty():
+        levels = [LOG_LEVELS.get(level, level) for level in run.events["level"].to_list()]
+        rec.send_columns(
+            f"{prefix}/events/log",
+            indexes=[_times(run.events["t_ns"].to_numpy())],
+            columns=rr.TextLog.columns(text=run.events["message"].to_list(), level=levels),
+        )
