@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+import struct
 import tempfile
 import time
 from collections.abc import Callable, Sequence
@@ -14,15 +15,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
 from tqdm import tqdm
 
+from impactlab import logformat
 from impactlab.errors import SpecError
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
 from impactlab.record.simulate import RunRequest, Trajectory, simulate_batch
 from impactlab.record.spec import RunSpec, spec_hash
 from impactlab.record.sweep import load_runs
-from impactlab.record.writer import RunInfo, write_log
+from impactlab.record.writer import PARTIAL_SUFFIX, RunInfo, write_log
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
@@ -160,6 +164,25 @@ def batches(
     return out
 
 
+def is_complete(path: Path, spec_hash: str) -> bool:
+    """Whether `path` is a finished log of the run with this spec hash (summary, outcome)."""
+    try:
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            if reader.get_summary() is None:
+                return False
+            meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    except (OSError, McapError, ValueError, EOFError, struct.error):
+        return False
+    run = meta.get(logformat.RUN_METADATA, {})
+    return run.get("spec_hash") == spec_hash and logformat.OUTCOME_METADATA in meta
+
+
+def log_path(out_dir: Path, run: PlannedRun) -> Path:
+    """Where a run's log goes: named by experiment, sweep point and spec hash."""
+    return out_dir / f"{run.info.run_id}.mcap"
+
+
 def record(
     runs: Sequence[PlannedRun],
     out_dir: Path,
@@ -167,16 +190,25 @@ def record(
     echo: Callable[[str], None] = print,
     batch_size: int = BATCH_RUNS,
     threads: int | None = None,
+    overwrite: bool = False,
 ) -> list[RunResult]:
     """Record planned runs in batches of multi-threaded rollouts, one log per run.
 
     Each run's log is written as soon as its batch finishes; a progress bar shows when
-    there are several runs.
+    there are several runs. Runs whose complete log is already in `out_dir` are reused
+    (not returned) unless `overwrite`; leftovers of interrupted runs are removed.
     """
     check_writable(out_dir)
+    todo = [r for r in runs if overwrite or not is_complete(log_path(out_dir, r), r.info.spec_hash)]
+    for run in todo:
+        log_path(out_dir, run).with_name(log_path(out_dir, run).name + PARTIAL_SUFFIX).unlink(
+            missing_ok=True
+        )
+    if len(todo) < len(runs):
+        echo(f"reused {len(runs) - len(todo)} complete log(s) in {out_dir}/, running {len(todo)}")
     results = []
-    bar = tqdm(total=len(runs), unit="run", disable=len(runs) < 2 or None, leave=False)
-    for batch in batches(runs, batch_size):
+    bar = tqdm(total=len(todo), unit="run", disable=len(todo) < 2 or None, leave=False)
+    for batch in batches(todo, batch_size):
         start = time.perf_counter()
         requests = [
             RunRequest(inst, run.max_time, run.spec.stop if run.spec else None, run.info.log_every)
@@ -186,7 +218,7 @@ def record(
         share = (time.perf_counter() - start) / len(batch)
         for (run, inst), traj in zip(batch, trajectories, strict=True):
             t0 = time.perf_counter()
-            path = write_log(out_dir / f"{run.info.run_id}.mcap", inst, run.info, traj)
+            path = write_log(log_path(out_dir, run), inst, run.info, traj)
             result = RunResult(path, traj, share + time.perf_counter() - t0)
             results.append(result)
             bar.update()

@@ -53,6 +53,8 @@ DEFAULTS: dict[str, Any] = {
         "rest_speed": 1e-3,
         "rest_time": 0.05,
         "separation": None,
+        "max_energy_gain": 0.1,
+        "max_penetration": 1.0,
     },
     "logging": {"every": 1},
 }
@@ -127,6 +129,9 @@ class Stop:
     body on the plane. `at_rest`: stop once every body is slower than `rest_speed` for
     `rest_time`. `separation`: a collision; stop once the bodies have touched and their
     surfaces are this far apart again (a run that ends without that contact is warned about).
+    A run is stopped as unstable when its state becomes non-finite, its mechanical energy
+    grows by more than `max_energy_gain` (fraction of its energy scale) or a penetration
+    exceeds `max_penetration` (fraction of the smaller radius).
     """
 
     max_time: float
@@ -135,6 +140,8 @@ class Stop:
     rest_speed: float
     rest_time: float
     separation: float | None
+    max_energy_gain: float = 0.1
+    max_penetration: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -292,6 +299,8 @@ def validate(doc: Mapping[str, Any], *, source: str, sweep_values: Mapping[str, 
         separation=None
         if st["separation"] is None
         else v.number(st["separation"], "stop.separation", min_exclusive=0.0),
+        max_energy_gain=v.number(st["max_energy_gain"], "stop.max_energy_gain", min_exclusive=0.0),
+        max_penetration=v.number(st["max_penetration"], "stop.max_penetration", min_exclusive=0.0),
     )
     _check_stop(stop, plane, bodies, options, source)
     log_every = v.integer(doc["logging"]["every"], "logging.every", 1)

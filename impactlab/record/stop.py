@@ -135,12 +135,99 @@ class _Separated(_Rule):
         return Verdict(step0 + hit, "completed", f"bodies separated by {self.gap_m:g} m")
 
 
+@dataclass
+class _EnergyGain(_Rule):
+    """Unstable when the bodies' mechanical energy grows beyond a bound (no source exists).
+
+    Energy from the logged state: 0.5 m v^2 + 0.5 I |w|^2 - m g.p, with I the mean of the
+    principal inertias (exact for spheres).
+    """
+
+    masses: np.ndarray
+    inertias: np.ndarray
+    adrs: list[int]
+    gravity: np.ndarray
+    fraction: float
+    timestep: float
+    e0: float | None = None
+    scale: float = 0.0
+
+    def energy(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Kinetic and potential energy of every row, J, (n,) each."""
+        kinetic, potential = np.zeros(rows.shape[0]), np.zeros(rows.shape[0])
+        for m, inertia, a in zip(self.masses, self.inertias, self.adrs, strict=True):
+            pos, v, w = rows[:, a : a + 3], rows[:, a + 7 : a + 10], rows[:, a + 10 : a + 13]
+            kinetic += 0.5 * m * (v**2).sum(1) + 0.5 * inertia * (w**2).sum(1)
+            potential -= m * pos @ self.gravity
+        return kinetic, potential
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        kinetic, potential = self.energy(rows)
+        energy = kinetic + potential
+        if self.e0 is None:
+            self.e0 = float(energy[0])
+            ten_cm_fall = 0.1 * float(np.sum(self.masses) * np.linalg.norm(self.gravity))
+            self.scale = max(float(kinetic[0] + abs(potential[0])), ten_cm_fall, 1e-6)
+        gain = energy - self.e0
+        bad = _first(gain > self.fraction * self.scale)
+        if bad is None:
+            return None
+        t = (step0 + bad) * self.timestep
+        reason = (
+            f"energy grew by {gain[bad]:.4g} J (bound {self.fraction:g} x {self.scale:.4g} J) "
+            f"at t = {t:.6g} s with no source"
+        )
+        return Verdict(step0 + bad, "unstable", reason)
+
+
+@dataclass
+class _Penetration(_Rule):
+    """Unstable when a contact penetrates deeper than a bound (m) for its pair."""
+
+    dist_cols: list[int]
+    bounds_m: list[float]
+    timestep: float
+
+    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+        for col, bound in zip(self.dist_cols, self.bounds_m, strict=True):
+            found = rows[:, col - 4] > 0
+            bad = _first(found & (-rows[:, col] > bound))
+            if bad is not None:
+                t = (step0 + bad) * self.timestep
+                reason = f"penetration {-rows[bad, col]:.4g} m > {bound:.4g} m at t = {t:.6g} s"
+                return Verdict(step0 + bad, "unstable", reason)
+        return None
+
+
 class StopMonitor:
     """Evaluates a run's stop rules chunk by chunk; the earliest firing rule wins."""
 
     def __init__(self, inst: InstrumentedModel, stop: Stop | None, *, timestep: float) -> None:
         self.rules: list[_Rule] = [_Finite()]
         self.bodybody_cols: list[int] = []
+        model = inst.model
+        gain = stop.max_energy_gain if stop else Stop.max_energy_gain
+        self.rules.append(
+            _EnergyGain(
+                masses=np.array([model.body_mass[b.body_id] for b in inst.bodies]),
+                inertias=np.array([model.body_inertia[b.body_id].mean() for b in inst.bodies]),
+                adrs=[b.adr for b in inst.bodies],
+                gravity=np.array(model.opt.gravity),
+                fraction=gain,
+                timestep=timestep,
+            )
+        )
+        radius = {b.name: b.radius for b in inst.bodies}
+        fraction = stop.max_penetration if stop else Stop.max_penetration
+        limited = [
+            (c.adr + 4, fraction * min(r for r in (radius.get(c.body1), radius[c.body2]) if r))
+            for c in inst.contacts
+            if c.num == 1 and radius.get(c.body2)
+        ]
+        if limited:
+            self.rules.append(
+                _Penetration([c for c, _ in limited], [b for _, b in limited], timestep)
+            )
         if stop is None:
             return
         by_name = {b.name: b for b in inst.bodies}
