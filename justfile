@@ -1,8 +1,8 @@
-# Everyday recipes. `just --list` shows them.
+# Everyday recipes. `just --list` shows them. PYTHON=... picks the interpreter.
 
 python := env_var_or_default("PYTHON", "python")
 
-# Record and analyze every experiment of the lab (the README's main command).
+# Record, analyze and replay every experiment (the README's main command).
 lab out="lab-output":
     {{python}} -m impactlab lab -o {{out}}
 
@@ -18,6 +18,14 @@ lint:
 # Regenerate the Python bindings from schemas/*.proto.
 schemas:
     {{python}} -m impactlab.proto.generate
+
+# Regenerate the golden logs of tests/golden/ on purpose (prints what changed); `just golden --check` only reports.
+golden *args:
+    {{python}} -m impactlab.golden {{args}}
+
+# Benchmarks: recording, decoding, analysis and replay against their baselines.
+bench:
+    {{python}} benchmarks/bench.py
 
 # Refresh the lock file from pyproject.toml.
 lock:

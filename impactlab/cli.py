@@ -22,7 +22,8 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
     parser = argparse.ArgumentParser(
         prog="impactlab",
-        description="Simulated impact experiments: record MuJoCo runs to MCAP logs, inspect them.",
+        description="Simulated impact experiments: record MuJoCo runs to MCAP logs, analyze "
+        "them, replay them in Rerun, compare them. `impactlab lab` does it all.",
     )
     parser.add_argument("--version", action="version", version=f"impactlab {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -54,16 +55,19 @@ def build_parser() -> argparse.ArgumentParser:
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
     info.add_argument("logs", nargs="+", type=Path, metavar="LOG")
     info.set_defaults(func=_cmd_info)
-    from impactlab.replay.command import register as register_replay
-
-    register_replay(sub)
-    from impactlab.analyze.command import register as register_analyze
-
-    register_analyze(sub)
-    from impactlab.diff_command import register as register_diff
-
-    register_diff(sub)
+    for register in _stage_commands():
+        register(sub)
     return parser
+
+
+def _stage_commands():
+    """The `register(sub)` functions of the other stages' commands, in help order."""
+    from impactlab.analyze.command import register as analyze
+    from impactlab.diff_command import register as diff
+    from impactlab.lab import register as lab
+    from impactlab.replay.command import register as replay
+
+    return [analyze, replay, diff, lab]
 
 
 def _cmd_record(args: argparse.Namespace) -> int:

@@ -195,8 +195,8 @@ def test_analysis_numbers_in_event_texts(logs: dict[str, Path], tmp_path: Path) 
         {
             "run_id": [run.run_id, run.run_id, "another-run"],
             "bounce": [1, 2, 1],
-            "t_impact_s": [t[100], t[400], t[5]],
-            "t_release_s": [t[120], None, t[9]],
+            "impact_t_s": [t[100], t[400], t[5]],
+            "release_t_s": [t[120], None, t[9]],
             "e_velocity": [0.91, 0.88, 0.1],
             "apex_m": [0.75, 0.6, 0.1],
         }

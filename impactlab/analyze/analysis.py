@@ -149,9 +149,6 @@ def summary_row(a: RunAnalysis) -> dict[str, Any]:
         else None,
         "contact_loss_sum_J": contacts["loss_J"].sum() if contacts.height else 0.0,
         "mujoco_diff_max_J": total["mujoco_diff_J"].abs().max() if total.height else None,
-        "mujoco_diff_lagged_max_J": total["mujoco_diff_lagged_J"].abs().max()
-        if total.height
-        else None,
         "drop_height_m": first["apex_before_m"][0] if first.height else None,
         "n_bounces": int(a.bounces["bounce"].count()),
         "n_bounces_complete": good.height,

@@ -102,10 +102,8 @@ def run_energy(run: RunLog) -> pl.DataFrame:
 
     Returns:
         (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
-        mujoco_total_J, mujoco_diff_J, mujoco_diff_lagged_J); the MuJoCo columns are set on the
-        "total" rows only: MuJoCo's total minus sum(-m g . r_ref); that minus total_J; and that
-        minus (potential now + kinetic one step earlier), because the logged MuJoCo kinetic
-        energy is that of the previous step (only computed when every step is logged).
+        mujoco_total_J, mujoco_diff_J); the MuJoCo columns are set on the "total" rows only:
+        MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
     """
     refs = reference_positions(run)
     states = states_long(run)
@@ -133,18 +131,9 @@ def run_energy(run: RunLog) -> pl.DataFrame:
             on="t_ns",
             how="left",
         )
-        .with_columns(
-            (pl.col("mujoco_total_J") - pl.col("total_J")).alias("mujoco_diff_J"),
-            (
-                pl.col("mujoco_total_J")
-                - pl.col("pe_J")
-                - (pl.col("ke_trans_J") + pl.col("ke_rot_J")).shift(1)
-            ).alias("mujoco_diff_lagged_J")
-            if run.meta.get("log_every", "1") == "1"
-            else pl.lit(None, dtype=pl.Float64).alias("mujoco_diff_lagged_J"),
-        )
+        .with_columns((pl.col("mujoco_total_J") - pl.col("total_J")).alias("mujoco_diff_J"))
     )
-    extra = ["mujoco_total_J", "mujoco_diff_J", "mujoco_diff_lagged_J"]
+    extra = ["mujoco_total_J", "mujoco_diff_J"]
     return pl.concat([bodies, total.select(bodies.columns + extra)], how="diagonal").sort(
         "body", "t_ns"
     )
@@ -154,7 +143,7 @@ def empty_energy() -> pl.DataFrame:
     """An energy frame with no rows."""
     schema = {"run_id": pl.String, "body": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
     schema |= {c: pl.Float64 for c in ("height_m", *ENERGY_COLUMNS)}
-    schema |= {c: pl.Float64 for c in ("mujoco_total_J", "mujoco_diff_J", "mujoco_diff_lagged_J")}
+    schema |= {c: pl.Float64 for c in ("mujoco_total_J", "mujoco_diff_J")}
     return pl.DataFrame(schema=schema)
 
 

@@ -136,7 +136,6 @@ def build_report(
                     "flight_drift_max_J",
                     "flight_drift_max_rel",
                     "mujoco_diff_max_J",
-                    "mujoco_diff_lagged_max_J",
                 ],
             )
         )
@@ -148,10 +147,8 @@ def build_report(
             out.append(md_table(losses, ["run_id", "start_t_s", "end_t_s", "loss_J", "open"]))
     out.append(
         "\n`mujoco_diff_max_J` is the largest |MuJoCo total (shifted by the reference) - our "
-        "total| over the run. `mujoco_diff_lagged_max_J` compares MuJoCo's total with our "
-        "potential energy at the same step plus our kinetic energy one step earlier: when it is "
-        "~0, MuJoCo's logged kinetic energy is that of the previous step (it is evaluated before "
-        "the velocities are updated), which explains the whole of the first difference.\n"
+        "total| over the run: MuJoCo's own energy (its `e_kinetic` and `e_potential` sensors) "
+        "against the energy computed here from the logged states.\n"
     )
     out += [image(p, out_dir, "energy") for p in figures.get("energy", [])]
 

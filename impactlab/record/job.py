@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import mujoco
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from tqdm import tqdm
@@ -165,7 +166,7 @@ def batches(
 
 
 def is_complete(path: Path, spec_hash: str) -> bool:
-    """Whether `path` is a finished log of the run with this spec hash (summary, outcome)."""
+    """Whether `path` is a finished log of this run (spec hash), by this MuJoCo and log format."""
     try:
         with open(path, "rb") as stream:
             reader = make_reader(stream)
@@ -175,7 +176,11 @@ def is_complete(path: Path, spec_hash: str) -> bool:
     except (OSError, McapError, ValueError, EOFError, struct.error):
         return False
     run = meta.get(logformat.RUN_METADATA, {})
-    return run.get("spec_hash") == spec_hash and logformat.OUTCOME_METADATA in meta
+    same_tools = (run.get("mujoco_version"), run.get("log_format_version")) == (
+        mujoco.__version__,
+        logformat.LOG_FORMAT_VERSION,
+    )
+    return run.get("spec_hash") == spec_hash and same_tools and logformat.OUTCOME_METADATA in meta
 
 
 def log_path(out_dir: Path, run: PlannedRun) -> Path:

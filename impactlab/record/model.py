@@ -70,7 +70,7 @@ class InstrumentedModel:
     """A compiled model, its MJCF text and the layout of what the recorder reads."""
 
     model: mujoco.MjModel
-    xml: str
+    xml: str  # the MJCF text as written by impactlab or the user (full precision)
     bodies: list[BodyChannel]
     contacts: list[ContactChannel]
     geoms: list[GeomShape]
@@ -140,9 +140,11 @@ def _fmt(values: tuple[float, ...] | list[float]) -> str:
 
 def model_from_spec(run: RunSpec) -> InstrumentedModel:
     """Compile a spec's model with the recorder's sensors."""
-    spec = mujoco.MjSpec.from_string(mjcf_from_spec(run))
+    xml = mjcf_from_spec(run)
     radii = {b.name: b.radius for b in run.bodies}
-    return instrument(spec, run.source, radii=radii, keyframe="initial")
+    return instrument(
+        mujoco.MjSpec.from_string(xml), run.source, xml=xml, radii=radii, keyframe="initial"
+    )
 
 
 def model_from_mjcf(path: Path) -> InstrumentedModel:
@@ -153,7 +155,7 @@ def model_from_mjcf(path: Path) -> InstrumentedModel:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
-    return instrument(spec, str(path), radii={}, keyframe=None)
+    return instrument(spec, str(path), xml=path.read_text(), radii={}, keyframe=None)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -161,9 +163,18 @@ def _one_line(exc: BaseException) -> str:
 
 
 def instrument(
-    spec: mujoco.MjSpec, source: str, *, radii: dict[str, float], keyframe: str | None
+    spec: mujoco.MjSpec,
+    source: str,
+    *,
+    xml: str,
+    radii: dict[str, float],
+    keyframe: str | None,
 ) -> InstrumentedModel:
     """Name unnamed bodies and geoms, add the recorder's sensors, compile.
+
+    `xml` is the model's own MJCF text, kept for the log: MuJoCo's saved XML rounds numbers
+    to about six digits, the text we were given does not. The sensors do not change the
+    dynamics, so that text reproduces the run.
 
     Raises:
         SpecError: the model does not compile or has no free body.
@@ -202,9 +213,7 @@ def instrument(
             refname=plain.geom(g2).name,
             intprm=[CONTACT_DATA_BITS, 0, num],
         )
-    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     model = spec.compile()
-    xml = spec.to_xml()
 
     def adr(name: str) -> int:
         return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])

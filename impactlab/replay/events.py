@@ -155,7 +155,7 @@ def load_analysis(folder: Path) -> dict[str, pl.DataFrame]:
 
     Raises:
         LogError: the folder does not exist, or a table is unreadable or lacks
-            `run_id` / `t_impact_s`.
+            `run_id` / `impact_t_s`.
     """
     if not folder.is_dir():
         raise LogError(str(folder), "analysis folder not found")
@@ -168,7 +168,7 @@ def load_analysis(folder: Path) -> dict[str, pl.DataFrame]:
             frame = pl.read_parquet(path)
         except Exception as exc:  # polars raises several error types for damaged files
             raise LogError(str(path), f"cannot read the table ({exc})") from None
-        missing = [c for c in ("run_id", "t_impact_s") if c not in frame.columns]
+        missing = [c for c in ("run_id", "impact_t_s") if c not in frame.columns]
         if missing:
             raise LogError(str(path), f"missing column(s) {', '.join(missing)}")
         tables[name] = frame
@@ -180,7 +180,7 @@ def analysis_events(
 ) -> list[Event] | None:
     """Events from the analysis rows of this run (None when no table has a row for it).
 
-    Each row gives an impact at `t_impact_s` and, when not null, a release at `t_release_s`,
+    Each row gives an impact at `impact_t_s` and, when not null, a release at `release_t_s`,
     snapped to the nearest logged step. The texts carry the row's numbers, and the log's
     v_in / v_out when a contact interval of the log starts within two steps of the impact.
     """
@@ -195,7 +195,7 @@ def analysis_events(
     only = pairs(run)[0] if len(pairs(run)) == 1 else None
     events = []
     for table, row in rows:
-        impact = _nearest_step(t_ns, row["t_impact_s"])
+        impact = _nearest_step(t_ns, row["impact_t_s"])
         iv = min(intervals, key=lambda i: abs(i.start - impact), default=None)
         iv = iv if iv is not None and abs(iv.start - impact) <= 2 else None
         pair = iv.pair if iv is not None else only
@@ -205,8 +205,8 @@ def analysis_events(
         events.append(
             Event(impact, int(t_ns[impact]), "impact", pair, f"impact {who}: {numbers}{extra}")
         )
-        if row.get("t_release_s") is not None:
-            release = _nearest_step(t_ns, row["t_release_s"])
+        if row.get("release_t_s") is not None:
+            release = _nearest_step(t_ns, row["release_t_s"])
             extra = f"; log: {_v(iv, out=True)}" if iv else ""
             text = f"release {who}: {numbers}{extra}"
             events.append(Event(release, int(t_ns[release]), "release", pair, text))
@@ -224,7 +224,7 @@ def _numbers(row: Mapping[str, object]) -> str:
     """`name = value` for the row's numeric and text columns (not run_id, not the times)."""
     parts = []
     for key, value in row.items():
-        if key in ("run_id", "t_impact_s", "t_release_s") or value is None:
+        if key in ("run_id", "impact_t_s", "release_t_s") or value is None:
             continue
         if isinstance(value, bool | str):
             parts.append(f"{key} = {value}")
