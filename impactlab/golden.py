@@ -1,0 +1,187 @@
+"""Regenerate the golden logs of the regression tests on purpose: `python -m impactlab.golden`.
+
+The golden specs live in `tests/golden/specs/`, their logs in `tests/golden/logs/<name>.mcap`
+and the analysis tables of those logs in `tests/golden/results/`. This script records every
+golden spec into a temporary folder, prints what changed against the committed logs (with
+`impactlab.diff`, exact comparison) and then replaces the changed ones; `--check` only
+reports and exits 1 when anything changed. A log whose only differences are in the metadata
+keys `GOLDEN_IGNORED_META` (where the spec file was, the impactlab version) is kept as is,
+so regenerating without a change in the physics leaves the files untouched.
+
+Regenerate only when a change of the recorded values is intended (a new MuJoCo pin, a new
+log format version, a deliberate change of the recorder); `tests/test_golden.py` fails
+otherwise, naming the channel, field and time where a new recording departs from the golden.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import polars as pl
+
+from impactlab.analyze.load import load_log
+from impactlab.diff import EXACT, LogDiff, diff_logs
+from impactlab.record.job import plan, record
+
+GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"
+SPECS_DIR = GOLDEN_DIR / "specs"
+LOGS_DIR = GOLDEN_DIR / "logs"
+RESULTS_DIR = GOLDEN_DIR / "results"
+# metadata that differs between two recordings of the same run on different checkouts
+GOLDEN_IGNORED_META = ("impactlab_version", "source")
+RESULT_TABLES = ("runs", "bounces", "collisions")
+# columns of the analysis tables that name where the files were, not what they hold
+RESULT_MACHINE_COLUMNS = ("file",)
+
+
+@dataclass(frozen=True)
+class Golden:
+    """One golden log: its name (file stem), its spec (in specs/) and overrides (`--set`)."""
+
+    name: str
+    spec: str
+    overrides: tuple[str, ...] = ()
+
+    @property
+    def spec_path(self) -> Path:
+        """The spec file."""
+        return SPECS_DIR / self.spec
+
+    @property
+    def log_path(self) -> Path:
+        """The committed golden log."""
+        return LOGS_DIR / f"{self.name}.mcap"
+
+
+GOLDENS = (
+    Golden("drop_bounces", "drop_bounces.toml"),
+    Golden("collision", "collision.toml"),
+    Golden("drop_restitution", "drop_restitution.toml"),
+    Golden("collision_sweep_point", "collision_sweep.toml", ("ball2.mass=2.0",)),
+)
+
+
+def record_golden(
+    golden: Golden, out_dir: Path, *, overrides: Sequence[str] = (), name: str | None = None
+) -> Path:
+    """Record one golden spec (plus extra overrides) to `out_dir/<name>.mcap`; returns the path.
+
+    Raises:
+        SpecError: the spec or an override is wrong, or it gives more than one run.
+    """
+    from impactlab.errors import SpecError
+
+    runs = plan([golden.spec_path], overrides=[*golden.overrides, *overrides])
+    if len(runs) != 1:
+        raise SpecError(str(golden.spec_path), "sweep", f"gives {len(runs)} runs, need one")
+    work = Path(tempfile.mkdtemp(prefix=f".{golden.name}-", dir=out_dir))
+    try:
+        (result,) = record(runs, work, echo=lambda _: None)
+        target = out_dir / f"{name or golden.name}.mcap"
+        result.path.replace(target)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return target
+
+
+def compare_golden(golden_log: Path, new_log: Path) -> LogDiff:
+    """Exact comparison of a new recording with a golden log (see GOLDEN_IGNORED_META)."""
+    return diff_logs(
+        load_log(golden_log), load_log(new_log), tolerance=EXACT, ignore_meta=GOLDEN_IGNORED_META
+    )
+
+
+def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
+    """Analyze every log of a folder (`impactlab analyze`); the RESULT_TABLES, sorted.
+
+    Columns that hold file paths are dropped, so the tables do not depend on the checkout.
+    """
+    from impactlab.analyze.command import run_analysis
+
+    result = run_analysis([logs_dir], work_dir, echo=lambda _: None)
+    if result.failed:
+        raise RuntimeError(f"analysis failed: {result.failed}")
+    out = {}
+    for name in RESULT_TABLES:
+        frame = pl.read_parquet(work_dir / f"{name}.parquet")
+        frame = frame.drop([c for c in RESULT_MACHINE_COLUMNS if c in frame.columns])
+        out[name] = frame.sort(
+            [c for c in ("run_id", "body", "bounce", "collision") if c in frame.columns]
+        )
+    return out
+
+
+def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = print) -> int:
+    """Regenerate (or with --check, verify) the golden logs and analysis tables."""
+    parser = argparse.ArgumentParser(
+        prog="python -m impactlab.golden",
+        description="Re-record the golden specs of tests/golden/, report what changed against "
+        "the committed logs and replace them (only report with --check).",
+    )
+    parser.add_argument(
+        "--check", action="store_true", help="only compare; exit 1 when anything changed"
+    )
+    args = parser.parse_args(argv)
+    LOGS_DIR.mkdir(parents=True, exist_ok=True)
+    changed: list[str] = []
+    with tempfile.TemporaryDirectory(prefix="impactlab-golden-") as tmp:
+        new_dir = Path(tmp) / "logs"
+        new_dir.mkdir()
+        for golden in GOLDENS:
+            new = record_golden(golden, new_dir)
+            if not golden.log_path.exists():
+                echo(f"{golden.name}: new golden log ({new.stat().st_size} bytes)")
+                changed.append(golden.name)
+                continue
+            diff = compare_golden(golden.log_path, new)
+            if diff.equal:
+                echo(f"{golden.name}: unchanged")
+                shutil.copyfile(golden.log_path, new)  # keep the committed bytes
+            else:
+                echo(f"{golden.name}: changed")
+                echo(diff.report())
+                changed.append(golden.name)
+        names = {f"{g.name}.mcap" for g in GOLDENS}
+        stale = sorted(p for p in LOGS_DIR.glob("*.mcap") if p.name not in names)
+        for path in stale:
+            echo(
+                f"{path.stem}: no golden spec any more: {'would be ' if args.check else ''}removed"
+            )
+        tables = analysis_tables(new_dir, Path(tmp) / "results")
+        for name, frame in tables.items():
+            old = RESULTS_DIR / f"{name}.parquet"
+            if not old.exists() or not pl.read_parquet(old).equals(frame):
+                echo(f"results/{name}.parquet: {'new' if not old.exists() else 'changed'}")
+                changed.append(f"results/{name}")
+        if args.check:
+            if changed or stale:
+                echo(f"golden data out of date: {', '.join(changed + [p.stem for p in stale])}")
+                return 1
+            echo("golden data up to date")
+            return 0
+        for golden in GOLDENS:
+            if golden.name in changed:
+                shutil.copyfile(new_dir / f"{golden.name}.mcap", golden.log_path)
+        for path in stale:
+            path.unlink()
+        RESULTS_DIR.mkdir(parents=True, exist_ok=True)
+        for name, frame in tables.items():
+            if f"results/{name}" in changed:
+                frame.write_parquet(RESULTS_DIR / f"{name}.parquet")
+    total = sum(p.stat().st_size for p in GOLDEN_DIR.rglob("*") if p.is_file())
+    echo(
+        f"{len(changed)} golden file(s) written; tests/golden holds {total / 1e6:.2f} MB"
+        if changed
+        else "nothing changed"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
