@@ -60,13 +60,24 @@ class Template:
             fixed[at : at + 8] = False
         return cls(template, np.asarray(slots, dtype=np.int64), fixed)
 
+    @property
+    def record_dtype(self) -> np.dtype:
+        """A structured dtype viewing one payload: field v<j> is the j-th double."""
+        return np.dtype(
+            {
+                "names": [f"v{j}" for j in range(self.slots.size)],
+                "formats": ["<f8"] * self.slots.size,
+                "offsets": self.slots.tolist(),
+                "itemsize": self.size,
+            }
+        )
+
     def encode(self, values: np.ndarray) -> np.ndarray:
         """Payloads for rows of doubles: (n, k) float64 -> (n, size) uint8."""
-        values = np.ascontiguousarray(values, dtype="<f8")
         out = np.tile(self.template, (values.shape[0], 1))
-        raw = values.view(np.uint8).reshape(values.shape[0], -1, 8)
-        cols = self.slots[:, None] + np.arange(8)
-        out[:, cols] = raw
+        fields = out.view(self.record_dtype).reshape(-1)
+        for j in range(self.slots.size):
+            fields[f"v{j}"] = values[:, j]
         return out
 
     def decode(self, payloads: np.ndarray) -> np.ndarray | None:

@@ -12,6 +12,7 @@ This relies on the internals of the pinned mcap version (name-mangled `Writer` a
 
 from __future__ import annotations
 
+import itertools
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -27,7 +28,7 @@ MESSAGE_INDEX_OPCODE = 0x07
 MESSAGE_HEADER = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
-ZSTD_LEVEL = 3
+ZSTD_LEVEL = 1  # level 3 saves < 1 % here at 1.5x the time
 
 
 @dataclass
@@ -60,7 +61,8 @@ class ChunkWriter:
         blocks = [b for b in blocks if len(b.log_time)]
         if not blocks:
             return
-        records, index = _records(blocks)
+        dense = all(isinstance(b.payloads, np.ndarray) for b in blocks)
+        records, index = _records_by_segment(blocks) if dense else _records(blocks)
         times = np.concatenate([b.log_time for b in blocks])
         start, end = int(times.min()), int(times.max())
         w = self.writer
@@ -123,8 +125,63 @@ class ChunkWriter:
         self.writer.finish()
 
 
+def _headers(block: Block) -> np.ndarray:
+    """Message record headers of a fixed-size block, (n, 31) uint8."""
+    headers = np.zeros(len(block.log_time), dtype=MESSAGE_HEADER)
+    headers["op"] = MESSAGE_OPCODE
+    headers["len"] = block.payloads.shape[1] + (MESSAGE_HEADER.itemsize - 9)
+    headers["ch"] = block.channel_id
+    headers["lt"] = headers["pt"] = block.log_time
+    return headers.view(np.uint8).reshape(len(block.log_time), -1)
+
+
+def _records_by_segment(blocks: Sequence[Block]) -> tuple[bytes, dict[int, np.ndarray]]:
+    """Records of fixed-size blocks, time-sorted, built row-wise.
+
+    The chunk's distinct times are cut into segments in which the same blocks have a
+    message at every time; inside a segment each time's records are one row of a matrix
+    made by stacking the blocks' records side by side, so the bytes come out in time order
+    with a handful of array operations per segment.
+    """
+    times = np.unique(np.concatenate([b.log_time for b in blocks]))
+    present = np.zeros((len(blocks), times.size), dtype=bool)
+    rows = []
+    for i, b in enumerate(blocks):
+        r = np.searchsorted(times, b.log_time)
+        present[i, r] = True
+        rows.append(r)
+    records = [np.concatenate([_headers(b), b.payloads], axis=1) for b in blocks]
+    change = np.flatnonzero((present[:, 1:] != present[:, :-1]).any(axis=0)) + 1
+    bounds = np.concatenate([[0], change, [times.size]])
+    parts: list[np.ndarray] = []
+    index_parts: dict[int, list[np.ndarray]] = {}
+    position = 0
+    for lo, hi in itertools.pairwise(bounds):
+        members = np.flatnonzero(present[:, lo])
+        pieces, offset = [], 0
+        row_size = sum(records[i].shape[1] for i in members)
+        for i in members:
+            first = np.searchsorted(rows[i], lo)
+            piece = records[i][first : first + (hi - lo)]
+            pieces.append(piece)
+            starts = position + offset + row_size * np.arange(hi - lo)
+            pairs = np.stack([blocks[i].log_time[first : first + (hi - lo)], starts], axis=1)
+            index_parts.setdefault(blocks[i].channel_id, []).append(pairs)
+            offset += piece.shape[1]
+        parts.append(np.concatenate(pieces, axis=1).reshape(-1))
+        position += row_size * (hi - lo)
+    index = {}
+    for channel_id, pairs in index_parts.items():
+        merged = np.concatenate(pairs)
+        index[channel_id] = merged[np.argsort(merged[:, 0], kind="stable")]
+    return np.concatenate(parts).tobytes(), index
+
+
 def _records(blocks: Sequence[Block]) -> tuple[bytes, dict[int, np.ndarray]]:
-    """The chunk's message records and, per channel, its (log_time, offset) index, (m, 2)."""
+    """The chunk's message records and, per channel, its (log_time, offset) index, (m, 2).
+
+    The general path, for payloads of any length: a byte-level scatter in time order.
+    """
     flats = [b.flat() for b in blocks]
     lengths = np.concatenate([f[1] for f in flats])
     data = np.concatenate([f[0] for f in flats])

@@ -21,8 +21,8 @@ from impactlab.record.model import InstrumentedModel
 from impactlab.record.spec import Stop
 from impactlab.record.stop import StopMonitor, Verdict
 
-CHUNK_SECONDS = 0.25
-MIN_CHUNK_STEPS = 256
+CHUNK_SECONDS = 1.0
+MIN_CHUNK_STEPS = 1000
 MAX_CHUNK_STEPS = 20_000
 
 
@@ -107,17 +107,18 @@ def simulate_batch(requests: list[RunRequest], *, threads: int | None = None) ->
     ]
     step0 = 0
     running = list(active)
-    while running:
-        states, sens = rollout.rollout(
-            [a.request.inst.model for a in running],
-            datas,
-            np.stack([a.state for a in running]),
-            nstep=chunk,
-        )
-        for i, a in enumerate(running):
-            _advance(a, sens[i], states[i, -1], step0)
-        running = [a for a in running if a.verdict is None]
-        step0 += chunk
+    with rollout.Rollout(nthread=nthread if nthread > 1 else 0) as pool:
+        while running:
+            states, sens = pool.rollout(
+                [a.request.inst.model for a in running],
+                datas,
+                np.stack([a.state for a in running]),
+                nstep=chunk,
+            )
+            for i, a in enumerate(running):
+                _advance(a, sens[i], states[i, -1], step0)
+            running = [a for a in running if a.verdict is None]
+            step0 += chunk
     return [_trajectory(a, dt) for a in active]
 
 

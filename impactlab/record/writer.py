@@ -119,9 +119,10 @@ def _write(stream: Any, inst: InstrumentedModel, info: RunInfo, traj: Trajectory
         len(bodies) * messages.body_state().size + messages.energy().size + tf_layout.size + 200
     )
     per_chunk = max(1, CHUNK_BYTES // row_bytes)
+    scene_payload = np.frombuffer(scene_update(inst).SerializeToString(), np.uint8)[None]
     for lo in range(0, max(len(t_ns), 1), per_chunk):
         t, r = t_ns[lo : lo + per_chunk], rows[lo : lo + per_chunk]
-        blocks = [Block(scene, t[:1], [scene_update(inst).SerializeToString()])] if lo == 0 else []
+        blocks = [Block(scene, t[:1], scene_payload)] if lo == 0 else []
         for channel_id, body in bodies:
             values = r[:, body.adr : body.adr + BODY_STATE_SIZE]
             blocks.append(Block(channel_id, t, messages.body_state().encode(values)))

@@ -1,0 +1,253 @@
+"""Benchmark: recording, decoding, analysis and replay, each against its baseline, in one run.
+
+Usage: python benchmarks/bench.py [--quick]   (or `just bench`)
+
+Every figure is measured here, on this machine, in this run:
+- record: a 64-run drop sweep with every step logged on every channel, against the same
+  steps simulated by the handout's Python loop (mj_step, copy qpos/qvel, nothing logged);
+- decode: logs into polars frames (messages per second, one process), against the official
+  mcap reader iterating over the same files;
+- analyze: the whole analysis of the sweep, against the time it took to record it;
+- replay: a 100,000-step log converted to .rrd;
+- scale: 1x, 4x, 16x runs and steps, one thread against two, peak memory of each case
+  (each case runs in a fresh subprocess so its peak RSS is its own).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SPEC = """
+name = "bench_drop"
+description = "benchmark drop sweep: handout contact, every step logged"
+[options]
+timestep = 0.0005
+[contact]
+condim = 1
+solref = [0.02, 1.0]
+solimp = [0.9, 0.95, 0.001]
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 1.0]
+[stop]
+max_time = {max_time}
+[sweep]
+"ball.pos" = [{heights}]
+"""
+
+
+def write_spec(folder: Path, runs: int, max_time: float) -> Path:
+    """A drop sweep of `runs` heights from 1 m, every step logged, fixed duration."""
+    heights = ", ".join(f"[0.0, 0.0, {1.0 + 0.05 * i:.2f}]" for i in range(runs))
+    path = folder / f"bench_{runs}_{max_time:g}.toml"
+    path.write_text(SPEC.format(max_time=max_time, heights=heights))
+    return path
+
+
+def handout_loop(spec: Path) -> tuple[float, int]:
+    """Seconds and steps for the handout's loop over the sweep's models (nothing logged)."""
+    import mujoco
+    import numpy as np
+
+    from impactlab.record.model import mjcf_from_spec
+    from impactlab.record.sweep import load_runs
+
+    runs = load_runs(spec)
+    models = [mujoco.MjModel.from_xml_string(mjcf_from_spec(r)) for r in runs]
+    steps = round(runs[0].stop.max_time / runs[0].options.timestep) + 1
+    start = time.perf_counter()
+    for model in models:
+        data = mujoco.MjData(model)
+        mujoco.mj_resetDataKeyframe(model, data, 0)
+        qpos, qvel = [], []
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+            qpos.append(data.qpos.copy())
+            qvel.append(data.qvel.copy())
+        np.asarray(qpos)
+    return time.perf_counter() - start, steps * len(models)
+
+
+def record_case(spec: Path, out: Path, threads: int) -> dict:
+    """Record a spec; seconds, steps and messages."""
+    from impactlab.record.job import plan, record
+
+    runs = plan([spec])
+    start = time.perf_counter()
+    results = record(runs, out, echo=lambda _: None, threads=threads, overwrite=True)
+    seconds = time.perf_counter() - start
+    steps = sum(r.trajectory.verdict.last_step + 1 for r in results)
+    return {"seconds": seconds, "steps": steps, "runs": len(results)}
+
+
+def decode_case(logs: list[Path]) -> dict:
+    """Decode logs into frames; messages decoded per second."""
+    from impactlab.analyze.load import load_log
+
+    start = time.perf_counter()
+    messages = 0
+    for path in logs:
+        run = load_log(path)
+        messages += sum(f.height for f in run.bodies.values()) + run.energy.height
+        messages += run.contacts["t_ns"].n_unique() if run.contacts.height else 0
+        messages += run.events.height
+    seconds = time.perf_counter() - start
+    return {"seconds": seconds, "messages": messages}
+
+
+def official_case(logs: list[Path]) -> dict:
+    """The official mcap reader iterating over every message of the same files."""
+    from mcap.reader import make_reader
+
+    start = time.perf_counter()
+    messages = 0
+    for path in logs:
+        with open(path, "rb") as stream:
+            for _ in make_reader(stream).iter_messages():
+                messages += 1
+    return {"seconds": time.perf_counter() - start, "messages": messages}
+
+
+def analyze_case(logs: list[Path], out: Path) -> dict:
+    """The whole analysis of the logs (tables, figures, report)."""
+    from impactlab.analyze.command import run_analysis
+
+    start = time.perf_counter()
+    run_analysis(logs, out, echo=lambda _: None)
+    return {"seconds": time.perf_counter() - start}
+
+
+def replay_case(folder: Path) -> dict:
+    """A 100,000-step log converted to .rrd."""
+    from impactlab.record.job import plan, record
+    from impactlab.replay.command import replay_logs
+
+    spec = folder / "replay.toml"
+    spec.write_text(
+        SPEC.format(max_time=9.9999, heights="[0.0, 0.0, 2.0]").replace(
+            "timestep = 0.0005", "timestep = 0.0001"
+        )
+    )
+    (result,) = record(plan([spec]), folder / "replay_logs", echo=lambda _: None)
+    start = time.perf_counter()
+    replay_logs([result.path], out=folder / "replay.rrd", analysis_dir=None)
+    return {"seconds": time.perf_counter() - start, "steps": int(result.trajectory.t_ns.size)}
+
+
+def subprocess_case(args: list[str]) -> dict:
+    """Run one case of this script in a fresh interpreter; its JSON result plus peak RSS."""
+    out = subprocess.run(
+        [sys.executable, __file__, "--case", *args], capture_output=True, text=True, check=True
+    )
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="16 runs instead of 64, no scale")
+    parser.add_argument("--case", nargs="+", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.case:
+        return _run_case(args.case)
+    runs = 16 if args.quick else 64
+    with tempfile.TemporaryDirectory(prefix="impactlab-bench-") as tmp:
+        folder = Path(tmp)
+        spec = write_spec(folder, runs, 3.0)
+        print(f"machine: {_machine()}")
+        base_s, base_steps = handout_loop(spec)
+        rec2 = record_case(spec, folder / "logs", threads=2)
+        rec1 = record_case(spec, folder / "logs1", threads=1)
+        us = 1e6 / rec2["steps"]
+        print(f"\nrecord: {runs}-run drop sweep, {rec2['steps']} steps, every step logged")
+        print(
+            f"  handout loop, nothing logged : {base_s:7.2f} s  ({base_s * 1e6 / base_steps:.2f} us/step)"
+        )
+        print(
+            f"  impactlab record, 2 threads  : {rec2['seconds']:7.2f} s  ({rec2['seconds'] * us:.2f} us/step)"
+        )
+        print(f"  impactlab record, 1 thread   : {rec1['seconds']:7.2f} s")
+        print(f"  ratio record / handout loop  : {rec2['seconds'] / base_s:.2f}  (goal <= 1.0)")
+        print(
+            f"  two threads over one         : {rec1['seconds'] / rec2['seconds']:.2f}x  (goal >= 1.7)"
+        )
+        logs = sorted((folder / "logs").glob("*.mcap"))
+        dec = decode_case(logs)
+        off = official_case(logs)
+        ours_rate = dec["messages"] / dec["seconds"]
+        official_rate = off["messages"] / off["seconds"]
+        print(f"\ndecode: {len(logs)} logs into polars frames")
+        print(
+            f"  impactlab load_log           : {dec['seconds']:7.2f} s  {ours_rate / 1e6:.2f} M msg/s ({dec['messages']} msgs; /tf skipped)"
+        )
+        print(
+            f"  official reader iter_messages: {off['seconds']:7.2f} s  {official_rate / 1e6:.3f} M msg/s ({off['messages']} msgs, no decoding)"
+        )
+        print(
+            f"  ratio (per message)          : {ours_rate / official_rate:.1f}x  (goal >= 30, and >= 2 M msg/s)"
+        )
+        ana = analyze_case(logs, folder / "results")
+        print(
+            f"\nanalyze: whole analysis of the sweep: {ana['seconds']:.2f} s; recording took "
+            f"{rec2['seconds']:.2f} s; ratio {ana['seconds'] / rec2['seconds']:.2f} (goal < 1)"
+        )
+        rep = replay_case(folder)
+        print(f"\nreplay: {rep['steps']}-step log to .rrd: {rep['seconds']:.2f} s (goal < 2 s)")
+        if not args.quick:
+            _scale(folder)
+    return 0
+
+
+def _scale(folder: Path) -> None:
+    print("\nscale: record (2 threads) in fresh processes; peak RSS per case")
+    print(
+        f"  {'runs':>5} {'max_time s':>10} {'steps':>9} {'seconds':>8} {'us/step':>8} {'peak MB':>8}"
+    )
+    for runs, max_time in [(4, 0.75), (4, 3.0), (4, 12.0), (16, 0.75), (64, 0.75)]:
+        spec = write_spec(folder, runs, max_time)
+        r = subprocess_case(["record", str(spec), str(folder / f"scale_{runs}_{max_time}")])
+        print(
+            f"  {runs:>5} {max_time:>10g} {r['steps']:>9} {r['seconds']:>8.2f} "
+            f"{r['seconds'] * 1e6 / r['steps']:>8.2f} {r['peak_mb']:>8.0f}"
+        )
+    print("  analysis (decode + analyze) of the 4-run cases:")
+    for max_time in (0.75, 3.0, 12.0):
+        logs = folder / f"scale_4_{max_time}"
+        r = subprocess_case(["analyze", str(logs), str(folder / f"scale_results_{max_time}")])
+        print(f"    max_time {max_time:>5g} s: {r['seconds']:6.2f} s, peak {r['peak_mb']:.0f} MB")
+
+
+def _run_case(case: list[str]) -> int:
+    kind = case[0]
+    if kind == "record":
+        result = record_case(Path(case[1]), Path(case[2]), threads=2)
+    elif kind == "analyze":
+        result = analyze_case(sorted(Path(case[1]).glob("*.mcap")), Path(case[2]))
+    else:
+        raise SystemExit(f"unknown case {kind}")
+    result["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps(result))
+    return 0
+
+
+def _machine() -> str:
+    import os
+    import platform
+
+    import mujoco
+
+    return (
+        f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"MuJoCo {mujoco.__version__}"
+    )
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
