@@ -269,21 +269,23 @@ def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
             frames.append(_contact_frame_slow(run_id, t, rows))
     if not frames:
         return _empty_contacts(run_id)
-    return pl.concat(frames).sort(["t_ns", "point"])
+    return frames[0] if len(frames) == 1 else pl.concat(frames).sort(["t_ns", "point"])
 
 
 def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
     n, k, _ = points.shape
-    frame = pl.from_numpy(points.reshape(n * k, -1), schema=list(POINT_FIELDS), orient="row")
+    rows = n * k
     t_rep = np.repeat(t, k)
-    return frame.select(
-        pl.lit(run_id).alias("run_id"),
-        pl.Series("t_ns", t_rep, dtype=pl.Int64),
-        pl.Series("t_s", t_rep / 1e9, dtype=pl.Float64),
-        *(pl.lit(v, dtype=pl.String).alias(key) for key, v in names.items()),
-        pl.Series("point", np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32),
-        *POINT_FIELDS,
-    )
+    columns: dict[str, Any] = {
+        "run_id": _constant(run_id, rows),
+        "t_ns": pl.Series(t_rep, dtype=pl.Int64),
+        "t_s": pl.Series(t_rep / 1e9, dtype=pl.Float64),
+    }
+    columns |= {key: _constant(v, rows) for key, v in names.items()}
+    columns["point"] = pl.Series(np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32)
+    flat = points.reshape(rows, -1)
+    columns |= {f: flat[:, i] for i, f in enumerate(POINT_FIELDS)}
+    return pl.DataFrame(columns)
 
 
 def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]):
@@ -327,14 +329,19 @@ def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> p
     )
 
 
+def _constant(value: str, n: int) -> pl.Series:
+    """A string column of one value (eager: no query plan per column)."""
+    return pl.Series([value], dtype=pl.String).new_from_index(0, n)
+
+
 def _frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
-    frame = pl.from_numpy(values, schema=list(names), orient="row")
-    return frame.select(
-        pl.lit(run_id).alias("run_id"),
-        pl.Series("t_ns", t_ns, dtype=pl.Int64),
-        pl.Series("t_s", t_ns / 1e9, dtype=pl.Float64),
-        *names,
-    )
+    columns: dict[str, Any] = {
+        "run_id": _constant(run_id, len(t_ns)),
+        "t_ns": pl.Series(t_ns, dtype=pl.Int64),
+        "t_s": pl.Series(t_ns / 1e9, dtype=pl.Float64),
+    }
+    columns |= {name: values[:, i] for i, name in enumerate(names)}
+    return pl.DataFrame(columns)
 
 
 def _empty(names: Sequence[str], run_id: str) -> pl.DataFrame:
