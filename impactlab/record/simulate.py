@@ -23,7 +23,7 @@ from impactlab.record.stop import StopMonitor, Verdict
 
 CHUNK_SECONDS = 1.0
 MIN_CHUNK_STEPS = 1000
-MAX_CHUNK_STEPS = 20_000
+MAX_CHUNK_STEPS = 5_000
 
 
 @dataclass
@@ -109,11 +109,14 @@ def simulate_batch(requests: list[RunRequest], *, threads: int | None = None) ->
     running = list(active)
     with rollout.Rollout(nthread=nthread if nthread > 1 else 0) as pool:
         while running:
+            # never past the longest remaining time limit: the chunk boundaries of every run
+            # stay at multiples of `chunk` from its start, whatever the batch
+            nstep = min(chunk, max(a.total_steps for a in running) - step0)
             states, sens = pool.rollout(
                 [a.request.inst.model for a in running],
                 datas,
                 np.stack([a.state for a in running]),
-                nstep=chunk,
+                nstep=nstep,
             )
             for i, a in enumerate(running):
                 _advance(a, sens[i], states[i, -1], step0)

@@ -1,0 +1,428 @@
+"""Record a calibration grid, analyze the logs with the analysis stage, tabulate target vs measured.
+
+The measured e comes only from the recorded logs, through the analysis stage
+(`impactlab.analyze`: ``load_log`` -> ``analyze_run`` -> ``tables``): the bounces table for a
+ball on the floor (``e_velocity``: normal velocity one logged step after the contact interval
+over the one one step before it; the interval is the run of steps with a geometric overlap),
+the collisions table for two balls (``e_measured``, velocities, momentum). The recorder's
+contact parameters are used only to describe the runs (stiffness, damping, design duration)
+and for the low-speed predictions.
+
+Low-speed predictions (a ball on the floor, contact designed at 1 m/s, hitting slower):
+
+- ``e_pred_release``: `restitution_with_gravity(contact_law="mujoco", timestep_s=dt)`, the
+  restitution module's prediction: the velocity when the contact force lets go.
+- ``e_pred_surface``: the same step emulation continued until the ball is back at the surface
+  (what the analysis measures): after the force lets go the ball is still inside the floor and
+  flies up against gravity for a while, which lowers the velocity further.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from impactlab.analyze.analysis import RunAnalysis, analyze_run
+from impactlab.analyze.collisions import analytic_after
+from impactlab.analyze.command import AnalysisResult, tables
+from impactlab.analyze.load import load_log
+from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint, grid_points
+from impactlab.errors import LogError
+from impactlab.record.job import plan, record
+from impactlab.record.restitution import (
+    IMPEDANCE,
+    RESTITUTION_TOLERANCE,
+    ContactParams,
+    restitution_with_gravity,
+)
+
+PENETRATION_BOUND = 0.02
+"""Max penetration the contact is designed for, as a fraction of the radius."""
+VELOCITY_BOUND = 0.005
+"""Post-collision velocities vs the 1D formula for the target e, relative to the closing speed."""
+MOMENTUM_BOUND = 1e-9
+"""Relative momentum change in a zero-gravity collision."""
+
+
+@dataclass
+class CalibrationResult:
+    """What a calibration recorded, measured and wrote.
+
+    Attributes:
+        out_dir: the output folder.
+        grid: the grid calibrated.
+        points: one row per grid point (see `point_table`).
+        summary: per kind: runs, max |error|, the worst point, failures (JSON-ready).
+        files: every file written (tables, summary, figures, report).
+        figures: the PNGs (calibration.png, then lowspeed.png when there is a low-speed study).
+        timings: seconds spent per stage ("specs", "record", "analyze", "total").
+    """
+
+    out_dir: Path
+    grid: Grid
+    points: pl.DataFrame
+    summary: dict
+    files: list[Path] = field(default_factory=list)
+    figures: list[Path] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def failures(self) -> pl.DataFrame:
+        """Grid points (plane and ball) that miss a bound."""
+        return self.points.filter((pl.col("kind") != "lowspeed") & ~pl.col("ok"))
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every grid point is within its bounds, else 1."""
+        return 1 if self.failures.height else 0
+
+
+def write_specs(points: Sequence[GridPoint], folder: Path) -> list[Path]:
+    """Write each point's spec as `<name>.toml` into `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for p in points:
+        path = folder / f"{p.name}.toml"
+        path.write_text(p.toml)
+        paths.append(path)
+    return paths
+
+
+def record_and_analyze(
+    points: Sequence[GridPoint],
+    out_dir: Path,
+    *,
+    echo: Callable[[str], None] = print,
+) -> tuple[pl.DataFrame, AnalysisResult, dict[str, float]]:
+    """Record every point (specs in out_dir/specs, logs in out_dir/logs), analyze the logs.
+
+    Returns:
+        The point table, the analysis stage's tables and the time spent per stage in s.
+
+    Raises:
+        LogError: a log cannot be analyzed.
+    """
+    t0 = time.perf_counter()
+    specs = write_specs(points, out_dir / "specs")
+    runs = plan(specs)
+    t1 = time.perf_counter()
+    results = record(runs, out_dir / "logs", echo=lambda _: None)
+    t2 = time.perf_counter()
+    analyses: list[RunAnalysis] = [analyze_run(load_log(r.path)) for r in results]
+    for a in analyses:
+        if a.run.partial:
+            raise LogError(str(a.run.path), "partial log: " + "; ".join(a.run.problems))
+    result = tables(analyses, out_dir, [])
+    table = point_table(points, result.runs, result.bounces, result.collisions)
+    t3 = time.perf_counter()
+    echo(
+        f"{len(points)} runs: specs {t1 - t0:.1f} s, record {t2 - t1:.1f} s, "
+        f"analyze {t3 - t2:.1f} s"
+    )
+    return table, result, {"specs": t1 - t0, "record": t2 - t1, "analyze": t3 - t2}
+
+
+def point_table(
+    points: Sequence[GridPoint],
+    runs: pl.DataFrame,
+    bounces: pl.DataFrame,
+    collisions: pl.DataFrame,
+) -> pl.DataFrame:
+    """One row per grid point: design, measurement (analysis tables) and bounds.
+
+    Columns: kind, name, target, speed_mps, m1_kg, m2_kg, design_speed_mps, timestep_s,
+    stiffness, damping, zeta, duration_design_s, steps_per_contact, run_id, e_measured,
+    error, v_in_mps, v_out_mps (floor), v1/v2 before/after and analytic (ball),
+    velocity_error_rel, momentum_rel_change, max_penetration_m, penetration_frac,
+    e_pred_release, e_pred_surface (lowspeed), ok, note.
+    """
+    run_of = dict(zip(runs["experiment"], runs["run_id"], strict=True))
+    rows = []
+    for p in points:
+        run_id = run_of.get(p.name)
+        row = {
+            "kind": p.kind,
+            "name": p.name,
+            "target": p.target,
+            "speed_mps": p.speed,
+            "m1_kg": p.m1,
+            "m2_kg": p.m2,
+            "design_speed_mps": p.design_speed,
+            "timestep_s": p.timestep,
+            "stiffness": p.params.stiffness,
+            "damping": p.params.damping,
+            "zeta": p.params.zeta,
+            "duration_design_s": p.params.duration_s,
+            "steps_per_contact": p.params.duration_s / p.timestep,
+            "gravity_shift_est": _gravity_shift(p),
+            "run_id": run_id,
+        }
+        row.update(_measurement(p, run_id, bounces, collisions))
+        if p.kind == "lowspeed":
+            row["e_pred_release"] = restitution_with_gravity(
+                p.params,
+                impact_speed_mps=p.speed,
+                gravity_mps2=GRAVITY_MPS2,
+                contact_law="mujoco",
+                timestep_s=p.timestep,
+            )
+            row["e_pred_surface"] = surface_restitution(
+                p.params, impact_speed_mps=p.speed, gravity_mps2=GRAVITY_MPS2, timestep_s=p.timestep
+            )
+        rows.append(row)
+    frame = pl.DataFrame(rows, infer_schema_length=None)
+    for col in ("e_pred_release", "e_pred_surface", "m2_kg"):
+        if col not in frame.columns:
+            frame = frame.with_columns(pl.lit(None, dtype=pl.Float64).alias(col))
+    return frame
+
+
+def _gravity_shift(p: GridPoint) -> float:
+    """First-order change of the surface-to-surface e by gravity at the design speed, for a
+    ball on the floor: -2 zeta g / (w0 v) (see `surface_restitution`); 0 without gravity."""
+    if p.kind == "ball":
+        return 0.0
+    w0 = math.sqrt(p.params.stiffness)
+    return -2.0 * p.params.zeta * GRAVITY_MPS2 / (w0 * p.design_speed)
+
+
+def _measurement(p: GridPoint, run_id, bounces: pl.DataFrame, collisions: pl.DataFrame) -> dict:
+    """The analysis stage's measurement of one point, and whether it meets the bounds."""
+    nan = float("nan")
+    out = {
+        "e_measured": nan,
+        "error": nan,
+        "v_in_mps": nan,
+        "v_out_mps": nan,
+        "v1_before_mps": nan,
+        "v2_before_mps": nan,
+        "v1_after_mps": nan,
+        "v2_after_mps": nan,
+        "v1_after_target_mps": nan,
+        "v2_after_target_mps": nan,
+        "velocity_error_rel": nan,
+        "momentum_rel_change": nan,
+        "max_penetration_m": nan,
+        "penetration_frac": nan,
+        "ok": False,
+        "note": "",
+    }
+    if run_id is None:
+        out["note"] = "no log"
+        return out
+    if p.kind in ("plane", "lowspeed"):
+        rows = bounces.filter((pl.col("run_id") == run_id) & (pl.col("bounce") == 1))
+        if rows.is_empty():
+            out["note"] = "no bounce in the log"
+            return out
+        b = rows.row(0, named=True)
+        out["v_in_mps"] = -b["v_in_mps"] if b["v_in_mps"] is not None else nan
+        out["max_penetration_m"] = b["max_penetration_m"]
+        if b["complete"]:
+            out["v_out_mps"] = b["v_out_mps"]
+            out["e_measured"] = b["e_velocity"]
+        else:
+            out["note"] = b["note"] or "incomplete bounce"
+    else:
+        rows = collisions.filter((pl.col("run_id") == run_id) & pl.col("complete"))
+        if rows.is_empty():
+            out["note"] = "no complete collision in the log"
+            return out
+        c = rows.row(0, named=True)
+        v1, v2 = c["v1n_before_mps"], c["v2n_before_mps"]
+        # the normal points from body1 to body2 = +x; the balls' velocities along it
+        t1, t2 = analytic_after(c["m1_kg"], c["m2_kg"], v1, v2, p.target)
+        closing = v1 - v2
+        out.update(
+            e_measured=c["e_measured"],
+            v1_before_mps=v1,
+            v2_before_mps=v2,
+            v1_after_mps=c["v1n_after_mps"],
+            v2_after_mps=c["v2n_after_mps"],
+            v1_after_target_mps=t1,
+            v2_after_target_mps=t2,
+            velocity_error_rel=max(abs(c["v1n_after_mps"] - t1), abs(c["v2n_after_mps"] - t2))
+            / abs(closing),
+            momentum_rel_change=c["momentum_rel_change"],
+            max_penetration_m=c["max_penetration_m"],
+        )
+    out["error"] = out["e_measured"] - p.target
+    out["penetration_frac"] = out["max_penetration_m"] / RADIUS_M
+    problems = []
+    if not abs(out["error"]) <= RESTITUTION_TOLERANCE:
+        problems.append(f"|e - target| = {abs(out['error']):.4f} > {RESTITUTION_TOLERANCE}")
+    if not out["penetration_frac"] <= PENETRATION_BOUND:
+        problems.append(f"penetration {out['penetration_frac']:.2%} of the radius")
+    if p.kind == "ball":
+        if not out["velocity_error_rel"] <= VELOCITY_BOUND:
+            off = out["velocity_error_rel"]
+            problems.append(f"velocities off by {off:.2%} of the closing speed")
+        if not out["momentum_rel_change"] <= MOMENTUM_BOUND:
+            problems.append(f"momentum changed by {out['momentum_rel_change']:.2e}")
+    out["ok"] = not problems
+    out["note"] = "; ".join([out["note"], *problems]).strip("; ")
+    return out
+
+
+def surface_restitution(
+    params: ContactParams,
+    *,
+    impact_speed_mps: float | Sequence[float],
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> float | np.ndarray:
+    """e of a ball on a floor measured at the surface (velocity leaving the overlap / arriving).
+
+    Emulates MuJoCo's step for this contact (as `restitution._emulate` does: semi-implicit
+    Euler; the constraint pushes while the body overlaps and the reference acceleration
+    exceeds the free one), but continues after the force lets go until the ball is back at the
+    surface, which is where the analysis stage takes the velocity after the bounce. Mean over
+    `phases` contact-onset phases; 0 when the ball does not leave within 40 / w0.
+
+    While the ball is still inside the floor after the force lets go (overlap 2 zeta v_out / w0
+    for the continuous law), gravity slows it for 2 zeta / w0 s, so at the design speed
+    e_surface = e_release - 2 zeta g / (w0 v) to first order.
+
+    Returns:
+        e, a float for one speed or an array (one per speed).
+    """
+    speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
+    w0 = math.sqrt(params.stiffness)
+    zeta = params.damping / (2.0 * w0)
+    h = w0 * timestep_s
+    gr = (gravity_mps2 / (w0 * speeds))[:, None]
+    d = IMPEDANCE
+    y = np.tile(-(np.arange(phases) + 0.5) / phases * h, (speeds.size, 1))  # first step inside
+    u = -np.ones_like(y)
+    out = np.zeros_like(y)
+    done = np.zeros(y.shape, bool)
+    for _ in range(int(40.0 / h) + 100):
+        aref = -(2.0 * zeta * u + y) / d
+        force = (y < 0.0) & (aref > -gr)
+        a = np.where(force, d * aref + (1.0 - d) * -gr, -gr)
+        u = u + h * a
+        y = y + h * u
+        left = ~done & (y >= 0.0)
+        out = np.where(left, np.maximum(u, 0.0), out)
+        done |= left
+        if done.all():
+            break
+    e = out.mean(axis=1)
+    return float(e[0]) if np.ndim(impact_speed_mps) == 0 else e
+
+
+def lowspeed_curves(points: Sequence[GridPoint], n: int = 20) -> pl.DataFrame:
+    """Both predictions over log-spaced impact speeds, per target of the low-speed study.
+
+    Returns:
+        (target, speed_mps, e_pred_release, e_pred_surface); empty without low-speed points.
+    """
+    low = [p for p in points if p.kind == "lowspeed"]
+    schema = {k: pl.Float64 for k in ("target", "speed_mps", "e_pred_release", "e_pred_surface")}
+    if not low:
+        return pl.DataFrame(schema=schema)
+    speeds = np.geomspace(min(p.speed for p in low), max(p.speed for p in low), n)
+    rows = []
+    for target in sorted({p.target for p in low}):
+        p = next(q for q in low if q.target == target)
+        surface = surface_restitution(
+            p.params, impact_speed_mps=speeds, gravity_mps2=GRAVITY_MPS2, timestep_s=p.timestep
+        )
+        for v, e_s in zip(speeds, surface, strict=True):
+            e_r = restitution_with_gravity(
+                p.params,
+                impact_speed_mps=float(v),
+                gravity_mps2=GRAVITY_MPS2,
+                contact_law="mujoco",
+                timestep_s=p.timestep,
+            )
+            rows.append((target, float(v), e_r, float(e_s)))
+    return pl.DataFrame(rows, schema=schema, orient="row")
+
+
+FAILURE_COLUMNS = (
+    "name",
+    "target",
+    "speed_mps",
+    "e_measured",
+    "error",
+    "gravity_shift_est",
+    "note",
+)
+
+
+def _worst(frame: pl.DataFrame) -> dict | None:
+    if frame.is_empty() or frame["error"].drop_nans().is_empty():
+        return None
+    row = frame.filter(pl.col("error").is_not_nan()).sort(pl.col("error").abs()).row(-1, named=True)
+    keys = ("name", "target", "speed_mps", "m1_kg", "m2_kg", "e_measured", "error", "timestep_s")
+    return {k: row[k] for k in keys}
+
+
+def summarize(points: pl.DataFrame) -> dict:
+    """Per kind: runs, max |error|, max penetration, worst point and failing points."""
+    out: dict = {}
+    for kind in ("plane", "ball"):
+        f = points.filter(pl.col("kind") == kind)
+        if f.is_empty():
+            continue
+        err = f["error"].drop_nans().abs()
+        entry = {
+            "runs": f.height,
+            "measured": int(f["e_measured"].is_not_nan().sum()),
+            "max_abs_error": float(err.max()) if err.len() else None,
+            "mean_abs_error": float(err.mean()) if err.len() else None,
+            "max_penetration_frac": float(f["penetration_frac"].drop_nans().max() or 0.0),
+            "worst": _worst(f),
+            "failures": f.filter(~pl.col("ok")).select(FAILURE_COLUMNS).to_dicts(),
+        }
+        if kind == "ball":
+            entry["max_velocity_error_rel"] = float(f["velocity_error_rel"].drop_nans().max() or 0)
+            entry["max_momentum_rel_change"] = float(
+                f["momentum_rel_change"].drop_nans().max() or 0
+            )
+        out[kind] = entry
+    low = points.filter(pl.col("kind") == "lowspeed")
+    if low.height:
+        out["lowspeed"] = {
+            "runs": low.height,
+            "design_speed_mps": float(low["design_speed_mps"][0]),
+            "max_abs_diff_release": float(
+                (low["e_measured"] - low["e_pred_release"]).drop_nans().abs().max() or 0.0
+            ),
+            "max_abs_diff_surface": float(
+                (low["e_measured"] - low["e_pred_surface"]).drop_nans().abs().max() or 0.0
+            ),
+            "points": low.select(
+                "target", "speed_mps", "e_measured", "e_pred_release", "e_pred_surface"
+            ).to_dicts(),
+        }
+    return out
+
+
+def calibrate(
+    grid: Grid, out_dir: Path, *, echo: Callable[[str], None] = print
+) -> tuple[list[GridPoint], pl.DataFrame, AnalysisResult, dict[str, float]]:
+    """Build the grid's points, record, analyze.
+
+    Returns:
+        The points, the point table, the analysis stage's tables and the timings in s.
+    """
+    t0 = time.perf_counter()
+    points = grid_points(grid)
+    echo(
+        f"calibration grid {grid.name}: {len(points)} runs "
+        f"({sum(p.kind == 'plane' for p in points)} ball-plane, "
+        f"{sum(p.kind == 'ball' for p in points)} ball-ball, "
+        f"{sum(p.kind == 'lowspeed' for p in points)} low-speed)"
+    )
+    table, analysis, timings = record_and_analyze(points, out_dir, echo=echo)
+    timings["grid"] = time.perf_counter() - t0 - sum(timings.values())
+    return points, table, analysis, timings
