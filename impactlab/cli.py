@@ -14,6 +14,7 @@ from pathlib import Path
 
 from impactlab import __version__
 from impactlab.errors import ImpactlabError
+from impactlab.executor import add_executor_options
 
 EXPERIMENTS_DIR = Path("experiments")
 
@@ -50,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     rec.add_argument(
         "--overwrite", action="store_true", help="re-run runs whose complete log already exists"
     )
+    add_executor_options(rec)
     rec.set_defaults(func=_cmd_record)
 
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
@@ -71,14 +73,39 @@ def _stage_commands():
 
 
 def _cmd_record(args: argparse.Namespace) -> int:
+    from impactlab.executor import check_executor
     from impactlab.record.job import plan, record
 
+    check_executor(args.executor, args.address)
     runs = plan(args.inputs, overrides=args.overrides, duration=args.duration)
+    if args.executor != "local":
+        return _record_with_executor(runs, args)
     results = record(runs, args.out, overwrite=args.overwrite)
     unstable = [r for r in results if r.trajectory.verdict.outcome != "completed"]
     print(f"{len(results)} run(s) written to {args.out}/", end="")
     print(f", {len(unstable)} unstable" if unstable else "")
     return 1 if unstable else 0
+
+
+def _record_with_executor(runs, args: argparse.Namespace) -> int:
+    from impactlab.executor import make_executor, record_sweep
+
+    executor = make_executor(args.executor, args.address)
+    try:
+        sweep = record_sweep(
+            runs,
+            args.out,
+            executor,
+            overwrite=args.overwrite,
+            error=lambda line: print(line, file=sys.stderr),
+        )
+    finally:
+        executor.close()
+    written = len(sweep.recorded)
+    print(f"{written} run(s) written to {args.out}/", end="")
+    print(f", {len(sweep.unstable)} unstable" if sweep.unstable else "", end="")
+    print(f", {len(sweep.failed)} failed" if sweep.failed else "")
+    return sweep.exit_code
 
 
 def _cmd_info(args: argparse.Namespace) -> int:

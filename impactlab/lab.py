@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from impactlab.errors import SpecError
+from impactlab.executor import Executor, add_executor_options, make_executor
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -45,13 +46,22 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--overwrite", action="store_true", help="re-record runs with complete logs")
     p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")
+    add_executor_options(p)
     p.set_defaults(func=_cmd_lab)
 
 
 def _cmd_lab(args: argparse.Namespace) -> int:
-    result = run_lab(
-        args.out, experiments=args.experiments, overwrite=args.overwrite, replay=not args.no_replay
-    )
+    executor = make_executor(args.executor, args.address)
+    try:
+        result = run_lab(
+            args.out,
+            experiments=args.experiments,
+            overwrite=args.overwrite,
+            replay=not args.no_replay,
+            executor=executor,
+        )
+    finally:
+        executor.close()
     print(f"report: {result.report}")
     return result.exit_code
 
@@ -63,8 +73,13 @@ def run_lab(
     overwrite: bool = False,
     replay: bool = True,
     echo: Callable[[str], None] = print,
+    executor: Executor | None = None,
 ) -> LabResult:
-    """Record, analyze and replay every experiment spec in `experiments`."""
+    """Record, analyze and replay every experiment spec in `experiments`.
+
+    `executor`: where recording and analysis tasks run (default: here); replays are
+    written here.
+    """
     from impactlab.analyze.command import run_analysis
     from impactlab.record.job import plan, record
 
@@ -74,11 +89,17 @@ def run_lab(
     logs_dir, results_dir = out / "logs", out / "results"
     runs = plan(specs)
     echo(f"recording {len(runs)} run(s) of {len(specs)} experiment(s) into {logs_dir}/")
-    recorded = record(runs, logs_dir, overwrite=overwrite, echo=echo)
-    unstable = [r for r in recorded if r.trajectory.verdict.outcome != "completed"]
+    if executor is None or executor.name == "local":
+        recorded = record(runs, logs_dir, overwrite=overwrite, echo=echo)
+        unstable = [r for r in recorded if r.trajectory.verdict.outcome != "completed"]
+    else:
+        from impactlab.executor import record_sweep
+
+        sweep = record_sweep(runs, logs_dir, executor, overwrite=overwrite, echo=echo)
+        unstable = sweep.unstable + sweep.failed
     logs = [logs_dir / f"{r.info.run_id}.mcap" for r in runs]
     echo(f"analyzing {len(logs)} log(s) into {results_dir}/")
-    analysis = run_analysis(logs, results_dir, echo=echo)
+    analysis = run_analysis(logs, results_dir, echo=echo, executor=executor)
     replays: list[Path] = []
     report = results_dir / "report.md"
     if replay:

@@ -29,6 +29,7 @@ from impactlab.analyze.outputs import (
 from impactlab.analyze.report import build_report
 from impactlab.analyze.studies import studies, study_parameters, with_parameters
 from impactlab.errors import ImpactlabError, LogError
+from impactlab.executor import Executor, add_executor_options, make_executor
 
 
 @dataclass
@@ -73,11 +74,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "-o", "--out", type=Path, default=Path("results"), help="output folder (results/)"
     )
+    add_executor_options(p)
     p.set_defaults(func=_cmd_analyze)
 
 
 def _cmd_analyze(args: argparse.Namespace) -> int:
-    return run_analysis(args.logs, args.out).exit_code
+    executor = make_executor(args.executor, args.address)
+    try:
+        return run_analysis(args.logs, args.out, executor=executor).exit_code
+    finally:
+        executor.close()
 
 
 def _error(message: str) -> None:
@@ -89,13 +95,16 @@ def run_analysis(
     out_dir: Path,
     *,
     echo: Callable[[str], None] = print,
+    executor: Executor | None = None,
 ) -> AnalysisResult:
     """Analyze logs and write the results.
 
     Args:
         inputs: log files, folders (searched recursively for *.mcap) or glob patterns.
-        out_dir: the output folder (created).
+        out_dir: the output folder (created; on a cluster, a path every machine sees).
         echo: where progress lines go.
+        executor: where the per-log analyses run (default: here, one after the other);
+            the tables are reduced here either way, so the results are the same.
 
     Returns:
         The tables and the list of inputs that failed (each also printed on stderr).
@@ -111,18 +120,31 @@ def run_analysis(
         raise LogError(" ".join(map(str, inputs)), "no logs found")
     analyses: list[RunAnalysis] = []
     failed: list[tuple[str, str]] = []
-    for path in paths:
-        try:
-            analyses.append(analyze_run(load_log(path)))
-        except LogError as exc:
-            _error(str(exc))
-            failed.append((exc.path, exc.problem))
+    run_figs: list[list[tuple[str, Path]]] | None = None
+    if executor is None or executor.name == "local":
+        for path in paths:
+            try:
+                analyses.append(analyze_run(load_log(path)))
+            except LogError as exc:
+                _error(str(exc))
+                failed.append((exc.path, exc.problem))
+    else:  # one task per log; the run's figures are drawn in its task
+        from impactlab.executor import analyze_logs
+
+        run_figs = []
+        for item in analyze_logs(paths, out_dir / "figures", executor, echo=echo):
+            if item.error is not None:
+                _error(f"{item.error[0]}: {item.error[1]}")
+                failed.append(item.error)
+            else:
+                analyses.append(item.analysis)
+                run_figs.append(item.figures)
     for a in analyses:
         if a.run.partial:
             echo(f"warning: {a.run.path}: partial log ({'; '.join(a.run.problems)})")
     result = tables(analyses, out_dir, failed)
     if analyses:
-        result.files = write_all(result, analyses)
+        result.files = write_all(result, analyses, run_figs)
         echo(
             f"{len(analyses)} run(s) analyzed, {len(failed)} failed; "
             f"report: {out_dir / 'report.md'}"
@@ -167,8 +189,35 @@ def _label(a: RunAnalysis) -> str:
     return sweep or a.run.run_id
 
 
-def write_all(result: AnalysisResult, analyses: Sequence[RunAnalysis]) -> list[Path]:
-    """Write tables, figures, summary.json and report.md; return the files written."""
+def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
+    """Draw one run's own figures (energy, first collision); returns (kind, path) in order."""
+    made: list[tuple[str, Path]] = []
+    contacts = a.phases.filter(pl.col("kind") == "contact")
+    if a.run.plane_z is not None and a.energy.height:
+        path = fig_dir / f"energy-{a.run.run_id}.png"
+        made.append(
+            ("energy", figures.energy_figure(a.energy, contacts, title=run_title(a), path=path))
+        )
+    for row in a.collisions.head(1).iter_rows(named=True):
+        path = fig_dir / f"collision-{a.run.run_id}.png"
+        made.append(
+            (
+                "collision",
+                figures.collision_figure(a.states, row, contacts, title=run_title(a), path=path),
+            )
+        )
+    return made
+
+
+def write_all(
+    result: AnalysisResult,
+    analyses: Sequence[RunAnalysis],
+    run_figs: Sequence[list[tuple[str, Path]]] | None = None,
+) -> list[Path]:
+    """Write tables, figures, summary.json and report.md; return the files written.
+
+    `run_figs`: each run's own figures when they were drawn already (by its analysis task).
+    """
     out = result.out_dir
     fig_dir = out / "figures"
     files: list[Path] = []
@@ -182,27 +231,10 @@ def write_all(result: AnalysisResult, analyses: Sequence[RunAnalysis]) -> list[P
     ):
         files.append(write_parquet(frame, out / f"{name}.parquet"))
     figs: dict[str, list[Path]] = {}
-    for a in analyses:
-        contacts = a.phases.filter(pl.col("kind") == "contact")
-        if a.run.plane_z is not None and a.energy.height:
-            figs.setdefault("energy", []).append(
-                figures.energy_figure(
-                    a.energy,
-                    contacts,
-                    title=run_title(a),
-                    path=fig_dir / f"energy-{a.run.run_id}.png",
-                )
-            )
-        for row in a.collisions.head(1).iter_rows(named=True):
-            figs.setdefault("collision", []).append(
-                figures.collision_figure(
-                    a.states,
-                    row,
-                    contacts,
-                    title=run_title(a),
-                    path=fig_dir / f"collision-{a.run.run_id}.png",
-                )
-            )
+    for i, a in enumerate(analyses):
+        made = run_figs[i] if run_figs is not None else run_figures(a, fig_dir)
+        for kind, path in made:
+            figs.setdefault(kind, []).append(path)
     by_exp: dict[str, list[RunAnalysis]] = {}
     for a in analyses:
         by_exp.setdefault(a.run.experiment, []).append(a)
