@@ -65,11 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _stage_commands():
     """The `register(sub)` functions of the other stages' commands, in help order."""
     from impactlab.analyze.command import register as analyze
+    from impactlab.calibrate.command import register as calibrate
     from impactlab.diff_command import register as diff
     from impactlab.lab import register as lab
     from impactlab.replay.command import register as replay
 
-    return [analyze, replay, diff, lab]
+    return [analyze, replay, diff, calibrate, lab]
 
 
 def _cmd_record(args: argparse.Namespace) -> int:

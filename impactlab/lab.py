@@ -46,6 +46,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--overwrite", action="store_true", help="re-record runs with complete logs")
     p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")
+    p.add_argument(
+        "--calibration",
+        choices=("none", "quick", "medium", "full"),
+        default="medium",
+        help="restitution calibration grid for the report (medium: ~170 runs, ~40 s)",
+    )
     add_executor_options(p)
     p.set_defaults(func=_cmd_lab)
 
@@ -58,6 +64,7 @@ def _cmd_lab(args: argparse.Namespace) -> int:
             experiments=args.experiments,
             overwrite=args.overwrite,
             replay=not args.no_replay,
+            calibration=args.calibration,
             executor=executor,
         )
     finally:
@@ -72,6 +79,7 @@ def run_lab(
     experiments: Path = DEFAULT_EXPERIMENTS,
     overwrite: bool = False,
     replay: bool = True,
+    calibration: str = "medium",
     echo: Callable[[str], None] = print,
     executor: Executor | None = None,
 ) -> LabResult:
@@ -108,8 +116,50 @@ def run_lab(
         echo(f"writing {len(logs)} replay(s) into {results_dir / 'replays'}/")
         replays = replay_logs(logs, out=results_dir / "replays", analysis_dir=results_dir)
         _link_replays(report, replays)
+    if calibration != "none":
+        from impactlab.calibrate.command import run_calibration
+
+        echo(f"calibrating restitution ({calibration} grid) into {results_dir / 'calibration'}/")
+        calibrated = run_calibration(results_dir / "calibration", grid=calibration, echo=echo)
+        _append_calibration(report, calibrated)
     failed = bool(unstable or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
+
+
+def _append_calibration(report: Path, result) -> None:
+    """Append the calibration's summary and figures to the report."""
+    lines = [
+        "",
+        "## Calibration: target against measured restitution",
+        "",
+        f"Contacts asking for `restitution = e`, recorded and measured by this analysis over "
+        f"the {result.grid.name} grid ({result.points.height} runs); the bound is "
+        "|e_measured - e_target| <= 0.005 for e = 0.2..0.99 at 1..10 m/s.",
+        "",
+        "| contact | runs | max abs error | mean abs error | max penetration / radius | worst |",
+        "|---|---|---|---|---|---|",
+    ]
+    names = {"plane": "ball-plane, gravity", "ball": "ball-ball, zero gravity"}
+    for kind, name in names.items():
+        entry = result.summary.get(kind)
+        if not entry:
+            continue
+        w = entry.get("worst") or {}
+        worst = (
+            f"e = {w['target']:g} at {w['speed_mps']:g} m/s: measured {w['e_measured']:.4f}"
+            if w
+            else "-"
+        )
+        lines.append(
+            f"| {name} | {entry['runs']} | {entry['max_abs_error']:.4f} | "
+            f"{entry['mean_abs_error']:.4f} | {entry['max_penetration_frac']:.4f} | {worst} |"
+        )
+    lines.append("")
+    lines += [f"![calibration]({os.path.relpath(f, report.parent)})" for f in result.figures]
+    details = result.out_dir / "calibration.md"
+    lines += ["", f"Every point: [{details.name}]({os.path.relpath(details, report.parent)})."]
+    with open(report, "a", encoding="utf-8") as stream:
+        stream.write("\n".join(lines) + "\n")
 
 
 def _link_replays(report: Path, replays: list[Path]) -> None:
