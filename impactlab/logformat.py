@@ -50,6 +50,8 @@ RUN_KEYS = (
     "run_id",
     "spec",  # JSON: the resolved spec document (or the MJCF path and duration)
     "sweep",  # JSON: {dotted path: value} of this run's sweep point
+    "sweep_index",  # this run's place in the sweep grid, 0-based
+    "sweep_size",  # runs in the sweep grid (1 without a sweep)
     "spec_hash",
     "timestep_s",
     "log_every",

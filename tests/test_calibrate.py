@@ -5,13 +5,11 @@ impact speeds {1, 10} m/s x masses {0.1, 10} kg, a ball on the floor (gravity) a
 head-on (zero gravity, mass pairs (0.1, 10) and (10, 0.1) kg), plus the low-speed study on
 the floor (target 0.5, contact designed at 1 m/s, hitting at 0.05, 0.1 and 0.3 m/s).
 
-Known failures (strict xfail, the bound is not loosened): a ball on the floor at the lowest
-design speed (1 m/s) with a strongly damped contact misses |e - target| <= 0.005 (e = 0.2:
-0.178; e = 0.5: 0.493). The restitution module calibrates the velocity at the step where the
-contact force lets go; the ball is then still inside the floor and flies out against gravity
-for about 2 zeta / w0 s, so the velocity back at the surface, which the analysis measures, is
-lower by about 2 zeta g / (w0 v) (0.022 at e = 0.2, zeta 0.73, g / (w0 v) = 0.015).
-`test_plane_error_is_the_gravity_shift` pins that explanation.
+A ball on the floor is measured surface to surface (the velocities just outside the overlap),
+and under gravity that e is lower than the velocity at force release by about
+2 zeta g / (w0 v) (the ball is still inside the floor when the force lets go); the restitution
+module calibrates that out at the design speed, `test_plane_gravity_shift_is_compensated`
+checks it where the shift is largest (e = 0.2 at 1 m/s: 0.02).
 """
 
 from __future__ import annotations
@@ -40,22 +38,12 @@ GRID = Grid(
 )
 E_TOL = 0.005
 PEN_FRAC = 0.02
-GRAVITY_TAIL = (
-    "ball on the floor at 1 m/s with a strongly damped contact: the module calibrates the "
-    "velocity at force release; gravity then slows the ball inside the floor by ~2 zeta g/(w0 v)"
-)
-
-
-def _plane_cases():
-    for e in TARGETS:
-        for v in SPEEDS:
-            for m in MASSES:
-                marks = (
-                    [pytest.mark.xfail(strict=True, reason=GRAVITY_TAIL)]
-                    if v == 1.0 and e in (0.2, 0.5)
-                    else []
-                )
-                yield pytest.param(e, v, m, marks=marks, id=f"e{e:g}-v{v:g}-m{m:g}")
+PLANE_CASES = [
+    pytest.param(e, v, m, id=f"e{e:g}-v{v:g}-m{m:g}")
+    for e in TARGETS
+    for v in SPEEDS
+    for m in MASSES
+]
 
 
 BALL_CASES = [
@@ -90,7 +78,7 @@ def test_grid_is_complete(table):
     assert table["steps_per_contact"].min() > 15
 
 
-@pytest.mark.parametrize(("e", "v", "m"), list(_plane_cases()))
+@pytest.mark.parametrize(("e", "v", "m"), PLANE_CASES)
 def test_plane_restitution(table, e, v, m):
     r = _row(table, kind="plane", target=e, speed_mps=v, m1_kg=m)
     assert abs(r["v_in_mps"] - v) < 1e-3 * v  # the impact speed is the requested one
@@ -98,14 +86,15 @@ def test_plane_restitution(table, e, v, m):
     assert abs(r["e_measured"] - e) <= E_TOL, r["note"]
 
 
-def test_plane_error_is_the_gravity_shift(table):
-    """error = measured - target follows -2 zeta g / (w0 v) (to 0.002) at every plane point."""
+def test_plane_gravity_shift_is_compensated(table):
+    """Gravity lowers the surface-to-surface e by about 2 zeta g / (w0 v), up to 4x the
+    tolerance on this grid; the calibration compensates it at the design speed."""
     plane = table.filter(pl.col("kind") == "plane")
-    residual = (plane["error"] - plane["gravity_shift_est"]).abs()
-    assert residual.max() < 0.002
-    worst = plane.sort("error").row(0, named=True)
-    assert (worst["target"], worst["speed_mps"]) == (0.2, 1.0)
-    assert -0.025 < worst["error"] < -0.018
+    shifted = plane.filter(pl.col("gravity_shift_est") < -E_TOL)
+    assert shifted.height >= 2  # e = 0.2 at 1 m/s (both masses)
+    assert shifted["gravity_shift_est"].min() < -0.018
+    assert shifted["error"].abs().max() <= 0.002
+    assert plane["error"].abs().max() <= E_TOL
 
 
 def test_plane_mass_independent(table):
@@ -133,15 +122,15 @@ def test_collision(table, e, v, m1, m2):
 def test_low_speed_gravity_dependence(table):
     """Below the design speed e falls; the surface emulation predicts it to 0.002.
 
-    restitution_with_gravity (velocity at force release) agrees at 0.05 m/s, where the force
-    lets go only at the surface, and is 0.02 to 0.03 too high at 0.1 and 0.3 m/s (see
-    test_low_speed_release_prediction).
+    The release velocity (restitution_with_gravity(at="release")) agrees at 0.05 m/s, where
+    the force lets go only at the surface, and is 0.02 to 0.03 too high at 0.1 and 0.3 m/s
+    (see test_low_speed_release_prediction).
     """
     low = table.filter(pl.col("kind") == "lowspeed").sort("speed_mps")
     assert low["speed_mps"].to_list() == list(LOW_SPEEDS)
     for r in low.iter_rows(named=True):
         assert abs(r["e_measured"] - r["e_pred_surface"]) <= 0.002, r
-        assert r["e_measured"] < r["target"] - 0.02, r  # visibly below the target
+        assert r["e_measured"] < r["target"] - 0.01, r  # visibly below the target
     slow = _row(table, kind="lowspeed", speed_mps=0.05)
     assert abs(slow["e_measured"] - slow["e_pred_release"]) <= 0.002
     measured = {r["speed_mps"]: r["e_measured"] for r in low.iter_rows(named=True)}
@@ -150,23 +139,12 @@ def test_low_speed_gravity_dependence(table):
     assert 0.46 < measured[0.3] < 0.49
 
 
-@pytest.mark.parametrize(
-    "speed",
-    [
-        pytest.param(
-            s,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="restitution_with_gravity gives the velocity at force release, the "
-                "analysis measures it back at the surface (lower by gravity)",
-            ),
-        )
-        for s in (0.1, 0.3)
-    ],
-)
-def test_low_speed_release_prediction(table, speed):
+@pytest.mark.parametrize("speed", [0.1, 0.3])
+def test_low_speed_release_velocity_is_not_what_is_measured(table, speed):
+    """The velocity when the force lets go overestimates e: the ball still climbs out of the
+    floor against gravity, which is why the contact is calibrated surface to surface."""
     r = _row(table, kind="lowspeed", speed_mps=speed)
-    assert abs(r["e_measured"] - r["e_pred_release"]) <= 0.005
+    assert r["e_pred_release"] - r["e_measured"] > 0.005
 
 
 def test_run_calibration_writes_everything(tmp_path):

@@ -14,6 +14,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze import answers, figures
@@ -189,9 +190,26 @@ def _label(a: RunAnalysis) -> str:
     return sweep or a.run.run_id
 
 
+FIGURE_RUNS_PER_SWEEP = 6  # per-run figures for at most this many points of a sweep
+
+
+def draws_own_figures(sweep_index: int, sweep_size: int) -> bool:
+    """Whether a sweep point gets its own figures: all of a small sweep, else evenly spread."""
+    if sweep_size <= FIGURE_RUNS_PER_SWEEP:
+        return True
+    chosen = np.linspace(0, sweep_size - 1, FIGURE_RUNS_PER_SWEEP).round().astype(int)
+    return sweep_index in set(chosen.tolist())
+
+
 def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
-    """Draw one run's own figures (energy, first collision); returns (kind, path) in order."""
+    """Draw one run's own figures (energy, first collision); returns (kind, path) in order.
+
+    In a sweep of many runs only `FIGURE_RUNS_PER_SWEEP` evenly spread points get them;
+    the sweep's summary figures cover every run.
+    """
     made: list[tuple[str, Path]] = []
+    if not draws_own_figures(*a.run.sweep_point):
+        return made
     contacts = a.phases.filter(pl.col("kind") == "contact")
     if a.run.plane_z is not None and a.energy.height:
         path = fig_dir / f"energy-{a.run.run_id}.png"

@@ -434,9 +434,10 @@ def report(result: CalibrationResult, curves: pl.DataFrame, figures: Sequence[Pa
             "## Low impact speeds on the floor",
             "",
             f"Contact designed at {g.design_speed:g} m/s, ball of {g.low_mass:g} kg hitting "
-            "slower. `restitution_with_gravity` is the restitution module's prediction (the "
-            "velocity when the force lets go, step emulation); `e_pred_surface` continues the "
-            "same emulation until the ball is back at the surface, which is what is measured.",
+            "slower. `e_pred_release` is the velocity when the contact force lets go "
+            "(`restitution_with_gravity(..., at='release')`); `e_pred_surface` continues the "
+            "same step emulation until the ball is back at the surface, which is what the "
+            "analysis measures and what the contact is calibrated for.",
             "",
             *_md_table(
                 low,

@@ -137,7 +137,7 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
     handles, labels = ax.get_legend_handles_labels()
     style = [
         (plt.Line2D([], [], color="k", lw=1.6), "prediction at the surface (what is measured)"),
-        (plt.Line2D([], [], color="k", lw=1.2, ls="--"), "restitution_with_gravity (release)"),
+        (plt.Line2D([], [], color="k", lw=1.2, ls="--"), "velocity at force release"),
         (plt.Line2D([], [], color="k", lw=0.8, ls=":"), "target (design speed)"),
         (plt.Line2D([], [], color="k", marker="o", ls=""), "measured (analysis of the logs)"),
     ]

@@ -10,11 +10,12 @@ and for the low-speed predictions.
 
 Low-speed predictions (a ball on the floor, contact designed at 1 m/s, hitting slower):
 
-- ``e_pred_release``: `restitution_with_gravity(contact_law="mujoco", timestep_s=dt)`, the
-  restitution module's prediction: the velocity when the contact force lets go.
-- ``e_pred_surface``: the same step emulation continued until the ball is back at the surface
-  (what the analysis measures): after the force lets go the ball is still inside the floor and
-  flies up against gravity for a while, which lowers the velocity further.
+- ``e_pred_release``: `restitution_with_gravity(contact_law="mujoco", timestep_s=dt,
+  at="release")`: the velocity when the contact force lets go.
+- ``e_pred_surface``: `restitution.surface_restitution`, the same step emulation continued
+  until the ball is back at the surface (what the analysis measures, and what the contact is
+  calibrated for at its design speed): after the force lets go the ball is still inside the
+  floor and flies up against gravity for a while, which lowers the velocity further.
 """
 
 from __future__ import annotations
@@ -36,10 +37,9 @@ from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint, gr
 from impactlab.errors import LogError
 from impactlab.record.job import plan, record
 from impactlab.record.restitution import (
-    IMPEDANCE,
     RESTITUTION_TOLERANCE,
-    ContactParams,
     restitution_with_gravity,
+    surface_restitution,
 )
 
 PENETRATION_BOUND = 0.02
@@ -171,6 +171,7 @@ def point_table(
                 gravity_mps2=GRAVITY_MPS2,
                 contact_law="mujoco",
                 timestep_s=p.timestep,
+                at="release",
             )
             row["e_pred_surface"] = surface_restitution(
                 p.params, impact_speed_mps=p.speed, gravity_mps2=GRAVITY_MPS2, timestep_s=p.timestep
@@ -270,54 +271,6 @@ def _measurement(p: GridPoint, run_id, bounces: pl.DataFrame, collisions: pl.Dat
     return out
 
 
-def surface_restitution(
-    params: ContactParams,
-    *,
-    impact_speed_mps: float | Sequence[float],
-    gravity_mps2: float,
-    timestep_s: float,
-    phases: int = 64,
-) -> float | np.ndarray:
-    """e of a ball on a floor measured at the surface (velocity leaving the overlap / arriving).
-
-    Emulates MuJoCo's step for this contact (as `restitution._emulate` does: semi-implicit
-    Euler; the constraint pushes while the body overlaps and the reference acceleration
-    exceeds the free one), but continues after the force lets go until the ball is back at the
-    surface, which is where the analysis stage takes the velocity after the bounce. Mean over
-    `phases` contact-onset phases; 0 when the ball does not leave within 40 / w0.
-
-    While the ball is still inside the floor after the force lets go (overlap 2 zeta v_out / w0
-    for the continuous law), gravity slows it for 2 zeta / w0 s, so at the design speed
-    e_surface = e_release - 2 zeta g / (w0 v) to first order.
-
-    Returns:
-        e, a float for one speed or an array (one per speed).
-    """
-    speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
-    w0 = math.sqrt(params.stiffness)
-    zeta = params.damping / (2.0 * w0)
-    h = w0 * timestep_s
-    gr = (gravity_mps2 / (w0 * speeds))[:, None]
-    d = IMPEDANCE
-    y = np.tile(-(np.arange(phases) + 0.5) / phases * h, (speeds.size, 1))  # first step inside
-    u = -np.ones_like(y)
-    out = np.zeros_like(y)
-    done = np.zeros(y.shape, bool)
-    for _ in range(int(40.0 / h) + 100):
-        aref = -(2.0 * zeta * u + y) / d
-        force = (y < 0.0) & (aref > -gr)
-        a = np.where(force, d * aref + (1.0 - d) * -gr, -gr)
-        u = u + h * a
-        y = y + h * u
-        left = ~done & (y >= 0.0)
-        out = np.where(left, np.maximum(u, 0.0), out)
-        done |= left
-        if done.all():
-            break
-    e = out.mean(axis=1)
-    return float(e[0]) if np.ndim(impact_speed_mps) == 0 else e
-
-
 def lowspeed_curves(points: Sequence[GridPoint], n: int = 20) -> pl.DataFrame:
     """Both predictions over log-spaced impact speeds, per target of the low-speed study.
 
@@ -342,6 +295,7 @@ def lowspeed_curves(points: Sequence[GridPoint], n: int = 20) -> pl.DataFrame:
                 gravity_mps2=GRAVITY_MPS2,
                 contact_law="mujoco",
                 timestep_s=p.timestep,
+                at="release",
             )
             rows.append((target, float(v), e_r, float(e_s)))
     return pl.DataFrame(rows, schema=schema, orient="row")

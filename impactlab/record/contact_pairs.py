@@ -98,8 +98,12 @@ def _plane_impact(body: Body, g: np.ndarray) -> tuple[float, float]:
 
 
 def _closing_speed(a: Body, b: Body, g: np.ndarray) -> tuple[float, float]:
-    """Closing speed (m/s) of two balls along their line of centres, and gravity along it."""
+    """Closing speed (m/s) of two balls along their line of centres, and the relative gravity.
+
+    Two free balls fall together: gravity gives them no relative acceleration, so the
+    contact sees none (0).
+    """
     d = np.subtract(b.pos, a.pos)
     n = d / np.linalg.norm(d)
     closing = float(np.dot(np.subtract(a.vel, b.vel), n))
-    return closing, abs(float(np.dot(g, n)))
+    return closing, 0.0

@@ -11,6 +11,7 @@ import struct
 import tempfile
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,7 +22,7 @@ from mcap.reader import make_reader
 from tqdm import tqdm
 
 from impactlab import logformat
-from impactlab.errors import SpecError
+from impactlab.errors import ImpactlabError, SpecError
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
 from impactlab.record.simulate import RunRequest, Trajectory, simulate_batch
@@ -98,6 +99,8 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
         sweep=run.sweep_values,
         spec_hash=digest,
         log_every=run.log_every,
+        sweep_index=run.sweep_index,
+        sweep_size=run.sweep_size,
     )
     return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time)
 
@@ -213,22 +216,37 @@ def record(
         echo(f"reused {len(runs) - len(todo)} complete log(s) in {out_dir}/, running {len(todo)}")
     results = []
     bar = tqdm(total=len(todo), unit="run", disable=len(todo) < 2 or None, leave=False)
-    for batch in batches(todo, batch_size):
+    groups = batches(todo, batch_size)
+
+    def simulate(batch: list[tuple[PlannedRun, InstrumentedModel]]):
         start = time.perf_counter()
         requests = [
             RunRequest(inst, run.max_time, run.spec.stop if run.spec else None, run.info.log_every)
             for run, inst in batch
         ]
-        trajectories = simulate_batch(requests, threads=threads)
-        share = (time.perf_counter() - start) / len(batch)
-        for (run, inst), traj in zip(batch, trajectories, strict=True):
-            t0 = time.perf_counter()
-            path = write_log(log_path(out_dir, run), inst, run.info, traj)
-            result = RunResult(path, traj, share + time.perf_counter() - t0)
-            results.append(result)
-            bar.update()
-            for line in summary_lines(result):
-                bar.write(line) if not bar.disable else echo(line)
+        return simulate_batch(requests, threads=threads), time.perf_counter() - start
+
+    # the next batch simulates (MuJoCo releases the GIL) while this one's logs are written
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-sim") as pool:
+        pending = pool.submit(simulate, groups[0]) if groups else None
+        for i, batch in enumerate(groups):
+            trajectories, seconds = pending.result()
+            if i + 1 < len(groups):
+                pending = pool.submit(simulate, groups[i + 1])
+            for (run, inst), traj in zip(batch, trajectories, strict=True):
+                t0 = time.perf_counter()
+                try:
+                    path = write_log(log_path(out_dir, run), inst, run.info, traj)
+                except OSError as exc:  # e.g. a full disk: the logs written so far are complete
+                    raise ImpactlabError(
+                        f"{log_path(out_dir, run)}: cannot write the log: {exc.strerror or exc} "
+                        f"({len(results)} log(s) of this job written before it are complete)"
+                    ) from None
+                result = RunResult(path, traj, seconds / len(batch) + time.perf_counter() - t0)
+                results.append(result)
+                bar.update()
+                for line in summary_lines(result):
+                    bar.write(line) if not bar.disable else echo(line)
     bar.close()
     return results
 

@@ -17,12 +17,23 @@ Stiffness rule of :func:`contact_params` (``w0 = sqrt(stiffness)``, ``v`` the im
 
 1. ``duration_s`` given: w0 from the contact duration; else ``max_penetration_m`` given: w0 from
    that penetration at ``v``; else the softest w0 that keeps the worst-case penetration at ``v``
-   below ``max_penetration_fraction * radius_m`` and ``g / (w0 v) <= GRAVITY_RATIO_MAX`` (so that
-   gravity shifts e by less than about 0.001 at the design speed; pass ``gravity_mps2=0`` for
-   zero-gravity scenes). The softest contact is the one with the most steps per contact.
+   below ``max_penetration_fraction * radius_m`` and ``g / (w0 v) <= GRAVITY_RATIO_MAX`` (pass
+   ``gravity_mps2=0`` for zero-gravity scenes). The softest contact is the one with the most
+   steps per contact.
 2. The timestep must resolve that contact: ``w0 * timestep_s`` must not exceed what keeps the
    worst-case error (over where in a step the contact begins) within the budget, otherwise
    :class:`ContactModelError` names the steps per contact and the largest timestep that works.
+
+Gravity (a body on a fixed surface): e is measured surface to surface, from the velocity in the
+last state before the overlap to the one in the first state after it (as
+``impactlab.analyze.bounces`` does). When the force lets go the ball is still inside the floor
+(overlap about 2 zeta v_out / w0) and gravity slows it on the way out, which lowers that e by
+about 2 zeta g / (w0 v) (0.02 for e = 0.2 at g / (w0 v) = 0.015). :func:`contact_params`
+calibrates zeta for ``target - shift``, the shift computed for the design speed by a closed-form
+evaluation of the same step emulation continued until the ball is back at the surface
+(:func:`_impact_fast`, a few fixed-point iterations); :func:`surface_restitution` and
+:func:`restitution_with_gravity` predict e at other speeds (lower below the design speed, higher
+above it, by at most the shift).
 """
 
 from __future__ import annotations
@@ -52,6 +63,7 @@ __all__ = [
     "max_penetration_factor",
     "restitution_closed_form",
     "restitution_with_gravity",
+    "surface_restitution",
     "zeta_for_restitution",
 ]
 
@@ -68,10 +80,12 @@ RESTITUTION_TOLERANCE = 0.005
 
 _PHASE_BUDGET = 0.004
 """Part of the tolerance given to the timestep (worst case over contact-onset phase); the rest
-covers table interpolation and the second-order gravity shift."""
+covers table interpolation and the residual of the gravity calibration."""
 
 GRAVITY_RATIO_MAX = 0.015
-"""Default bound on g / (w0 * v_in) at the design speed (second-order gravity shift of e)."""
+"""Default bound on g / (w0 * v_in) at the design speed. Gravity's shift of the surface-to-surface
+e, about -2 zeta g / (w0 v), is calibrated out at the design speed; this bound keeps it (and so
+the change of e with the impact speed) to about 0.02 at most."""
 
 RESTITUTION_FLOOR = math.exp(-2.0)
 """Lowest reachable e: the Schwager-Poeschel e at critical damping (zeta -> 1), exp(-2)."""
@@ -99,6 +113,10 @@ class ContactParams:
         restitution: the target e.
         impact_speed_mps: design impact speed in m/s.
         timestep_s: the timestep in s the calibration is for.
+        gravity_mps2: gravity along the contact normal the calibration is for (0: none).
+        gravity_shift: predicted change of e by gravity at the design speed (about
+            -2 zeta g / (w0 v); 0 without gravity), calibrated out: zeta is chosen so that the
+            zero-gravity e is ``restitution - gravity_shift``.
     """
 
     solref: tuple[float, float]
@@ -111,6 +129,8 @@ class ContactParams:
     restitution: float
     impact_speed_mps: float
     timestep_s: float
+    gravity_mps2: float = 0.0
+    gravity_shift: float = 0.0
 
     def mjcf_attributes(self) -> dict[str, str]:
         """Return ``{"solref": ..., "solimp": ...}`` as MJCF attribute strings (full precision)."""
@@ -294,6 +314,158 @@ def _emulate(
     return u_out, pen, steps
 
 
+def _emulate_surface(
+    zeta: float,
+    w0dt: float,
+    phases: np.ndarray,
+    gravity_ratio: float | np.ndarray = 0.0,
+    impedance: float = IMPEDANCE,
+    t_max: float = 40.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """mj_step emulation of one impact, continued until the ball is back at the surface.
+
+    Units w0 = 1 and v_in = 1, v_in being the speed in the last state before the overlap (what
+    the analysis stage takes): the first overlapping state has velocity -(1 + w0dt * gr) and
+    dist = -phase * w0dt * (1 + w0dt * gr), phase in (0, 1]. Each step applies MuJoCo's rule
+    (the constraint pushes while dist < 0 and aref > a_free), also after the force has let go,
+    until the first state with dist >= 0.
+
+    Args:
+        zeta: damping ratio.
+        w0dt: w0 * timestep.
+        phases: contact-onset phases, shape (n,).
+        gravity_ratio: g / (w0 v_in), scalar or shape (n,).
+        impedance: solimp d.
+        t_max: give up (e = 0: the ball does not leave) after this time, in 1 / w0.
+
+    Returns:
+        (release, surface), each shape (n,): the velocity after the last step with a positive
+        force, and the velocity in the first state back at the surface (0 if it never leaves).
+    """
+    h = float(w0dt)
+    gr = np.broadcast_to(np.asarray(gravity_ratio, float), np.shape(phases)).copy()
+    u = -(1.0 + h * gr)
+    y = np.asarray(phases, float) * h * u
+    d = impedance
+    release = np.full(y.shape, np.nan)
+    surface = np.zeros(y.shape)
+    released = np.zeros(y.shape, bool)
+    done = np.zeros(y.shape, bool)
+    for _ in range(int(t_max / h) + 100):
+        aref = -(2.0 * zeta * u + y) / d
+        force = (y < 0.0) & (aref > -gr)
+        let_go = ~force & ~released
+        release = np.where(let_go, u, release)
+        released |= let_go
+        u = u + h * np.where(force, d * aref + (1.0 - d) * -gr, -gr)
+        y = y + h * u
+        left = ~done & (y >= 0.0)
+        surface = np.where(left, np.maximum(u, 0.0), surface)
+        done |= left
+        if done.all():
+            break
+    release = np.where(released, release, u)
+    return release, surface
+
+
+def _step_powers(m: np.ndarray, n: int) -> np.ndarray:
+    """M^0 .. M^(n-1) of a 2 x 2 matrix, shape (n, 2, 2), by doubling (log2 n matmuls)."""
+    p = np.empty((n, 2, 2))
+    p[0] = np.eye(2)
+    k = 1
+    while k < n:
+        mk = p[k - 1] @ m
+        j = min(k, n - k)
+        p[k : k + j] = p[:j] @ mk
+        k += j
+    return p
+
+
+def _impact_fast(
+    zeta: float,
+    w0dt: float,
+    phases: np.ndarray,
+    gravity_ratio: np.ndarray,
+    impedance: float = IMPEDANCE,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The result of :func:`_emulate_surface`, without stepping (same rounding level).
+
+    While the constraint pushes, one step is affine in (dist, velocity), so the states of the
+    force phase are powers of the step matrix; after the force lets go the ball flies freely
+    and the first state at the surface follows from a quadratic. Columns whose force phase does
+    not end within 3.6 / w0, or whose constraint would grip again on the way out (very low
+    impact speed), are emulated step by step.
+    """
+    h = float(w0dt)
+    ph = np.asarray(phases, float)
+    gr = np.broadcast_to(np.asarray(gravity_ratio, float), ph.shape)
+    d = impedance
+    b = 2.0 * zeta
+    u0 = -(1.0 + h * gr)
+    x0 = np.stack([ph * h * u0, u0])  # (2, n): dist, velocity
+    m = np.array([[1.0 - h * h, h * (1.0 - b * h)], [-h, 1.0 - b * h]])
+    c = -(1.0 - d) * h * np.stack([h * gr, gr])  # (2, n)
+    fixed = np.linalg.solve(np.eye(2) - m, c)
+    n = int(3.6 / h) + 3
+    x = np.einsum("kij,jn->kin", _step_powers(m, n), x0 - fixed) + fixed[None]
+    y, u = x[:, 0], x[:, 1]
+    force = (y < 0.0) & (-(b * u + y) / d > -gr)
+    force[0] = True
+    r = np.argmin(force, axis=0)
+    cols = np.arange(ph.size)
+    ok = ~force[r, cols]
+    yr, ur = y[r, cols], u[r, cols]
+    # free flight: u_k = ur - k h gr, y_k = yr + h k ur - h^2 gr k (k + 1) / 2; first y_k >= 0
+    a2 = 0.5 * h * h * gr
+    b2 = h * ur - a2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(
+            gr > 0.0,
+            (b2 - np.sqrt(np.maximum(b2 * b2 + 4.0 * a2 * yr, 0.0))) / (2.0 * a2),
+            -yr / (h * ur),
+        )
+    k = np.maximum(np.ceil(np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)), 0.0)
+
+    def dist(k: np.ndarray) -> np.ndarray:
+        return yr + h * k * ur - a2 * k * (k + 1.0)
+
+    k = np.where((k > 0.0) & (dist(k - 1.0) >= 0.0), k - 1.0, k)
+    k = np.where(dist(k) < 0.0, k + 1.0, k)
+    # the constraint stays off on the way out if it is off at the last state inside (the
+    # margin y + 2 zeta u - d gr is concave in k): otherwise step through it
+    last = np.maximum(k - 1.0, 0.0)
+    grip = (k > 0.0) & (dist(last) + b * (ur - last * h * gr) < d * gr)
+    ok &= (ur > 0.0) & ~grip & (dist(k) >= 0.0)
+    release, surface = ur, np.maximum(ur - k * h * gr, 0.0)
+    if not ok.all():
+        bad = ~ok
+        release, surface = release.copy(), surface.copy()
+        release[bad], surface[bad] = _emulate_surface(zeta, h, ph[bad], gr[bad], impedance)
+    return release, surface
+
+
+_SHIFT_PHASES = (np.arange(16) + 0.5) / 16
+_SHIFT_W0DT_MIN = 0.01
+
+
+def _gravity_shift(zeta: float, w0dt: float, gravity_ratio: float) -> float:
+    """Gravity's change of the surface-to-surface e at one impact speed (mean over phases).
+
+    ``mean(e_surface at g / (w0 v)) - mean(e at zero gravity)`` by :func:`_impact_fast` over 16
+    contact-onset phases; about -2 zeta g / (w0 v): after the force lets go the ball is still
+    inside the floor (overlap about 2 zeta v_out / w0) and gravity slows it on the way out.
+    Steps finer than w0 dt = 0.01 are evaluated at 0.01 (the shift changes by O(w0 dt g / (w0 v)),
+    below 1e-4 there).
+    """
+    if gravity_ratio <= 0.0:
+        return 0.0
+    h = max(float(w0dt), _SHIFT_W0DT_MIN)
+    n = _SHIFT_PHASES.size
+    gr = np.concatenate([np.zeros(n), np.full(n, float(gravity_ratio))])
+    _, surface = _impact_fast(zeta, h, np.tile(_SHIFT_PHASES, 2), gr)
+    return float(surface[n:].mean() - surface[:n].mean())
+
+
 # --------------------------------------------------------------------------- calibration table
 
 _TABLE_ZETA = np.linspace(0.0, 1.0, 41) ** 1.5
@@ -424,6 +596,17 @@ def _w0dt_max(e: float) -> float:
     return tab.w0dt_max
 
 
+def _shifted_target(e: float, shift: float, gravity_ratio: float) -> float:
+    """The zero-gravity e to calibrate for so that gravity's shift brings it to e."""
+    target = e - shift
+    if not RESTITUTION_FLOOR <= target <= 1.0:
+        raise ContactModelError(
+            f"e = {e:g} cannot be reached under gravity with g / (w0 v) = {gravity_ratio:.3g}: "
+            f"gravity changes e by {shift:+.3g} at the design speed; use a stiffer contact"
+        )
+    return target
+
+
 # --------------------------------------------------------------------------- public API
 
 
@@ -459,8 +642,12 @@ def contact_params(
         duration_s: contact duration in s; overrides the penetration rule.
         max_penetration_m: max penetration in m at the impact speed; overrides the default.
         max_penetration_fraction: default penetration bound as a fraction of radius_m.
-        gravity_mps2: gravity along the contact normal in m/s^2 (0 for zero-gravity scenes);
-            the default stiffness keeps g / (w0 v) <= GRAVITY_RATIO_MAX.
+        gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
+            (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
+            does not change). Gravity lowers the e measured surface to surface by about
+            2 zeta g / (w0 v); the calibration compensates that at the design speed (see
+            :func:`surface_restitution`), and the default stiffness keeps
+            g / (w0 v) <= GRAVITY_RATIO_MAX.
         allow_coarse: warn instead of raising if the timestep does not resolve the contact.
 
     Returns:
@@ -480,14 +667,25 @@ def contact_params(
     if duration_s is not None and max_penetration_m is not None:
         raise ContactModelError("give duration_s or max_penetration_m, not both")
 
-    def zeta_at(w0: float) -> float:
-        return _calibrated_zeta(e, min(w0 * dt, _table().w0dt_max))
+    wh_cap = _table().w0dt_max
 
+    def zeta_at(w0: float, shift: float) -> float:
+        return _calibrated_zeta(_shifted_target(e, shift, g / (w0 * v)), min(w0 * dt, wh_cap))
+
+    def shift_at(zeta: float, w0: float) -> float:
+        return _gravity_shift(zeta, min(w0 * dt, wh_cap), g / (w0 * v)) if g > 0.0 else 0.0
+
+    # zeta is calibrated for the zero-gravity e, target - shift, where shift is gravity's change
+    # of the surface-to-surface e at the design speed; shift depends on zeta and w0, w0 (through
+    # the penetration or duration rule) on zeta: iterate both, then converge the shift at w0.
+    shift = 0.0
     if duration_s is not None:
         tc = _positive("duration_s", duration_s)
         w0 = contact_time_factor(zeta_for_restitution(e)) / tc
         for _ in range(4):
-            w0 = contact_time_factor(zeta_at(w0)) / tc
+            z = zeta_at(w0, shift)
+            w0 = contact_time_factor(z) / tc
+            shift = shift_at(z, w0)
     else:
         if max_penetration_m is not None:
             bound = _positive("max_penetration_m", max_penetration_m)
@@ -498,14 +696,28 @@ def contact_params(
             w0_gravity = g / (GRAVITY_RATIO_MAX * v)
         w0 = v * max_penetration_factor(zeta_for_restitution(e)) / bound
         for _ in range(6):
-            z = zeta_at(w0)
-            pen = _discrete(z, min(w0 * dt, _table().w0dt_max))[2]
-            w0 = v * pen / (bound * 0.995)
-        w0 = max(w0, w0_gravity)
+            z = zeta_at(w0, shift)
+            pen = _discrete(z, min(w0 * dt, wh_cap))[2]
+            w0 = max(v * pen / (bound * 0.995), w0_gravity)
+            shift = shift_at(z, w0)
+    # the shift is piecewise constant in zeta (the step in which the ball is back at the
+    # surface jumps by one for one phase: h g / (w0 v) / 16, up to ~5e-5), so the iteration may
+    # end in a tiny cycle: stop at 1e-4
+    for _ in range(12):
+        zeta = zeta_at(w0, shift)
+        new_shift = shift_at(zeta, w0)
+        step, shift = abs(new_shift - shift), new_shift
+        if step <= 1e-4:
+            break
+    if step > 1e-3:
+        raise ContactModelError(
+            f"cannot calibrate e = {e:g} under gravity {g:g} m/s^2 at {v:g} m/s with stiffness "
+            f"{w0 * w0:.4g} (g / (w0 v) = {g / (w0 * v):.3g}): use a stiffer contact"
+        )
+    zeta = zeta_at(w0, shift)
 
     w0dt = w0 * dt
-    zeta = zeta_at(w0)
-    _, _, pen = _discrete(zeta, min(w0dt, _table().w0dt_max))
+    _, _, pen = _discrete(zeta, min(w0dt, wh_cap))
     k = w0 * w0
     b = 2.0 * zeta * w0
     params = ContactParams(
@@ -519,6 +731,8 @@ def contact_params(
         restitution=e,
         impact_speed_mps=v,
         timestep_s=dt,
+        gravity_mps2=g,
+        gravity_shift=shift,
     )
     check_timestep(params, dt, allow_coarse=allow_coarse)
     return params
@@ -528,8 +742,8 @@ def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bo
     """Check that a timestep resolves the contact well enough for the restitution tolerance.
 
     The worst-case error (over where in a step the contact begins) is predicted from the
-    calibration table: |midrange e(zeta, w0 dt) - target| + half range. It must be within
-    RESTITUTION_TOLERANCE - 0.001.
+    calibration table: |midrange e(zeta, w0 dt) + gravity shift - target| + half range. It must
+    be within RESTITUTION_TOLERANCE - 0.001.
 
     Args:
         params: parameters from :func:`contact_params`.
@@ -549,7 +763,7 @@ def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bo
     steps = int(params.duration_s / dt)
     e = params.restitution
     mid, half, _ = _discrete(params.zeta, min(w0dt, _table().w0dt_max))
-    err = abs(mid - e) + half
+    err = abs(mid + params.gravity_shift - e) + half
     too_coarse = w0dt > _table().w0dt_max * (1.0 + 1e-9)
     if err <= _PHASE_BUDGET + 1e-6 and not too_coarse:
         return steps
@@ -582,16 +796,23 @@ def restitution_with_gravity(
     gravity_mps2: float,
     contact_law: Literal["mujoco", "dashpot"] = "mujoco",
     timestep_s: float | None = None,
+    at: Literal["surface", "release"] = "surface",
 ) -> float:
-    """Predict e of a ball hitting a floor with gravity (velocity out / in at the contact).
+    """Predict e of a ball hitting a floor with gravity, at any impact speed.
+
+    By default (``at="surface"``) e is measured surface to surface, as the analysis stage and
+    the bounce apex see it: -v_out / v_in with v_in the velocity when the ball reaches the
+    surface and v_out when it is back at the surface. ``at="release"`` gives the velocity when
+    the contact force lets go instead; the ball is then still inside the floor and gravity
+    slows it by about 2 zeta g / (w0 v_in) on the way out.
 
     Laws (y = signed distance, negative in contact; k, b from params):
 
     - ``"mujoco"``: what MuJoCo does. The constraint targets y'' = -k y - b y' and cancels
-      gravity while it pushes; it lets go when -(k y + b y') < -g or at y = 0. Gravity shifts
-      e only to second order in g / (w0 v) until y = 0 comes first (low speeds).
+      gravity while it pushes; it lets go when -(k y + b y') < -g or at y = 0, and may grip
+      again on the way out (very low speeds).
     - ``"dashpot"``: the physical dashpot on a rigid floor (arXiv 2204.10917):
-      y'' = -k y - b y' - g, released when the force -(k y + b y') reaches 0; first order.
+      y'' = -k y - b y' - g while the force -(k y + b y') is positive.
 
     Args:
         params: contact parameters.
@@ -599,31 +820,123 @@ def restitution_with_gravity(
         gravity_mps2: gravity in m/s^2 (>= 0).
         contact_law: ``"mujoco"`` or ``"dashpot"``.
         timestep_s: for ``"mujoco"`` only: emulate mj_step with this timestep and return the
-            mean over contact-onset phases; None integrates the continuous law.
+            mean over 64 contact-onset phases; None integrates the continuous law.
+        at: ``"surface"`` or ``"release"`` (see above).
 
     Returns:
-        e = v_out / v_in; 0 if the ball does not leave the floor.
+        e; 0 if the ball does not leave the floor.
     """
     v = _positive("impact_speed_mps", impact_speed_mps)
     g = float(gravity_mps2)
     if not math.isfinite(g) or g < 0.0:
         raise ContactModelError(f"gravity_mps2 must be >= 0, got {gravity_mps2!r}")
+    if contact_law not in ("mujoco", "dashpot"):
+        raise ContactModelError(f"unknown contact_law {contact_law!r}")
+    if at not in ("surface", "release"):
+        raise ContactModelError(f"at must be 'surface' or 'release', got {at!r}")
     w0 = math.sqrt(params.stiffness)
     zeta = params.damping / (2.0 * w0)
     gr = g / (w0 * v)
     if timestep_s is not None:
         if contact_law != "mujoco":
             raise ContactModelError("timestep_s is only supported for contact_law='mujoco'")
+        dt = _positive("timestep_s", timestep_s)
+        if at == "surface":
+            return surface_restitution(
+                params, impact_speed_mps=v, gravity_mps2=g, timestep_s=dt, phases=64
+            )
         phases = (np.arange(64) + 0.5) / 64
-        e, _, _ = _emulate(np.array([zeta]), w0 * _positive("timestep_s", timestep_s), phases, gr)
+        e, _, _ = _emulate(np.array([zeta]), w0 * dt, phases, gr)
         return float(e.mean())
-    if contact_law == "mujoco":
-        z0 = 0.0  # y itself is homogeneous; released when y + 2 zeta y' >= g / (w0 v)
-    elif contact_law == "dashpot":
-        z0 = gr  # z = y + g / w0^2 is homogeneous; released when z + 2 zeta z' >= g / (w0 v)
-    else:
-        raise ContactModelError(f"unknown contact_law {contact_law!r}")
+    if at == "surface":
+        return _surface_speed_continuous(zeta, gr, contact_law)
+    # mujoco: y itself is homogeneous; released when y + 2 zeta y' >= g / (w0 v).
+    # dashpot: z = y + g / w0^2 is homogeneous; released when z + 2 zeta z' >= g / (w0 v).
+    z0 = 0.0 if contact_law == "mujoco" else gr
     return _release_speed(zeta, z0, gr)
+
+
+def surface_restitution(
+    params: ContactParams,
+    *,
+    impact_speed_mps: float | Sequence[float],
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> float | np.ndarray:
+    """e of a ball on a floor measured surface to surface, by the mj_step emulation.
+
+    Emulates MuJoCo's step for this contact and continues after the force lets go until the
+    ball is back at the surface: e = (velocity in the first state after the overlap) / (speed
+    in the last state before it), what the analysis stage measures. Mean over `phases`
+    contact-onset phases; 0 when the ball does not leave within 40 / w0.
+
+    While the ball is still inside the floor after the force lets go (overlap about
+    2 zeta v_out / w0), gravity slows it for about 2 zeta / w0 s, so e_surface = e_release -
+    2 zeta g / (w0 v) to first order; :func:`contact_params` compensates that at its design
+    speed, so e_surface equals the target there and is lower at lower speeds.
+
+    Args:
+        params: contact parameters.
+        impact_speed_mps: impact speed(s) in m/s.
+        gravity_mps2: gravity along the normal in m/s^2 (>= 0).
+        timestep_s: simulation timestep in s.
+        phases: number of contact-onset phases averaged.
+
+    Returns:
+        e, a float for one speed or an array (one per speed).
+    """
+    speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
+    if not np.all(speeds > 0.0):
+        raise ContactModelError(f"impact speeds must be positive, got {impact_speed_mps!r}")
+    g = float(gravity_mps2)
+    if not math.isfinite(g) or g < 0.0:
+        raise ContactModelError(f"gravity_mps2 must be >= 0, got {gravity_mps2!r}")
+    w0 = math.sqrt(params.stiffness)
+    zeta = params.damping / (2.0 * w0)
+    ph = (np.arange(phases) + 0.5) / phases
+    gr = np.repeat(g / (w0 * speeds), phases)
+    _, surface = _emulate_surface(
+        zeta, w0 * _positive("timestep_s", timestep_s), np.tile(ph, speeds.size), gr
+    )
+    e = surface.reshape(speeds.size, phases).mean(axis=1)
+    return float(e[0]) if np.ndim(impact_speed_mps) == 0 else e
+
+
+def _surface_speed_continuous(
+    zeta: float, gravity_ratio: float, law: str, h: float = 1e-3, t_max: float = 40.0
+) -> float:
+    """Continuous-time surface-to-surface e (w0 = v_in = 1) by RK4, from y = 0, y' = -1.
+
+    The acceleration inside the floor (y < 0, or y = 0 moving in) is, for ``"mujoco"``,
+    max(-g, d aref + (1 - d)(-g)) with aref = -(y + 2 zeta y') / d (MuJoCo's rule), and for
+    ``"dashpot"`` -g + max(0, -(y + 2 zeta y')); outside it is -g. Returns the velocity where
+    y crosses 0 again (linear interpolation), 0 if that does not happen within t_max.
+    """
+    gr, b, d = gravity_ratio, 2.0 * zeta, IMPEDANCE
+    mujoco_law = law == "mujoco"
+
+    def acc(y: float, u: float) -> float:
+        if y > 0.0 or (y == 0.0 and u >= 0.0):
+            return -gr
+        if mujoco_law:
+            aref = -(b * u + y) / d
+            return d * aref - (1.0 - d) * gr if aref > -gr else -gr
+        return max(-(b * u + y), 0.0) - gr
+
+    y, u = 0.0, -1.0
+    for _ in range(int(t_max / h)):
+        k1y, k1u = u, acc(y, u)
+        k2y, k2u = u + 0.5 * h * k1u, acc(y + 0.5 * h * k1y, u + 0.5 * h * k1u)
+        k3y, k3u = u + 0.5 * h * k2u, acc(y + 0.5 * h * k2y, u + 0.5 * h * k2u)
+        k4y, k4u = u + h * k3u, acc(y + h * k3y, u + h * k3u)
+        y1 = y + h / 6.0 * (k1y + 2.0 * k2y + 2.0 * k3y + k4y)
+        u1 = u + h / 6.0 * (k1u + 2.0 * k2u + 2.0 * k3u + k4u)
+        if y1 >= 0.0 and y < 0.0:
+            f = y / (y - y1)
+            return max(u + f * (u1 - u), 0.0)
+        y, u = y1, u1
+    return 0.0
 
 
 def _release_speed(zeta: float, z0: float, threshold: float) -> float:
@@ -686,11 +999,13 @@ if __name__ == "__main__":
 class ImpactMeasurement:
     """One impact measured in MuJoCo (normal components; ball 1 moves towards ball 2 / floor).
 
+    Measured surface to surface, as the analysis stage does (``impactlab.analyze.bounces``).
+
     Attributes:
         restitution: -(relative normal velocity after) / (relative normal velocity before).
-        v_before_mps: body velocities (z for the floor, x for two balls) before the first step
-            with a positive contact force, shape (nbody,).
-        v_after_mps: body velocities after the last step with a positive force, (nbody,).
+        v_before_mps: body velocities (z for the floor, x for two balls) in the last state
+            before the bodies overlap, shape (nbody,).
+        v_after_mps: body velocities in the first state after the overlap, (nbody,).
         max_penetration_m: largest overlap in m.
         steps_in_contact: number of steps with a positive contact force.
     """
@@ -731,24 +1046,32 @@ solimp="{a["solimp"]}"/></contact></mujoco>"""
 
 
 def _measure(model, data, velocities, overlap, max_steps: int) -> ImpactMeasurement:
+    """Step until the bodies overlap and part again; velocities just outside the overlap.
+
+    As the analysis stage does: v_before is the state before the first overlapping one,
+    v_after the first state without overlap after it (surface to surface).
+    """
     import mujoco
 
-    v_before = v_after = None
-    pen, steps, started = 0.0, 0, False
+    v_prev = v_before = v_after = None
+    pen, steps = 0.0, 0
     for _ in range(max_steps):
-        v_prev = velocities(data)
-        mujoco.mj_step(model, data)
-        force = data.nefc > 0 and bool(np.any(data.efc_force[: data.nefc] > 0.0))
-        if force:
-            if not started:
-                v_before, started = v_prev, True
-            v_after = velocities(data)
-            steps += 1
-        elif started:
+        inside = overlap(data) > 0.0
+        v_now = velocities(data)
+        if inside:
+            if v_before is None:
+                if v_prev is None:
+                    raise ContactModelError("the bodies overlap in the initial state")
+                v_before = v_prev
+            pen = max(pen, overlap(data))
+        elif v_before is not None:
+            v_after = v_now
             break
-        pen = max(pen, overlap(data))
+        v_prev = v_now
+        mujoco.mj_step(model, data)
+        steps += data.nefc > 0 and bool(np.any(data.efc_force[: data.nefc] > 0.0))
     if v_before is None or v_after is None:
-        raise ContactModelError("no contact with a positive force within the simulated steps")
+        raise ContactModelError("no complete contact within the simulated steps")
     rel_in = v_before[-1] - v_before[0]
     rel_out = v_after[-1] - v_after[0]
     return ImpactMeasurement(

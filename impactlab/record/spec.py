@@ -159,6 +159,8 @@ class RunSpec:
     log_every: int
     sweep_values: Mapping[str, Any]
     document: Mapping[str, Any]
+    sweep_index: int = 0  # this run's place in its sweep grid
+    sweep_size: int = 1  # runs in the grid
 
     @property
     def spec_hash(self) -> str:
@@ -241,7 +243,13 @@ def set_path(doc: dict[str, Any], path: str, value: Any, source: str) -> None:
         node = node[key]
 
 
-def validate(doc: Mapping[str, Any], *, source: str, sweep_values: Mapping[str, Any]) -> RunSpec:
+def validate(
+    doc: Mapping[str, Any],
+    *,
+    source: str,
+    sweep_values: Mapping[str, Any],
+    sweep_point: tuple[int, int] = (0, 1),
+) -> RunSpec:
     """Check every field of a resolved document and build the `RunSpec`."""
     v = _Validator(source)
     opt = doc["options"]
@@ -315,6 +323,8 @@ def validate(doc: Mapping[str, Any], *, source: str, sweep_values: Mapping[str, 
         stop=stop,
         log_every=log_every,
         sweep_values=dict(sweep_values),
+        sweep_index=sweep_point[0],
+        sweep_size=sweep_point[1],
         document=copy.deepcopy(dict(doc)),
     )
 

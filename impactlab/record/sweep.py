@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -64,10 +65,13 @@ def expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> lis
             raise SpecError(source, f"sweep.{key}", "must be a non-empty list of values")
     keys = list(sweep)
     runs = []
-    for point in itertools.product(*(sweep[k] for k in keys)):
+    size = math.prod(len(sweep[k]) for k in keys)
+    for index, point in enumerate(itertools.product(*(sweep[k] for k in keys))):
         values = dict(zip(keys, point, strict=True))
         run_doc = copy.deepcopy(dict(doc))
         for key, value in values.items():
             set_path(run_doc, key, value, f"{source}: sweep")
-        runs.append(validate(run_doc, source=source, sweep_values=values))
+        runs.append(
+            validate(run_doc, source=source, sweep_values=values, sweep_point=(index, size))
+        )
     return runs

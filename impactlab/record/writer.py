@@ -50,6 +50,8 @@ class RunInfo:
     sweep: Mapping[str, Any]
     spec_hash: str
     log_every: int
+    sweep_index: int = 0
+    sweep_size: int = 1
 
 
 def write_log(path: Path, inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> Path:
@@ -197,6 +199,8 @@ def run_metadata(inst: InstrumentedModel, info: RunInfo) -> dict[str, str]:
         "run_id": info.run_id,
         "spec": json.dumps(info.spec, sort_keys=True),
         "sweep": json.dumps(info.sweep, sort_keys=True),
+        "sweep_index": str(info.sweep_index),
+        "sweep_size": str(info.sweep_size),
         "spec_hash": info.spec_hash,
         "timestep_s": repr(float(model.opt.timestep)),
         "log_every": str(info.log_every),
