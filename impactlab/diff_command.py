@@ -100,6 +100,9 @@ def _cmd_diff(args: argparse.Namespace) -> int:
     except LogError as exc:  # LogError's own exit code is 1, which here means "different"
         print(f"impactlab: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    for log in (a, b):
+        if log.partial:  # compared all the same: the differences show what is missing
+            print(f"impactlab: warning: {log.path}: {'; '.join(log.problems)}", file=sys.stderr)
     ignored = [*([] if args.all_meta else DEFAULT_IGNORED_META), *args.ignore_meta]
     tolerance = Tolerance(atol=args.atol, rtol=args.rtol, fields=dict(args.field_tols))
     result = diff_logs(a, b, tolerance=tolerance, ignore_meta=ignored)

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+from collections import defaultdict
 from pathlib import Path
+from typing import Any
 
-from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 from impactlab import logformat
+from impactlab.analyze.records import MAGIC as MCAP0_MAGIC
 from impactlab.errors import LogError
 
 
@@ -19,25 +21,39 @@ def describe(path: Path) -> str:
         LogError: the file cannot be read or has no summary.
     """
     try:
-        with open(path, "rb") as stream:
+        stream = open(path, "rb")  # noqa: SIM115 (closed below)
+    except FileNotFoundError:
+        raise LogError(str(path), "file not found") from None
+    except IsADirectoryError:
+        raise LogError(str(path), "is a folder, not a log") from None
+    except OSError as exc:
+        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    with stream:
+        if stream.read(len(MCAP0_MAGIC)) != MCAP0_MAGIC:
+            raise LogError(str(path), "not an MCAP file (bad magic bytes)")
+        try:
+            stream.seek(0)
             reader = make_reader(stream)
             summary = reader.get_summary()
             metadata = {m.name: m.metadata for m in reader.iter_metadata()}
             attachments = [a.name for a in reader.iter_attachments()]
-    except FileNotFoundError:
-        raise LogError(str(path), "file not found") from None
-    except (McapError, OSError, ValueError, EOFError) as exc:
-        raise LogError(str(path), f"not a readable MCAP file ({exc})") from None
+        except Exception as exc:  # the mcap reader raises many kinds on damaged bytes
+            problem = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+            raise LogError(
+                str(path),
+                f"truncated or damaged, no readable summary ({problem}); "
+                "`impactlab analyze` reads its complete part",
+            ) from None
     if summary is None or summary.statistics is None:
         raise LogError(str(path), "no summary (truncated or still being written)")
     stats = summary.statistics
     run = metadata.get(logformat.RUN_METADATA, {})
     ending = {"outcome": "incomplete", "reason": "no outcome record: the run did not finish"}
     if run:
-        run = {**run, **metadata.get(logformat.OUTCOME_METADATA, ending)}
+        run = defaultdict(lambda: "?", {**run, **metadata.get(logformat.OUTCOME_METADATA, ending)})
     lines = [f"file:       {path}"]
     if run:
-        sweep = json.loads(run.get("sweep", "{}"))
+        sweep, warnings = _json(run["sweep"], {}), _json(run["warnings"], [])
         lines += [
             f"experiment: {run['experiment']} ({run['source']})",
             f"run:        {run['run_id']}",
@@ -47,7 +63,7 @@ def describe(path: Path) -> str:
             f"versions:   impactlab {run['impactlab_version']}, mujoco {run['mujoco_version']}, "
             f"log format {run['log_format_version']}",
         ]
-        lines += [f"warning:    {w}" for w in json.loads(run.get("warnings", "[]"))]
+        lines += [f"warning:    {w}" for w in warnings]
     else:
         lines.append("experiment: - (no impactlab.run metadata: not an impactlab log)")
     duration = (stats.message_end_time - stats.message_start_time) / 1e9
@@ -64,3 +80,12 @@ def describe(path: Path) -> str:
         name = schema.name if schema else "(no schema)"
         lines.append(f"  {channel.topic:<{width}}  {count:>8} msgs  {name}")
     return "\n".join(lines)
+
+
+def _json(text: str, default: Any) -> Any:
+    """A JSON metadata value, or `default` when it does not parse to the same type (damaged)."""
+    try:
+        value = json.loads(text)
+    except ValueError:
+        return default
+    return value if isinstance(value, type(default)) else default

@@ -135,7 +135,12 @@ def test_contact_messages_carry_force_and_geometry(bouncy_log):
     _, msgs, _, _, _ = read_all(bouncy_log)
     contacts = [m for tp, _, m in msgs if tp == "/contacts/plane/ball"]
     first = contacts[0]
-    assert (first.geom1, first.geom2, first.body1, first.body2) == ("plane", "ball", "world", "ball")
+    assert (first.geom1, first.geom2, first.body1, first.body2) == (
+        "plane",
+        "ball",
+        "world",
+        "ball",
+    )
     p = first.points[0]
     assert (p.nx, p.ny, p.nz) == (0.0, 0.0, 1.0)  # from the plane into the ball
     # first bounce: impulse = m (v_in + v_out) + m g T (gravity acts during the contact too)
@@ -232,11 +237,15 @@ def _rerun() -> str:
 
 
 def test_rerun_converts_the_log_and_its_poses(bouncy_log, tmp_path):
-    check = subprocess.run([_rerun(), "mcap", "check", str(bouncy_log)], capture_output=True, text=True)
+    check = subprocess.run(
+        [_rerun(), "mcap", "check", str(bouncy_log)], capture_output=True, text=True
+    )
     assert check.returncode == 0, check.stdout + check.stderr
     rrd = tmp_path / "out.rrd"
     conv = subprocess.run(
-        [_rerun(), "mcap", "convert", str(bouncy_log), "-o", str(rrd)], capture_output=True, text=True
+        [_rerun(), "mcap", "convert", str(bouncy_log), "-o", str(rrd)],
+        capture_output=True,
+        text=True,
     )
     assert conv.returncode == 0, conv.stderr
     printed = subprocess.run([_rerun(), "rrd", "print", str(rrd)], capture_output=True, text=True)

@@ -152,7 +152,9 @@ def summary_row(a: RunAnalysis) -> dict[str, Any]:
         "drop_height_m": first["apex_before_m"][0] if first.height else None,
         "n_bounces": int(a.bounces["bounce"].count()),
         "n_bounces_complete": good.height,
-        "first_impact_speed_mps": -first["v_in_mps"][0] if first.height else None,
+        "first_impact_speed_mps": -first["v_in_mps"][0]
+        if first.height and first["v_in_mps"][0] is not None  # None: in contact from the start
+        else None,
         "e_velocity_first": first["e_velocity"][0] if first.height else None,
         "e_velocity_mean": good["e_velocity"].mean() if good.height else None,
         "e_apex_mean": good["e_apex"].mean() if good.height else None,

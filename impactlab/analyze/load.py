@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import polars as pl
+from google.protobuf.message import DecodeError
 
 from impactlab import logformat, messages
 from impactlab.analyze.records import ChannelData, read_mcap
@@ -28,6 +29,9 @@ from impactlab.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
+DATA_SCHEMAS = frozenset(
+    {logformat.BODY_STATE_SCHEMA, logformat.CONTACT_SCHEMA, logformat.ENERGY_SCHEMA}
+)
 
 
 @dataclass(frozen=True)
@@ -75,6 +79,11 @@ class RunLog:
     def sweep(self) -> dict[str, Any]:
         """This run's sweep point: {dotted path: value}."""
         return json.loads(self.meta.get("sweep", "{}"))
+
+    @property
+    def sweep_point(self) -> tuple[int, int]:
+        """(index, size) of this run in its sweep grid; (0, 1) without a sweep."""
+        return int(self.meta.get("sweep_index", 0)), int(self.meta.get("sweep_size", 1))
 
     @property
     def spec(self) -> dict[str, Any]:
@@ -133,7 +142,8 @@ def load_log(path: str | Path) -> RunLog:
     """Decode one log into frames.
 
     Raises:
-        LogError: the file does not exist, is not MCAP, or holds no impactlab channel.
+        LogError: the file does not exist, is not MCAP, holds no impactlab channel, or its
+            metadata values do not parse (damaged).
     """
     path = Path(path)
     try:
@@ -146,8 +156,8 @@ def load_log(path: str | Path) -> RunLog:
         raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
     except ValueError as exc:
         raise LogError(str(path), str(exc)) from None
-    has_messages = any(c.pieces for c in raw.channels.values())
-    if logformat.RUN_METADATA not in raw.metadata and not has_messages:
+    data = [c for c in raw.channels.values() if c.schema in DATA_SCHEMAS]
+    if logformat.RUN_METADATA not in raw.metadata and not any(c.pieces for c in data):
         reason = raw.problems[0] if raw.problems else "no impactlab channels or metadata"
         raise LogError(str(path), f"not an impactlab log ({reason})")
     meta = dict(raw.metadata.get(logformat.RUN_METADATA, {}))
@@ -158,6 +168,9 @@ def load_log(path: str | Path) -> RunLog:
         meta.update(raw.metadata[logformat.OUTCOME_METADATA])
     else:
         problems.append("no outcome record: the log is incomplete")
+    damaged = metadata_problem(meta)
+    if damaged:
+        raise LogError(str(path), f"damaged metadata: {damaged}")
     run_id = meta.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
@@ -165,25 +178,23 @@ def load_log(path: str | Path) -> RunLog:
     events = pl.DataFrame(
         schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
     )
-    known = 0
     for channel in raw.channels.values():
         schema, topic = channel.schema, channel.topic
-        if schema == logformat.BODY_STATE_SCHEMA:
-            t, values = decode_fixed(channel, messages.body_state(), _body_state_values)
-            bodies[topic.split("/")[2]] = _frame(run_id, t, values, BODY_FIELDS)
-        elif schema == logformat.CONTACT_SCHEMA:
-            contact_frames.append(decode_contacts(run_id, channel))
-        elif schema == logformat.ENERGY_SCHEMA:
-            t, values = decode_fixed(channel, messages.energy(), _energy_values)
-            energy = _frame(run_id, t, values, ENERGY_FIELDS)
-        elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
-            t, payloads = _loose(channel)
-            events = decode_events(run_id, t, payloads)
-        else:
-            continue
-        known += 1
-    if not known:
-        raise LogError(str(path), "not an impactlab log (no impactlab channels)")
+        try:
+            if schema == logformat.BODY_STATE_SCHEMA:
+                t, values = decode_fixed(channel, messages.body_state(), _body_state_values)
+                name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]
+                bodies[name] = _frame(run_id, t, values, BODY_FIELDS)
+            elif schema == logformat.CONTACT_SCHEMA:
+                contact_frames.append(decode_contacts(run_id, channel))
+            elif schema == logformat.ENERGY_SCHEMA:
+                t, values = decode_fixed(channel, messages.energy(), _energy_values)
+                energy = _frame(run_id, t, values, ENERGY_FIELDS)
+            elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
+                t, payloads = _loose(channel)
+                events = decode_events(run_id, t, payloads)
+        except (DecodeError, ValueError) as exc:  # e.g. another tool's encoding of the schema
+            raise LogError(str(path), f"{topic}: undecodable message ({exc})") from None
     contacts = (
         pl.concat(contact_frames).sort("t_ns", maintain_order=True)
         if contact_frames
@@ -200,6 +211,66 @@ def load_log(path: str | Path) -> RunLog:
         partial=bool(problems),
         problems=problems,
     )
+
+
+def metadata_problem(meta: dict[str, str]) -> str | None:
+    """What is wrong with the values of the run and outcome metadata, or None.
+
+    Metadata records carry no CRC: a damaged byte can leave a value that does not parse.
+    Keys that are absent are not checked (the callers handle them).
+    """
+
+    def number(text: str) -> bool:
+        try:
+            return np.isfinite(float(text))
+        except ValueError:
+            return False
+
+    def integer(text: str) -> bool:
+        return text.isdigit()
+
+    def vector(value: Any) -> bool:
+        return isinstance(value, list) and len(value) == 3 and all(_real(v) for v in value)
+
+    def body(value: Any) -> bool:
+        return (
+            isinstance(value, dict)
+            and isinstance(value.get("name"), str)
+            and _real(value.get("mass"))
+            and vector(value.get("inertia"))
+            and (value.get("radius") is None or _real(value.get("radius")))
+        )
+
+    checks: dict[str, Callable[[str], bool]] = {
+        "timestep_s": lambda t: number(t) and float(t) > 0,
+        "log_every": lambda t: integer(t) and int(t) > 0,
+        "plane_z": lambda t: t == "" or number(t),
+        "steps": integer,
+    }
+    json_checks: dict[str, Callable[[Any], bool]] = {
+        "spec": lambda v: isinstance(v, dict),
+        "sweep": lambda v: isinstance(v, dict),
+        "gravity": vector,
+        "bodies": lambda v: isinstance(v, list) and all(body(b) for b in v),
+        "warnings": lambda v: isinstance(v, list) and all(isinstance(w, str) for w in v),
+    }
+    for key, ok in checks.items():
+        if key in meta and not ok(meta[key]):
+            return f"{key} = {meta[key][:40]!r} is not valid"
+    for key, ok in json_checks.items():
+        if key not in meta:
+            continue
+        try:
+            valid = ok(json.loads(meta[key]))
+        except ValueError:
+            valid = False
+        if not valid:
+            return f"{key} is not valid JSON of the expected shape"
+    return None
+
+
+def _real(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def decode_fixed(
@@ -309,7 +380,7 @@ def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]
     return frame.select(
         pl.lit(run_id).alias("run_id"),
         "t_ns",
-        (pl.col("t_ns") / 1e9).alias("t_s"),
+        pl.Series("t_s", frame["t_ns"].to_numpy() / 1e9),  # as the fast path (numpy division)
         *frame.columns[1:],
     )
 
