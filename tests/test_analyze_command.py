@@ -109,3 +109,32 @@ def test_analysis_does_not_import_mujoco(logs, tmp_path):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+NO_BOUNCE_SWEEP = """
+name = "early_stop"
+[options]
+timestep = 0.0005
+[contact]
+condim = 1
+solref = [0.02, 1.0]
+solimp = [0.9, 0.95, 0.001]
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 1.0]
+[stop]
+max_time = 0.5
+[sweep]
+"ball.pos" = [[0.0, 0.0, 1.0], [0.0, 0.0, 1.1]]
+"""
+
+
+def test_sweep_without_a_complete_bounce_still_reports(record_spec, tmp_path):
+    """A drop sweep cut before any rebound: the report says so instead of failing."""
+    logs = record_spec("early_stop", NO_BOUNCE_SWEEP)
+    result = run_analysis(logs, tmp_path / "out", echo=lambda _: None)
+    assert result.exit_code == 0
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "no rebound" in report
+    assert result.runs["n_bounces_complete"].to_list() == [0, 0]

@@ -69,6 +69,8 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
         if "first_impact_speed_mps" not in study.columns:
             continue
         rows = study.sort("first_impact_speed_mps")
+        if "e_velocity_first" not in rows.columns:  # no run of the study has a full bounce
+            rows = rows.with_columns(pl.lit(None, dtype=pl.Float64).alias("e_velocity_first"))
         parts = []
         for r in rows.iter_rows(named=True):
             e = r["e_velocity_first"]

@@ -16,6 +16,7 @@ import numpy as np
 import polars as pl
 
 DPI = 110
+MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
 
 
 def _save(fig, path: Path) -> Path:
@@ -79,12 +80,15 @@ def bounce_decay_figure(
         labels: run_id -> legend label.
     """
     fig, ax = plt.subplots(figsize=(8, 5))
-    for run_id, label in labels.items():
+    legend = len(labels) <= MAX_LEGEND_RUNS
+    colors = plt.cm.viridis(np.linspace(0, 1, max(len(labels), 1)))
+    for i, (run_id, label) in enumerate(labels.items()):
         rows = bounces.filter((pl.col("run_id") == run_id) & pl.col("bounce").is_not_null()).sort(
             "bounce"
         )
         if rows.is_empty():
-            ax.plot([], [], "o-", label=f"{label}: no bounce")
+            if legend:
+                ax.plot([], [], "o-", label=f"{label}: no bounce")
             continue
         n = [0, *rows["bounce"].to_list()]
         h = [rows["apex_before_m"][0], *rows["apex_m"].to_list()]
@@ -92,13 +96,19 @@ def bounce_decay_figure(
         # the last contact of a run that comes to rest has no apex: show it at 0 (resting)
         if rows["apex_m"][-1] is None:
             pts.append((n[-1], 0.0))
-        ax.plot(*zip(*pts, strict=True), "o-", label=f"{label} (h0 = {h[0]:.3g} m)")
+        ax.plot(
+            *zip(*pts, strict=True),
+            "o-",
+            color=None if legend else colors[i],
+            label=f"{label} (h0 = {h[0]:.3g} m)" if legend else None,
+        )
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xlabel("bounce number (0: drop)")
     ax.set_ylabel("apex above contact height (m; 0: at rest)")
-    ax.set_title(title)
-    ax.legend()
+    ax.set_title(title if legend else f"{title}\n{len(labels)} runs, coloured in sweep order")
+    if legend:
+        ax.legend()
     ax.grid(True, which="both", alpha=0.3)
     return _save(fig, path)
 
@@ -168,18 +178,31 @@ def restitution_figure(
     """e against impact speed: bounces (from velocities and from apexes) and collisions."""
     fig, ax = plt.subplots(figsize=(8, 5))
     b = bounces.filter(pl.col("complete"))
+    legend = len(labels) <= MAX_LEGEND_RUNS
+    colors = plt.cm.viridis(np.linspace(0, 1, max(len(labels), 1)))
     for i, (run_id, label) in enumerate(labels.items()):
         rows = b.filter(pl.col("run_id") == run_id)
         if rows.is_empty():
             continue
-        color = f"C{i % 10}"
+        color = f"C{i % 10}" if legend else colors[i]
         ax.plot(
-            -rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=f"{label} (velocities)"
+            -rows["v_in_mps"],
+            rows["e_velocity"],
+            "o",
+            color=color,
+            label=f"{label} (velocities)" if legend else None,
         )
         apex = rows.filter(pl.col("e_apex").is_not_null())
         ax.plot(
-            -apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color, label=f"{label} (apexes)"
+            -apex["v_in_mps"],
+            apex["e_apex"],
+            "x",
+            ms=9,
+            color=color,
+            label=f"{label} (apexes)" if legend else None,
         )
+    if not legend:
+        ax.plot([], [], "o", color="0.4", label=f"{len(labels)} runs: o velocities, x apexes")
     c = collisions.filter(pl.col("complete"))
     if c.height:
         ax.plot(
