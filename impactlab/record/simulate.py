@@ -69,13 +69,6 @@ class _Active:
     verdict: Verdict | None = None
 
 
-def simulate(
-    inst: InstrumentedModel, *, max_time: float, stop: Stop | None = None, log_every: int = 1
-) -> Trajectory:
-    """Run one model from its initial state until a stop rule fires or `max_time` (s) passes."""
-    return simulate_batch([RunRequest(inst, max_time, stop, log_every)], threads=1)[0]
-
-
 def simulate_batch(requests: list[RunRequest], *, threads: int | None = None) -> list[Trajectory]:
     """Run several models side by side with multi-threaded `mujoco.rollout`.
 
