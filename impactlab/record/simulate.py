@@ -1,4 +1,4 @@
-"""Simulate one run in chunks of `mujoco.rollout`, stopping on events, keeping the logged rows.
+"""Simulate runs side by side in chunks of `mujoco.rollout`, stopping each on its own events.
 
 Row i of a rollout's sensordata holds the sensors evaluated at the state *before* step i is
 integrated, i.e. at simulation time i * timestep: that is the time every logged row carries.
