@@ -140,8 +140,12 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
             ).iter_rows()
         )
         out.append(
-            f"`{name}` over {param} = {vals}. e spans only {spread:.3f} over the sweep"
-            + (" (essentially independent of the knob)" if spread < 0.05 else "")
+            f"`{name}` over {param} = {vals}. "
+            + (
+                f"e spans only {spread:.3f} over the sweep (essentially independent of the knob)"
+                if spread < 0.05
+                else f"e follows the knob, spanning {spread:.3f} over the sweep"
+            )
             + f"; the elastic answer v1' = {el1:.3f}, v2' = {el2:.3f} m/s is "
             + ("approached" if approached else "not approached")
             + f" (closest v1' is {min(gap) * 100:.0f} % of |v1'_elastic| away)."
