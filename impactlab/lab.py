@@ -146,12 +146,12 @@ def _append_calibration(report: Path, result) -> None:
             continue
         w = entry.get("worst") or {}
         worst = (
-            f"e = {w['target']:g} at {w['speed_mps']:g} m/s: measured {w['e_measured']:.4f}"
+            f"e = {w['target']:g} at {w['speed_mps']:g} m/s: measured {w['e_measured']:.5f}"
             if w
             else "-"
         )
         lines.append(
-            f"| {name} | {entry['runs']} | {entry['max_abs_error']:.4f} | "
+            f"| {name} | {entry['runs']} | {entry['max_abs_error']:.5f} | "
             f"{entry['mean_abs_error']:.4f} | {entry['max_penetration_frac']:.4f} | {worst} |"
         )
     lines.append("")
