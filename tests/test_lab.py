@@ -1,0 +1,76 @@
+"""`impactlab lab` end to end on a small experiments folder: logs, report, linked replays."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from impactlab.cli import main
+
+DROP = """
+name = "tiny_drop"
+[options]
+timestep = 0.0005
+[contact]
+condim = 1
+solref = [-100000.0, -63.245553]
+solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 0.5]
+[stop]
+max_time = 2.0
+bounces = 2
+"""
+COLLISION = """
+name = "tiny_collision"
+[options]
+timestep = 0.0001
+gravity = [0.0, 0.0, 0.0]
+[plane]
+enabled = false
+[bodies.a]
+radius = 0.1
+mass = 1.0
+pos = [-0.3, 0.0, 0.0]
+vel = [2.0, 0.0, 0.0]
+[bodies.b]
+radius = 0.1
+mass = 1.0
+pos = [0.3, 0.0, 0.0]
+vel = [-1.0, 0.0, 0.0]
+[stop]
+max_time = 1.0
+separation = 0.05
+"""
+
+
+def test_lab_records_analyzes_and_links_replays(tmp_path, capsys):
+    experiments = tmp_path / "experiments"
+    experiments.mkdir()
+    (experiments / "tiny_drop.toml").write_text(DROP)
+    (experiments / "tiny_collision.toml").write_text(COLLISION)
+    out = tmp_path / "lab"
+    args = ["lab", "--experiments", str(experiments), "-o", str(out), "--calibration", "none"]
+    assert main(args) == 0
+    printed = capsys.readouterr().out
+    assert printed.strip().splitlines()[-1] == f"report: {out / 'results' / 'report.md'}"
+    logs = sorted((out / "logs").glob("*.mcap"))
+    assert [p.name.split("-")[0] for p in logs] == ["tiny_collision", "tiny_drop"]
+    report = (out / "results" / "report.md").read_text()
+    for section in ("## Step 1: energy", "## Step 2: restitution", "## Step 3: collision"):
+        assert section in report
+    replays = sorted((out / "results" / "replays").glob("*.rrd"))
+    assert [p.stem for p in replays] == [p.stem for p in logs]
+    for p in replays:
+        assert f"(replays/{p.name})" in report
+    # a second run reuses every log
+    assert main([*args, "--no-replay"]) == 0
+    assert "reused 2 complete log(s)" in capsys.readouterr().out
+
+
+def test_lab_without_specs_is_one_line(tmp_path, capsys):
+    assert main(["lab", "--experiments", str(tmp_path), "-o", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no experiment specs" in err[0]
+    assert not Path(tmp_path / "o").exists()
