@@ -17,27 +17,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from bench import write_spec  # the same drop sweep as the main benchmark
+
 from impactlab.executor import record_sweep
 from impactlab.record.job import plan, record
-
-SPEC = """
-name = "raybench"
-description = "executor benchmark: drops from {runs} heights"
-
-[options]
-timestep = 0.0005
-
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-
-[stop]
-max_time = {max_time}
-
-[sweep]
-"ball.pos" = [{heights}]
-"""
 
 
 def main() -> None:
@@ -53,9 +36,7 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        heights = ", ".join(f"[0.0, 0.0, {1 + 0.05 * i:.2f}]" for i in range(args.runs))
-        spec = folder / "raybench.toml"
-        spec.write_text(SPEC.format(runs=args.runs, max_time=args.max_time, heights=heights))
+        spec = write_spec(folder, args.runs, args.max_time)
         runs = plan([spec])
         rows = []
 

@@ -321,19 +321,19 @@ def _loose(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
 def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
     """A Contact channel -> one row per contact point."""
     names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
+    per_point = len(POINT_FIELDS)
     frames = []
     for t, data in channel.pieces:
         values = None
         if isinstance(data, np.ndarray) and all(names.values()):
-            per_point = len(POINT_FIELDS)
-            for k in range(1, 9):
-                layout = messages.contact(*names.values(), k)
-                if layout.size == data.shape[1]:
-                    values = layout.decode(data)
-                    break
+            # a payload of k points is one point's bytes longer than one of k - 1
+            one = messages.contact(*names.values(), 1).size
+            two = messages.contact(*names.values(), 2).size
+            k, rest = divmod(data.shape[1] - one, two - one)
+            if rest == 0 and k >= 0:
+                values = messages.contact(*names.values(), k + 1).decode(data)
         if values is not None:
-            k = values.shape[1] // per_point
-            points = values.reshape(len(t), k, per_point)
+            points = values.reshape(len(t), -1, per_point)
             frames.append(_contact_frame(run_id, t, names, points))
         else:
             rows = data if isinstance(data, list) else [bytes(r) for r in data]
