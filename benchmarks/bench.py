@@ -90,7 +90,7 @@ def record_case(spec: Path, out: Path, threads: int) -> dict:
 
 def decode_case(logs: list[Path]) -> dict:
     """Decode logs into frames; messages decoded per second."""
-    from impactlab.analyze.load import load_log
+    from impactlab.logs.load import load_log
 
     start = time.perf_counter()
     messages = 0

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from bench import write_spec  # the same drop sweep as the main benchmark
 
-from impactlab.executor import record_sweep
+from impactlab.executors.base import record_sweep
 from impactlab.record.job import plan, record
 
 
@@ -32,7 +32,7 @@ def main() -> None:
 
     import ray
 
-    from impactlab.ray_executor import RayExecutor
+    from impactlab.executors.ray import RayExecutor
 
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)

@@ -1,7 +1,7 @@
 """Time the replay of a long log: record a ~100,000-step drop, then load it and convert it.
 
 Run: python benchmarks/replay_bench.py [--steps 100000] [--keep DIR]
-Prints the seconds spent loading the log (impactlab.analyze.load) and converting it to .rrd.
+Prints the seconds spent loading the log (impactlab.logs.load) and converting it to .rrd.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from impactlab.analyze.load import load_log
+from impactlab.logs.load import load_log
 from impactlab.record.job import plan, record
 from impactlab.replay.command import write_recording
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from impactlab import __version__
 from impactlab.errors import ImpactlabError
-from impactlab.executor import add_executor_options
+from impactlab.executors.base import add_executor_options
 
 EXPERIMENTS_DIR = Path("experiments")
 
@@ -74,7 +74,7 @@ def _stage_commands():
 
 
 def _cmd_record(args: argparse.Namespace) -> int:
-    from impactlab.executor import check_executor
+    from impactlab.executors.base import check_executor
     from impactlab.record.job import plan, record
 
     check_executor(args.executor, args.address)
@@ -89,7 +89,7 @@ def _cmd_record(args: argparse.Namespace) -> int:
 
 
 def _record_with_executor(runs, args: argparse.Namespace) -> int:
-    from impactlab.executor import make_executor, record_sweep
+    from impactlab.executors.base import make_executor, record_sweep
 
     executor = make_executor(args.executor, args.address)
     try:
@@ -110,7 +110,7 @@ def _record_with_executor(runs, args: argparse.Namespace) -> int:
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from impactlab.info import describe
+    from impactlab.logs.info import describe
 
     failed = 0
     for i, path in enumerate(args.logs):

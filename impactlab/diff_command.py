@@ -14,9 +14,15 @@ import math
 import sys
 from pathlib import Path
 
-from impactlab.analyze.load import load_log
-from impactlab.diff import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL, Tolerance, diff_logs
 from impactlab.errors import LogError
+from impactlab.logs.diff import (
+    DEFAULT_ATOL,
+    DEFAULT_IGNORED_META,
+    DEFAULT_RTOL,
+    Tolerance,
+    diff_logs,
+)
+from impactlab.logs.load import load_log
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
 

@@ -3,7 +3,7 @@
 The golden specs live in `tests/golden/specs/`, their logs in `tests/golden/logs/<name>.mcap`
 and the analysis tables of those logs in `tests/golden/results/`. This script records every
 golden spec into a temporary folder, prints what changed against the committed logs (with
-`impactlab.diff`, exact comparison) and then replaces the changed ones; `--check` only
+`impactlab.logs.diff`, exact comparison) and then replaces the changed ones; `--check` only
 reports and exits 1 when anything changed. A log whose only differences are in the metadata
 keys `GOLDEN_IGNORED_META` (where the spec file was, the impactlab version) is kept as is,
 so regenerating without a change in the physics leaves the files untouched.
@@ -25,8 +25,8 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze.load import load_log
-from impactlab.diff import EXACT, LogDiff, diff_logs
+from impactlab.logs.diff import EXACT, LogDiff, diff_logs
+from impactlab.logs.load import load_log
 from impactlab.record.job import plan, record
 
 GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"

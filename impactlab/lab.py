@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from impactlab.errors import SpecError
-from impactlab.executor import Executor, add_executor_options, make_executor
+from impactlab.executors.base import Executor, add_executor_options, make_executor
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -101,7 +101,7 @@ def run_lab(
         recorded = record(runs, logs_dir, overwrite=overwrite, echo=echo)
         unstable = [r for r in recorded if r.trajectory.verdict.outcome != "completed"]
     else:
-        from impactlab.executor import record_sweep
+        from impactlab.executors.base import record_sweep
 
         sweep = record_sweep(runs, logs_dir, executor, overwrite=overwrite, echo=echo)
         unstable = sweep.unstable + sweep.failed

@@ -14,7 +14,7 @@ import polars as pl
 import pytest
 
 from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.load import load_log
+from impactlab.logs.load import load_log
 
 K = 1.0e5
 ZETA = 0.1

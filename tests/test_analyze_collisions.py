@@ -10,7 +10,7 @@ from test_analyze_bounces import schwager_poeschel
 
 from impactlab.analyze.analysis import analyze_run
 from impactlab.analyze.collisions import analytic_after
-from impactlab.analyze.load import load_log
+from impactlab.logs.load import load_log
 
 K, ZETA, DT = 1.0e5, 0.1, 1.0e-4
 M1, M2, V1, V2 = 1.0, 2.0, 2.0, -1.0

@@ -11,7 +11,7 @@ from test_analyze_bounces import DROP_SPEC, DT, RADIUS, Z0, G
 
 from impactlab.analyze.analysis import analyze_run
 from impactlab.analyze.energy import body_energy
-from impactlab.analyze.load import BodyInfo, load_log
+from impactlab.logs.load import BodyInfo, load_log
 
 
 def _state(**kw) -> pl.DataFrame:

@@ -11,10 +11,10 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from mcap_protobuf.writer import Writer as ProtobufWriter
 
-from impactlab import messages
-from impactlab.analyze.load import load_log
-from impactlab.codec import Template
-from impactlab.messages import BODY_FIELDS, POINT_FIELDS
+from impactlab.logs import messages
+from impactlab.logs.codec import Template
+from impactlab.logs.load import load_log
+from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record.job import plan, record
 

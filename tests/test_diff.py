@@ -14,10 +14,9 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from impactlab import logformat
-from impactlab.analyze.load import load_log
 from impactlab.cli import main
-from impactlab.diff import (
+from impactlab.logs import format as logformat
+from impactlab.logs.diff import (
     EXACT,
     Tolerance,
     compare_attachments,
@@ -26,6 +25,7 @@ from impactlab.diff import (
     diff_logs,
     fmt_t,
 )
+from impactlab.logs.load import load_log
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record.job import plan, record
 

@@ -2,7 +2,7 @@
 current schema still reads them, and analyzing them reproduces the golden analysis tables.
 
 What is compared bitwise: every decoded value of every channel load.py decodes (body states,
-contact points, energy, events: `impactlab.diff.EXACT`, atol = rtol = 0), message times and
+contact points, energy, events: `impactlab.logs.diff.EXACT`, atol = rtol = 0), message times and
 counts, every metadata key except `source` (the spec's path, which depends on the checkout)
 and `impactlab_version` (a release with the same physics keeps its golden logs), and the
 attached model.xml byte for byte. `mujoco_version` is compared: a new MuJoCo pin changes the
@@ -29,9 +29,6 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from polars.testing import assert_frame_equal
 
-from impactlab import logformat
-from impactlab.analyze.load import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, load_log
-from impactlab.diff import fmt_t
 from impactlab.golden import (
     GOLDENS,
     LOGS_DIR,
@@ -42,6 +39,9 @@ from impactlab.golden import (
     compare_golden,
     record_golden,
 )
+from impactlab.logs import format as logformat
+from impactlab.logs.diff import fmt_t
+from impactlab.logs.load import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, load_log
 from impactlab.proto import impactlab_pb2 as pb
 
 IDS = [g.name for g in GOLDENS]

@@ -18,7 +18,7 @@ from polars.testing import assert_frame_equal
 
 from impactlab.analyze.command import run_analysis
 from impactlab.cli import main
-from impactlab.executor import (
+from impactlab.executors.base import (
     RAY_INSTALL_HINT,
     LocalExecutor,
     record_sweep,
@@ -52,7 +52,7 @@ TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 @pytest.fixture(scope="module")
 def ray_executor(tmp_path_factory):
     """A RayExecutor on a local 2-CPU Ray instance started for this module."""
-    from impactlab.ray_executor import RayExecutor
+    from impactlab.executors.ray import RayExecutor
 
     os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
     ray.init(
@@ -226,7 +226,7 @@ def test_without_ray_asking_for_it_is_one_error_line(
     command, monkeypatch, tmp_path, spec_path, capsys
 ):
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
-    monkeypatch.delitem(sys.modules, "impactlab.ray_executor", raising=False)
+    monkeypatch.delitem(sys.modules, "impactlab.executors.ray", raising=False)
     target = {"record": str(spec_path), "analyze": str(tmp_path), "lab": "--no-replay"}[command]
     code = main([command, target, "-o", str(tmp_path / "out"), "--executor", "ray"])
     err = capsys.readouterr().err

@@ -14,8 +14,8 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
-from impactlab import logformat
 from impactlab.cli import main
+from impactlab.logs import format as logformat
 from impactlab.record.job import plan, record
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"

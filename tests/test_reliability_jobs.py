@@ -16,10 +16,10 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from impactlab.analyze.load import load_log
 from impactlab.cli import main
+from impactlab.logs import writer as writer_module
+from impactlab.logs.load import load_log
 from impactlab.record import simulate as simulate_module
-from impactlab.record import writer as writer_module
 from impactlab.record.job import plan, record
 
 ROOT = Path(__file__).resolve().parents[1]

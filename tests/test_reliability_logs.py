@@ -24,10 +24,10 @@ from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.load import RunLog, load_log
 from impactlab.cli import main
 from impactlab.errors import LogError
-from impactlab.info import describe
+from impactlab.logs.info import describe
+from impactlab.logs.load import RunLog, load_log
 from impactlab.proto import impactlab_pb2 as pb
 
 SPEC = """
@@ -48,7 +48,7 @@ FOOTER_BYTES = 1 + 8 + 8 + 8 + 4 + 8  # footer record and closing magic
 @pytest.fixture(scope="module")
 def intact(tmp_path_factory) -> Path:
     """A complete log of a ball dropped on the plane (contacts included), in many chunks."""
-    from impactlab.record import writer
+    from impactlab.logs import writer
     from impactlab.record.job import plan, record
 
     folder = tmp_path_factory.mktemp("fragile")

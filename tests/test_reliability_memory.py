@@ -28,7 +28,7 @@ max_time = {seconds}
 MEASURE = r"""
 import json, resource, sys, time
 import impactlab.analyze.command, impactlab.cli  # the imports are the baseline
-from impactlab.analyze.load import load_log
+from impactlab.logs.load import load_log
 from impactlab.cli import main
 
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

@@ -18,7 +18,7 @@ import pytest
 import rerun as rr
 
 from impactlab import cli
-from impactlab.analyze.load import RunLog, load_log
+from impactlab.logs.load import RunLog, load_log
 from impactlab.record.job import plan, record
 from impactlab.replay import command
 from impactlab.replay.command import replay_logs

@@ -12,8 +12,8 @@ from impactlab.analyze.bounces import bounces, no_bounce_row
 from impactlab.analyze.collisions import collisions, no_collision_rows
 from impactlab.analyze.contacts import logged_step_ns, run_intervals, states_long
 from impactlab.analyze.energy import energy_phases, run_energy
-from impactlab.analyze.load import RunLog
 from impactlab.errors import LogError
+from impactlab.logs.load import RunLog
 
 
 @dataclass

@@ -15,7 +15,7 @@ from __future__ import annotations
 import polars as pl
 
 from impactlab.analyze.contacts import state_at
-from impactlab.analyze.load import BodyInfo
+from impactlab.logs.load import BodyInfo
 
 COLLISION_SCHEMA: dict[str, pl.DataType] = {
     "run_id": pl.String,

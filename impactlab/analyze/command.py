@@ -19,7 +19,6 @@ import polars as pl
 
 from impactlab.analyze import answers, figures
 from impactlab.analyze.analysis import RunAnalysis, analyze_run
-from impactlab.analyze.load import find_logs, load_log
 from impactlab.analyze.outputs import (
     ENERGY_ROWS_PER_RUN,
     check_writable,
@@ -30,7 +29,8 @@ from impactlab.analyze.outputs import (
 from impactlab.analyze.report import build_report
 from impactlab.analyze.studies import studies, study_parameters, with_parameters
 from impactlab.errors import ImpactlabError, LogError
-from impactlab.executor import Executor, add_executor_options, make_executor
+from impactlab.executors.base import Executor, add_executor_options, make_executor
+from impactlab.logs.load import find_logs, load_log
 
 
 @dataclass
@@ -130,7 +130,7 @@ def run_analysis(
                 _error(str(exc))
                 failed.append((exc.path, exc.problem))
     else:  # one task per log; the run's figures are drawn in its task
-        from impactlab.executor import analyze_logs
+        from impactlab.executors.base import analyze_logs
 
         run_figs = []
         for item in analyze_logs(paths, out_dir / "figures", executor, echo=echo):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from impactlab.analyze.load import RunLog
+from impactlab.logs.load import RunLog
 
 PAIR = ("geom1", "geom2", "body1", "body2")
 

@@ -18,7 +18,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.contacts import states_long
-from impactlab.analyze.load import BodyInfo, RunLog
+from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
 

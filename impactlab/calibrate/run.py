@@ -32,9 +32,9 @@ import polars as pl
 from impactlab.analyze.analysis import RunAnalysis, analyze_run
 from impactlab.analyze.collisions import analytic_after
 from impactlab.analyze.command import AnalysisResult, tables
-from impactlab.analyze.load import load_log
 from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint, grid_points
 from impactlab.errors import LogError
+from impactlab.logs.load import load_log
 from impactlab.record.job import plan, record
 from impactlab.record.restitution import (
     RESTITUTION_TOLERANCE,

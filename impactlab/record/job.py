@@ -21,14 +21,15 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from tqdm import tqdm
 
-from impactlab import logformat
 from impactlab.errors import ImpactlabError, SpecError
+from impactlab.logs import format as logformat
+from impactlab.logs.writer import remove_stale_partials
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.log_rows import RunInfo, write_run_log
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
 from impactlab.record.simulate import RunRequest, Trajectory, simulate_batch
 from impactlab.record.spec import RunSpec, spec_hash
 from impactlab.record.sweep import load_runs
-from impactlab.record.writer import PARTIAL_SUFFIX, RunInfo, write_log
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
@@ -209,9 +210,7 @@ def record(
     check_writable(out_dir)
     todo = [r for r in runs if overwrite or not is_complete(log_path(out_dir, r), r.info.spec_hash)]
     for run in todo:
-        log_path(out_dir, run).with_name(log_path(out_dir, run).name + PARTIAL_SUFFIX).unlink(
-            missing_ok=True
-        )
+        remove_stale_partials(log_path(out_dir, run))
     if len(todo) < len(runs):
         echo(f"reused {len(runs) - len(todo)} complete log(s) in {out_dir}/, running {len(todo)}")
     results = []
@@ -236,7 +235,7 @@ def record(
             for (run, inst), traj in zip(batch, trajectories, strict=True):
                 t0 = time.perf_counter()
                 try:
-                    path = write_log(log_path(out_dir, run), inst, run.info, traj)
+                    path = write_run_log(log_path(out_dir, run), inst, run.info, traj)
                 except OSError as exc:  # e.g. a full disk: the logs written so far are complete
                     raise ImpactlabError(
                         f"{log_path(out_dir, run)}: cannot write the log: {exc.strerror or exc} "

@@ -15,6 +15,8 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
+from impactlab.logs.scene import GeomShape
+from impactlab.logs.writer import PairMeta
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.spec import RunSpec
 
@@ -48,21 +50,9 @@ class ContactChannel:
     num: int
 
     @property
-    def topic(self) -> str:
-        """The MCAP topic of this pair's contacts."""
-        return f"/contacts/{self.geom1}/{self.geom2}"
-
-
-@dataclass(frozen=True)
-class GeomShape:
-    """A geom's shape for viewers: type name, size (MuJoCo's), body name and rgba."""
-
-    name: str
-    body: str
-    type: str
-    size: tuple[float, float, float]
-    pos: tuple[float, float, float]
-    rgba: tuple[float, float, float, float]
+    def meta(self) -> PairMeta:
+        """The pair as the log describes it."""
+        return PairMeta(self.geom1, self.geom2, self.body1, self.body2)
 
 
 @dataclass

@@ -19,16 +19,11 @@ from pathlib import Path
 from typing import Any
 
 from impactlab.errors import SpecError
+from impactlab.logs.scene import BODY_PALETTE
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 SPEC_TOP_KEYS = ("name", "description", "options", "contact", "plane", "bodies", "stop", "logging")
 
-DEFAULT_RGBA = (
-    (1.0, 0.2, 0.2, 1.0),
-    (0.2, 0.2, 1.0, 1.0),
-    (0.2, 0.8, 0.2, 1.0),
-    (0.9, 0.7, 0.1, 1.0),
-)
 
 DEFAULTS: dict[str, Any] = {
     "description": "",
@@ -347,7 +342,7 @@ def _pair_restitution(v: _Validator, pairs: Any) -> dict[str, float]:
 
 def _body(v: _Validator, name: str, body: Mapping[str, Any], index: int) -> Body:
     field = f"bodies.{name}"
-    rgba = body["rgba"] if body["rgba"] is not None else DEFAULT_RGBA[index % len(DEFAULT_RGBA)]
+    rgba = body["rgba"] if body["rgba"] is not None else BODY_PALETTE[index % len(BODY_PALETTE)]
     return Body(
         name=v.name(name, field),
         radius=v.number(body["radius"], f"{field}.radius", min_exclusive=0.0),

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import rerun as rr
 
-from impactlab.analyze.load import RunLog, find_logs, load_log
 from impactlab.errors import ImpactlabError, LogError
+from impactlab.logs.load import RunLog, find_logs, load_log
 from impactlab.replay.blueprint import replay_blueprint
 from impactlab.replay.convert import log_run, time_base
 from impactlab.replay.events import events_for, load_analysis

@@ -28,8 +28,8 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
-from impactlab.analyze.load import RunLog
-from impactlab.record.spec import DEFAULT_RGBA
+from impactlab.logs.load import RunLog
+from impactlab.logs.scene import BODY_PALETTE
 from impactlab.replay.events import Event, normal_kinematics, pairs
 
 TIMELINE = "sim_time"
@@ -112,7 +112,7 @@ def body_colors(run: RunLog) -> dict[str, tuple[int, int, int]]:
     spec_bodies = run.spec.get("bodies", {})
     out = {}
     for i, name in enumerate(run.bodies):
-        rgba = spec_bodies.get(name, {}).get("rgba") or DEFAULT_RGBA[i % len(DEFAULT_RGBA)]
+        rgba = spec_bodies.get(name, {}).get("rgba") or BODY_PALETTE[i % len(BODY_PALETTE)]
         out[name] = tuple(round(255 * c) for c in rgba[:3])
     return out
 

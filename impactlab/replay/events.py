@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.load import RunLog
 from impactlab.errors import LogError
+from impactlab.logs.load import RunLog
 
 ANALYSIS_TABLES = ("bounces", "collisions")
 WORLD = "world"

@@ -1,6 +1,6 @@
 """Compare two impactlab logs channel by channel and field by field, within tolerances.
 
-`diff_logs(a, b)` takes two decoded logs (`impactlab.analyze.load.RunLog`) and returns a
+`diff_logs(a, b)` takes two decoded logs (`impactlab.logs.load.RunLog`) and returns a
 `LogDiff`: pure data, rendered by `LogDiff.report()` (for people) or `LogDiff.to_dict()`
 (JSON for machines). What is compared:
 
@@ -35,8 +35,8 @@ import polars as pl
 from mcap.records import Attachment
 from mcap.stream_reader import StreamReader
 
-from impactlab import logformat
-from impactlab.analyze.load import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, RunLog
+from impactlab.logs import format as logformat
+from impactlab.logs.load import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, RunLog
 
 DEFAULT_ATOL = 1e-9
 DEFAULT_RTOL = 1e-9

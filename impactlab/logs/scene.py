@@ -2,19 +2,41 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from impactlab import logformat
-from impactlab.record.model import GeomShape, InstrumentedModel
+from impactlab.logs import format as logformat
 
 PLANE_THICKNESS_M = 0.001
 
+BODY_PALETTE: tuple[tuple[float, float, float, float], ...] = (
+    (1.0, 0.2, 0.2, 1.0),
+    (0.2, 0.2, 1.0, 1.0),
+    (0.2, 0.8, 0.2, 1.0),
+    (0.9, 0.7, 0.1, 1.0),
+)
+"""Default body colours (rgba, 0..1), in body order: specs and viewers use the same."""
 
-def scene_update(inst: InstrumentedModel) -> SceneUpdate:
+
+@dataclass(frozen=True)
+class GeomShape:
+    """A geom's shape for viewers: type name, size (MuJoCo's), body name, position and rgba."""
+
+    name: str
+    body: str
+    type: str
+    size: tuple[float, float, float]
+    pos: tuple[float, float, float]
+    rgba: tuple[float, float, float, float]
+
+
+def scene_update(geoms: Sequence[GeomShape]) -> SceneUpdate:
     """One entity per sphere and plane geom, in its body's frame (world for static geoms)."""
     update = SceneUpdate()
-    for geom in inst.geoms:
+    for geom in geoms:
         if geom.type not in ("sphere", "plane"):
             continue
         entity: SceneEntity = update.entities.add()

@@ -3,7 +3,7 @@
 An executor runs `fn(item)` for each item and yields one `TaskOutcome` per item as it
 finishes: its value, or the reason it failed (one item failing never stops the others).
 `LocalExecutor` runs the items one after the other in this process (the record-side
-functions are multi-threaded themselves); `impactlab.ray_executor.RayExecutor` runs them as
+functions are multi-threaded themselves); `impactlab.executors.ray.RayExecutor` runs them as
 Ray tasks on a cluster. `make_executor("local" | "ray", address)` picks one.
 
 On top of that, two sweeps that work with any executor:
@@ -124,7 +124,7 @@ def make_executor(name: str = "local", address: str | None = None) -> Executor:
     """
     check_executor(name, address)
     if name == "ray":
-        from impactlab.ray_executor import RayExecutor
+        from impactlab.executors.ray import RayExecutor
 
         return RayExecutor(address=address)
     return LocalExecutor()
@@ -283,8 +283,8 @@ def record_group(
     fails, or a log that cannot be written, fails only its own runs.
     """
     from impactlab.record.job import BATCH_RUNS, batches, is_complete, log_path
+    from impactlab.record.log_rows import write_run_log
     from impactlab.record.simulate import RunRequest, simulate_batch
-    from impactlab.record.writer import write_log
 
     out: list[RunSummary] = []
     todo = []
@@ -320,7 +320,7 @@ def record_group(
             t0 = time.perf_counter()
             path = log_path(out_dir, run)
             try:
-                write_log(path, inst, run.info, traj)
+                write_run_log(path, inst, run.info, traj)
             except Exception as exc:
                 reason = f"cannot write the log: {describe_error(exc)}"
                 out.append(RunSummary(run.info.run_id, path, "failed", "", reason))
@@ -398,8 +398,8 @@ def record_sweep(
     Returns:
         Every run's summary, in plan order.
     """
+    from impactlab.logs.writer import remove_stale_partials
     from impactlab.record.job import check_writable, is_complete, log_path
-    from impactlab.record.writer import PARTIAL_SUFFIX
 
     error = error or echo
     check_writable(out_dir)
@@ -410,7 +410,7 @@ def record_sweep(
         if not overwrite and is_complete(path, run.info.spec_hash):
             by_id[run.info.run_id] = RunSummary(run.info.run_id, path, "reused")
         else:
-            path.with_name(path.name + PARTIAL_SUFFIX).unlink(missing_ok=True)
+            remove_stale_partials(path)
             todo.append(portable(run))
     if by_id:
         echo(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
@@ -467,8 +467,8 @@ def analyze_one(item: tuple[Path, Path], fig_dir: Path) -> AnalyzedLog:
     """
     from impactlab.analyze.analysis import analyze_run
     from impactlab.analyze.command import run_figures
-    from impactlab.analyze.load import load_log
     from impactlab.errors import LogError
+    from impactlab.logs.load import load_log
 
     where, shown = item
     try:

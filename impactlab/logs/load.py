@@ -21,11 +21,12 @@ import numpy as np
 import polars as pl
 from google.protobuf.message import DecodeError
 
-from impactlab import logformat, messages
-from impactlab.analyze.records import ChannelData, read_mcap
-from impactlab.codec import Template
 from impactlab.errors import LogError
-from impactlab.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
+from impactlab.logs import format as logformat
+from impactlab.logs import messages
+from impactlab.logs.codec import Template
+from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
+from impactlab.logs.reader import ChannelData, read_mcap
 from impactlab.proto import impactlab_pb2 as pb
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same

@@ -9,9 +9,9 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from impactlab import logformat
-from impactlab.analyze.records import MAGIC as MCAP0_MAGIC
 from impactlab.errors import LogError
+from impactlab.logs import format as logformat
+from impactlab.logs.reader import MAGIC as MCAP0_MAGIC
 
 
 def describe(path: Path) -> str:

@@ -14,8 +14,8 @@ from functools import cache
 
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
-from impactlab import logformat
-from impactlab.codec import Template
+from impactlab.logs import format as logformat
+from impactlab.logs.codec import Template
 from impactlab.proto import impactlab_pb2 as pb
 
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
-from impactlab.executor import ExecutorError, TaskOutcome, describe_error
+from impactlab.executors.base import ExecutorError, TaskOutcome, describe_error
 
 R = TypeVar("R")
 

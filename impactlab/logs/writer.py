@@ -1,0 +1,424 @@
+"""Write one run's log: protobuf channels, metadata and the model, streamed chunk by chunk.
+
+`LogWriter` takes the run's rows as they arrive (`write`) and writes a chunk each time about
+`CHUNK_BYTES` of messages have gathered, so memory stays bounded however long the run is.
+The file is written under a temporary name beside the target, unique to the writing process,
+and renamed by `finish`; an interrupted or aborted run never leaves a file that looks finished.
+
+The writer knows the log format and nothing of MuJoCo: the recorder hands it plain arrays
+(`LogRows`) and descriptions (`LogHeader`, `Outcome`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import mcap
+import numpy as np
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.Log_pb2 import Log
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from google.protobuf.message import Message
+from mcap.writer import Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+
+from impactlab import __version__
+from impactlab.logs import format as logformat
+from impactlab.logs import messages
+from impactlab.logs.chunks import Block, ChunkWriter
+from impactlab.logs.scene import GeomShape, scene_update
+from impactlab.proto import impactlab_pb2 as pb
+
+PARTIAL_SUFFIX = ".partial"
+CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
+POINT_SIZE = len(messages.POINT_FIELDS)
+
+
+@dataclass(frozen=True)
+class BodyMeta:
+    """A free body as the run metadata describes it: mass kg, principal inertia kg m^2, radius m."""
+
+    name: str
+    mass: float
+    inertia: tuple[float, float, float]
+    radius: float | None = None
+
+
+@dataclass(frozen=True)
+class PairMeta:
+    """A geom pair that may touch; contact normals point from geom1 to geom2."""
+
+    geom1: str
+    geom2: str
+    body1: str
+    body2: str
+
+    @property
+    def topic(self) -> str:
+        """The MCAP topic of this pair's contacts."""
+        return f"{logformat.CONTACT_TOPIC_PREFIX}{self.geom1}/{self.geom2}"
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """What the `impactlab.run` metadata record says (see `impactlab.logs.format.RUN_KEYS`)."""
+
+    experiment: str
+    description: str
+    source: str
+    run_id: str
+    spec: Mapping[str, Any]
+    sweep: Mapping[str, Any]
+    spec_hash: str
+    timestep_s: float
+    log_every: int
+    gravity: tuple[float, float, float]
+    bodies: Sequence[BodyMeta]
+    plane_z: float | None
+    mujoco_version: str
+    sweep_index: int = 0
+    sweep_size: int = 1
+
+    def record(self) -> dict[str, str]:
+        """The metadata record, every value a string."""
+        meta = {
+            "log_format_version": logformat.LOG_FORMAT_VERSION,
+            "impactlab_version": __version__,
+            "mujoco_version": self.mujoco_version,
+            "experiment": self.experiment,
+            "description": self.description,
+            "source": self.source,
+            "run_id": self.run_id,
+            "spec": json.dumps(self.spec, sort_keys=True),
+            "sweep": json.dumps(self.sweep, sort_keys=True),
+            "sweep_index": str(self.sweep_index),
+            "sweep_size": str(self.sweep_size),
+            "spec_hash": self.spec_hash,
+            "timestep_s": repr(float(self.timestep_s)),
+            "log_every": str(self.log_every),
+            "gravity": json.dumps([float(x) for x in self.gravity]),
+            "bodies": json.dumps(
+                [
+                    {
+                        "name": b.name,
+                        "mass": float(b.mass),
+                        "inertia": [float(x) for x in b.inertia],
+                        "radius": b.radius,
+                    }
+                    for b in self.bodies
+                ]
+            ),
+            "plane_z": "" if self.plane_z is None else repr(float(self.plane_z)),
+        }
+        assert tuple(meta) == logformat.RUN_KEYS
+        return meta
+
+
+@dataclass(frozen=True)
+class LogHeader:
+    """Everything a log holds besides its rows: the run, its pairs, its scene and its model."""
+
+    run: RunMeta
+    pairs: Sequence[PairMeta]
+    geoms: Sequence[GeomShape]
+    model_xml: str
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How the run ended (the `impactlab.outcome` record and the /events messages)."""
+
+    outcome: str  # completed | unstable
+    reason: str
+    steps: int
+    warnings: Sequence[str] = ()
+
+    def record(self) -> dict[str, str]:
+        """The metadata record, every value a string."""
+        meta = {
+            "outcome": self.outcome,
+            "reason": self.reason,
+            "warnings": json.dumps(list(self.warnings)),
+            "steps": str(self.steps),
+        }
+        assert tuple(meta) == logformat.OUTCOME_KEYS
+        return meta
+
+
+@dataclass
+class LogRows:
+    """Consecutive logged rows of a run.
+
+    Attributes:
+        t_ns: simulation time of each row, integer ns, (n,).
+        bodies: state of each body in `RunMeta.bodies` order, (n, nbody, 13) in
+            `messages.BODY_FIELDS` order.
+        energy: MuJoCo's kinetic, potential and total energy, J, (n, 3).
+        contacts: per pair in `LogHeader.pairs` order, (count, points): the number of
+            contact points at each row, (n,) int, and the points, (n, slots, 13) in
+            `messages.POINT_FIELDS` order (rows with count 0 have no message).
+    """
+
+    t_ns: np.ndarray
+    bodies: np.ndarray
+    energy: np.ndarray
+    contacts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.t_ns.size)
+
+    def slice(self, lo: int, hi: int) -> LogRows:
+        """Rows lo .. hi - 1."""
+        return LogRows(
+            self.t_ns[lo:hi],
+            self.bodies[lo:hi],
+            self.energy[lo:hi],
+            [(count[lo:hi], points[lo:hi]) for count, points in self.contacts],
+        )
+
+    @staticmethod
+    def concat(parts: Sequence[LogRows]) -> LogRows:
+        """The rows of `parts`, one after the other."""
+        if len(parts) == 1:
+            return parts[0]
+        return LogRows(
+            np.concatenate([p.t_ns for p in parts]),
+            np.concatenate([p.bodies for p in parts]),
+            np.concatenate([p.energy for p in parts]),
+            [
+                (
+                    np.concatenate([p.contacts[i][0] for p in parts]),
+                    np.concatenate([p.contacts[i][1] for p in parts]),
+                )
+                for i in range(len(parts[0].contacts))
+            ],
+        )
+
+
+def partial_path(path: Path) -> Path:
+    """The temporary name this process writes `path` under until it is complete."""
+    return path.with_name(f"{path.name}.{os.getpid()}{PARTIAL_SUFFIX}")
+
+
+class LogWriter:
+    """Writes one run's log as its rows arrive; `finish` makes it complete (see module doc).
+
+    Use as a context manager: leaving it with an exception, or without `finish`, removes
+    the temporary file.
+    """
+
+    def __init__(self, path: Path, header: LogHeader) -> None:
+        self.path = Path(path)
+        self.tmp = partial_path(self.path)
+        self.header = header
+        self._stream: IO[bytes] | None = open(self.tmp, "wb")  # noqa: SIM115 (closed by finish)
+        try:
+            self._start()
+        except BaseException:
+            self.abort()
+            raise
+
+    def _start(self) -> None:
+        header = self.header
+        assert self._stream is not None
+        self._out = ChunkWriter(
+            self._stream,
+            profile=logformat.PROFILE,
+            library=f"impactlab {__version__}; mcap-python {mcap.__version__}",
+        )
+        writer = self._out.writer
+        writer.add_metadata(logformat.RUN_METADATA, header.run.record())
+        channels = _Channels(writer)
+        self._scene = channels.add(logformat.SCENE_TOPIC, SceneUpdate)
+        self._bodies = [
+            channels.add(
+                logformat.BODY_STATE_TOPIC.format(body=b.name), pb.BodyState, {"body": b.name}
+            )
+            for b in header.run.bodies
+        ]
+        self._pairs = []
+        for pair in header.pairs:
+            meta = {
+                "geom1": pair.geom1,
+                "geom2": pair.geom2,
+                "body1": pair.body1,
+                "body2": pair.body2,
+            }
+            self._pairs.append((channels.add(pair.topic, pb.Contact, meta), pair))
+        self._energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
+        self._tf = channels.add(logformat.TF_TOPIC, FrameTransforms)
+        self._events = channels.add(logformat.EVENTS_TOPIC, Log)
+        self._tf_layout = messages.transforms(tuple(b.name for b in header.run.bodies))
+        row_bytes = (
+            len(self._bodies) * messages.body_state().size
+            + messages.energy().size
+            + self._tf_layout.size
+            + 200
+        )
+        self.rows_per_chunk = max(1, CHUNK_BYTES // row_bytes)
+        scene = scene_update(header.geoms).SerializeToString()
+        self._scene_payload: np.ndarray | None = np.frombuffer(scene, np.uint8)[None]
+        self._buffer: list[LogRows] = []
+        self._buffered = 0
+        self.last_t_ns = 0
+
+    def write(self, rows: LogRows) -> None:
+        """Add rows (in time order); whole chunks are written as soon as they are full."""
+        if not len(rows):
+            return
+        self._buffer.append(rows)
+        self._buffered += len(rows)
+        self.last_t_ns = int(rows.t_ns[-1])
+        if self._buffered >= self.rows_per_chunk:
+            self._flush(whole_chunks_only=True)
+
+    def _flush(self, *, whole_chunks_only: bool) -> None:
+        if not self._buffer:
+            return
+        rows = LogRows.concat(self._buffer)
+        n = len(rows)
+        per = self.rows_per_chunk
+        end = (n // per) * per if whole_chunks_only else n
+        for lo in range(0, end, per):
+            self._write_chunk(rows.slice(lo, min(lo + per, end)))
+        rest = rows.slice(end, n)
+        self._buffer = [rest] if len(rest) else []
+        self._buffered = len(rest)
+
+    def _write_chunk(self, rows: LogRows) -> None:
+        t = rows.t_ns
+        blocks = []
+        if self._scene_payload is not None:  # the scene once, with the first row
+            blocks.append(Block(self._scene, t[:1], self._scene_payload))
+            self._scene_payload = None
+        for i, channel_id in enumerate(self._bodies):
+            blocks.append(Block(channel_id, t, messages.body_state().encode(rows.bodies[:, i])))
+        for (channel_id, pair), (count, points) in zip(self._pairs, rows.contacts, strict=True):
+            blocks += _contact_blocks(channel_id, pair, t, count, points)
+        blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
+        poses = rows.bodies[:, :, :7].reshape(len(t), -1)
+        blocks.append(Block(self._tf, t, self._tf_layout.encode(poses)))
+        self._out.write_chunk(blocks)
+
+    def finish(self, outcome: Outcome) -> Path:
+        """Write the rest, the outcome, the model and the summary; rename. Returns the path."""
+        try:
+            self._flush(whole_chunks_only=False)
+            if self._scene_payload is not None:  # a run with no rows still has its scene
+                scene = Block(self._scene, np.zeros(1, np.int64), self._scene_payload)
+                self._out.write_chunk([scene])
+                self._scene_payload = None
+            end = self.last_t_ns
+            texts = [(Log.INFO, f"{outcome.outcome}: {outcome.reason}")]
+            texts += [(Log.WARNING, w) for w in outcome.warnings]
+            payloads = [_log_message(end, level, text) for level, text in texts]
+            times = np.full(len(payloads), end, dtype=np.int64)
+            self._out.write_chunk([Block(self._events, times, payloads)])
+            writer = self._out.writer
+            writer.add_attachment(
+                create_time=0,
+                log_time=0,
+                name=logformat.MODEL_ATTACHMENT,
+                media_type="application/xml",
+                data=self.header.model_xml.encode(),
+            )
+            writer.add_metadata(logformat.OUTCOME_METADATA, outcome.record())
+            self._out.finish()
+            assert self._stream is not None
+            self._stream.close()
+            self._stream = None
+            os.replace(self.tmp, self.path)
+        except BaseException:
+            self.abort()
+            raise
+        return self.path
+
+    def abort(self) -> None:
+        """Close and remove the temporary file (nothing is left behind)."""
+        if self._stream is not None:
+            self._stream.close()
+            self._stream = None
+        self.tmp.unlink(missing_ok=True)
+
+    def __enter__(self) -> LogWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._stream is not None:
+            self.abort()
+
+
+def write_log(path: Path, header: LogHeader, rows: LogRows, outcome: Outcome) -> Path:
+    """Write a whole run at once (atomically). Returns `path`."""
+    with LogWriter(path, header) as writer:
+        writer.write(rows)
+        return writer.finish(outcome)
+
+
+class _Channels:
+    """Registers each schema once and each topic once on an MCAP writer."""
+
+    def __init__(self, writer: Writer) -> None:
+        self.writer = writer
+        self.schemas: dict[str, int] = {}
+
+    def add(self, topic: str, message_type: type[Message], metadata: dict[str, str] | None = None):
+        name = message_type.DESCRIPTOR.full_name
+        if name not in self.schemas:
+            fds = build_file_descriptor_set(message_type)
+            self.schemas[name] = self.writer.register_schema(
+                name=name, encoding="protobuf", data=fds.SerializeToString()
+            )
+        return self.writer.register_channel(
+            topic=topic,
+            message_encoding=logformat.ENCODING,
+            schema_id=self.schemas[name],
+            metadata=metadata or {},
+        )
+
+
+def _contact_blocks(
+    channel_id: int, pair: PairMeta, t: np.ndarray, count: np.ndarray, points: np.ndarray
+) -> list[Block]:
+    """Blocks of Contact payloads for the rows where the pair touches, one per point count."""
+    blocks = []
+    for k in range(1, points.shape[1] + 1):
+        mine = count == k
+        if mine.any():
+            layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, k)
+            values = points[mine, :k].reshape(int(mine.sum()), -1)
+            blocks.append(Block(channel_id, t[mine], layout.encode(values)))
+    return blocks
+
+
+def _log_message(t_ns: int, level: int, text: str) -> bytes:
+    msg = Log(level=level, message=text, name="impactlab")
+    msg.timestamp.FromNanoseconds(int(t_ns))
+    return msg.SerializeToString()
+
+
+def remove_stale_partials(path: Path) -> None:
+    """Remove temporary files of `path` left by processes that no longer run (SIGKILL).
+
+    Temporary files of live processes (a concurrent job writing the same run) are kept.
+    """
+    for tmp in path.parent.glob(f"{path.name}.*{PARTIAL_SUFFIX}"):
+        pid = tmp.name[len(path.name) + 1 : -len(PARTIAL_SUFFIX)]
+        if pid.isdigit() and int(pid) != os.getpid() and _alive(int(pid)):
+            continue
+        tmp.unlink(missing_ok=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True

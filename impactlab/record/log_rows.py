@@ -1,0 +1,111 @@
+"""What the recorder hands the log writer: a run's header, its rows and its outcome.
+
+The recorder's sensors (`impactlab.record.model`) put everything in MuJoCo's sensordata;
+this module cuts those rows into the log's arrays (`impactlab.logs.writer.LogRows`) and
+describes the run (`LogHeader`, `Outcome`) from the compiled model and the planned run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from impactlab.logs.writer import BodyMeta, LogHeader, LogRows, Outcome, RunMeta, write_log
+from impactlab.record.model import (
+    BODY_STATE_SIZE,
+    CONTACT_SLOT_SIZE,
+    ContactChannel,
+    InstrumentedModel,
+)
+from impactlab.record.simulate import Trajectory
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """What the metadata record says about a run besides its model and trajectory."""
+
+    run_id: str
+    experiment: str
+    description: str
+    source: str
+    spec: Mapping[str, Any]
+    sweep: Mapping[str, Any]
+    spec_hash: str
+    log_every: int
+    sweep_index: int = 0
+    sweep_size: int = 1
+
+
+def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
+    """The log's run metadata, pairs, scene and model text for one run."""
+    model = inst.model
+    bodies = [
+        BodyMeta(
+            name=b.name,
+            mass=float(model.body_mass[b.body_id]),
+            inertia=tuple(float(x) for x in model.body_inertia[b.body_id]),
+            radius=b.radius,
+        )
+        for b in inst.bodies
+    ]
+    plane = [g for g in inst.geoms if g.type == "plane" and g.body == "world"]
+    run = RunMeta(
+        experiment=info.experiment,
+        description=info.description,
+        source=info.source,
+        run_id=info.run_id,
+        spec=info.spec,
+        sweep=info.sweep,
+        spec_hash=info.spec_hash,
+        timestep_s=float(model.opt.timestep),
+        log_every=info.log_every,
+        gravity=tuple(float(x) for x in model.opt.gravity),
+        bodies=bodies,
+        plane_z=plane[0].pos[2] if plane else None,
+        mujoco_version=mujoco.__version__,
+        sweep_index=info.sweep_index,
+        sweep_size=info.sweep_size,
+    )
+    return LogHeader(run, [c.meta for c in inst.contacts], inst.geoms, inst.xml)
+
+
+def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) -> LogRows:
+    """The log's arrays for rows of the recorder's sensordata, (n, nsensordata)."""
+    n = sensordata.shape[0]
+    bodies = np.stack(
+        [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
+    ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
+    e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
+    energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
+    contacts = [contact_points(pair, sensordata) for pair in inst.contacts]
+    return LogRows(t_ns, bodies, energy, contacts)
+
+
+def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A contact sensor's slots -> (points per row (n,), points (n, num, 13) as POINT_FIELDS)."""
+    slots = rows[:, pair.adr : pair.adr + pair.num * CONTACT_SLOT_SIZE]
+    slots = slots.reshape(rows.shape[0], pair.num, CONTACT_SLOT_SIZE)
+    count = np.minimum(slots[:, 0, 0], pair.num).astype(np.int64)
+    force, dist, pos = slots[..., 1:4], slots[..., 4], slots[..., 5:8]
+    normal, t1 = slots[..., 8:11], slots[..., 11:14]
+    t2 = np.cross(normal, t1)
+    world = force[..., 0:1] * normal + force[..., 1:2] * t1 + force[..., 2:3] * t2
+    points = np.concatenate([pos, normal, -dist[..., None], force, world], axis=2)
+    return count, points
+
+
+def outcome(traj: Trajectory) -> Outcome:
+    """How the run ended, for the log."""
+    v = traj.verdict
+    return Outcome(v.outcome, v.reason, v.last_step + 1, tuple(traj.warnings))
+
+
+def write_run_log(path: Path, inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> Path:
+    """Write one simulated run's log atomically. Returns `path`."""
+    rows = log_rows(inst, traj.t_ns, traj.sensordata)
+    return write_log(path, log_header(inst, info), rows, outcome(traj))
