@@ -78,13 +78,13 @@ def handout_loop(spec: Path) -> tuple[float, int]:
 
 def record_case(spec: Path, out: Path, threads: int) -> dict:
     """Record a spec; seconds, steps and messages."""
-    from impactlab.record.job import plan, record
+    from impactlab.record import plan, record_runs
 
     runs = plan([spec])
     start = time.perf_counter()
-    results = record(runs, out, echo=lambda _: None, threads=threads, overwrite=True)
+    results = record_runs(runs, out, threads=threads, overwrite=True)
     seconds = time.perf_counter() - start
-    steps = sum(r.trajectory.verdict.last_step + 1 for r in results)
+    steps = sum(r.steps for r in results)
     return {"seconds": seconds, "steps": steps, "runs": len(results)}
 
 
@@ -118,17 +118,17 @@ def official_case(logs: list[Path]) -> dict:
 
 def analyze_case(logs: list[Path], out: Path) -> dict:
     """The whole analysis of the logs (tables, figures, report)."""
-    from impactlab.analyze.command import run_analysis
+    from impactlab.analyze.job import run_analysis
 
     start = time.perf_counter()
-    run_analysis(logs, out, echo=lambda _: None)
+    run_analysis(logs, out)
     return {"seconds": time.perf_counter() - start}
 
 
 def replay_case(folder: Path) -> dict:
     """A 100,000-step log converted to .rrd."""
-    from impactlab.record.job import plan, record
-    from impactlab.replay.command import replay_logs
+    from impactlab.record import plan, record_runs
+    from impactlab.replay.recordings import replay_logs
 
     spec = folder / "replay.toml"
     spec.write_text(
@@ -136,10 +136,10 @@ def replay_case(folder: Path) -> dict:
             "timestep = 0.0005", "timestep = 0.0001"
         )
     )
-    (result,) = record(plan([spec]), folder / "replay_logs", echo=lambda _: None)
+    (result,) = record_runs(plan([spec]), folder / "replay_logs")
     start = time.perf_counter()
     replay_logs([result.path], out=folder / "replay.rrd", analysis_dir=None)
-    return {"seconds": time.perf_counter() - start, "steps": int(result.trajectory.t_ns.size)}
+    return {"seconds": time.perf_counter() - start, "steps": result.logged}
 
 
 def subprocess_case(args: list[str]) -> dict:

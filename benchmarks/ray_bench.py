@@ -19,8 +19,7 @@ from pathlib import Path
 
 from bench import write_spec  # the same drop sweep as the main benchmark
 
-from impactlab.executors.base import record_sweep
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 
 def main() -> None:
@@ -42,7 +41,7 @@ def main() -> None:
 
         for label in ("local", "local2"):  # the second one is warm, like the Ray workers
             start = time.perf_counter()
-            record(runs, folder / label, echo=lambda _: None)
+            record_runs(runs, folder / label)
             rows.append(
                 (
                     f"local executor ({'first' if label == 'local' else 'again'})",
@@ -59,7 +58,7 @@ def main() -> None:
         try:
             for label in ("cold", "warm"):
                 start = time.perf_counter()
-                sweep = record_sweep(runs, folder / label, executor, echo=lambda _: None)
+                sweep = record_runs(runs, folder / label, executor=executor)
                 rows.append(
                     (f"ray, {executor.slots} CPUs ({label} workers)", time.perf_counter() - start)
                 )

@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 from impactlab.logs.load import load_log
-from impactlab.record.job import plan, record
-from impactlab.replay.command import write_recording
+from impactlab.record import plan, record_runs
+from impactlab.replay.recordings import write_recording
 
 SPEC = """
 name = "bench"
@@ -51,7 +51,7 @@ def main() -> None:
         spec = folder / "bench.toml"
         spec.write_text(SPEC.format(steps=args.steps, max_time=(args.steps - 1) * 1e-4))
         start = time.perf_counter()
-        (result,) = record(plan([spec]), folder, echo=lambda _: None)
+        (result,) = record_runs(plan([spec]), folder)
         recorded = time.perf_counter() - start
 
         start = time.perf_counter()

@@ -1,8 +1,76 @@
-"""impactlab: simulated impact experiments (record to MCAP, analyze in polars, replay in Rerun)."""
+"""impactlab: simulated impact experiments (record to MCAP, analyze in polars, replay in Rerun).
 
+The Python API (docs/python-api.md), each name imported on first use:
+
+- `impactlab.record(spec_or_path, out=..., overrides=...)`: simulate, one MCAP log per run.
+- `impactlab.plan(spec_or_path, overrides=...)`: the runs a spec gives, validated.
+- `impactlab.load(path)`: one log as polars frames per channel, with its metadata.
+- `impactlab.analyze(paths)`: the analysis tables as polars frames.
+- `impactlab.replay(paths, out=...)`: Rerun recordings.
+- `impactlab.diff(a, b)`: two logs compared field by field.
+
+Nothing prints unless asked (`progress=` or `verbose=True`).
+"""
+
+from __future__ import annotations
+
+import importlib
 from importlib.metadata import PackageNotFoundError, version
+from typing import Any
 
 try:
     __version__ = version("impactlab")
 except PackageNotFoundError:  # running from a source tree that is not installed
     __version__ = "0.0.0+unknown"
+
+__all__ = ["__version__", "analyze", "diff", "load", "plan", "record", "replay"]
+
+_STAGES = ("record", "analyze", "replay")  # callable packages
+
+
+def __getattr__(name: str) -> Any:
+    if name in _STAGES:
+        return importlib.import_module(f"impactlab.{name}")
+    if name == "plan":
+        return importlib.import_module("impactlab.record").plan
+    if name == "load":
+        return load
+    if name == "diff":
+        return diff
+    raise AttributeError(f"module 'impactlab' has no attribute {name!r}")
+
+
+def load(path: Any) -> Any:
+    """One log decoded into polars frames (`impactlab.logs.load.RunLog`).
+
+    `bodies` (a frame per body), `contacts`, `energy`, `events`, `meta` (the run and
+    outcome metadata), `partial` and `problems` (what is damaged or missing).
+
+    Raises:
+        LogError: the file is missing, not MCAP, or not an impactlab log.
+    """
+    from impactlab.logs.load import load_log
+
+    return load_log(path)
+
+
+def diff(a: Any, b: Any, *, atol: float | None = None, rtol: float | None = None) -> Any:
+    """Compare two logs (paths or loaded logs) channel by channel and field by field.
+
+    Returns an `impactlab.logs.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).
+    """
+    from impactlab.logs.diff import (
+        DEFAULT_ATOL,
+        DEFAULT_IGNORED_META,
+        DEFAULT_RTOL,
+        Tolerance,
+        diff_logs,
+    )
+    from impactlab.logs.load import RunLog, load_log
+
+    la = a if isinstance(a, RunLog) else load_log(a)
+    lb = b if isinstance(b, RunLog) else load_log(b)
+    tolerance = Tolerance(
+        atol=DEFAULT_ATOL if atol is None else atol, rtol=DEFAULT_RTOL if rtol is None else rtol
+    )
+    return diff_logs(la, lb, tolerance=tolerance, ignore_meta=DEFAULT_IGNORED_META)

@@ -27,7 +27,7 @@ import polars as pl
 
 from impactlab.logs.diff import EXACT, LogDiff, diff_logs
 from impactlab.logs.load import load_log
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"
 SPECS_DIR = GOLDEN_DIR / "specs"
@@ -82,7 +82,7 @@ def record_golden(
         raise SpecError(str(golden.spec_path), "sweep", f"gives {len(runs)} runs, need one")
     work = Path(tempfile.mkdtemp(prefix=f".{golden.name}-", dir=out_dir))
     try:
-        (result,) = record(runs, work, echo=lambda _: None)
+        (result,) = record_runs(runs, work)
         target = out_dir / f"{name or golden.name}.mcap"
         result.path.replace(target)
     finally:
@@ -102,9 +102,9 @@ def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
 
     Columns that hold file paths are dropped, so the tables do not depend on the checkout.
     """
-    from impactlab.analyze.command import run_analysis
+    from impactlab.analyze.job import run_analysis
 
-    result = run_analysis([logs_dir], work_dir, echo=lambda _: None)
+    result = run_analysis([logs_dir], work_dir)
     if result.failed:
         raise RuntimeError(f"analysis failed: {result.failed}")
     out = {}

@@ -1,4 +1,4 @@
-"""`impactlab lab`: the whole lab end to end: record every experiment, analyze, replay.
+"""The whole lab end to end: record every experiment, analyze, replay, calibrate, report.
 
 Logs go to OUT/logs, tables, figures and the report to OUT/results, one Rerun recording per
 run to OUT/results/replays (linked from the report). Complete logs from an earlier run of
@@ -7,14 +7,14 @@ the same specs are reused.
 
 from __future__ import annotations
 
-import argparse
 import os
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from impactlab.errors import SpecError
-from impactlab.executors.base import Executor, add_executor_options, make_executor
+from impactlab.executors.base import Executor
+from impactlab.files import write_text
+from impactlab.progress import Progress, say
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -29,50 +29,6 @@ class LabResult:
     exit_code: int
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    """Add the `lab` subcommand."""
-    p = sub.add_parser(
-        "lab",
-        help="record every experiment, analyze the logs, write replays and the report",
-        description="Run the whole lab: record each spec in the experiments folder, analyze "
-        "all logs into tables, figures and a report, and write one Rerun replay per run.",
-    )
-    p.add_argument("-o", "--out", type=Path, default=Path("lab-output"), help="output folder")
-    p.add_argument(
-        "--experiments",
-        type=Path,
-        default=DEFAULT_EXPERIMENTS,
-        help="folder of experiment specs (experiments/)",
-    )
-    p.add_argument("--overwrite", action="store_true", help="re-record runs with complete logs")
-    p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")
-    p.add_argument(
-        "--calibration",
-        choices=("none", "quick", "medium", "full"),
-        default="medium",
-        help="restitution calibration grid for the report (medium: ~170 runs, ~40 s)",
-    )
-    add_executor_options(p)
-    p.set_defaults(func=_cmd_lab)
-
-
-def _cmd_lab(args: argparse.Namespace) -> int:
-    executor = make_executor(args.executor, args.address)
-    try:
-        result = run_lab(
-            args.out,
-            experiments=args.experiments,
-            overwrite=args.overwrite,
-            replay=not args.no_replay,
-            calibration=args.calibration,
-            executor=executor,
-        )
-    finally:
-        executor.close()
-    print(f"report: {result.report}")
-    return result.exit_code
-
-
 def run_lab(
     out: Path,
     *,
@@ -80,54 +36,66 @@ def run_lab(
     overwrite: bool = False,
     replay: bool = True,
     calibration: str = "medium",
-    echo: Callable[[str], None] = print,
     executor: Executor | None = None,
+    progress: Progress | None = None,
 ) -> LabResult:
     """Record, analyze and replay every experiment spec in `experiments`.
 
-    `executor`: where recording and analysis tasks run (default: here); replays are
-    written here.
+    Args:
+        out: the output folder: logs/ and results/ (tables, figures, report, replays).
+        experiments: the folder of experiment specs.
+        overwrite: record again runs whose complete log exists (else they are reused).
+        replay: write one Rerun recording per run.
+        calibration: the calibration grid for the report ("none" to skip it).
+        executor: where recording and analysis tasks run (default: here); replays and the
+            calibration run here.
+        progress: receives every stage's progress and lines; None: silent.
     """
-    from impactlab.analyze.command import run_analysis
-    from impactlab.record.job import plan, record
+    from impactlab.analyze import analyze
+    from impactlab.record import plan, record
 
     specs = sorted(experiments.glob("*.toml"))
     if not specs:
         raise SpecError(str(experiments), "--experiments", "no experiment specs (*.toml) there")
     logs_dir, results_dir = out / "logs", out / "results"
     runs = plan(specs)
-    echo(f"recording {len(runs)} run(s) of {len(specs)} experiment(s) into {logs_dir}/")
-    if executor is None or executor.name == "local":
-        recorded = record(runs, logs_dir, overwrite=overwrite, echo=echo)
-        unstable = [r for r in recorded if r.trajectory.verdict.outcome != "completed"]
-    else:
-        from impactlab.executors.base import record_sweep
-
-        sweep = record_sweep(runs, logs_dir, executor, overwrite=overwrite, echo=echo)
-        unstable = sweep.unstable + sweep.failed
-    logs = [logs_dir / f"{r.info.run_id}.mcap" for r in runs]
-    echo(f"analyzing {len(logs)} log(s) into {results_dir}/")
-    analysis = run_analysis(logs, results_dir, echo=echo, executor=executor)
-    replays: list[Path] = []
+    say(
+        progress,
+        "lab",
+        f"recording {len(runs)} run(s) of {len(specs)} experiment(s) into {logs_dir}/",
+    )
+    recorded = record(runs, out=logs_dir, executor=executor, overwrite=overwrite, progress=progress)
+    logs = recorded.paths
+    say(progress, "lab", f"analyzing {len(logs)} log(s) into {results_dir}/")
+    analysis = analyze(
+        logs, out=results_dir, figures=True, report=True, executor=executor, progress=progress
+    )
     report = results_dir / "report.md"
+    sections = [report.read_text(encoding="utf-8")]
+    replays: list[Path] = []
     if replay:
-        from impactlab.replay.command import replay_logs
+        from impactlab.replay import replay as write_replays
 
-        echo(f"writing {len(logs)} replay(s) into {results_dir / 'replays'}/")
-        replays = replay_logs(logs, out=results_dir / "replays", analysis_dir=results_dir)
-        _link_replays(report, replays)
+        say(progress, "lab", f"writing {len(logs)} replay(s) into {results_dir / 'replays'}/")
+        replays = write_replays(
+            logs, out=results_dir / "replays", analysis=results_dir, progress=progress
+        )
+        sections.append(_replays_section(report, replays))
     if calibration != "none":
-        from impactlab.calibrate.command import run_calibration
+        from impactlab.calibrate import run_calibration
 
-        echo(f"calibrating restitution ({calibration} grid) into {results_dir / 'calibration'}/")
-        calibrated = run_calibration(results_dir / "calibration", grid=calibration, echo=echo)
-        _append_calibration(report, calibrated)
-    failed = bool(unstable or analysis.failed or (replay and len(replays) < len(logs)))
+        where = results_dir / "calibration"
+        say(progress, "lab", f"calibrating restitution ({calibration} grid) into {where}/")
+        echo = (lambda line: say(progress, "calibrate", line)) if progress else (lambda _: None)
+        calibrated = run_calibration(where, grid=calibration, echo=echo)
+        sections.append(_calibration_section(report, calibrated))
+    write_text(report, "".join(sections))
+    failed = bool(recorded.exit_code or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
 
 
-def _append_calibration(report: Path, result) -> None:
-    """Append the calibration's summary and figures to the report."""
+def _calibration_section(report: Path, result) -> str:
+    """The report's section on the calibration: summary and figures."""
     lines = [
         "",
         "## Calibration: target against measured restitution",
@@ -158,12 +126,11 @@ def _append_calibration(report: Path, result) -> None:
     lines += [f"![calibration]({os.path.relpath(f, report.parent)})" for f in result.figures]
     details = result.out_dir / "calibration.md"
     lines += ["", f"Every point: [{details.name}]({os.path.relpath(details, report.parent)})."]
-    with open(report, "a", encoding="utf-8") as stream:
-        stream.write("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
 
 
-def _link_replays(report: Path, replays: list[Path]) -> None:
-    """Append a section linking each run's Rerun recording to the report."""
+def _replays_section(report: Path, replays: list[Path]) -> str:
+    """The report's section linking each run's Rerun recording."""
     lines = [
         "",
         "## Replays",
@@ -172,5 +139,4 @@ def _link_replays(report: Path, replays: list[Path]) -> None:
         "",
     ]
     lines += [f"- [{p.stem}]({os.path.relpath(p, report.parent)})" for p in replays]
-    with open(report, "a", encoding="utf-8") as stream:
-        stream.write("\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"

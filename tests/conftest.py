@@ -14,7 +14,7 @@ def record_spec(tmp_path_factory) -> Callable[..., list[Path]]:
 
     Call as `record_spec(name, toml_text, overrides=())`.
     """
-    from impactlab.record.job import plan, record
+    from impactlab.record import plan, record_runs
 
     cache: dict[tuple[str, str, tuple[str, ...]], list[Path]] = {}
 
@@ -24,10 +24,23 @@ def record_spec(tmp_path_factory) -> Callable[..., list[Path]]:
             folder = tmp_path_factory.mktemp(name)
             spec = folder / f"{name}.toml"
             spec.write_text(toml_text)
-            results = record(
-                plan([spec], overrides=overrides), folder / "logs", echo=lambda _: None
-            )
+            results = record_runs(plan([spec], overrides=overrides), folder / "logs")
             cache[key] = [r.path for r in results]
         return cache[key]
 
     return _record
+
+
+@pytest.fixture(scope="session")
+def collect_lines():
+    """`collect_lines(lines, level=None)`: a progress callback that keeps the lines it is sent
+    (only those of `level`, "info", "warning" or "error", when given)."""
+
+    def make(lines: list[str], level: str | None = None):
+        def progress(event) -> None:
+            if event.line is not None and level in (None, event.level):
+                lines.append(event.line)
+
+        return progress
+
+    return make

@@ -19,9 +19,10 @@ import json
 import polars as pl
 import pytest
 
-from impactlab.calibrate.command import choose_grid, register, run_calibration
 from impactlab.calibrate.grid import Grid, grid_points
+from impactlab.calibrate.job import choose_grid, run_calibration
 from impactlab.calibrate.run import record_and_analyze
+from impactlab.cli.calibrate import register
 from impactlab.errors import SpecError
 
 TARGETS = (0.2, 0.5, 0.9, 0.99)
@@ -57,7 +58,7 @@ BALL_CASES = [
 @pytest.fixture(scope="module")
 def table(tmp_path_factory) -> pl.DataFrame:
     out = tmp_path_factory.mktemp("calibrate")
-    frame, _, _ = record_and_analyze(grid_points(GRID), out, echo=lambda _: None)
+    frame, _, _ = record_and_analyze(grid_points(GRID), out)
     return frame
 
 

@@ -16,7 +16,7 @@ from impactlab.logs.codec import Template
 from impactlab.logs.load import load_log
 from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -54,7 +54,7 @@ def logs(tmp_path_factory) -> list[Path]:
     out = tmp_path_factory.mktemp("logs")
     specs = [EXPERIMENTS / "collision.toml", EXPERIMENTS / "drop.toml"]
     runs = plan(specs, overrides=["stop.max_time=0.8"])
-    return [r.path for r in record(runs, out, echo=lambda _: None)]
+    return [r.path for r in record_runs(runs, out)]
 
 
 def test_loader_equals_the_official_reader(logs):

@@ -23,11 +23,11 @@ from impactlab.logs.diff import (
     compare_channel,
     compare_meta,
     diff_logs,
-    fmt_t,
 )
+from impactlab.logs.diff_result import fmt_t
 from impactlab.logs.load import load_log
 from impactlab.proto import impactlab_pb2 as pb
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 SPEC = """
 name = "difftest"
@@ -54,7 +54,7 @@ def record_spec(out: Path, *overrides: str) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     spec = out / "difftest.toml"
     spec.write_text(SPEC)
-    (result,) = record(plan([spec], overrides=overrides), out / "logs", echo=lambda _: None)
+    (result,) = record_runs(plan([spec], overrides=overrides), out / "logs")
     return result.path
 
 

@@ -40,8 +40,9 @@ from impactlab.golden import (
     record_golden,
 )
 from impactlab.logs import format as logformat
-from impactlab.logs.diff import fmt_t
-from impactlab.logs.load import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, load_log
+from impactlab.logs.diff_result import fmt_t
+from impactlab.logs.load import load_log
+from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 
 IDS = [g.name for g in GOLDENS]

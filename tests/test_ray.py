@@ -16,15 +16,12 @@ import pytest
 import ray
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze.command import run_analysis
+from impactlab.analyze.job import run_analysis
 from impactlab.cli import main
-from impactlab.executors.base import (
-    RAY_INSTALL_HINT,
-    LocalExecutor,
-    record_sweep,
-    task_groups,
-)
-from impactlab.record.job import plan, record
+from impactlab.executors.base import LocalExecutor
+from impactlab.executors.choose import RAY_INSTALL_HINT
+from impactlab.record import plan, record_runs
+from impactlab.record.tasks import task_groups
 
 # Four short drops; solref [2, 1] is so soft that the ball sinks through the floor (unstable).
 SPEC = """
@@ -78,21 +75,23 @@ def spec_path(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def local_logs(spec_path, tmp_path_factory) -> dict[str, bytes]:
     out = tmp_path_factory.mktemp("local")
-    results = record(plan([spec_path]), out, echo=lambda _: None)
+    results = record_runs(plan([spec_path]), out)
     return {r.path.name: r.path.read_bytes() for r in results}
 
 
 @pytest.fixture(scope="module")
-def ray_sweep(ray_executor, spec_path, tmp_path_factory):
+def ray_sweep(ray_executor, spec_path, tmp_path_factory, collect_lines):
     out = tmp_path_factory.mktemp("ray")
     lines: list[str] = []
-    sweep = record_sweep(plan([spec_path]), out, ray_executor, echo=lines.append)
+    sweep = record_runs(
+        plan([spec_path]), out, executor=ray_executor, progress=collect_lines(lines)
+    )
     return out, sweep, lines
 
 
 def test_ray_logs_are_byte_identical_to_the_local_executor(local_logs, ray_sweep):
     out, sweep, _ = ray_sweep
-    assert [r.status for r in sweep.runs] == ["recorded"] * 4
+    assert [r.status for r in sweep] == ["recorded"] * 4
     assert sorted(p.name for p in out.glob("*.mcap")) == sorted(local_logs)
     for name, data in local_logs.items():
         assert (out / name).read_bytes() == data, name
@@ -104,7 +103,7 @@ def test_unstable_point_is_reported_with_its_reason_and_the_others_complete(ray_
     (bad,) = sweep.unstable
     assert bad.run_id == UNSTABLE
     assert bad.reason.startswith("penetration ") and "> 0.1 m" in bad.reason
-    assert sum(r.outcome == "completed" for r in sweep.runs) == 3
+    assert sum(r.outcome == "completed" for r in sweep) == 3
     assert sweep.exit_code == 1
     assert any(line.startswith(f"{UNSTABLE}.mcap: unstable (penetration") for line in lines)
 
@@ -116,9 +115,9 @@ def test_ray_analysis_equals_the_local_analysis(
     monkeypatch.chdir(logs.parent)  # relative paths, as typed: the tables show them
     (tmp_path / "junk.mcap").write_bytes(b"not an mcap file")
     inputs = [logs.name, str(tmp_path / "junk.mcap")]
-    here = run_analysis(inputs, tmp_path / "local", echo=lambda _: None)
+    here = run_analysis(inputs, tmp_path / "local")
     local_err = capsys.readouterr().err
-    there = run_analysis(inputs, tmp_path / "ray", echo=lambda _: None, executor=ray_executor)
+    there = run_analysis(inputs, tmp_path / "ray", executor=ray_executor)
     assert capsys.readouterr().err == local_err
     assert here.runs.height == 4 and here.runs["file"][0].startswith(f"{logs.name}/")
     assert there.failed == here.failed and [p for p, _ in here.failed] == [
@@ -144,7 +143,7 @@ def test_ray_analysis_equals_the_local_analysis(
     assert all(p.is_file() for p in there.files)
 
 
-def test_rerun_reuses_every_complete_log_without_running_tasks(spec_path, ray_sweep):
+def test_rerun_reuses_every_complete_log_without_running_tasks(spec_path, ray_sweep, collect_lines):
     out, _, _ = ray_sweep
 
     class NoTasks(LocalExecutor):
@@ -154,30 +153,35 @@ def test_rerun_reuses_every_complete_log_without_running_tasks(spec_path, ray_sw
             raise AssertionError("nothing should run")
 
     lines: list[str] = []
-    sweep = record_sweep(plan([spec_path]), out, NoTasks(), echo=lines.append)
-    assert [r.status for r in sweep.runs] == ["reused"] * 4
+    sweep = record_runs(plan([spec_path]), out, executor=NoTasks(), progress=collect_lines(lines))
+    assert [r.status for r in sweep] == ["reused"] * 4
     assert lines == [f"reused 4 complete log(s) in {out}/, running 0"]
-    assert sweep.exit_code == 0
+    assert [r.run_id for r in sweep.unstable] == [UNSTABLE]  # its log says so: still exit 1
+    assert sweep.exit_code == 1
 
 
-def test_a_run_that_cannot_be_written_fails_alone(ray_executor, spec_path, tmp_path, local_logs):
+def test_a_run_that_cannot_be_written_fails_alone(
+    ray_executor, spec_path, tmp_path, local_logs, collect_lines
+):
     runs = plan([spec_path])
     blocked = tmp_path / f"{runs[1].info.run_id}.mcap"
     blocked.mkdir()  # a folder where the log should go: os.replace fails for this run only
     errors: list[str] = []
-    sweep = record_sweep(runs, tmp_path, ray_executor, echo=lambda _: None, error=errors.append)
+    sweep = record_runs(
+        runs, tmp_path, executor=ray_executor, progress=collect_lines(errors, "error")
+    )
     (failed,) = sweep.failed
     assert failed.run_id == runs[1].info.run_id
     assert failed.reason.startswith("cannot write the log: IsADirectoryError")
     assert errors == [f"impactlab: error: {failed.run_id}: {failed.reason}"]
-    assert [r.status for r in sweep.runs] == ["recorded", "failed", "recorded", "recorded"]
+    assert [r.status for r in sweep] == ["recorded", "failed", "recorded", "recorded"]
     assert sweep.exit_code == 1
     for r in sweep.recorded:
         assert r.path.read_bytes() == local_logs[r.path.name]
     # resume after the fix: only the failed run is recorded
     blocked.rmdir()
-    again = record_sweep(runs, tmp_path, ray_executor, echo=lambda _: None)
-    assert [r.status for r in again.runs] == ["reused", "recorded", "reused", "reused"]
+    again = record_runs(runs, tmp_path, executor=ray_executor)
+    assert [r.status for r in again] == ["reused", "recorded", "reused", "reused"]
     assert blocked.read_bytes() == local_logs[blocked.name]
 
 
@@ -245,8 +249,8 @@ def test_an_mjcf_model_records_the_same_on_ray(ray_executor, tmp_path):
         </worldbody></mujoco>"""
     )
     runs = plan([model], duration=0.3)
-    (local,) = record(runs, tmp_path / "local", echo=lambda _: None)
-    sweep = record_sweep(runs, tmp_path / "ray", ray_executor, echo=lambda _: None)
+    (local,) = record_runs(runs, tmp_path / "local")
+    sweep = record_runs(runs, tmp_path / "ray", executor=ray_executor)
     (summary,) = sweep.recorded
     assert summary.outcome == "completed"
     assert summary.path.read_bytes() == local.path.read_bytes()

@@ -16,7 +16,7 @@ from mcap_protobuf.decoder import DecoderFactory
 
 from impactlab.cli import main
 from impactlab.logs import format as logformat
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -41,7 +41,7 @@ bounces = 2
 def record_text(tmp_path: Path, text: str, *overrides: str) -> list[Path]:
     spec = tmp_path / "spec.toml"
     spec.write_text(text)
-    results = record(plan([spec], overrides=overrides), tmp_path / "logs", echo=lambda _: None)
+    results = record_runs(plan([spec], overrides=overrides), tmp_path / "logs")
     return [r.path for r in results]
 
 

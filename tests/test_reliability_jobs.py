@@ -19,8 +19,8 @@ from mcap.reader import make_reader
 from impactlab.cli import main
 from impactlab.logs import writer as writer_module
 from impactlab.logs.load import load_log
+from impactlab.record import plan, record_runs
 from impactlab.record import simulate as simulate_module
-from impactlab.record.job import plan, record
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -224,8 +224,8 @@ def test_batching_does_not_change_the_logs(tmp_path):
     sweep = '[sweep]\n"ball.pos" = [[0.0, 0.0, 0.3], [0.1, 0.0, 0.4], [0.0, 0.2, 0.5], [0.0, 0.0, 0.6], [0.3, 0.0, 0.7]]'
     spec = spec_file(tmp_path, "same", max_time=0.8, extra=sweep)
     runs = plan([spec])
-    serial = record(runs, tmp_path / "serial", batch_size=1, threads=1, echo=lambda _: None)
-    batched = record(runs, tmp_path / "batched", batch_size=4, threads=2, echo=lambda _: None)
+    serial = record_runs(runs, tmp_path / "serial", batch_size=1, threads=1)
+    batched = record_runs(runs, tmp_path / "batched", batch_size=4, threads=2)
     assert [r.path.name for r in serial] == [r.path.name for r in batched]
     for a, b in zip(serial, batched, strict=True):
         assert a.path.read_bytes() == b.path.read_bytes(), a.path.name
@@ -248,7 +248,7 @@ def test_unwritable_target_fails_before_simulating(tmp_path, capsys, where):
     assert code == 2
     assert elapsed < 1.0
     lines = err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"impactlab: error: {out}: -o: cannot write")
+    assert len(lines) == 1 and lines[0].startswith(f"impactlab: error: {out}: cannot write")
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file.txt", "long.toml"]
 
@@ -285,7 +285,7 @@ def test_disk_full_while_writing(tmp_path, capsys, monkeypatch):
     )
     out = tmp_path / "logs"
     # one log's size, measured, sets a budget of two and a half logs
-    probe = record(plan([spec]), tmp_path / "probe", echo=lambda _: None)
+    probe = record_runs(plan([spec]), tmp_path / "probe")
     size = probe[0].path.stat().st_size
     budget = [int(2.5 * size)]
 

@@ -49,14 +49,14 @@ FOOTER_BYTES = 1 + 8 + 8 + 8 + 4 + 8  # footer record and closing magic
 def intact(tmp_path_factory) -> Path:
     """A complete log of a ball dropped on the plane (contacts included), in many chunks."""
     from impactlab.logs import writer
-    from impactlab.record.job import plan, record
+    from impactlab.record import plan, record_runs
 
     folder = tmp_path_factory.mktemp("fragile")
     spec = folder / "fragile.toml"
     spec.write_text(SPEC)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(writer, "CHUNK_BYTES", CHUNK_BYTES)
-        (result,) = record(plan([spec]), folder / "logs", echo=lambda _: None)
+        (result,) = record_runs(plan([spec]), folder / "logs")
     return result.path
 
 
@@ -203,7 +203,7 @@ def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
         assert code == 0, err
         runs = pl.read_parquet(out / "runs.parquet")
         assert runs["partial"].to_list() == [True]
-        assert f"warning: {bad}: partial log" in stdout
+        assert f"impactlab: warning: {bad}: partial log" in err
         report = (out / "report.md").read_text()
         assert "partial" in report.lower() and "truncated" in report
         run = load_log(bad)

@@ -11,7 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from impactlab.record.job import plan, record
+from impactlab.record import plan, record_runs
 
 SPEC = """
 name = "long"
@@ -27,7 +27,7 @@ max_time = {seconds}
 
 MEASURE = r"""
 import json, resource, sys, time
-import impactlab.analyze.command, impactlab.cli  # the imports are the baseline
+import impactlab.analyze.job, impactlab.cli  # the imports are the baseline
 from impactlab.logs.load import load_log
 from impactlab.cli import main
 
@@ -58,7 +58,7 @@ def measure(log: Path, out: Path) -> dict:
 def test_peak_memory_of_analyzing_a_long_log(tmp_path):
     spec = tmp_path / "long.toml"
     spec.write_text(SPEC.format(seconds=10.0))  # 100,001 logged steps, contact half the time
-    (result,) = record(plan([spec]), tmp_path / "logs", echo=lambda _: None)
+    (result,) = record_runs(plan([spec]), tmp_path / "logs")
     m = measure(result.path, tmp_path / "results")
     assert m["code"] == 0 and m["steps"] == 100_001
     growth = m["peak_mib"] - m["base_mib"]

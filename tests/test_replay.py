@@ -19,10 +19,10 @@ import rerun as rr
 
 from impactlab import cli
 from impactlab.logs.load import RunLog, load_log
-from impactlab.record.job import plan, record
-from impactlab.replay import command
-from impactlab.replay.command import replay_logs
+from impactlab.record import plan, record_runs
+from impactlab.replay import recordings
 from impactlab.replay.convert import run_prefix
+from impactlab.replay.recordings import replay_logs
 
 RERUN = Path(sys.executable).parent / "rerun"
 
@@ -74,7 +74,7 @@ def logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     for name, text in (("drop", DROP), ("collision", COLLISION)):
         spec = folder / f"{name}.toml"
         spec.write_text(text)
-        (result,) = record(plan([spec]), folder / "mcap", echo=lambda _: None)
+        (result,) = record_runs(plan([spec]), folder / "mcap")
         out[name] = result.path
     return out
 
@@ -239,7 +239,7 @@ def test_interrupted_conversion_leaves_nothing(
     def fail(*args: object, **kwargs: object) -> None:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(command, "log_run", fail)
+    monkeypatch.setattr(recordings, "log_run", fail)
     with pytest.raises(KeyboardInterrupt):
         replay_logs([logs["drop"]], out=tmp_path / "x.rrd", analysis_dir=None)
     assert list(tmp_path.iterdir()) == []

@@ -10,7 +10,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from impactlab.record import restitution as R
+from impactlab import contact as R
+from impactlab.contact import emulation, gravity, measure, table
 
 # Schwager-Poeschel column of the table in shared/notes/physics.md
 NOTES_TABLE = {0.02: 0.9398, 0.10: 0.7441, 0.30: 0.4510, 0.50: 0.2984, 0.80: 0.1798}
@@ -65,7 +66,7 @@ def test_unreachable_targets_raise_with_floor(bad: object) -> None:
 
 
 def test_table_is_up_to_date(capsys: pytest.CaptureFixture[str]) -> None:
-    assert R.main(["--check"]) == 0
+    assert table.main(["--check"]) == 0
 
 
 def test_emulation_matches_mj_step() -> None:
@@ -74,7 +75,7 @@ def test_emulation_matches_mj_step() -> None:
     w0, v, dt = math.sqrt(p.stiffness), 2.0, p.timestep_s
     phase = 0.37
     model = mujoco.MjModel.from_xml_string(
-        R.ball_plane_mjcf(p, radius_m=0.05, mass_kg=3.0, gravity_mps2=9.81)
+        measure.ball_plane_mjcf(p, radius_m=0.05, mass_kg=3.0, gravity_mps2=9.81)
     )
     data = mujoco.MjData(model)
     data.qpos[2] = 0.05 - phase * v * dt
@@ -83,7 +84,9 @@ def test_emulation_matches_mj_step() -> None:
         mujoco.mj_step(model, data)
         if data.qvel[2] > 0.0 and not np.any(data.efc_force[: data.nefc] > 0.0):
             break
-    e_emul, _, _ = R._emulate(np.array([p.zeta]), w0 * dt, np.array([phase]), 9.81 / (w0 * v))
+    e_emul, _, _ = emulation.emulate_impact(
+        np.array([p.zeta]), w0 * dt, np.array([phase]), 9.81 / (w0 * v)
+    )
     # MuJoCo's value is one more free-flight step past the last force step
     assert data.qvel[2] / v + 9.81 * dt / v == pytest.approx(e_emul[0, 0], abs=1e-12)
 
@@ -97,7 +100,7 @@ def test_surface_emulation_matches_mj_step(e: float, v: float, phase: float) -> 
     p = R.contact_params(e, radius_m=0.05, impact_speed_mps=v, timestep_s=2e-5)
     w0, dt, g = math.sqrt(p.stiffness), p.timestep_s, 9.81
     model = mujoco.MjModel.from_xml_string(
-        R.ball_plane_mjcf(p, radius_m=0.05, mass_kg=3.0, gravity_mps2=g)
+        measure.ball_plane_mjcf(p, radius_m=0.05, mass_kg=3.0, gravity_mps2=g)
     )
     data = mujoco.MjData(model)
     # the last state before the overlap: speed v, (1 - phase) steps of travel above the plane
@@ -107,14 +110,14 @@ def test_surface_emulation_matches_mj_step(e: float, v: float, phase: float) -> 
     assert data.qpos[2] < 0.05
     while data.qpos[2] < 0.05:
         mujoco.mj_step(model, data)
-    release, surface = R._emulate_surface(p.zeta, w0 * dt, np.array([phase]), g / (w0 * v))
+    release, surface = emulation.emulate_surface(p.zeta, w0 * dt, np.array([phase]), g / (w0 * v))
     assert data.qvel[2] / v == pytest.approx(surface[0], abs=1e-12)
     assert release[0] > surface[0] + 0.5 * p.zeta * g / (w0 * v)  # gravity after the release
     # the closed-form evaluation used by contact_params gives the same numbers
     phases = np.linspace(0.01, 1.0, 37)
     for gr in (0.0, g / (w0 * v), 0.3):
-        r1, s1 = R._emulate_surface(p.zeta, w0 * dt, phases, gr)
-        r2, s2 = R._impact_fast(p.zeta, w0 * dt, phases, np.full(phases.size, gr))
+        r1, s1 = emulation.emulate_surface(p.zeta, w0 * dt, phases, gr)
+        r2, s2 = emulation.impact_fast(p.zeta, w0 * dt, phases, np.full(phases.size, gr))
         np.testing.assert_allclose(r2, r1, atol=1e-12)
         np.testing.assert_allclose(s2, s1, atol=1e-12)
 
@@ -127,7 +130,7 @@ def test_grid_ball_plane_with_gravity(e: float, v: float, m: float) -> None:
     """Surface to surface, as the analysis stage measures (gravity's shift calibrated out)."""
     p = _params(e, v, gravity=9.81)
     for gap_steps in (2.13, 2.71):  # two different contact-onset phases
-        meas = R.measure_ball_plane(
+        meas = measure.measure_ball_plane(
             p, radius_m=0.1, mass_kg=m, impact_speed_mps=v, gap_m=gap_steps * v * p.timestep_s
         )
         assert abs(meas.restitution - e) <= TOL, (meas, p)
@@ -138,7 +141,9 @@ def test_grid_ball_plane_with_gravity(e: float, v: float, m: float) -> None:
 @pytest.mark.parametrize(("e", "v", "m"), GRID)
 def test_grid_ball_ball_zero_gravity(e: float, v: float, m: float) -> None:
     p = _params(e, v, gravity=0.0, radius=0.05)
-    meas = R.measure_ball_ball(p, radius_m=(0.05, 0.2), mass_kg=(m, 1.0), velocity_mps=(v, 0.0))
+    meas = measure.measure_ball_ball(
+        p, radius_m=(0.05, 0.2), mass_kg=(m, 1.0), velocity_mps=(v, 0.0)
+    )
     assert abs(meas.restitution - e) <= TOL, (meas, p)
     assert meas.max_penetration_m <= 0.02 * 0.05
 
@@ -146,7 +151,9 @@ def test_grid_ball_ball_zero_gravity(e: float, v: float, m: float) -> None:
 def test_collision_velocities_and_momentum() -> None:
     m1, m2, v1, v2, e = 0.5, 1.0, 2.0, -1.0, 0.7
     p = R.contact_params(e, radius_m=0.1, impact_speed_mps=v1 - v2, timestep_s=1e-5, gravity_mps2=0)
-    meas = R.measure_ball_ball(p, radius_m=(0.1, 0.1), mass_kg=(m1, m2), velocity_mps=(v1, v2))
+    meas = measure.measure_ball_ball(
+        p, radius_m=(0.1, 0.1), mass_kg=(m1, m2), velocity_mps=(v1, v2)
+    )
     v1p = (m1 * v1 + m2 * v2 + m2 * e * (v2 - v1)) / (m1 + m2)
     v2p = (m1 * v1 + m2 * v2 + m1 * e * (v1 - v2)) / (m1 + m2)
     assert meas.v_after_mps[0] == pytest.approx(v1p, rel=5e-3)
@@ -169,7 +176,7 @@ def test_low_speed_gravity_dependence() -> None:
         dashpot = R.restitution_with_gravity(
             p, impact_speed_mps=v, gravity_mps2=9.81, contact_law="dashpot"
         )
-        meas = R.measure_ball_plane(p, radius_m=0.2, mass_kg=1.0, impact_speed_mps=v)
+        meas = measure.measure_ball_plane(p, radius_m=0.2, mass_kg=1.0, impact_speed_mps=v)
         assert meas.restitution == pytest.approx(pred_dt, abs=0.002)
         assert meas.restitution == pytest.approx(pred, abs=0.003)
         assert e - meas.restitution > min_shift
@@ -202,7 +209,7 @@ def test_gravity_is_calibrated_at_the_design_speed() -> None:
         p, impact_speed_mps=v, gravity_mps2=g, timestep_s=2e-5, at="release"
     )
     assert release - surface[1] == pytest.approx(-p.gravity_shift, abs=0.002)
-    meas = R.measure_ball_plane(p, radius_m=0.1, mass_kg=1.0, impact_speed_mps=v)
+    meas = measure.measure_ball_plane(p, radius_m=0.1, mass_kg=1.0, impact_speed_mps=v)
     assert meas.restitution == pytest.approx(e, abs=TOL)
     # without gravity the same contact is not shifted (ball-ball parameters: no correction)
     q = R.contact_params(e, radius_m=0.1, impact_speed_mps=v, timestep_s=2e-5, gravity_mps2=0)
@@ -235,7 +242,7 @@ def test_explicit_duration_and_penetration() -> None:
         0.8, radius_m=0.1, impact_speed_mps=2.0, timestep_s=1e-5, max_penetration_m=1e-3
     )
     assert q.max_penetration_m <= 1e-3
-    meas = R.measure_ball_plane(q, radius_m=0.1, mass_kg=1.0, impact_speed_mps=2.0)
+    meas = measure.measure_ball_plane(q, radius_m=0.1, mass_kg=1.0, impact_speed_mps=2.0)
     assert meas.max_penetration_m <= 1e-3
     assert abs(meas.restitution - 0.8) <= TOL
     with pytest.raises(R.ContactModelError, match="not both"):
@@ -250,8 +257,9 @@ def test_contact_params_is_fast_and_runs_no_simulation(monkeypatch: pytest.Monke
         raise AssertionError("contact_params must not simulate")
 
     monkeypatch.setattr(mujoco, "mj_step", forbidden)
-    monkeypatch.setattr(R, "_emulate", forbidden)
-    monkeypatch.setattr(R, "_emulate_surface", forbidden)  # the closed form is used instead
+    for module in (table, gravity):  # the closed form is used instead
+        monkeypatch.setattr(module, "emulate_impact", forbidden)
+    monkeypatch.setattr(gravity, "emulate_surface", forbidden)
     R.contact_params(0.7, radius_m=0.1, impact_speed_mps=3.0, timestep_s=1e-5)  # warm the cache
     n = 20
     worst = 0.0

@@ -1,1 +1,86 @@
-"""Analysis stage: MCAP logs -> polars frames -> bounces, energy, collisions, tables, report."""
+"""Analyze: logs -> bounces, restitution, energy budgets, collisions, studies (polars).
+
+Owns: the quantities of one run (`contacts`, `energy`, `bounces`, `collisions`,
+`analysis`), the tables over many runs (`tables`, `studies`), the analysis job (`job`,
+`batch`) and what it writes (`write`, `figures`, `run_figures`, `report`, `answers`).
+
+May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
+polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
+`impactlab.replay`, `impactlab.calibrate`: the analysis reads only the logs.
+
+This package is also the function `impactlab.analyze(...)` (see `analyze` below).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from impactlab.packages import callable_package, lazy_exports
+
+if TYPE_CHECKING:
+    from impactlab.analyze.tables import AnalysisResult
+    from impactlab.executors.base import Executor
+    from impactlab.progress import Progress
+
+__getattr__ = lazy_exports(
+    __name__,
+    {
+        "AnalysisResult": "impactlab.analyze.tables",
+        "RunAnalysis": "impactlab.analyze.analysis",
+        "analyze_run": "impactlab.analyze.analysis",
+        "run_analysis": "impactlab.analyze.job",
+    },
+)
+
+
+def analyze(
+    logs: str | Path | Sequence[str | Path],
+    *,
+    out: str | Path | None = None,
+    figures: bool = False,
+    report: bool = False,
+    executor: Executor | str | None = None,
+    progress: Progress | None = None,
+    verbose: bool = False,
+) -> AnalysisResult:
+    """Analyze logs and return the tables as polars frames.
+
+    Args:
+        logs: log files, folders (searched recursively for *.mcap) or glob patterns.
+        out: a folder to write the tables (Parquet, summary.json) into; None writes nothing.
+        figures: also draw the figures into `out`/figures (needs `out`).
+        report: also write `out`/report.md (needs `out`).
+        executor: "local" (default), "ray", or an `impactlab.executors` executor.
+        progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
+        verbose: report progress on the console (when `progress` is None).
+
+    Returns:
+        `AnalysisResult`: `runs`, `bounces`, `collisions`, `energy`, `phases`, `studies`,
+        the inputs that `failed`, and the `files` written.
+
+    Raises:
+        LogError: no input names a log.
+        OutputError: `out` cannot be written.
+        ValueError: figures or report asked for without `out`.
+    """
+    from impactlab.analyze.job import run_analysis
+    from impactlab.executors.choose import executor_for
+    from impactlab.progress import reporter
+
+    if out is None and (figures or report):
+        raise ValueError("figures and report are written into a folder: give out=...")
+    inputs = [logs] if isinstance(logs, str | Path) else list(logs)
+    with executor_for(executor) as chosen, reporter(progress, verbose) as shown:
+        return run_analysis(
+            inputs,
+            None if out is None else Path(out),
+            figures=figures,
+            report=report,
+            executor=chosen,
+            progress=shown,
+        )
+
+
+callable_package(__name__, analyze)

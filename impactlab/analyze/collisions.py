@@ -16,6 +16,7 @@ import polars as pl
 
 from impactlab.analyze.contacts import state_at
 from impactlab.logs.load import BodyInfo
+from impactlab.physics import collision_after
 
 COLLISION_SCHEMA: dict[str, pl.DataType] = {
     "run_id": pl.String,
@@ -71,12 +72,6 @@ def _dot(a: list[pl.Expr], b: list[pl.Expr]) -> pl.Expr:
 
 def _norm(a: list[pl.Expr]) -> pl.Expr:
     return _dot(a, a).sqrt()
-
-
-def analytic_after(m1: pl.Expr, m2: pl.Expr, v1: pl.Expr, v2: pl.Expr, e: pl.Expr | float):
-    """(v1', v2') of a 1D collision with restitution e (expressions or numbers)."""
-    p = m1 * v1 + m2 * v2
-    return (p + m2 * e * (v2 - v1)) / (m1 + m2), (p + m1 * e * (v1 - v2)) / (m1 + m2)
 
 
 def pair_states(states: pl.DataFrame, times: pl.DataFrame, on: str, tag: str) -> pl.DataFrame:
@@ -178,9 +173,9 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
             "ke_loss_predicted_J"
         ),
     )
-    v1e, v2e = analytic_after(m1, m2, v1, v2, pl.col("e_measured"))
-    v1el, v2el = analytic_after(m1, m2, v1, v2, 1.0)
-    vin, _ = analytic_after(m1, m2, v1, v2, 0.0)
+    v1e, v2e = collision_after(m1, m2, v1, v2, pl.col("e_measured"))
+    v1el, v2el = collision_after(m1, m2, v1, v2, 1.0)
+    vin, _ = collision_after(m1, m2, v1, v2, 0.0)
     after_cols = [
         c
         for c in COLLISION_SCHEMA

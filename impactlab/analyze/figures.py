@@ -7,23 +7,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
 import matplotlib.ticker
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import polars as pl
 
-DPI = 110
+from impactlab.plotting import plt, save_figure
+
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
 
 
 def _shade_contacts(ax, intervals: pl.DataFrame) -> None:
@@ -67,7 +57,7 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     ax_e.set_ylabel("energy (J)")
     ax_e.legend(loc="center right")
     ax_e.grid(True, alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def bounce_decay_figure(
@@ -110,7 +100,7 @@ def bounce_decay_figure(
     if legend:
         ax.legend()
     ax.grid(True, which="both", alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def collision_figure(
@@ -169,7 +159,7 @@ def collision_figure(
     axes[2].set_ylim(p0 @ n - max(span, 0.05), p0 @ n + max(span, 0.05))
     axes[2].set_xlabel("time (s)")
     axes[0].set_title(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def restitution_figure(
@@ -218,7 +208,7 @@ def restitution_figure(
     ax.set_title("Restitution against impact speed")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def collision_study_figure(
@@ -263,7 +253,7 @@ def collision_study_figure(
     ax_p.set_title(f"e against the swept {param}")
     ax_p.grid(True, alpha=0.3)
     ax_p.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Path) -> Path:
@@ -285,4 +275,4 @@ def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Pa
     ax.set_title(title)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -24,7 +24,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
-from impactlab.record.restitution import ContactModelError, ContactParams, contact_params
+from impactlab.contact import ContactModelError, ContactParams, contact_params
 
 RADIUS_M = 0.1
 GRAVITY_MPS2 = 9.81

@@ -4,25 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.colors
-import matplotlib.pyplot as plt
 import numpy as np
 import polars as pl
 
-DPI = 110
+from impactlab.plotting import plt, save_figure
+
 MARKERS = "osD^v<>p*h"
 TOLERANCE = 0.005
-
-
-def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
 
 
 def _scatter(ax, frame: pl.DataFrame, y: str, *, shape_col: str, shape_label, norm, cmap, dx):
@@ -96,10 +85,7 @@ def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
     if sc is not None:
         fig.colorbar(sc, ax=axes.ravel().tolist(), label="impact speed (m/s)", shrink=0.6)
     fig.suptitle(title)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, tight_bbox=True)
 
 
 def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, path: Path) -> Path:
@@ -151,4 +137,4 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
     ax_d.set_xlabel("impact speed (m/s)")
     for axis in (ax, ax_d):
         axis.grid(True, alpha=0.3, which="both")
-    return _save(fig, path)
+    return save_figure(fig, path)

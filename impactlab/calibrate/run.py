@@ -1,7 +1,7 @@
 """Record a calibration grid, analyze the logs with the analysis stage, tabulate target vs measured.
 
 The measured e comes only from the recorded logs, through the analysis stage
-(`impactlab.analyze`: ``load_log`` -> ``analyze_run`` -> ``tables``): the bounces table for a
+(`impactlab.analyze.run_analysis`, tables only): the bounces table for a
 ball on the floor (``e_velocity``: normal velocity one logged step after the contact interval
 over the one one step before it; the interval is the run of steps with a geometric overlap),
 the collisions table for two balls (``e_measured``, velocities, momentum). The recorder's
@@ -29,18 +29,16 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis, analyze_run
-from impactlab.analyze.collisions import analytic_after
-from impactlab.analyze.command import AnalysisResult, tables
+from impactlab.analyze import AnalysisResult, run_analysis
 from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint, grid_points
-from impactlab.errors import LogError
-from impactlab.logs.load import load_log
-from impactlab.record.job import plan, record
-from impactlab.record.restitution import (
+from impactlab.contact import (
     RESTITUTION_TOLERANCE,
     restitution_with_gravity,
     surface_restitution,
 )
+from impactlab.errors import LogError
+from impactlab.physics import collision_after
+from impactlab.record import plan, record_runs
 
 PENETRATION_BOUND = 0.02
 """Max penetration the contact is designed for, as a fraction of the radius."""
@@ -112,13 +110,14 @@ def record_and_analyze(
     specs = write_specs(points, out_dir / "specs")
     runs = plan(specs)
     t1 = time.perf_counter()
-    results = record(runs, out_dir / "logs", echo=lambda _: None)
+    recorded = record_runs(runs, out_dir / "logs")
     t2 = time.perf_counter()
-    analyses: list[RunAnalysis] = [analyze_run(load_log(r.path)) for r in results]
-    for a in analyses:
-        if a.run.partial:
-            raise LogError(str(a.run.path), "partial log: " + "; ".join(a.run.problems))
-    result = tables(analyses, out_dir, [])
+    result = run_analysis(recorded.paths)
+    if result.failed:
+        raise LogError(*result.failed[0])
+    partial = result.runs.filter(pl.col("partial")) if result.runs.height else result.runs
+    if partial.height:
+        raise LogError(partial["file"][0], "partial log: " + partial["problems"][0])
     table = point_table(points, result.runs, result.bounces, result.collisions)
     t3 = time.perf_counter()
     echo(
@@ -238,7 +237,7 @@ def _measurement(p: GridPoint, run_id, bounces: pl.DataFrame, collisions: pl.Dat
         c = rows.row(0, named=True)
         v1, v2 = c["v1n_before_mps"], c["v2n_before_mps"]
         # the normal points from body1 to body2 = +x; the balls' velocities along it
-        t1, t2 = analytic_after(c["m1_kg"], c["m2_kg"], v1, v2, p.target)
+        t1, t2 = collision_after(c["m1_kg"], c["m2_kg"], v1, v2, p.target)
         closing = v1 - v2
         out.update(
             e_measured=c["e_measured"],
@@ -380,3 +379,13 @@ def calibrate(
     table, analysis, timings = record_and_analyze(points, out_dir, echo=echo)
     timings["grid"] = time.perf_counter() - t0 - sum(timings.values())
     return points, table, analysis, timings
+
+
+def bounds() -> dict[str, float]:
+    """The bounds every ball-plane and ball-ball point is checked against."""
+    return {
+        "restitution_abs": RESTITUTION_TOLERANCE,
+        "penetration_frac_of_radius": PENETRATION_BOUND,
+        "collision_velocity_rel_closing_speed": VELOCITY_BOUND,
+        "collision_momentum_rel": MOMENTUM_BOUND,
+    }

@@ -11,8 +11,7 @@ damage; such a run is marked `partial`.
 from __future__ import annotations
 
 import json
-from collections import defaultdict
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,10 +23,20 @@ from google.protobuf.message import DecodeError
 from impactlab.errors import LogError
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
-from impactlab.logs.codec import Template
-from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
-from impactlab.logs.reader import ChannelData, read_mcap
-from impactlab.proto import impactlab_pb2 as pb
+from impactlab.logs.decode import (
+    body_state_values,
+    decode_contacts,
+    decode_events,
+    decode_fixed,
+    empty_contacts,
+    empty_frame,
+    energy_values,
+    fixed_frame,
+    loose_payloads,
+)
+from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS
+from impactlab.logs.metadata import metadata_problem
+from impactlab.logs.reader import read_mcap
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
 DATA_SCHEMAS = frozenset(
@@ -175,7 +184,7 @@ def load_log(path: str | Path) -> RunLog:
     run_id = meta.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
-    energy = _empty(ENERGY_FIELDS, run_id)
+    energy = empty_frame(ENERGY_FIELDS, run_id)
     events = pl.DataFrame(
         schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
     )
@@ -183,23 +192,23 @@ def load_log(path: str | Path) -> RunLog:
         schema, topic = channel.schema, channel.topic
         try:
             if schema == logformat.BODY_STATE_SCHEMA:
-                t, values = decode_fixed(channel, messages.body_state(), _body_state_values)
+                t, values = decode_fixed(channel, messages.body_state(), body_state_values)
                 name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]
-                bodies[name] = _frame(run_id, t, values, BODY_FIELDS)
+                bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS)
             elif schema == logformat.CONTACT_SCHEMA:
                 contact_frames.append(decode_contacts(run_id, channel))
             elif schema == logformat.ENERGY_SCHEMA:
-                t, values = decode_fixed(channel, messages.energy(), _energy_values)
-                energy = _frame(run_id, t, values, ENERGY_FIELDS)
+                t, values = decode_fixed(channel, messages.energy(), energy_values)
+                energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
             elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
-                t, payloads = _loose(channel)
+                t, payloads = loose_payloads(channel)
                 events = decode_events(run_id, t, payloads)
         except (DecodeError, ValueError) as exc:  # e.g. another tool's encoding of the schema
             raise LogError(str(path), f"{topic}: undecodable message ({exc})") from None
     contacts = (
         pl.concat(contact_frames).sort("t_ns", maintain_order=True)
         if contact_frames
-        else _empty_contacts(run_id)
+        else empty_contacts(run_id)
     )
     return RunLog(
         path=path,
@@ -212,217 +221,3 @@ def load_log(path: str | Path) -> RunLog:
         partial=bool(problems),
         problems=problems,
     )
-
-
-def metadata_problem(meta: dict[str, str]) -> str | None:
-    """What is wrong with the values of the run and outcome metadata, or None.
-
-    Metadata records carry no CRC: a damaged byte can leave a value that does not parse.
-    Keys that are absent are not checked (the callers handle them).
-    """
-
-    def number(text: str) -> bool:
-        try:
-            return np.isfinite(float(text))
-        except ValueError:
-            return False
-
-    def integer(text: str) -> bool:
-        return text.isdigit()
-
-    def vector(value: Any) -> bool:
-        return isinstance(value, list) and len(value) == 3 and all(_real(v) for v in value)
-
-    def body(value: Any) -> bool:
-        return (
-            isinstance(value, dict)
-            and isinstance(value.get("name"), str)
-            and _real(value.get("mass"))
-            and vector(value.get("inertia"))
-            and (value.get("radius") is None or _real(value.get("radius")))
-        )
-
-    checks: dict[str, Callable[[str], bool]] = {
-        "timestep_s": lambda t: number(t) and float(t) > 0,
-        "log_every": lambda t: integer(t) and int(t) > 0,
-        "plane_z": lambda t: t == "" or number(t),
-        "steps": integer,
-    }
-    json_checks: dict[str, Callable[[Any], bool]] = {
-        "spec": lambda v: isinstance(v, dict),
-        "sweep": lambda v: isinstance(v, dict),
-        "gravity": vector,
-        "bodies": lambda v: isinstance(v, list) and all(body(b) for b in v),
-        "warnings": lambda v: isinstance(v, list) and all(isinstance(w, str) for w in v),
-    }
-    for key, ok in checks.items():
-        if key in meta and not ok(meta[key]):
-            return f"{key} = {meta[key][:40]!r} is not valid"
-    for key, ok in json_checks.items():
-        if key not in meta:
-            continue
-        try:
-            valid = ok(json.loads(meta[key]))
-        except ValueError:
-            valid = False
-        if not valid:
-            return f"{key} is not valid JSON of the expected shape"
-    return None
-
-
-def _real(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def decode_fixed(
-    channel: ChannelData, layout: Template, fallback: Callable[[bytes], list[float]]
-) -> tuple[np.ndarray, np.ndarray]:
-    """A channel's times (n,) and values (n, k), sorted by time.
-
-    Pieces in the template's layout are decoded as arrays; anything else goes through the
-    protobuf library (`fallback` turns one payload into its values).
-    """
-    times, values = [], []
-    for t, data in channel.pieces:
-        decoded = layout.decode(data) if isinstance(data, np.ndarray) else None
-        if decoded is None:
-            rows = data if isinstance(data, list) else [bytes(r) for r in data]
-            decoded = np.asarray([fallback(r) for r in rows], dtype=np.float64)
-        times.append(t)
-        values.append(decoded.reshape(len(t), -1))
-    if not times:
-        return np.empty(0, np.int64), np.empty((0, len(layout.slots)))
-    t_all, v_all = np.concatenate(times), np.concatenate(values)
-    if (np.diff(t_all) >= 0).all():
-        return t_all, v_all
-    order = np.argsort(t_all, kind="stable")
-    return t_all[order], v_all[order]
-
-
-def _body_state_values(data: bytes) -> list[float]:
-    m = pb.BodyState.FromString(data)
-    return [getattr(m, f) for f in BODY_FIELDS]
-
-
-def _energy_values(data: bytes) -> list[float]:
-    m = pb.Energy.FromString(data)
-    return [m.kinetic, m.potential, m.total]
-
-
-def _loose(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
-    """A channel's messages as (times, payload bytes), sorted by time."""
-    times, payloads = [], []
-    for t, data in channel.pieces:
-        times += t.tolist()
-        payloads += data if isinstance(data, list) else [bytes(r) for r in data]
-    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
-    return np.asarray(times, dtype=np.int64)[order], [payloads[i] for i in order]
-
-
-def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
-    """A Contact channel -> one row per contact point."""
-    names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
-    per_point = len(POINT_FIELDS)
-    frames = []
-    for t, data in channel.pieces:
-        values = None
-        if isinstance(data, np.ndarray) and all(names.values()):
-            # a payload of k points is one point's bytes longer than one of k - 1
-            one = messages.contact(*names.values(), 1).size
-            two = messages.contact(*names.values(), 2).size
-            k, rest = divmod(data.shape[1] - one, two - one)
-            if rest == 0 and k >= 0:
-                values = messages.contact(*names.values(), k + 1).decode(data)
-        if values is not None:
-            points = values.reshape(len(t), -1, per_point)
-            frames.append(_contact_frame(run_id, t, names, points))
-        else:
-            rows = data if isinstance(data, list) else [bytes(r) for r in data]
-            frames.append(_contact_frame_slow(run_id, t, rows))
-    if not frames:
-        return _empty_contacts(run_id)
-    return frames[0] if len(frames) == 1 else pl.concat(frames).sort(["t_ns", "point"])
-
-
-def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
-    n, k, _ = points.shape
-    rows = n * k
-    t_rep = np.repeat(t, k)
-    columns: dict[str, Any] = {
-        "run_id": _constant(run_id, rows),
-        "t_ns": pl.Series(t_rep, dtype=pl.Int64),
-        "t_s": pl.Series(t_rep / 1e9, dtype=pl.Float64),
-    }
-    columns |= {key: _constant(v, rows) for key, v in names.items()}
-    columns["point"] = pl.Series(np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32)
-    flat = points.reshape(rows, -1)
-    columns |= {f: flat[:, i] for i, f in enumerate(POINT_FIELDS)}
-    return pl.DataFrame(columns)
-
-
-def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]):
-    cols: dict[str, list[Any]] = defaultdict(list)
-    for t, data in zip(t_ns.tolist(), payloads, strict=True):
-        m = pb.Contact.FromString(data)
-        for i, p in enumerate(m.points):
-            cols["t_ns"].append(t)
-            cols["geom1"].append(m.geom1)
-            cols["geom2"].append(m.geom2)
-            cols["body1"].append(m.body1)
-            cols["body2"].append(m.body2)
-            cols["point"].append(i)
-            for f in POINT_FIELDS:
-                cols[f].append(getattr(p, f))
-    if not cols:
-        return _empty_contacts(run_id)
-    frame = pl.DataFrame(dict(cols)).with_columns(
-        pl.col("t_ns").cast(pl.Int64), pl.col("point").cast(pl.Int32)
-    )
-    return frame.select(
-        pl.lit(run_id).alias("run_id"),
-        "t_ns",
-        pl.Series("t_s", frame["t_ns"].to_numpy() / 1e9),  # as the fast path (numpy division)
-        *frame.columns[1:],
-    )
-
-
-def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
-    """foxglove.Log payloads -> (run_id, t_ns, level, message)."""
-    from foxglove_schemas_protobuf.Log_pb2 import Log
-
-    levels, messages = [], []
-    for data in payloads:
-        m = Log.FromString(data)
-        levels.append(Log.Level.Name(m.level))
-        messages.append(m.message)
-    return pl.DataFrame(
-        {"run_id": [run_id] * len(levels), "t_ns": t_ns, "level": levels, "message": messages},
-        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String},
-    )
-
-
-def _constant(value: str, n: int) -> pl.Series:
-    """A string column of one value (eager: no query plan per column)."""
-    return pl.Series([value], dtype=pl.String).new_from_index(0, n)
-
-
-def _frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
-    columns: dict[str, Any] = {
-        "run_id": _constant(run_id, len(t_ns)),
-        "t_ns": pl.Series(t_ns, dtype=pl.Int64),
-        "t_s": pl.Series(t_ns / 1e9, dtype=pl.Float64),
-    }
-    columns |= {name: values[:, i] for i, name in enumerate(names)}
-    return pl.DataFrame(columns)
-
-
-def _empty(names: Sequence[str], run_id: str) -> pl.DataFrame:
-    return _frame(run_id, np.empty(0, np.int64), np.empty((0, len(names))), names)
-
-
-def _empty_contacts(run_id: str) -> pl.DataFrame:
-    schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
-    schema |= {k: pl.String for k in ("geom1", "geom2", "body1", "body2")}
-    schema["point"] = pl.Int32
-    schema |= {f: pl.Float64 for f in POINT_FIELDS}
-    return pl.DataFrame(schema=schema)

@@ -1,1 +1,109 @@
-"""Record stage: experiment specs -> MuJoCo simulation -> one MCAP log per run."""
+"""Record: experiment specs or MJCF models -> MuJoCo runs -> one MCAP log per run.
+
+Owns: experiment specs and sweeps (`spec`, `sweep`), the instrumented MuJoCo models
+(`model`, `contact_pairs`), batched rollouts with their stop rules (`simulate`, `stop`),
+and the record job (`job` plans, `recorder` runs here or as executor `tasks`).
+
+May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
+MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
+
+This package is also the function `impactlab.record(...)` (see `record` below).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from impactlab.packages import callable_package, lazy_exports
+
+if TYPE_CHECKING:
+    from impactlab.executors.base import Executor
+    from impactlab.progress import Progress
+    from impactlab.record.job import PlannedRun
+    from impactlab.record.results import RecordResult
+
+Inputs = str | Path | Mapping[str, Any] | Sequence[Any]
+
+__getattr__ = lazy_exports(
+    __name__,
+    {
+        "PlannedRun": "impactlab.record.job",
+        "RecordedRun": "impactlab.record.results",
+        "RecordResult": "impactlab.record.results",
+        "record_runs": "impactlab.record.recorder",
+    },
+)
+
+
+def _items(inputs: Inputs) -> list[Any]:
+    if isinstance(inputs, str | Path | Mapping):
+        return [inputs]
+    return list(inputs)
+
+
+def plan(
+    inputs: Inputs, *, overrides: Sequence[str] = (), duration: float | None = None
+) -> list[PlannedRun]:
+    """Validate specs or models and return the runs they give, without simulating.
+
+    Args:
+        inputs: a spec file (.toml), an MJCF model (.xml), a spec document (a dict with the
+            TOML file's content), or a list of them.
+        overrides: `PATH=VALUE` settings (VALUE is TOML), e.g. `"ball.mass=2"`.
+        duration: time limit in s for MJCF models.
+
+    Raises:
+        SpecError: an input, override or option is wrong (the message names it).
+    """
+    from impactlab.record.job import plan as plan_runs
+
+    return plan_runs(_items(inputs), overrides=overrides, duration=duration)
+
+
+def record(
+    inputs: Inputs,
+    *,
+    out: str | Path = "logs",
+    overrides: Sequence[str] = (),
+    duration: float | None = None,
+    overwrite: bool = False,
+    executor: Executor | str | None = None,
+    progress: Progress | None = None,
+    verbose: bool = False,
+) -> RecordResult:
+    """Simulate every run of specs or models and write one MCAP log per run into `out`.
+
+    Runs whose complete log is in `out` already are reused (and returned, status "reused").
+
+    Args:
+        inputs: what `plan` takes, or runs `plan` returned.
+        out: the output folder (created).
+        overrides, duration: as for `plan`.
+        overwrite: record again runs whose complete log exists.
+        executor: "local" (default), "ray", or an `impactlab.executors` executor.
+        progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
+        verbose: report progress on the console (when `progress` is None).
+
+    Returns:
+        Every run with its log path, status and outcome, in plan order.
+
+    Raises:
+        SpecError: an input is wrong (nothing is simulated).
+        OutputError: `out` cannot be written.
+    """
+    from impactlab.executors.choose import executor_for
+    from impactlab.progress import reporter
+    from impactlab.record.job import PlannedRun
+    from impactlab.record.recorder import record_runs
+
+    items = _items(inputs)
+    runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
+    if runs is None:
+        runs = plan(items, overrides=overrides, duration=duration)
+    with executor_for(executor) as chosen, reporter(progress, verbose) as shown:
+        return record_runs(runs, Path(out), executor=chosen, overwrite=overwrite, progress=shown)
+
+
+callable_package(__name__, record)

@@ -1,7 +1,7 @@
 """Per-pair contacts of a spec whose contact asks for a coefficient of restitution.
 
 Each ball-plane and ball-ball pair with a target e gets calibrated MuJoCo parameters
-(`impactlab.record.restitution`) at a design impact speed: the spec's `contact.impact_speed`,
+(`impactlab.contact`) at a design impact speed: the spec's `contact.impact_speed`,
 or else the speed the initial state gives (fall height under gravity, or closing speed).
 """
 
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactlab.contact import ContactModelError, ContactParams, contact_params
 from impactlab.errors import SpecError
-from impactlab.record.restitution import ContactModelError, ContactParams, contact_params
 from impactlab.record.spec import Body, RunSpec
 
 PLANE_GEOM = "plane"

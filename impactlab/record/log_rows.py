@@ -15,7 +15,8 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from impactlab.logs.writer import BodyMeta, LogHeader, LogRows, Outcome, RunMeta, write_log
+from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
+from impactlab.logs.writer import write_log
 from impactlab.record.model import (
     BODY_STATE_SIZE,
     CONTACT_SLOT_SIZE,

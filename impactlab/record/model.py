@@ -15,8 +15,8 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
+from impactlab.logs.content import PairMeta
 from impactlab.logs.scene import GeomShape
-from impactlab.logs.writer import PairMeta
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.spec import RunSpec
 

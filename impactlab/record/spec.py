@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import math
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from typing import Any
 
 from impactlab.errors import SpecError
 from impactlab.logs.scene import BODY_PALETTE
+from impactlab.record.spec_checks import FieldChecks
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 SPEC_TOP_KEYS = ("name", "description", "options", "contact", "plane", "bodies", "stop", "logging")
@@ -82,7 +82,7 @@ class Contact:
 
     When `restitution` is set (for every pair, or per pair in `pair_restitution`, keyed by
     the sorted geom names "a/b"), those pairs get calibrated parameters instead
-    (`impactlab.record.restitution`): design impact speed in m/s (derived from the initial
+    (`impactlab.contact`): design impact speed in m/s (derived from the initial
     state when None), contact duration in s or max penetration in m (both optional).
     """
 
@@ -246,7 +246,7 @@ def validate(
     sweep_point: tuple[int, int] = (0, 1),
 ) -> RunSpec:
     """Check every field of a resolved document and build the `RunSpec`."""
-    v = _Validator(source)
+    v = FieldChecks(source)
     opt = doc["options"]
     options = Options(
         timestep=v.number(opt["timestep"], "options.timestep", min_exclusive=0.0),
@@ -324,7 +324,7 @@ def validate(
     )
 
 
-def _pair_restitution(v: _Validator, pairs: Any) -> dict[str, float]:
+def _pair_restitution(v: FieldChecks, pairs: Any) -> dict[str, float]:
     """`[contact.pairs."a/b"] restitution = e` tables, keyed by sorted geom names."""
     if not isinstance(pairs, Mapping):
         raise v.fail("contact.pairs", 'must be a table of "geom1/geom2" = { restitution = e }')
@@ -340,7 +340,7 @@ def _pair_restitution(v: _Validator, pairs: Any) -> dict[str, float]:
     return out
 
 
-def _body(v: _Validator, name: str, body: Mapping[str, Any], index: int) -> Body:
+def _body(v: FieldChecks, name: str, body: Mapping[str, Any], index: int) -> Body:
     field = f"bodies.{name}"
     rgba = body["rgba"] if body["rgba"] is not None else BODY_PALETTE[index % len(BODY_PALETTE)]
     return Body(
@@ -385,73 +385,3 @@ def _check_stop(
                 f"bodies.{body.name}.pos",
                 f"starts below the plane (z - radius = {body.pos[2] - body.radius:g} m)",
             )
-
-
-class _Validator:
-    """Type and range checks that raise `SpecError` naming the field."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, field: str, problem: str) -> SpecError:
-        return SpecError(self.source, field, problem)
-
-    def number(self, value: Any, field: str, *, min_exclusive: float | None = None) -> float:
-        if value is None:
-            raise self.fail(field, "is required")
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(field, f"must be a number, got {value!r}")
-        if not math.isfinite(value):
-            raise self.fail(field, f"must be finite, got {value!r}")
-        if min_exclusive is not None and value <= min_exclusive:
-            raise self.fail(field, f"must be > {min_exclusive:g}, got {value!r}")
-        return float(value)
-
-    def optional(self, value: Any, field: str, *, positive: bool = False) -> float | None:
-        if value is None:
-            return None
-        return self.number(value, field, min_exclusive=0.0 if positive else None)
-
-    def integer(self, value: Any, field: str, min_value: int | None = None) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.fail(field, f"must be an integer, got {value!r}")
-        if min_value is not None and value < min_value:
-            raise self.fail(field, f"must be >= {min_value}, got {value!r}")
-        return value
-
-    def boolean(self, value: Any, field: str) -> bool:
-        if not isinstance(value, bool):
-            raise self.fail(field, f"must be true or false, got {value!r}")
-        return value
-
-    def choice(self, value: Any, field: str, choices: tuple[str, ...]) -> str:
-        if value not in choices:
-            raise self.fail(field, f"must be one of {', '.join(choices)}, got {value!r}")
-        return value
-
-    def name(self, value: Any, field: str) -> str:
-        if not isinstance(value, str) or not value or not value.replace("_", "a").isalnum():
-            raise self.fail(field, f"must be a name of letters, digits and _, got {value!r}")
-        return value
-
-    def vector(
-        self,
-        value: Any,
-        field: str,
-        length: int | tuple[int, ...],
-        *,
-        min_value: float | None = None,
-        max_value: float | None = None,
-    ) -> tuple[float, ...]:
-        lengths = (length,) if isinstance(length, int) else length
-        if value is None:
-            raise self.fail(field, "is required")
-        if not isinstance(value, list | tuple) or len(value) not in lengths:
-            want = " or ".join(str(n) for n in lengths)
-            raise self.fail(field, f"must be a list of {want} numbers, got {value!r}")
-        out = tuple(self.number(x, field) for x in value)
-        if min_value is not None and any(x < min_value for x in out):
-            raise self.fail(field, f"values must be >= {min_value:g}, got {list(value)}")
-        if max_value is not None and any(x > max_value for x in out):
-            raise self.fail(field, f"values must be <= {max_value:g}, got {list(value)}")
-        return out

@@ -41,8 +41,18 @@ def parse_override(text: str, source: str = "--set") -> tuple[str, Any]:
 
 def load_runs(path: Path, overrides: Sequence[str] = ()) -> list[RunSpec]:
     """Read a spec file and return its runs, validated, with overrides applied."""
-    source = str(path)
-    raw = read_toml(path)
+    return document_runs(read_toml(path), str(path), overrides)
+
+
+def document_runs(
+    raw: Mapping[str, Any], source: str, overrides: Sequence[str] = ()
+) -> list[RunSpec]:
+    """The runs of a spec document (a TOML file's content as a dict), validated.
+
+    `source` names the document in errors and in the log (a file path, or e.g. "<python>").
+    """
+    if not isinstance(raw, Mapping):
+        raise SpecError(source, "", f"a spec must be a table, got {type(raw).__name__}")
     sweep = raw.get("sweep", {})
     if not isinstance(sweep, Mapping):
         raise SpecError(source, "sweep", f"must be a table, got {type(sweep).__name__}")

@@ -1,1 +1,65 @@
-"""Replay stage: logs and their analysis -> Rerun recordings (.rrd)."""
+"""Replay: logs (and their analysis) -> Rerun recordings (.rrd) to watch and scrub.
+
+Owns: the conversion of a decoded log into Rerun entities (`convert`), the event texts
+(`events`, from the analysis tables when given), the layout (`blueprint`) and the
+recordings written or streamed (`recordings`).
+
+May import: `impactlab.logs` (to read logs), rerun, polars. Must not import: MuJoCo,
+`impactlab.record`, `impactlab.analyze` (it reads the analysis' tables from their files),
+`impactlab.calibrate`.
+
+This package is also the function `impactlab.replay(...)` (see `replay` below).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from impactlab.packages import callable_package
+
+if TYPE_CHECKING:
+    from impactlab.progress import Progress
+
+
+def replay(
+    logs: str | Path | Sequence[str | Path],
+    *,
+    out: str | Path | None = None,
+    analysis: str | Path | None = None,
+    progress: Progress | None = None,
+    verbose: bool = False,
+) -> list[Path]:
+    """Write Rerun recordings of logs; returns the .rrd files written.
+
+    Args:
+        logs: log files, folders or glob patterns.
+        out: None: `<log>.rrd` next to each log; a path ending in `.rrd`: one recording of
+            all runs; otherwise a folder for one `<log stem>.rrd` per log.
+        analysis: an analysis output folder, whose tables give the event texts.
+        progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
+        verbose: report progress on the console (when `progress` is None).
+
+    Raises:
+        LogError: no input names a log, or the analysis folder cannot be read.
+    """
+    from impactlab.errors import LogError
+    from impactlab.logs.load import find_logs
+    from impactlab.progress import reporter
+    from impactlab.replay.recordings import replay_logs
+
+    inputs = [logs] if isinstance(logs, str | Path) else list(logs)
+    paths = find_logs(inputs)
+    if not paths:
+        raise LogError(" ".join(map(str, inputs)), "no logs found")
+    with reporter(progress, verbose) as shown:
+        return replay_logs(
+            paths,
+            out=None if out is None else Path(out),
+            analysis_dir=None if analysis is None else Path(analysis),
+            progress=shown,
+        )
+
+
+callable_package(__name__, replay)

@@ -14,15 +14,12 @@ import math
 import sys
 from pathlib import Path
 
-from impactlab.errors import LogError
-from impactlab.logs.diff import (
+from impactlab.logs.diff_result import (
     DEFAULT_ATOL,
     DEFAULT_IGNORED_META,
     DEFAULT_RTOL,
     Tolerance,
-    diff_logs,
 )
-from impactlab.logs.load import load_log
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -78,7 +75,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help=f"also compare the keys ignored by default ({', '.join(DEFAULT_IGNORED_META)})",
     )
     p.add_argument("--json", action="store_true", help="print the comparison as JSON")
-    p.set_defaults(func=_cmd_diff)
+    p.set_defaults(func=run)
 
 
 def _tolerance(text: str) -> float:
@@ -100,7 +97,12 @@ def _field_tolerance(text: str) -> tuple[str, float]:
     return name.strip(), _tolerance(value.strip())
 
 
-def _cmd_diff(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
+    """Compare; exit 0 equal, 1 different, 2 bad input."""
+    from impactlab.errors import LogError
+    from impactlab.logs.diff import diff_logs
+    from impactlab.logs.load import load_log
+
     try:
         a, b = load_log(args.a), load_log(args.b)
     except LogError as exc:  # LogError's own exit code is 1, which here means "different"

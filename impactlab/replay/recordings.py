@@ -1,4 +1,4 @@
-"""`impactlab replay`: logs (and their analysis) -> Rerun recordings (.rrd), optionally viewed.
+"""Logs (and their analysis) -> Rerun recordings (.rrd), written or streamed to a viewer.
 
 Each recording is written under a temporary name and renamed when complete, so an
 interrupted replay never leaves a file that looks finished.
@@ -6,103 +6,22 @@ interrupted replay never leaves a file that looks finished.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import os
-import subprocess
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import rerun as rr
 
 from impactlab.errors import ImpactlabError, LogError
-from impactlab.logs.load import RunLog, find_logs, load_log
+from impactlab.files import temporary_path
+from impactlab.logs.load import RunLog, load_log
+from impactlab.progress import Progress, Tracker
 from impactlab.replay.blueprint import replay_blueprint
 from impactlab.replay.convert import log_run, time_base
 from impactlab.replay.events import events_for, load_analysis
 
 APPLICATION_ID = "impactlab"
-PARTIAL_SUFFIX = ".partial"
-DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
-
-
-def register(sub: argparse._SubParsersAction) -> None:
-    """Add the `replay` subcommand to the command line's subparsers."""
-    p = sub.add_parser(
-        "replay",
-        help="convert logs (and their analysis) into Rerun recordings (.rrd) and view them",
-        description="Convert each log into a Rerun recording next to it (or into -o FOLDER); "
-        "with -o FILE.rrd, all runs go into one recording, one subtree per run, to compare "
-        "them. Open a recording with `rerun FILE.rrd`.",
-    )
-    p.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="logs, folders or globs")
-    p.add_argument(
-        "-o",
-        "--out",
-        type=Path,
-        help="FILE.rrd: one recording of all runs; otherwise a folder for one .rrd per log",
-    )
-    p.add_argument(
-        "--analysis",
-        type=Path,
-        metavar="DIR",
-        help="analysis output folder (bounces.parquet, collisions.parquet) for the event texts",
-    )
-    view = p.add_mutually_exclusive_group()
-    view.add_argument("--spawn", action="store_true", help="also stream to a new Rerun viewer")
-    view.add_argument(
-        "--serve", action="store_true", help="serve the recordings to a web viewer (blocks)"
-    )
-    view.add_argument(
-        "--connect",
-        nargs="?",
-        const=DEFAULT_URL,
-        metavar="ADDR",
-        help=f"also stream to a running viewer (default {DEFAULT_URL}); put it last",
-    )
-    p.set_defaults(func=_cmd_replay)
-
-
-def _cmd_replay(args: argparse.Namespace) -> int:
-    logs = list(args.logs)
-    connect = args.connect
-    if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
-        logs.append(Path(connect))
-        connect = DEFAULT_URL
-    failed: list[ImpactlabError] = []
-
-    def report(exc: ImpactlabError) -> None:
-        failed.append(exc)
-        print(f"impactlab: error: {exc}", file=sys.stderr)
-
-    sinks: list[Callable[[], rr.GrpcSink]] = []
-    if args.spawn:
-        rr.spawn(connect=False, executable_path=_rerun_executable())
-        sinks.append(rr.GrpcSink)
-    elif connect is not None:
-        url = connect if "://" in connect else f"rerun+http://{connect}/proxy"
-        sinks.append(lambda: rr.GrpcSink(url))
-    written = replay_logs(
-        find_logs(logs),
-        out=args.out,
-        analysis_dir=args.analysis,
-        viewer_sinks=sinks,
-        on_error=report,
-    )
-    for path in written:
-        print(f"wrote {path}")
-    if args.serve and written:
-        subprocess.run([_rerun_executable() or "rerun", "--serve-web", *map(str, written)])
-    return 1 if failed else 0
-
-
-def _print_error(exc: ImpactlabError) -> None:
-    print(f"impactlab: error: {exc}", file=sys.stderr)
-
-
-def _print_warning(path: Path, problem: str) -> None:
-    print(f"impactlab: warning: {path}: {problem}", file=sys.stderr)
 
 
 def replay_logs(
@@ -111,8 +30,8 @@ def replay_logs(
     out: Path | None,
     analysis_dir: Path | None,
     viewer_sinks: Sequence[Callable[[], rr.GrpcSink]] = (),
-    on_error: Callable[[ImpactlabError], None] = _print_error,
-    on_warning: Callable[[Path, str], None] = _print_warning,
+    on_error: Callable[[ImpactlabError], None] | None = None,
+    progress: Progress | None = None,
 ) -> list[Path]:
     """Convert logs into .rrd recordings; returns the files written.
 
@@ -126,7 +45,8 @@ def replay_logs(
         viewer_sinks: factories of extra sinks (e.g. `rr.GrpcSink`) each recording also goes to.
         on_error: called with the error of each log that cannot be read or written; the
             others are converted all the same.
-        on_warning: called with (path, problem) for logs that are damaged or incomplete.
+        progress: receives one count per recording, and a line per error and per damaged
+            or incomplete log; None: silent.
 
     Raises:
         LogError: the analysis folder is missing or holds an unreadable table.
@@ -137,6 +57,13 @@ def replay_logs(
     else:
         folder = out
         groups = [((folder or log.parent) / f"{log.stem}.rrd", [log]) for log in logs]
+    tracker = Tracker("replay", len(groups), progress)
+
+    def error(exc: ImpactlabError) -> None:
+        tracker.say(f"impactlab: error: {exc}", "error")
+        if on_error is not None:
+            on_error(exc)
+
     written = []
     sinks = list(viewer_sinks)
     for target, group in groups:
@@ -145,23 +72,25 @@ def replay_logs(
             try:
                 run = load_log(log)
             except ImpactlabError as exc:
-                on_error(exc)
+                error(exc)
                 continue
             for problem in run.problems:
-                on_warning(log, problem)
+                tracker.say(f"impactlab: warning: {log}: {problem}", "warning")
             runs.append(run)
         if not runs:
+            tracker.add("failed")
             continue
         try:
             written.append(write_recording(runs, target, tables=tables))
         except OSError as exc:
-            on_error(LogError(str(target), f"cannot write: {exc.strerror or exc}"))
+            error(LogError(str(target), f"cannot write: {exc.strerror or exc}"))
         for make in sinks:
             try:
                 stream_recording(runs, make(), tables=tables)
             except RuntimeError as exc:  # the SDK's error when no viewer answers
-                on_error(ImpactlabError(f"viewer: {exc}"))
+                error(ImpactlabError(f"viewer: {exc}"))
                 sinks = []  # one error is enough; the files are still written
+        tracker.add("finished")
     return written
 
 
@@ -172,7 +101,7 @@ def write_recording(runs: Sequence[RunLog], path: Path, *, tables: dict | None =
         OSError: the file cannot be written.
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + PARTIAL_SUFFIX)
+    tmp = temporary_path(path)
     rec = _recording(runs)
     try:
         rec.set_sinks(rr.FileSink(str(tmp)))
@@ -241,9 +170,3 @@ def run_labels(runs: Sequence[RunLog]) -> list[str]:
 
 def _digest(ids: Sequence[str]) -> str:
     return hashlib.sha256("\n".join(ids).encode()).hexdigest()[:12]
-
-
-def _rerun_executable() -> str | None:
-    """The `rerun` CLI of this Python environment (None: rely on PATH)."""
-    candidate = Path(sys.executable).parent / "rerun"
-    return str(candidate) if candidate.exists() else None

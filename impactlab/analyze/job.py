@@ -1,0 +1,76 @@
+"""The analysis job: logs -> every run analyzed -> tables (and, when asked, files).
+
+Each unreadable input is reported (a progress line at level "error") and the others are
+still analyzed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from impactlab.analyze.batch import analyze_logs, slim
+from impactlab.analyze.tables import AnalysisResult, tables
+from impactlab.analyze.write import write_all
+from impactlab.errors import LogError
+from impactlab.executors.base import Executor
+from impactlab.files import check_writable
+from impactlab.logs.load import find_logs
+from impactlab.progress import Progress, say
+
+
+def run_analysis(
+    inputs: Sequence[str | Path],
+    out_dir: Path | None = None,
+    *,
+    figures: bool = True,
+    report: bool = True,
+    executor: Executor | None = None,
+    progress: Progress | None = None,
+) -> AnalysisResult:
+    """Analyze logs; with `out_dir`, write the tables (and figures and report when asked).
+
+    Args:
+        inputs: log files, folders (searched recursively for *.mcap) or glob patterns.
+        out_dir: the output folder (created; on a cluster, a path every machine sees);
+            None: write nothing, return the tables.
+        figures: draw the figures (each run's own and the summary ones) into out_dir/figures.
+        report: write report.md (with the figures when they are drawn).
+        executor: where the per-log analyses run (default: here, one after the other);
+            the tables are reduced here either way, so the results are the same.
+        progress: receives the job's progress and its lines; None: silent.
+
+    Returns:
+        The tables, the inputs that failed, and the files written.
+
+    Raises:
+        OutputError: the output folder cannot be written (exit code 2).
+        LogError: no input names any log.
+    """
+    out = None if out_dir is None else Path(out_dir)
+    if out is not None:
+        check_writable(out)
+    paths = find_logs(inputs)
+    if not paths:
+        raise LogError(" ".join(map(str, inputs)), "no logs found")
+    draw = out is not None and figures
+    fig_dir = out / "figures" if draw and out is not None else None
+    done = analyze_logs(paths, fig_dir=fig_dir, executor=executor, progress=progress)
+    analyses = [slim(d.analysis) for d in done if d.analysis is not None]
+    run_figs = [d.figures for d in done if d.analysis is not None]
+    failed = [d.error for d in done if d.error is not None]
+    for a in analyses:
+        if a.run.partial:
+            problems = "; ".join(a.run.problems)
+            say(
+                progress,
+                "analyze",
+                f"impactlab: warning: {a.run.path}: partial log ({problems})",
+                "warning",
+            )
+    result = tables(analyses, out, failed)
+    if analyses and out is not None:
+        result.files = write_all(result, analyses, run_figs, out=out, figures=draw, report=report)
+        where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
+        say(progress, "analyze", f"{len(analyses)} run(s) analyzed, {len(failed)} failed; {where}")
+    return result

@@ -1,0 +1,167 @@
+"""Write an analysis: Parquet tables, summary.json, the summary figures and report.md."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import polars as pl
+
+from impactlab.analyze import answers
+from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN, decimate
+from impactlab.analyze.report import build_report
+from impactlab.analyze.run_figures import run_label
+from impactlab.analyze.studies import study_parameters
+from impactlab.analyze.tables import AnalysisResult
+from impactlab.files import write_json, write_parquet, write_text
+
+TABLES = ("runs", "bounces", "collisions", "energy", "phases")
+
+
+def write_all(
+    result: AnalysisResult,
+    analyses: Sequence[RunAnalysis],
+    run_figs: Sequence[list[tuple[str, Path]]],
+    *,
+    out: Path,
+    figures: bool = True,
+    report: bool = True,
+) -> list[Path]:
+    """Write the tables, summary.json and (when asked) the summary figures and report.md.
+
+    Args:
+        result: the tables.
+        analyses: every run's analysis (its metadata and small tables).
+        run_figs: each run's own figures, drawn already with its analysis.
+        out: the output folder.
+        figures: draw the summary figures (the runs' own are in `run_figs`).
+        report: write report.md.
+
+    Returns:
+        Every file written: tables, figures, report.md, summary.json.
+    """
+    energy_small = decimate(result.energy)
+    files = [
+        write_parquet(
+            energy_small if name == "energy" else getattr(result, name), out / f"{name}.parquet"
+        )
+        for name in TABLES
+    ]
+    params = {name: study_parameters(result.runs, name) for name in result.studies}
+    stride_note = _stride_note(result.energy, energy_small)
+    figs: dict[str, list[Path]] = {}
+    for made in run_figs:
+        for kind, path in made:
+            figs.setdefault(kind, []).append(path)
+    if figures:
+        for kind, paths in summary_figures(result, analyses, params, out / "figures").items():
+            figs.setdefault(kind, []).extend(paths)
+    files += [p for ps in figs.values() for p in ps]
+    if report:
+        text = build_report(
+            out_dir=out,
+            runs=result.runs,
+            bounces=result.bounces,
+            collisions=result.collisions,
+            phases=result.phases,
+            studies=result.studies,
+            params=params,
+            figures=figs,
+            failed=result.failed,
+            energy_stride_note=stride_note,
+        )
+        files.append(write_text(out / "report.md", text))
+    summary = {
+        "runs": result.runs.to_dicts(),
+        "failed": [{"path": p, "problem": why} for p, why in result.failed],
+        "studies": {name: s.to_dicts() for name, s in result.studies.items()},
+        "study_parameters": params,
+        "answers": {
+            "energy": answers.energy_answer(result.runs),
+            "e_constant_across_bounces": answers.constancy_answer(result.runs, result.bounces),
+            "e_against_drop_height": answers.height_answer(result.studies),
+            "collision": answers.collision_answer(result.collisions),
+            "parameter_study": answers.study_answer(result.studies, params),
+        },
+        "energy_table": stride_note,
+    }
+    files.append(write_json(out / "summary.json", summary))
+    return files
+
+
+def _stride_note(energy: pl.DataFrame, kept: pl.DataFrame) -> str:
+    n_max = energy.group_by("run_id", "body").len()["len"].max() if energy.height else 0
+    return (
+        f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
+        f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
+        f"{kept.height} of {energy.height} rows kept); figures and all quantities use every "
+        "logged step."
+    )
+
+
+def summary_figures(
+    result: AnalysisResult,
+    analyses: Sequence[RunAnalysis],
+    params: dict[str, list[str]],
+    fig_dir: Path,
+) -> dict[str, list[Path]]:
+    """Draw the figures over many runs (bounce decay, restitution, studies), by kind."""
+    from impactlab.analyze import figures
+
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    figs: dict[str, list[Path]] = {}
+    by_exp: dict[str, list[RunAnalysis]] = {}
+    for a in analyses:
+        by_exp.setdefault(a.run.experiment, []).append(a)
+    for exp, group in by_exp.items():
+        if any(a.run.plane_z is not None for a in group) and result.bounces.height:
+            labels = {a.run.run_id: run_label(a) for a in group if a.run.plane_z is not None}
+            figs.setdefault("decay", []).append(
+                figures.bounce_decay_figure(
+                    result.bounces,
+                    labels,
+                    title=f"Bounce height decay: {exp}",
+                    path=fig_dir / f"bounce-decay-{exp}.png",
+                )
+            )
+    has_e = (result.bounces.height and result.bounces["e_velocity"].drop_nulls().len()) or (
+        result.collisions.height and result.collisions["e_measured"].drop_nulls().len()
+    )
+    if has_e:
+        labels = {a.run.run_id: run_label(a) for a in analyses}
+        figs["restitution"] = [
+            figures.restitution_figure(
+                result.bounces
+                if result.bounces.height
+                else pl.DataFrame(schema={"complete": pl.Boolean}),
+                result.collisions,
+                labels,
+                path=fig_dir / "restitution-vs-speed.png",
+            )
+        ]
+    for name, study in result.studies.items():
+        param = params[name][0]
+        group = by_exp[name]
+        if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
+            infos = list(group[0].run.body_info.values())
+            figs.setdefault("study", []).append(
+                figures.collision_study_figure(
+                    study,
+                    param,
+                    title=f"Parameter study: {name}",
+                    m1=infos[0].mass,
+                    m2=infos[1].mass,
+                    path=fig_dir / f"study-{name}.png",
+                )
+            )
+        elif "e_velocity_first" in study.columns:
+            figs.setdefault("study", []).append(
+                figures.bounce_study_figure(
+                    study,
+                    param,
+                    title=f"Parameter study: {name}: e of the first bounce",
+                    path=fig_dir / f"study-{name}.png",
+                )
+            )
+    return figs

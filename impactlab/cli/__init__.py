@@ -1,0 +1,53 @@
+"""The `impactlab` command line: a thin layer over the Python API, one module per command.
+
+Building the parser imports no heavy library (MuJoCo, polars, matplotlib, rerun): each
+command imports what it needs when it runs. User mistakes (`ImpactlabError`) become one
+line on stderr and a non-zero exit code; SIGTERM unwinds like Ctrl-C (exit 130).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from collections.abc import Sequence
+
+from impactlab import __version__
+from impactlab.cli import analyze, calibrate, diff, info, lab, record, replay
+from impactlab.errors import ImpactlabError
+
+COMMANDS = (record, info, analyze, replay, diff, calibrate, lab)  # in help order
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand."""
+    parser = argparse.ArgumentParser(
+        prog="impactlab",
+        description="Simulated impact experiments: record MuJoCo runs to MCAP logs, analyze "
+        "them, replay them in Rerun, compare them. `impactlab lab` does it all.",
+    )
+    parser.add_argument("--version", action="version", version=f"impactlab {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in COMMANDS:
+        command.register(sub)
+    return parser
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # unwinds like Ctrl-C: partial files are removed on the way out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    args = build_parser().parse_args(argv)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return int(args.func(args))
+    except ImpactlabError as exc:
+        print(f"impactlab: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("impactlab: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,45 @@
+"""`impactlab analyze LOGS... -o results/`: tables, figures and report.md.
+
+Each unreadable input gives one line on stderr (`impactlab: error: <path>: <problem>`) and the
+others are still analyzed; the exit code is 1 when any input failed, 2 when the output folder
+cannot be written.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from impactlab.cli.options import add_executor_options, make_executor
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the `analyze` subcommand."""
+    p = sub.add_parser(
+        "analyze",
+        help="analyze logs: energy, bounces, collisions, studies -> tables, figures, report",
+        description="Analyze impactlab logs (files, folders or glob patterns, from any number "
+        "of experiments and sweeps) and write Parquet tables, summary.json, PNG figures and "
+        "report.md to the output folder.",
+    )
+    p.add_argument("logs", nargs="+", metavar="LOG", help="log files, folders or glob patterns")
+    p.add_argument(
+        "-o", "--out", type=Path, default=Path("results"), help="output folder (results/)"
+    )
+    add_executor_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Analyze into the output folder with figures and report."""
+    from impactlab.analyze.job import run_analysis
+    from impactlab.progress import console_progress
+
+    executor = make_executor(args)
+    progress = console_progress()
+    try:
+        result = run_analysis(args.logs, args.out, executor=executor, progress=progress)
+    finally:
+        progress.close()
+        executor.close()
+    return result.exit_code

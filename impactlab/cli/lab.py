@@ -1,0 +1,59 @@
+"""`impactlab lab [-o lab-output]`: every experiment recorded, analyzed, replayed, reported."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from impactlab.cli.options import add_executor_options, make_executor
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the `lab` subcommand."""
+    p = sub.add_parser(
+        "lab",
+        help="record every experiment, analyze the logs, write replays and the report",
+        description="Run the whole lab: record each spec in the experiments folder, analyze "
+        "all logs into tables, figures and a report, and write one Rerun replay per run.",
+    )
+    p.add_argument("-o", "--out", type=Path, default=Path("lab-output"), help="output folder")
+    p.add_argument(
+        "--experiments",
+        type=Path,
+        default=Path("experiments"),
+        help="folder of experiment specs (experiments/)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="re-record runs with complete logs")
+    p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")
+    p.add_argument(
+        "--calibration",
+        choices=("none", "quick", "medium", "full"),
+        default="medium",
+        help="restitution calibration grid for the report (medium: ~170 runs, ~40 s)",
+    )
+    add_executor_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the lab; print where the report is."""
+    from impactlab.lab import run_lab
+    from impactlab.progress import console_progress
+
+    executor = make_executor(args)
+    progress = console_progress()
+    try:
+        result = run_lab(
+            args.out,
+            experiments=args.experiments,
+            overwrite=args.overwrite,
+            replay=not args.no_replay,
+            calibration=args.calibration,
+            executor=executor,
+            progress=progress,
+        )
+    finally:
+        progress.close()
+        executor.close()
+    print(f"report: {result.report}")
+    return result.exit_code

@@ -1,0 +1,56 @@
+"""`impactlab record SPEC_OR_MJCF... -o logs/`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from impactlab.cli.options import add_executor_options, make_executor
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the `record` subcommand."""
+    rec = sub.add_parser(
+        "record",
+        help="simulate experiment specs (.toml) or MJCF models (.xml), one MCAP log per run",
+        description="Simulate each run of the given specs or MJCF models and write one MCAP "
+        "log per run to the output folder.",
+    )
+    rec.add_argument("inputs", nargs="+", type=Path, metavar="SPEC_OR_MJCF")
+    rec.add_argument("-o", "--out", type=Path, default=Path("logs"), help="output folder (logs/)")
+    rec.add_argument(
+        "--set",
+        dest="overrides",
+        action="append",
+        default=[],
+        metavar="PATH=VALUE",
+        help="override a spec field, e.g. --set ball.mass=2 (repeatable; VALUE is TOML)",
+    )
+    rec.add_argument(
+        "--duration", type=float, help="time limit in s for MJCF models (required for them)"
+    )
+    rec.add_argument(
+        "--overwrite", action="store_true", help="re-run runs whose complete log already exists"
+    )
+    add_executor_options(rec)
+    rec.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan (everything validated first), record, print one line per run and a summary."""
+    from impactlab.progress import console_progress
+    from impactlab.record import plan
+    from impactlab.record.recorder import record_runs
+
+    executor = make_executor(args)
+    runs = plan(args.inputs, overrides=args.overrides, duration=args.duration)
+    progress = console_progress()
+    try:
+        result = record_runs(
+            runs, args.out, executor=executor, overwrite=args.overwrite, progress=progress
+        )
+    finally:
+        progress.close()
+        executor.close()
+    print(result.summary(args.out))
+    return result.exit_code

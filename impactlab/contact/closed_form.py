@@ -1,0 +1,85 @@
+"""The linear spring-dashpot in continuous time: Schwager & Poeschel's closed form and friends.
+
+The contact ends when the force vanishes (it cannot pull); units w0 = sqrt(stiffness).
+"""
+
+from __future__ import annotations
+
+import math
+
+from impactlab.contact.checks import ZETA_MAX, bisect, check_restitution, check_zeta
+
+
+def contact_time_factor(zeta: float) -> float:
+    """Return w0 * t_c, the contact duration in units of 1/w0 (contact ends at zero force).
+
+    Args:
+        zeta: damping ratio (>= 0).
+
+    Returns:
+        w0 * t_c (dimensionless): pi at zeta = 0, 2 at zeta = 1.
+    """
+    z = check_zeta(zeta)
+    if z == 0.0:
+        return math.pi
+    if z < 1.0:
+        w = math.sqrt(1.0 - z * z)
+        if z < math.sqrt(0.5):
+            return (math.pi - math.atan(2.0 * z * w / (w * w - z * z))) / w
+        if z * z - w * w == 0.0:
+            return (math.pi / 2.0) / w
+        return math.atan(2.0 * z * w / (z * z - w * w)) / w
+    if z == 1.0:
+        return 2.0
+    g = math.sqrt(z * z - 1.0)
+    return math.atanh(2.0 * z * g / (z * z + g * g)) / g
+
+
+def restitution_closed_form(zeta: float) -> float:
+    """Schwager-Poeschel restitution of the linear dashpot whose contact ends at zero force.
+
+    ``e = exp(-beta t_c)`` with beta = zeta w0 and t_c from :func:`contact_time_factor`
+    (underdamped branches as in the paper; zeta = 1 is the limit exp(-2); zeta > 1 is the
+    overdamped continuation, outside the range :func:`contact_params` uses).
+
+    Args:
+        zeta: damping ratio (>= 0).
+
+    Returns:
+        e in (0, 1].
+    """
+    z = check_zeta(zeta)
+    return math.exp(-z * contact_time_factor(z))
+
+
+def zeta_for_restitution(e: float) -> float:
+    """Invert :func:`restitution_closed_form` on 0 <= zeta <= 1 (continuous time).
+
+    Args:
+        e: target restitution, RESTITUTION_FLOOR <= e <= 1.
+
+    Returns:
+        The damping ratio zeta.
+
+    Raises:
+        ContactModelError: if e is not a number or outside [RESTITUTION_FLOOR, 1].
+    """
+    e = check_restitution(e)
+    return bisect(lambda z: restitution_closed_form(z) - e, 0.0, ZETA_MAX)
+
+
+def max_penetration_factor(zeta: float) -> float:
+    """Return w0 * x_max / v_in for the continuous zero-gravity dashpot (1 at zeta = 0).
+
+    The maximum is at t* = atan2(w, beta) / w, x_max = (v_in / w0) exp(-beta t*).
+    """
+    z = check_zeta(zeta)
+    if z >= 1.0:
+        if z == 1.0:
+            return math.exp(-1.0)
+        g = math.sqrt(z * z - 1.0)
+        s1, s2 = -z + g, -z - g
+        t = math.log(s2 / s1) / (s1 - s2)
+        return (math.exp(s1 * t) - math.exp(s2 * t)) / (s1 - s2)
+    w = math.sqrt(1.0 - z * z)
+    return math.exp(-z * math.atan2(w, z) / w)

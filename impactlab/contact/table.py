@@ -1,0 +1,212 @@
+"""The discretisation table: how MuJoCo's time steps change e, over (zeta, w0 * dt).
+
+Computed once with the step emulation and committed (`restitution_table.json`); regenerate
+with `python -m impactlab.contact.table`, check with `--check` (numerically: the last bit of
+a float differs between CPUs, the table must not).
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import json
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from impactlab.contact.checks import ZETA_MAX, bisect
+from impactlab.contact.closed_form import max_penetration_factor, restitution_closed_form
+from impactlab.contact.emulation import IMPEDANCE, emulate_impact
+
+PHASE_BUDGET = 0.004
+"""Part of the tolerance given to the timestep (worst case over contact-onset phase); the rest
+covers table interpolation and the residual of the gravity calibration."""
+
+TABLE_PATH = Path(__file__).with_name("restitution_table.json")
+
+
+_TABLE_ZETA = np.linspace(0.0, 1.0, 41) ** 1.5
+
+
+_TABLE_W0DT = np.geomspace(0.002, 0.3, 31)
+
+
+_TABLE_PHASES = np.linspace(0.0, 1.0, 257)[1:]
+
+
+def generate_table() -> dict:
+    """Compute the discretisation table over (zeta, w0 * dt) with the mj_step emulation.
+
+    For each node, over 256 contact-onset phases: ``delta`` = midrange of e minus the closed
+    form, ``half`` = half the range of e (worst-case phase error once delta is calibrated out),
+    ``pen`` = worst-case max penetration * w0 / v_in.
+
+    Returns:
+        A JSON-serialisable dict (arrays shaped len(zeta) x len(w0dt)).
+    """
+    nz, nw = len(_TABLE_ZETA), len(_TABLE_W0DT)
+    delta, half, pen = (np.zeros((nz, nw)) for _ in range(3))
+    closed = np.array([restitution_closed_form(z) for z in _TABLE_ZETA])
+    for j, wh in enumerate(_TABLE_W0DT):
+        e, p, _ = emulate_impact(_TABLE_ZETA, float(wh), _TABLE_PHASES)
+        delta[:, j] = 0.5 * (e.max(1) + e.min(1)) - closed
+        half[:, j] = 0.5 * (e.max(1) - e.min(1))
+        pen[:, j] = p.max(1)
+    return {
+        "generated_by": "python -m impactlab.contact.table",
+        "description": (
+            "MuJoCo linear spring-dashpot contact (direct solref, solimp d = "
+            f"{IMPEDANCE}), zero gravity, semi-implicit Euler; over {len(_TABLE_PHASES)} "
+            "contact-onset phases: delta = midrange(e) - closed form, half = range(e) / 2, "
+            "pen = max penetration * w0 / v_in"
+        ),
+        "impedance": IMPEDANCE,
+        "zeta": _TABLE_ZETA.tolist(),
+        "w0dt": _TABLE_W0DT.tolist(),
+        "delta": np.round(delta, 10).tolist(),
+        "half": np.round(half, 10).tolist(),
+        "pen": np.round(pen, 10).tolist(),
+    }
+
+
+@dataclass(frozen=True)
+class Table:
+    zeta: np.ndarray
+    log_w0dt: np.ndarray
+    closed: np.ndarray
+    delta: np.ndarray
+    half: np.ndarray
+    pen: np.ndarray
+
+    def columns(self, w0dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Interpolate (delta, half, pen) over the zeta grid at w0dt (linear in log w0dt).
+
+        Below the table, delta and half are scaled by w0dt / w0dt_min (both ~ w0dt).
+        """
+        lw = math.log(w0dt)
+        if lw <= self.log_w0dt[0]:
+            s = w0dt / math.exp(self.log_w0dt[0])
+            p_cont = np.array([max_penetration_factor(z) for z in self.zeta])
+            return (
+                self.delta[:, 0] * s,
+                self.half[:, 0] * s,
+                p_cont + (self.pen[:, 0] - p_cont) * s,
+            )
+        j = int(np.searchsorted(self.log_w0dt, lw)) - 1
+        j = min(max(j, 0), len(self.log_w0dt) - 2)
+        t = (lw - self.log_w0dt[j]) / (self.log_w0dt[j + 1] - self.log_w0dt[j])
+        t = min(t, 1.0)
+        return tuple(
+            (1.0 - t) * a[:, j] + t * a[:, j + 1] for a in (self.delta, self.half, self.pen)
+        )
+
+    @property
+    def w0dt_max(self) -> float:
+        return float(math.exp(self.log_w0dt[-1]))
+
+
+@functools.cache
+def table() -> Table:
+    raw = json.loads(TABLE_PATH.read_text())
+    zeta = np.asarray(raw["zeta"], float)
+    return Table(
+        zeta=zeta,
+        log_w0dt=np.log(np.asarray(raw["w0dt"], float)),
+        closed=np.array([restitution_closed_form(z) for z in zeta]),
+        delta=np.asarray(raw["delta"], float),
+        half=np.asarray(raw["half"], float),
+        pen=np.asarray(raw["pen"], float),
+    )
+
+
+def discrete(zeta: float, w0dt: float) -> tuple[float, float, float]:
+    """Return (midrange e, worst phase error, worst penetration factor) at (zeta, w0dt)."""
+    tab = table()
+    delta, half, pen = tab.columns(w0dt)
+    return (
+        restitution_closed_form(zeta) + float(np.interp(zeta, tab.zeta, delta)),
+        float(np.interp(zeta, tab.zeta, half)),
+        float(np.interp(zeta, tab.zeta, pen)),
+    )
+
+
+def calibrated_zeta(e: float, w0dt: float) -> float:
+    """zeta whose phase-midrange discrete e equals e at w0dt."""
+    tab = table()
+    delta, _, _ = tab.columns(w0dt)
+    return bisect(
+        lambda z: restitution_closed_form(z) + float(np.interp(z, tab.zeta, delta)) - e,
+        0.0,
+        ZETA_MAX,
+    )
+
+
+def w0dt_max(e: float) -> float:
+    """Largest w0 * dt (within the table) at which the calibrated worst-case error fits."""
+    tab = table()
+    prev_wh, prev_err = None, None
+    for lw in tab.log_w0dt:
+        wh = float(math.exp(lw))
+        _, half, _ = discrete(calibrated_zeta(e, wh), wh)
+        if half > PHASE_BUDGET:
+            if prev_wh is None:
+                return wh * PHASE_BUDGET / half
+            t = (PHASE_BUDGET - prev_err) / (half - prev_err)
+            return math.exp(math.log(prev_wh) + t * (lw - math.log(prev_wh)))
+        prev_wh, prev_err = wh, half
+    return tab.w0dt_max
+
+
+CHECK_RTOL = 1e-12
+CHECK_ATOL = 2e-10
+"""A regenerated table equals the committed one when every number agrees within
+CHECK_ATOL + CHECK_RTOL * |value|: numpy's vectorised kernels round the last bit differently
+on different CPUs (e.g. with and without AVX-512), and the tables store 10 decimals, so a
+value on a rounding boundary may move by one unit of 1e-10. Far below what matters: the
+accuracy promised for e is 5e-3."""
+
+
+def table_difference(committed: dict, fresh: dict) -> str | None:
+    """What differs between two tables beyond the tolerances above, or None."""
+    if set(committed) != set(fresh):
+        return f"keys {sorted(committed)} != {sorted(fresh)}"
+    for key, value in fresh.items():
+        old = committed[key]
+        if isinstance(value, list):
+            a, b = np.asarray(old, float), np.asarray(value, float)
+            if a.shape != b.shape:
+                return f"{key}: shape {a.shape} != {b.shape}"
+            if not np.allclose(a, b, rtol=CHECK_RTOL, atol=CHECK_ATOL):
+                return f"{key}: differs by up to {np.max(np.abs(a - b)):.3g}"
+        elif old != value:
+            return f"{key}: {old!r} != {value!r}"
+    return None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Regenerate (or check) the committed calibration table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=TABLE_PATH, help="output JSON path")
+    parser.add_argument(
+        "--check", action="store_true", help="fail if the committed table is out of date"
+    )
+    args = parser.parse_args(argv)
+    fresh = generate_table()
+    if args.check:
+        current = json.loads(args.out.read_text()) if args.out.exists() else {}
+        problem = table_difference(current, fresh)
+        if problem:
+            print(f"{args.out} is out of date ({problem}); run python -m impactlab.contact.table")
+            return 1
+        print(f"{args.out} is up to date")
+        return 0
+    args.out.write_text(json.dumps(fresh, indent=1) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,59 @@
+"""Pick an executor by name ("local" or "ray"), checked before any work starts."""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+from impactlab.executors.base import Executor, ExecutorError, LocalExecutor
+
+EXECUTORS = ("local", "ray")
+RAY_INSTALL_HINT = "pip install 'impactlab[ray]'"
+
+
+def make_executor(name: str = "local", address: str | None = None) -> Executor:
+    """The executor called `name` ("local" or "ray"; `address` is the Ray cluster's).
+
+    Raises:
+        ExecutorError: unknown name, an address for the local executor, or Ray is not
+            installed (the message says how to install it).
+    """
+    check_executor(name, address)
+    if name == "ray":
+        from impactlab.executors.ray import RayExecutor
+
+        return RayExecutor(address=address)
+    return LocalExecutor()
+
+
+def check_executor(name: str, address: str | None = None) -> None:
+    """Raise `ExecutorError` now if `make_executor(name, address)` cannot work (starts nothing)."""
+    if name not in EXECUTORS:
+        raise ExecutorError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    if name == "local" and address:
+        raise ExecutorError("--address applies to --executor ray")
+    if name == "ray":
+        require_ray()
+
+
+def require_ray() -> None:
+    """Raise `ExecutorError` with the install command when Ray cannot be imported."""
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ExecutorError(
+            f"--executor ray needs Ray, which is not installed: {RAY_INSTALL_HINT}"
+        ) from None
+
+
+@contextlib.contextmanager
+def executor_for(executor: Executor | str | None) -> Iterator[Executor | None]:
+    """The executor to use: `executor` itself, or one made from its name and closed after."""
+    if not isinstance(executor, str):
+        yield executor
+        return
+    made = make_executor(executor)
+    try:
+        yield made
+    finally:
+        made.close()

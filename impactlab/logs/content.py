@@ -1,0 +1,178 @@
+"""What a log holds, as the writer takes it: the run's header, its rows and its outcome.
+
+Plain data with no MuJoCo in it; the recorder fills it (`impactlab.record.log_rows`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from impactlab import __version__
+from impactlab.logs import format as logformat
+from impactlab.logs.scene import GeomShape
+
+
+@dataclass(frozen=True)
+class BodyMeta:
+    """A free body as the run metadata describes it: mass kg, principal inertia kg m^2, radius m."""
+
+    name: str
+    mass: float
+    inertia: tuple[float, float, float]
+    radius: float | None = None
+
+
+@dataclass(frozen=True)
+class PairMeta:
+    """A geom pair that may touch; contact normals point from geom1 to geom2."""
+
+    geom1: str
+    geom2: str
+    body1: str
+    body2: str
+
+    @property
+    def topic(self) -> str:
+        """The MCAP topic of this pair's contacts."""
+        return f"{logformat.CONTACT_TOPIC_PREFIX}{self.geom1}/{self.geom2}"
+
+
+@dataclass(frozen=True)
+class RunMeta:
+    """What the `impactlab.run` metadata record says (see `impactlab.logs.format.RUN_KEYS`)."""
+
+    experiment: str
+    description: str
+    source: str
+    run_id: str
+    spec: Mapping[str, Any]
+    sweep: Mapping[str, Any]
+    spec_hash: str
+    timestep_s: float
+    log_every: int
+    gravity: tuple[float, float, float]
+    bodies: Sequence[BodyMeta]
+    plane_z: float | None
+    mujoco_version: str
+    sweep_index: int = 0
+    sweep_size: int = 1
+
+    def record(self) -> dict[str, str]:
+        """The metadata record, every value a string."""
+        meta = {
+            "log_format_version": logformat.LOG_FORMAT_VERSION,
+            "impactlab_version": __version__,
+            "mujoco_version": self.mujoco_version,
+            "experiment": self.experiment,
+            "description": self.description,
+            "source": self.source,
+            "run_id": self.run_id,
+            "spec": json.dumps(self.spec, sort_keys=True),
+            "sweep": json.dumps(self.sweep, sort_keys=True),
+            "sweep_index": str(self.sweep_index),
+            "sweep_size": str(self.sweep_size),
+            "spec_hash": self.spec_hash,
+            "timestep_s": repr(float(self.timestep_s)),
+            "log_every": str(self.log_every),
+            "gravity": json.dumps([float(x) for x in self.gravity]),
+            "bodies": json.dumps(
+                [
+                    {
+                        "name": b.name,
+                        "mass": float(b.mass),
+                        "inertia": [float(x) for x in b.inertia],
+                        "radius": b.radius,
+                    }
+                    for b in self.bodies
+                ]
+            ),
+            "plane_z": "" if self.plane_z is None else repr(float(self.plane_z)),
+        }
+        assert tuple(meta) == logformat.RUN_KEYS
+        return meta
+
+
+@dataclass(frozen=True)
+class LogHeader:
+    """Everything a log holds besides its rows: the run, its pairs, its scene and its model."""
+
+    run: RunMeta
+    pairs: Sequence[PairMeta]
+    geoms: Sequence[GeomShape]
+    model_xml: str
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How the run ended (the `impactlab.outcome` record and the /events messages)."""
+
+    outcome: str  # completed | unstable
+    reason: str
+    steps: int
+    warnings: Sequence[str] = ()
+
+    def record(self) -> dict[str, str]:
+        """The metadata record, every value a string."""
+        meta = {
+            "outcome": self.outcome,
+            "reason": self.reason,
+            "warnings": json.dumps(list(self.warnings)),
+            "steps": str(self.steps),
+        }
+        assert tuple(meta) == logformat.OUTCOME_KEYS
+        return meta
+
+
+@dataclass
+class LogRows:
+    """Consecutive logged rows of a run.
+
+    Attributes:
+        t_ns: simulation time of each row, integer ns, (n,).
+        bodies: state of each body in `RunMeta.bodies` order, (n, nbody, 13) in
+            `messages.BODY_FIELDS` order.
+        energy: MuJoCo's kinetic, potential and total energy, J, (n, 3).
+        contacts: per pair in `LogHeader.pairs` order, (count, points): the number of
+            contact points at each row, (n,) int, and the points, (n, slots, 13) in
+            `messages.POINT_FIELDS` order (rows with count 0 have no message).
+    """
+
+    t_ns: np.ndarray
+    bodies: np.ndarray
+    energy: np.ndarray
+    contacts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.t_ns.size)
+
+    def slice(self, lo: int, hi: int) -> LogRows:
+        """Rows lo .. hi - 1."""
+        return LogRows(
+            self.t_ns[lo:hi],
+            self.bodies[lo:hi],
+            self.energy[lo:hi],
+            [(count[lo:hi], points[lo:hi]) for count, points in self.contacts],
+        )
+
+    @staticmethod
+    def concat(parts: Sequence[LogRows]) -> LogRows:
+        """The rows of `parts`, one after the other."""
+        if len(parts) == 1:
+            return parts[0]
+        return LogRows(
+            np.concatenate([p.t_ns for p in parts]),
+            np.concatenate([p.bodies for p in parts]),
+            np.concatenate([p.energy for p in parts]),
+            [
+                (
+                    np.concatenate([p.contacts[i][0] for p in parts]),
+                    np.concatenate([p.contacts[i][1] for p in parts]),
+                )
+                for i in range(len(parts[0].contacts))
+            ],
+        )

@@ -1,0 +1,171 @@
+"""Decode a log's gathered records into polars frames: fixed layouts as arrays, the rest by
+the protobuf library."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import polars as pl
+
+from impactlab.logs import messages
+from impactlab.logs.codec import Template
+from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS
+from impactlab.logs.reader import ChannelData
+from impactlab.proto import impactlab_pb2 as pb
+
+
+def decode_fixed(
+    channel: ChannelData, layout: Template, fallback: Callable[[bytes], list[float]]
+) -> tuple[np.ndarray, np.ndarray]:
+    """A channel's times (n,) and values (n, k), sorted by time.
+
+    Pieces in the template's layout are decoded as arrays; anything else goes through the
+    protobuf library (`fallback` turns one payload into its values).
+    """
+    times, values = [], []
+    for t, data in channel.pieces:
+        decoded = layout.decode(data) if isinstance(data, np.ndarray) else None
+        if decoded is None:
+            rows = data if isinstance(data, list) else [bytes(r) for r in data]
+            decoded = np.asarray([fallback(r) for r in rows], dtype=np.float64)
+        times.append(t)
+        values.append(decoded.reshape(len(t), -1))
+    if not times:
+        return np.empty(0, np.int64), np.empty((0, len(layout.slots)))
+    t_all, v_all = np.concatenate(times), np.concatenate(values)
+    if (np.diff(t_all) >= 0).all():
+        return t_all, v_all
+    order = np.argsort(t_all, kind="stable")
+    return t_all[order], v_all[order]
+
+
+def body_state_values(data: bytes) -> list[float]:
+    m = pb.BodyState.FromString(data)
+    return [getattr(m, f) for f in BODY_FIELDS]
+
+
+def energy_values(data: bytes) -> list[float]:
+    m = pb.Energy.FromString(data)
+    return [m.kinetic, m.potential, m.total]
+
+
+def loose_payloads(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
+    """A channel's messages as (times, payload bytes), sorted by time."""
+    times, payloads = [], []
+    for t, data in channel.pieces:
+        times += t.tolist()
+        payloads += data if isinstance(data, list) else [bytes(r) for r in data]
+    order = np.argsort(np.asarray(times, dtype=np.int64), kind="stable")
+    return np.asarray(times, dtype=np.int64)[order], [payloads[i] for i in order]
+
+
+def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
+    """A Contact channel -> one row per contact point."""
+    names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
+    per_point = len(POINT_FIELDS)
+    frames = []
+    for t, data in channel.pieces:
+        values = None
+        if isinstance(data, np.ndarray) and all(names.values()):
+            # a payload of k points is one point's bytes longer than one of k - 1
+            one = messages.contact(*names.values(), 1).size
+            two = messages.contact(*names.values(), 2).size
+            k, rest = divmod(data.shape[1] - one, two - one)
+            if rest == 0 and k >= 0:
+                values = messages.contact(*names.values(), k + 1).decode(data)
+        if values is not None:
+            points = values.reshape(len(t), -1, per_point)
+            frames.append(_contact_frame(run_id, t, names, points))
+        else:
+            rows = data if isinstance(data, list) else [bytes(r) for r in data]
+            frames.append(_contact_frame_slow(run_id, t, rows))
+    if not frames:
+        return empty_contacts(run_id)
+    return frames[0] if len(frames) == 1 else pl.concat(frames).sort(["t_ns", "point"])
+
+
+def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
+    n, k, _ = points.shape
+    rows = n * k
+    t_rep = np.repeat(t, k)
+    columns: dict[str, Any] = {
+        "run_id": _constant(run_id, rows),
+        "t_ns": pl.Series(t_rep, dtype=pl.Int64),
+        "t_s": pl.Series(t_rep / 1e9, dtype=pl.Float64),
+    }
+    columns |= {key: _constant(v, rows) for key, v in names.items()}
+    columns["point"] = pl.Series(np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32)
+    flat = points.reshape(rows, -1)
+    columns |= {f: flat[:, i] for i, f in enumerate(POINT_FIELDS)}
+    return pl.DataFrame(columns)
+
+
+def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]):
+    cols: dict[str, list[Any]] = defaultdict(list)
+    for t, data in zip(t_ns.tolist(), payloads, strict=True):
+        m = pb.Contact.FromString(data)
+        for i, p in enumerate(m.points):
+            cols["t_ns"].append(t)
+            cols["geom1"].append(m.geom1)
+            cols["geom2"].append(m.geom2)
+            cols["body1"].append(m.body1)
+            cols["body2"].append(m.body2)
+            cols["point"].append(i)
+            for f in POINT_FIELDS:
+                cols[f].append(getattr(p, f))
+    if not cols:
+        return empty_contacts(run_id)
+    frame = pl.DataFrame(dict(cols)).with_columns(
+        pl.col("t_ns").cast(pl.Int64), pl.col("point").cast(pl.Int32)
+    )
+    return frame.select(
+        pl.lit(run_id).alias("run_id"),
+        "t_ns",
+        pl.Series("t_s", frame["t_ns"].to_numpy() / 1e9),  # as the fast path (numpy division)
+        *frame.columns[1:],
+    )
+
+
+def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
+    """foxglove.Log payloads -> (run_id, t_ns, level, message)."""
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+
+    levels, messages = [], []
+    for data in payloads:
+        m = Log.FromString(data)
+        levels.append(Log.Level.Name(m.level))
+        messages.append(m.message)
+    return pl.DataFrame(
+        {"run_id": [run_id] * len(levels), "t_ns": t_ns, "level": levels, "message": messages},
+        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String},
+    )
+
+
+def _constant(value: str, n: int) -> pl.Series:
+    """A string column of one value (eager: no query plan per column)."""
+    return pl.Series([value], dtype=pl.String).new_from_index(0, n)
+
+
+def fixed_frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
+    columns: dict[str, Any] = {
+        "run_id": _constant(run_id, len(t_ns)),
+        "t_ns": pl.Series(t_ns, dtype=pl.Int64),
+        "t_s": pl.Series(t_ns / 1e9, dtype=pl.Float64),
+    }
+    columns |= {name: values[:, i] for i, name in enumerate(names)}
+    return pl.DataFrame(columns)
+
+
+def empty_frame(names: Sequence[str], run_id: str) -> pl.DataFrame:
+    return fixed_frame(run_id, np.empty(0, np.int64), np.empty((0, len(names))), names)
+
+
+def empty_contacts(run_id: str) -> pl.DataFrame:
+    schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
+    schema |= {k: pl.String for k in ("geom1", "geom2", "body1", "body2")}
+    schema["point"] = pl.Int32
+    schema |= {f: pl.Float64 for f in POINT_FIELDS}
+    return pl.DataFrame(schema=schema)

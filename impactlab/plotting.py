@@ -1,0 +1,31 @@
+"""Matplotlib set up for files (Agg backend) and figures saved atomically as PNG."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+
+from impactlab.files import atomic_path
+
+DPI = 110
+
+
+def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
+    """Save as PNG under a temporary name, rename into place, close. Returns `path`.
+
+    The layout is `tight_layout`, or with `tight_bbox` the saved box is cut to the artists
+    (for figures whose colour bar spans several axes).
+    """
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if not tight_bbox:
+        fig.tight_layout()
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight" if tight_bbox else None)
+    finally:
+        plt.close(fig)
+    return path

@@ -1,0 +1,145 @@
+"""Progress of long jobs, reported to whoever asks: nothing is printed unless asked.
+
+Every stage that works through many items (runs to record, logs to analyze, replays to
+write) takes `progress`, a callable that receives a `ProgressEvent` after each item and for
+each line of news (a run finished, a warning). `None` reports nothing; `console_progress()`
+draws a progress bar on stderr and prints the lines, which is what the command line and
+`verbose=True` use.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+COUNT_KEYS = ("finished", "unstable", "failed", "reused")
+
+
+@dataclass(frozen=True)
+class ProgressEvent:
+    """Where a job stands.
+
+    Attributes:
+        stage: "record", "analyze", "replay" or "calibrate".
+        done: items done so far (reused items not counted), of `total`.
+        total: items to do.
+        counts: items done so far by kind (finished, unstable, failed, reused).
+        line: a sentence for people (a run's result, a warning), or None.
+        level: the line's kind: "info", "warning" or "error" (an item failed).
+    """
+
+    stage: str
+    done: int
+    total: int
+    counts: Mapping[str, int] = field(default_factory=dict)
+    line: str | None = None
+    level: str = "info"
+
+
+Progress = Callable[[ProgressEvent], None]
+
+
+class Tracker:
+    """Counts a job's items and sends each change to `progress` (None: silent)."""
+
+    def __init__(self, stage: str, total: int, progress: Progress | None, *, reused: int = 0):
+        self.stage = stage
+        self.total = total
+        self.progress = progress
+        self.done = 0
+        self.counts = dict.fromkeys(COUNT_KEYS, 0) | {"reused": reused}
+        self._send(None)
+
+    def _send(self, line: str | None, level: str = "info") -> None:
+        if self.progress is not None:
+            counts = dict(self.counts)
+            self.progress(ProgressEvent(self.stage, self.done, self.total, counts, line, level))
+
+    def add(self, key: str, n: int = 1) -> None:
+        """Count `n` items done as `key` (one of COUNT_KEYS)."""
+        self.counts[key] += n
+        self.done += n
+        self._send(None)
+
+    def say(self, line: str, level: str = "info") -> None:
+        """Pass a line of news on ("info", "warning" or "error")."""
+        self._send(line, level)
+
+
+def say(progress: Progress | None, stage: str, line: str, level: str = "info") -> None:
+    """Pass one line of news on, outside any count (an event with total 0)."""
+    if progress is not None:
+        progress(ProgressEvent(stage, 0, 0, {}, line, level))
+
+
+class ConsoleProgress:
+    """A progress bar on stderr (two items or more, on a terminal); lines on stdout, warnings
+    and errors on stderr.
+
+    Call `close()` when the job is over (the bar is removed from the terminal).
+    """
+
+    def __init__(self, *, echo: Callable[[str], None] = print) -> None:
+        self.echo = echo
+        self._bar: Any = None
+        self._stage: str | None = None
+
+    def __call__(self, event: ProgressEvent) -> None:
+        if event.total == 0:  # a line outside any count
+            self._print(event)
+            return
+        if event.stage != self._stage:
+            self.close()
+            self._stage = event.stage
+            if event.total >= 2:
+                from tqdm import tqdm
+
+                unit = "log" if event.stage in ("analyze", "replay") else "run"
+                # disable=None: no bar when stderr is not a terminal (logs, CI)
+                bar = tqdm(total=event.total, unit=unit, leave=False, file=sys.stderr, disable=None)
+                self._bar = None if bar.disable else bar
+        bar = self._bar
+        if bar is not None:
+            if event.done != bar.n:
+                bar.update(event.done - bar.n)
+            shown = {k: v for k, v in event.counts.items() if v}
+            bar.set_postfix(shown, refresh=False)
+        self._print(event)
+
+    def _print(self, event: ProgressEvent) -> None:
+        if event.line is None:
+            return
+        if event.level in ("error", "warning"):
+            print(event.line, file=sys.stderr)
+        elif self._bar is not None:
+            self._bar.write(event.line)
+        else:
+            self.echo(event.line)
+
+    def close(self) -> None:
+        """Remove the bar."""
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        self._stage = None
+
+
+def console_progress() -> ConsoleProgress:
+    """The command line's progress: a bar on stderr, the lines on stdout."""
+    return ConsoleProgress()
+
+
+@contextlib.contextmanager
+def reporter(progress: Progress | None, verbose: bool) -> Iterator[Progress | None]:
+    """`progress` itself, or with `verbose` (and no `progress`) the console's, closed after."""
+    if progress is not None or not verbose:
+        yield progress
+        return
+    console = console_progress()
+    try:
+        yield console
+    finally:
+        console.close()

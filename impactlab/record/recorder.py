@@ -1,0 +1,74 @@
+"""The record job: reuse complete logs, record the rest here or on an executor, report."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from impactlab.executors.base import Executor
+from impactlab.files import check_writable
+from impactlab.logs.writer import remove_stale_partials
+from impactlab.progress import Progress, Tracker
+from impactlab.record.batch import BATCH_RUNS, record_batches
+from impactlab.record.folder import log_path, reusable
+from impactlab.record.job import PlannedRun
+from impactlab.record.results import RecordedRun, RecordResult
+from impactlab.record.tasks import count_run, record_on
+
+
+def record_runs(
+    runs: Sequence[PlannedRun],
+    out_dir: Path,
+    *,
+    executor: Executor | None = None,
+    overwrite: bool = False,
+    threads: int | None = None,
+    batch_size: int = BATCH_RUNS,
+    progress: Progress | None = None,
+) -> RecordResult:
+    """Record planned runs into `out_dir`, one log per run; reuse complete logs.
+
+    Args:
+        runs: from `impactlab.record.job.plan`.
+        out_dir: the output folder (created); on a cluster, a path every machine sees.
+        executor: where the runs are simulated (default: here, batched rollouts on every
+            core, the next batch simulating while the last one's logs are written).
+        overwrite: record again runs whose complete log exists.
+        threads: rollout threads (default: one per core here, one per task on a cluster).
+        batch_size: runs per rollout here.
+        progress: receives the job's progress (see `impactlab.progress`); None: silent.
+
+    Returns:
+        Every run, in plan order, reused ones included.
+
+    Raises:
+        OutputError: the folder cannot be written (before any simulation).
+        ImpactlabError: here, a log cannot be written (a full disk); the logs written before
+            are complete.
+    """
+    out_dir = Path(out_dir)
+    check_writable(out_dir)
+    by_id: dict[str, RecordedRun] = {}
+    todo = []
+    for run in runs:
+        found = None if overwrite else reusable(out_dir, run)
+        if found is not None:
+            by_id[run.info.run_id] = found
+        else:
+            remove_stale_partials(log_path(out_dir, run))
+            todo.append(run)
+    tracker = Tracker("record", len(todo), progress, reused=len(by_id))
+    if by_id:
+        tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
+    if executor is None or executor.name == "local":
+        done = record_batches(
+            todo,
+            out_dir,
+            batch_size=batch_size,
+            threads=threads,
+            on_run=lambda run: count_run(tracker, run),
+        )
+    else:
+        done = record_on(executor, todo, out_dir, tracker, overwrite=overwrite, threads=threads)
+    by_id |= {r.run_id: r for r in done}
+    return RecordResult([by_id[r.info.run_id] for r in runs if r.info.run_id in by_id])

@@ -1,0 +1,128 @@
+"""Record runs as executor tasks (here or on a Ray cluster): small tasks, logs named by hash.
+
+The planned runs are cut into tasks (`task_groups`); each task records its runs with
+batched rollouts and writes their logs straight to the output folder, named by the run's
+spec hash and written atomically, so a retried task overwrites its own partial output and
+never duplicates a run. A task returns only a `RecordedRun` per run.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TypeVar
+
+from impactlab.executors.base import Executor
+from impactlab.progress import Tracker
+from impactlab.record.batch import record_batches
+from impactlab.record.folder import log_path, reusable
+from impactlab.record.job import PlannedRun
+from impactlab.record.model import model_from_spec
+from impactlab.record.results import RecordedRun
+
+T = TypeVar("T")
+
+MAX_TASK_RUNS = 16  # runs per task at most: a lost task costs little, results stream in
+TASKS_PER_SLOT = 4  # tasks per worker slot at least (when there are enough runs): balance
+
+
+def portable(run: PlannedRun) -> PlannedRun:
+    """The planned run with a picklable `build` (rebuilt from the spec in the task).
+
+    Spec runs rebuild their model from the `RunSpec`; MJCF runs carry their validated model
+    (it pickles), so the workers need neither the MJCF file nor the spec file.
+    """
+    if run.spec is not None:
+        build = functools.partial(model_from_spec, run.spec)
+    else:
+        build = functools.partial(_same, run.build())
+    return dataclasses.replace(run, build=build)
+
+
+def _same(value: T) -> T:
+    return value
+
+
+def task_groups(runs: Sequence[T], slots: int, *, max_runs: int = MAX_TASK_RUNS) -> list[list[T]]:
+    """Consecutive runs cut into tasks: about TASKS_PER_SLOT tasks per slot, 1..max_runs runs.
+
+    Consecutive runs are mostly points of one sweep, so a task's runs share a batched
+    rollout; several tasks per slot keep every slot busy until the end, and a task stays
+    small enough that a retry costs little and results stream to the driver.
+    """
+    if not runs:
+        return []
+    size = max(1, min(max_runs, math.ceil(len(runs) / (max(1, slots) * TASKS_PER_SLOT))))
+    return [list(runs[i : i + size]) for i in range(0, len(runs), size)]
+
+
+def record_group(
+    runs: Sequence[PlannedRun],
+    out_dir: Path,
+    *,
+    threads: int | None = None,
+    skip_complete: bool = True,
+) -> list[RecordedRun]:
+    """Record a group of planned runs (the body of one record task).
+
+    Runs whose complete log is there already (a retried task) are not simulated again. A
+    batch that fails, or a log that cannot be written, fails only its own runs.
+    """
+    out: list[RecordedRun] = []
+    todo = []
+    for run in runs:
+        found = reusable(out_dir, run) if skip_complete else None
+        if found is not None:
+            out.append(found)
+        else:
+            todo.append(run)
+    return out + record_batches(todo, out_dir, threads=threads, stop_on_write_error=False)
+
+
+def record_on(
+    executor: Executor,
+    runs: Sequence[PlannedRun],
+    out_dir: Path,
+    tracker: Tracker,
+    *,
+    overwrite: bool,
+    threads: int | None,
+) -> list[RecordedRun]:
+    """Record runs (none of them reusable) as tasks of `executor`; returns every run's result."""
+    groups = task_groups([portable(r) for r in runs], executor.slots)
+    if threads is None and executor.name != "local":
+        threads = 1  # one rollout thread per task slot (a Ray task asks for one CPU)
+    task = functools.partial(  # absolute: a worker's working folder is not the driver's
+        record_group, out_dir=out_dir.absolute(), threads=threads, skip_complete=not overwrite
+    )
+    out: list[RecordedRun] = []
+    for outcome in executor.map(task, groups) if groups else ():
+        group = groups[outcome.index]
+        if outcome.ok:
+            done = [dataclasses.replace(s, path=out_dir / s.path.name) for s in outcome.value or []]
+        else:
+            reason = outcome.error or "task failed"
+            done = [
+                RecordedRun(r.info.run_id, log_path(out_dir, r), "failed", reason=reason)
+                for r in group
+            ]
+        for run in done:
+            out.append(run)
+            count_run(tracker, run)
+    return out
+
+
+def count_run(tracker: Tracker, run: RecordedRun) -> None:
+    """Count a finished run and pass its lines on."""
+    if run.failed:
+        tracker.add("failed")
+        tracker.say(f"impactlab: error: {run.run_id}: {run.reason}", "error")
+        return
+    tracker.add(
+        "unstable" if run.unstable else "finished" if run.status == "recorded" else "reused"
+    )
+    for line in run.lines():
+        tracker.say(line)
