@@ -69,6 +69,7 @@ def test_channels_schemas_and_counts(bouncy_log):
     assert topics == {
         "/scene": "foxglove.SceneUpdate",
         "/bodies/ball/state": "impactlab.BodyState",
+        "/bodies/ball/clearance": "impactlab.Clearance",
         "/contacts/plane/ball": "impactlab.Contact",
         "/energy": "impactlab.Energy",
         "/tf": "foxglove.FrameTransforms",
@@ -80,6 +81,7 @@ def test_channels_schemas_and_counts(bouncy_log):
     assert {c.compression for c in summary.chunk_indexes} == {"zstd"}
     counts = {t: sum(1 for m in msgs if m[0] == t) for t in topics}
     assert counts["/bodies/ball/state"] == counts["/energy"] == counts["/tf"]
+    assert counts["/bodies/ball/clearance"] == counts["/energy"]
     assert 0 < counts["/contacts/plane/ball"] < counts["/energy"]
     assert counts["/scene"] == 1
 

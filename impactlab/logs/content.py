@@ -19,12 +19,37 @@ from impactlab.logs.scene import GeomShape
 
 @dataclass(frozen=True)
 class BodyMeta:
-    """A free body as the run metadata describes it: mass kg, principal inertia kg m^2, radius m."""
+    """A free body as the run metadata describes it: mass kg, principal inertia kg m^2, radius m.
+
+    `radius` is set when the body is one sphere centred at its centre of mass; `shape` names
+    its collision geoms' types, `geoms` the geoms, and `rest_height_m` is the lowest height
+    its centre of mass can have above a flat surface it touches (None: no collision geom).
+    """
 
     name: str
     mass: float
     inertia: tuple[float, float, float]
     radius: float | None = None
+    shape: str = ""
+    rest_height_m: float | None = None
+    geoms: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class SurfaceMeta:
+    """A ground surface: a static geom free bodies can land on.
+
+    Attributes:
+        name: the geom's name.
+        type: its type (plane, box, mesh, ...).
+        level_m: its highest point along -gravity, m (a plane: the height of its origin).
+        distance: whether MuJoCo measures the bodies' distance to it (not for height fields).
+    """
+
+    name: str
+    type: str
+    level_m: float
+    distance: bool = True
 
 
 @dataclass(frozen=True)
@@ -61,6 +86,8 @@ class RunMeta:
     mujoco_version: str
     sweep_index: int = 0
     sweep_size: int = 1
+    integrator: str = ""
+    surfaces: Sequence[SurfaceMeta] = ()
 
     def record(self) -> dict[str, str]:
         """The metadata record, every value a string."""
@@ -87,11 +114,21 @@ class RunMeta:
                         "mass": float(b.mass),
                         "inertia": [float(x) for x in b.inertia],
                         "radius": b.radius,
+                        "shape": b.shape,
+                        "rest_height_m": b.rest_height_m,
+                        "geoms": list(b.geoms),
                     }
                     for b in self.bodies
                 ]
             ),
             "plane_z": "" if self.plane_z is None else repr(float(self.plane_z)),
+            "integrator": self.integrator,
+            "ground": json.dumps(
+                [
+                    {"name": s.name, "type": s.type, "level_m": s.level_m, "distance": s.distance}
+                    for s in self.surfaces
+                ]
+            ),
         }
         assert tuple(meta) == logformat.RUN_KEYS
         return meta
@@ -99,12 +136,17 @@ class RunMeta:
 
 @dataclass(frozen=True)
 class LogHeader:
-    """Everything a log holds besides its rows: the run, its pairs, its scene and its model."""
+    """Everything a log holds besides its rows: the run, its pairs, its scene and its model.
+
+    `clearance` lists, per body with a clearance channel, the names of the surfaces its
+    distances are measured to, in value order.
+    """
 
     run: RunMeta
     pairs: Sequence[PairMeta]
     geoms: Sequence[GeomShape]
     model_xml: str
+    clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
 
 
 @dataclass(frozen=True)
@@ -140,12 +182,15 @@ class LogRows:
         contacts: per pair in `LogHeader.pairs` order, (count, points): the number of
             contact points at each row, (n,) int, and the points, (n, slots, 13) in
             `messages.POINT_FIELDS` order (rows with count 0 have no message).
+        clearance: per body in `LogHeader.clearance` order, its distance to each of its
+            surfaces, (n, k) m.
     """
 
     t_ns: np.ndarray
     bodies: np.ndarray
     energy: np.ndarray
     contacts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    clearance: list[np.ndarray] = field(default_factory=list)
 
     def __len__(self) -> int:
         return int(self.t_ns.size)
@@ -157,6 +202,7 @@ class LogRows:
             self.bodies[lo:hi],
             self.energy[lo:hi],
             [(count[lo:hi], points[lo:hi]) for count, points in self.contacts],
+            [c[lo:hi] for c in self.clearance],
         )
 
     @staticmethod
@@ -174,5 +220,9 @@ class LogRows:
                     np.concatenate([p.contacts[i][1] for p in parts]),
                 )
                 for i in range(len(parts[0].contacts))
+            ],
+            [
+                np.concatenate([p.clearance[i] for p in parts])
+                for i in range(len(parts[0].clearance))
             ],
         )

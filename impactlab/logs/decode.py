@@ -129,6 +129,52 @@ def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]
     )
 
 
+def decode_clearance(run_id: str, channel: ChannelData) -> pl.DataFrame:
+    """A Clearance channel -> one row per logged step and surface (long format).
+
+    The channel's metadata names the body and (JSON) the surfaces in value order.
+
+    Raises:
+        ValueError: the metadata does not name the body and its surfaces.
+    """
+    import json
+
+    body = channel.metadata.get("body", "")
+    try:
+        surfaces = json.loads(channel.metadata.get("surfaces", ""))
+    except ValueError:
+        surfaces = None
+    if not body or not isinstance(surfaces, list) or not all(isinstance(s, str) for s in surfaces):
+        raise ValueError("the channel's metadata does not name its body and surfaces")
+    k = len(surfaces)
+
+    def fallback(data: bytes) -> list[float]:
+        values = list(pb.Clearance.FromString(data).distance)
+        if len(values) != k:
+            raise ValueError(f"{len(values)} distances for {k} surfaces")
+        return values
+
+    t, values = decode_fixed(channel, messages.clearance(k), fallback)
+    n = len(t)
+    return pl.DataFrame(
+        {
+            "run_id": _constant(run_id, n * k),
+            "t_ns": pl.Series(np.repeat(t, k), dtype=pl.Int64),
+            "t_s": pl.Series(np.repeat(t, k) / 1e9, dtype=pl.Float64),
+            "body": _constant(body, n * k),
+            "surface": pl.Series(surfaces * n, dtype=pl.String),
+            "clearance_m": values.reshape(-1) if n else np.empty(0),
+        }
+    )
+
+
+def empty_clearance(run_id: str) -> pl.DataFrame:
+    """A clearance frame with no rows."""
+    schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
+    schema |= {"body": pl.String, "surface": pl.String, "clearance_m": pl.Float64}
+    return pl.DataFrame(schema=schema)
+
+
 def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
     """foxglove.Log payloads -> (run_id, t_ns, level, message)."""
     from foxglove_schemas_protobuf.Log_pb2 import Log

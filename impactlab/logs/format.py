@@ -5,6 +5,8 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | topic                       | schema                  | when                                |
 |-----------------------------|-------------------------|-------------------------------------|
 | /bodies/<body>/state        | impactlab.BodyState     | every logged step                   |
+| /bodies/<body>/clearance    | impactlab.Clearance     | every logged step (bodies with a    |
+|                             |                         | ground surface to measure against)  |
 | /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
 | /energy                     | impactlab.Energy        | every logged step                   |
 | /tf                         | foxglove.FrameTransforms| every logged step                   |
@@ -24,6 +26,7 @@ PROFILE = ""  # no MCAP well-known profile fits protobuf logs of a simulator
 ENCODING = "protobuf"
 
 BODY_STATE_TOPIC = "/bodies/{body}/state"
+CLEARANCE_TOPIC = "/bodies/{body}/clearance"
 CONTACT_TOPIC_PREFIX = "/contacts/"
 ENERGY_TOPIC = "/energy"
 TF_TOPIC = "/tf"
@@ -32,6 +35,7 @@ EVENTS_TOPIC = "/events"
 WORLD_FRAME = "world"
 
 BODY_STATE_SCHEMA = "impactlab.BodyState"
+CLEARANCE_SCHEMA = "impactlab.Clearance"
 CONTACT_SCHEMA = "impactlab.Contact"
 ENERGY_SCHEMA = "impactlab.Energy"
 
@@ -56,9 +60,13 @@ RUN_KEYS = (
     "timestep_s",
     "log_every",
     "gravity",  # JSON [gx, gy, gz], m/s^2
-    "bodies",  # JSON [{name, mass, inertia, radius}], kg, kg m^2, m
+    "bodies",  # JSON [{name, mass, inertia, radius, shape, rest_height_m, geoms}], kg, kg m^2, m
     "plane_z",  # height of the plane in m, or "" when there is none
+    "integrator",  # MuJoCo's integrator (Euler, RK4, implicit, implicitfast)
+    "ground",  # JSON [{name, type, level_m, distance}]: the static geoms bodies can land on
 )
+# keys added after format version 1 was first written; older logs lack them (compatible)
+RUN_KEYS_ADDED = ("integrator", "ground")
 # keys of the outcome metadata record
 OUTCOME_KEYS = (
     "outcome",  # completed | unstable

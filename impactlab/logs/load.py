@@ -25,9 +25,11 @@ from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.decode import (
     body_state_values,
+    decode_clearance,
     decode_contacts,
     decode_events,
     decode_fixed,
+    empty_clearance,
     empty_contacts,
     empty_frame,
     energy_values,
@@ -40,18 +42,40 @@ from impactlab.logs.reader import read_mcap
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
 DATA_SCHEMAS = frozenset(
-    {logformat.BODY_STATE_SCHEMA, logformat.CONTACT_SCHEMA, logformat.ENERGY_SCHEMA}
+    {
+        logformat.BODY_STATE_SCHEMA,
+        logformat.CONTACT_SCHEMA,
+        logformat.ENERGY_SCHEMA,
+        logformat.CLEARANCE_SCHEMA,
+    }
 )
 
 
 @dataclass(frozen=True)
 class BodyInfo:
-    """A free body as the log's metadata describes it (kg, kg m^2 principal, m)."""
+    """A free body as the log's metadata describes it (kg, kg m^2 principal, m).
+
+    `rest_height_m`: the lowest height of its centre of mass above a flat surface it touches
+    (older logs: the radius of a sphere, else None); `shape`: its collision geoms' types.
+    """
 
     name: str
     mass: float
     inertia: tuple[float, float, float]
     radius: float | None
+    rest_height_m: float | None = None
+    shape: str = ""
+    geoms: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class SurfaceInfo:
+    """A ground surface as the log's metadata describes it (see `logs.content.SurfaceMeta`)."""
+
+    name: str
+    type: str
+    level_m: float
+    distance: bool
 
 
 @dataclass
@@ -68,6 +92,8 @@ class RunLog:
         energy: MuJoCo's energy (run_id, t_ns, t_s, kinetic, potential, total), J.
         events: the log's text events (run_id, t_ns, level, message).
         partial: the file is damaged or incomplete; `problems` says how.
+        clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
+            surface, clearance_m); empty in logs written before it was recorded.
     """
 
     path: Path
@@ -79,6 +105,7 @@ class RunLog:
     events: pl.DataFrame
     partial: bool = False
     problems: list[str] = field(default_factory=list)
+    clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
 
     @property
     def experiment(self) -> str:
@@ -102,11 +129,33 @@ class RunLog:
 
     @property
     def body_info(self) -> dict[str, BodyInfo]:
-        """Mass, inertia and radius of each free body."""
-        return {
-            b["name"]: BodyInfo(b["name"], b["mass"], tuple(b["inertia"]), b.get("radius"))
-            for b in json.loads(self.meta.get("bodies", "[]"))
-        }
+        """Mass, inertia, radius and shape of each free body."""
+        out = {}
+        for b in json.loads(self.meta.get("bodies", "[]")):
+            radius = b.get("radius")
+            rest = b.get("rest_height_m", radius)  # older logs: spheres only
+            shape = b.get("shape", "sphere" if radius is not None else "")
+            geoms = tuple(b.get("geoms", ()))
+            out[b["name"]] = BodyInfo(
+                b["name"], b["mass"], tuple(b["inertia"]), radius, rest, shape, geoms
+            )
+        return out
+
+    @property
+    def surfaces(self) -> list[SurfaceInfo] | None:
+        """The ground surfaces; None for logs written before they were recorded."""
+        if "ground" not in self.meta:
+            return None
+        return [
+            SurfaceInfo(s["name"], s["type"], float(s["level_m"]), bool(s["distance"]))
+            for s in json.loads(self.meta["ground"])
+        ]
+
+    @property
+    def integrator(self) -> str:
+        """MuJoCo's integrator ("Euler" for logs that do not say)."""
+        spec = self.meta.get("integrator") or self.spec.get("options", {}).get("integrator")
+        return spec or "Euler"
 
     @property
     def gravity(self) -> np.ndarray:
@@ -184,6 +233,7 @@ def load_log(path: str | Path) -> RunLog:
     run_id = meta.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
+    clearance_frames: list[pl.DataFrame] = []
     energy = empty_frame(ENERGY_FIELDS, run_id)
     events = pl.DataFrame(
         schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
@@ -197,6 +247,8 @@ def load_log(path: str | Path) -> RunLog:
                 bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS)
             elif schema == logformat.CONTACT_SCHEMA:
                 contact_frames.append(decode_contacts(run_id, channel))
+            elif schema == logformat.CLEARANCE_SCHEMA:
+                clearance_frames.append(decode_clearance(run_id, channel))
             elif schema == logformat.ENERGY_SCHEMA:
                 t, values = decode_fixed(channel, messages.energy(), energy_values)
                 energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
@@ -220,4 +272,5 @@ def load_log(path: str | Path) -> RunLog:
         events=events,
         partial=bool(problems),
         problems=problems,
+        clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
     )

@@ -3,6 +3,7 @@
 Value orders:
 - BodyState: x y z, qw qx qy qz, vx vy vz, wx wy wz (`BODY_FIELDS`).
 - Energy: kinetic potential total.
+- Clearance: one distance per surface, in the order of the channel's `surfaces`.
 - ContactPoint: the fields of `impactlab.ContactPoint` in number order (`POINT_FIELDS`).
 - FrameTransforms: per body tx ty tz, qw qx qy qz.
 """
@@ -41,6 +42,16 @@ def body_state() -> Template:
 def energy() -> Template:
     """Layout of `impactlab.Energy`."""
     return Template.learn(pb.Energy, _set_fields(ENERGY_FIELDS), len(ENERGY_FIELDS))
+
+
+@cache
+def clearance(k: int) -> Template:
+    """Layout of `impactlab.Clearance` with k distances."""
+
+    def setter(msg, values):
+        msg.distance.extend(values)
+
+    return Template.learn(pb.Clearance, setter, k)
 
 
 @cache

@@ -36,6 +36,19 @@ def metadata_problem(meta: dict[str, str]) -> str | None:
             and _real(value.get("mass"))
             and vector(value.get("inertia"))
             and (value.get("radius") is None or _real(value.get("radius")))
+            and (value.get("rest_height_m") is None or _real(value.get("rest_height_m")))
+            and isinstance(value.get("shape", ""), str)
+            and isinstance(value.get("geoms", []), list)
+            and all(isinstance(g, str) for g in value.get("geoms", []))
+        )
+
+    def surface(value: Any) -> bool:
+        return (
+            isinstance(value, dict)
+            and isinstance(value.get("name"), str)
+            and isinstance(value.get("type"), str)
+            and _real(value.get("level_m"))
+            and isinstance(value.get("distance"), bool)
         )
 
     checks: dict[str, Callable[[str], bool]] = {
@@ -49,6 +62,7 @@ def metadata_problem(meta: dict[str, str]) -> str | None:
         "sweep": lambda v: isinstance(v, dict),
         "gravity": vector,
         "bodies": lambda v: isinstance(v, list) and all(body(b) for b in v),
+        "ground": lambda v: isinstance(v, list) and all(surface(s) for s in v),
         "warnings": lambda v: isinstance(v, list) and all(isinstance(w, str) for w in v),
     }
     for key, ok in checks.items():

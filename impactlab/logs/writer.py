@@ -11,6 +11,7 @@ The writer knows the log format and nothing of MuJoCo: the recorder hands it pla
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import IO
@@ -77,6 +78,17 @@ class LogWriter:
             )
             for b in header.run.bodies
         ]
+        self._clearance = [
+            (
+                channels.add(
+                    logformat.CLEARANCE_TOPIC.format(body=body),
+                    pb.Clearance,
+                    {"body": body, "surfaces": json.dumps(list(surfaces))},
+                ),
+                messages.clearance(len(surfaces)),
+            )
+            for body, surfaces in header.clearance
+        ]
         self._pairs = []
         for pair in header.pairs:
             meta = {
@@ -93,6 +105,7 @@ class LogWriter:
         row_bytes = (
             len(self._bodies) * messages.body_state().size
             + messages.energy().size
+            + sum(layout.size for _, layout in self._clearance)
             + self._tf_layout.size
             + 200
         )
@@ -134,6 +147,8 @@ class LogWriter:
             self._scene_payload = None
         for i, channel_id in enumerate(self._bodies):
             blocks.append(Block(channel_id, t, messages.body_state().encode(rows.bodies[:, i])))
+        for (channel_id, layout), values in zip(self._clearance, rows.clearance, strict=True):
+            blocks.append(Block(channel_id, t, layout.encode(values)))
         for (channel_id, pair), (count, points) in zip(self._pairs, rows.contacts, strict=True):
             blocks += _contact_blocks(channel_id, pair, t, count, points)
         blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))

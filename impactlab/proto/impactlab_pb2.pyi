@@ -89,3 +89,9 @@ class Energy(_message.Message):
     potential: float
     total: float
     def __init__(self, kinetic: _Optional[float] = ..., potential: _Optional[float] = ..., total: _Optional[float] = ...) -> None: ...
+
+class Clearance(_message.Message):
+    __slots__ = ("distance",)
+    DISTANCE_FIELD_NUMBER: _ClassVar[int]
+    distance: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, distance: _Optional[_Iterable[float]] = ...) -> None: ...

@@ -51,6 +51,9 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
             mass=float(model.body_mass[b.body_id]),
             inertia=tuple(float(x) for x in model.body_inertia[b.body_id]),
             radius=b.radius,
+            shape=b.shape,
+            rest_height_m=b.rest_height,
+            geoms=b.geoms,
         )
         for b in inst.bodies
     ]
@@ -71,8 +74,21 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         mujoco_version=mujoco.__version__,
         sweep_index=info.sweep_index,
         sweep_size=info.sweep_size,
+        integrator=integrator_name(model),
+        surfaces=inst.surfaces,
     )
-    return LogHeader(run, [c.meta for c in inst.contacts], inst.geoms, inst.xml)
+    clearance = [
+        (b.name, tuple(c.other for c in inst.clearance_of(b.name)))
+        for b in inst.bodies
+        if inst.clearance_of(b.name)
+    ]
+    return LogHeader(run, [c.meta for c in inst.contacts], inst.geoms, inst.xml, clearance)
+
+
+def integrator_name(model: mujoco.MjModel) -> str:
+    """The model's integrator as MJCF spells it (Euler, RK4, implicit, implicitfast)."""
+    name = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
+    return {"EULER": "Euler", "RK4": "RK4"}.get(name, name.lower())
 
 
 def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) -> LogRows:
@@ -84,7 +100,12 @@ def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) 
     e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
     energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
     contacts = [contact_points(pair, sensordata) for pair in inst.contacts]
-    return LogRows(t_ns, bodies, energy, contacts)
+    clearance = [
+        np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
+        for b in inst.bodies
+        if inst.clearance_of(b.name)
+    ]
+    return LogRows(t_ns, bodies, energy, contacts, clearance)
 
 
 def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -2,21 +2,25 @@
 
 Instrumenting adds the sensors the recorder reads, so a batched `mujoco.rollout` captures
 everything without a Python loop: per free body its pose and world-frame velocities, MuJoCo's
-kinetic and potential energy, and one `contact` sensor per pair of geoms that can touch.
+kinetic and potential energy, one `contact` sensor per pair of geoms that can touch, and one
+`distance` sensor per pair of a body's collision geom and a ground surface (its clearance)
+or another free body's geom (the gap the separation stop rule watches). The ground and the
+bodies' shapes are described by `impactlab.record.geometry`.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
-from impactlab.logs.content import PairMeta
+from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
+from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.spec import RunSpec
 
@@ -26,16 +30,37 @@ CONTACT_DATA_BITS = 1 | 2 | 8 | 16 | 32 | 64
 CONTACT_SLOT_SIZE = 1 + 3 + 1 + 3 + 3 + 3
 BODY_STATE_SIZE = 13  # pos 3, quat 4, linvel 3, angvel 3
 PLANE_NAME = "plane"
+DISTANCE_CUTOFF_M = 1.0e4
+"""Distances beyond this are reported as this (MuJoCo's distance sensors need a cutoff)."""
 
 
 @dataclass(frozen=True)
 class BodyChannel:
-    """A free body and where its 13 state values start in sensordata."""
+    """A free body, where its 13 state values start in sensordata, and its shape.
+
+    Attributes:
+        radius: the radius when the body is one sphere centred at its centre of mass.
+        shape: its collision geoms' types ("sphere", "box", "box+sphere", ...).
+        rest_height: lowest centre-of-mass height above a flat surface it touches, m.
+        geoms: names of its collision geoms.
+    """
 
     name: str
     body_id: int
     adr: int
     radius: float | None
+    shape: str = "sphere"
+    rest_height: float | None = None
+    geoms: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class DistanceChannel:
+    """A body's distance to a surface (or another body): the min of the sensors at `adrs`."""
+
+    body: str
+    other: str
+    adrs: tuple[int, ...]
 
 
 @dataclass(frozen=True)
@@ -66,6 +91,13 @@ class InstrumentedModel:
     geoms: list[GeomShape]
     energy_adr: int
     keyframe: int | None
+    surfaces: list[SurfaceMeta] = field(default_factory=list)
+    clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
+    gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
+
+    def clearance_of(self, body: str) -> list[DistanceChannel]:
+        """The body's distance channels to the ground surfaces, in surface order."""
+        return [c for c in self.clearances if c.body == body]
 
     def initial_state(self) -> np.ndarray:
         """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
@@ -131,10 +163,7 @@ def _fmt(values: tuple[float, ...] | list[float]) -> str:
 def model_from_spec(run: RunSpec) -> InstrumentedModel:
     """Compile a spec's model with the recorder's sensors."""
     xml = mjcf_from_spec(run)
-    radii = {b.name: b.radius for b in run.bodies}
-    return instrument(
-        mujoco.MjSpec.from_string(xml), run.source, xml=xml, radii=radii, keyframe="initial"
-    )
+    return instrument(mujoco.MjSpec.from_string(xml), run.source, xml=xml, keyframe="initial")
 
 
 def model_from_mjcf(path: Path) -> InstrumentedModel:
@@ -145,7 +174,7 @@ def model_from_mjcf(path: Path) -> InstrumentedModel:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
-    return instrument(spec, str(path), xml=path.read_text(), radii={}, keyframe=None)
+    return instrument(spec, str(path), xml=path.read_text(), keyframe=None)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -157,7 +186,6 @@ def instrument(
     source: str,
     *,
     xml: str,
-    radii: dict[str, float],
     keyframe: str | None,
 ) -> InstrumentedModel:
     """Name unnamed bodies and geoms, add the recorder's sensors, compile.
@@ -203,13 +231,32 @@ def instrument(
             refname=plain.geom(g2).name,
             intprm=[CONTACT_DATA_BITS, 0, num],
         )
+    data = mujoco.MjData(plain)
+    mujoco.mj_kinematics(plain, data)  # shapes relative to each body do not depend on the pose
+    own = {b: geometry.body_geoms(plain, b) for b in free_bodies}
+    ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
+    surfaces = [geometry.surface(plain, data, g) for g in ground]
+    measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
+    clearance_plan = _distance_sensors(spec, plain, own, measurable, between_bodies=False)
+    gap_plan = _distance_sensors(spec, plain, own, [], between_bodies=True)
     model = spec.compile()
 
     def adr(name: str) -> int:
         return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])
 
+    def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
+        return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
+
     bodies = [
-        BodyChannel(name, b, adr(f"{name}:framepos"), radii.get(name))
+        BodyChannel(
+            name,
+            b,
+            adr(f"{name}:framepos"),
+            geometry.sphere_radius(plain, data, own[b]),
+            geometry.shape_name(plain, own[b]),
+            geometry.rest_height(plain, data, b, own[b]) if own[b] else None,
+            tuple(plain.geom(g).name for g in own[b]),
+        )
         for name, b in zip(body_names, free_bodies, strict=True)
     ]
     contacts = [
@@ -232,7 +279,54 @@ def instrument(
         geoms=_geom_shapes(model),
         energy_adr=adr("e_potential"),
         keyframe=key,
+        surfaces=surfaces,
+        clearances=channels(clearance_plan),
+        gaps=channels(gap_plan),
     )
+
+
+def _distance_sensors(
+    spec: mujoco.MjSpec,
+    model: mujoco.MjModel,
+    own: dict[int, list[int]],
+    surfaces: list[int],
+    *,
+    between_bodies: bool,
+) -> list[tuple[str, str, list[str]]]:
+    """Add a `distance` sensor per pair of geoms that can collide; returns what each measures.
+
+    Each entry is (body, surface geom or other body, sensor names without the prefix): the
+    body's distance to that surface (or body) is the smallest of those sensors. Pairs of
+    geoms that cannot collide get no sensor; (body, other) pairs with none are left out.
+    """
+    free = list(own)
+    others: list[tuple[int, str, list[int]]] = []
+    for i, b in enumerate(free):
+        if between_bodies:
+            others += [(b, model.body(o).name, own[o]) for o in free[i + 1 :]]
+        else:
+            others += [(b, model.geom(g).name, [g]) for g in surfaces]
+    plan = []
+    for b, other, targets in others:
+        names = []
+        for g1 in own[b]:
+            for g2 in targets:
+                if not geometry.can_collide(model, g1, g2):
+                    continue
+                name = f"distance:{model.geom(g1).name}:{model.geom(g2).name}"
+                spec.add_sensor(
+                    name=f"{SENSOR_PREFIX}{name}",
+                    type=mujoco.mjtSensor.mjSENS_GEOMDIST,
+                    objtype=mujoco.mjtObj.mjOBJ_GEOM,
+                    objname=model.geom(g1).name,
+                    reftype=mujoco.mjtObj.mjOBJ_GEOM,
+                    refname=model.geom(g2).name,
+                    cutoff=DISTANCE_CUTOFF_M,
+                )
+                names.append(name)
+        if names:
+            plan.append((model.body(b).name, other, names))
+    return plan
 
 
 def _name_unnamed(spec: mujoco.MjSpec) -> None:
