@@ -5,6 +5,9 @@ integrated, i.e. at simulation time i * timestep: that is the time every logged 
 Chunks continue from the last state; the solver's warm start restarts at each chunk boundary
 (every CHUNK_SECONDS of simulated time), which is the only difference from a plain `mj_step`
 loop (about 1e-12 in the state), and what makes a run independent of its batch.
+
+A run logs every `log_every`-th step from step 0, and always the step it stops on (the apex
+a stop rule waited for, the time limit), so the last logged row is the end of the run.
 """
 
 from __future__ import annotations
@@ -65,6 +68,7 @@ class _Active:
     total_steps: int
     state: np.ndarray
     kept: list[np.ndarray] = field(default_factory=list)
+    kept_steps: list[np.ndarray] = field(default_factory=list)
     touched: bool = False
     verdict: Verdict | None = None
 
@@ -127,7 +131,11 @@ def _advance(a: _Active, rows: np.ndarray, last_state: np.ndarray, step0: int) -
         verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
     end = n if verdict is None else verdict.last_step - step0 + 1
     steps = np.arange(step0, step0 + end)
-    a.kept.append(rows[:end][steps % a.request.log_every == 0])
+    keep = steps % a.request.log_every == 0
+    if verdict is not None and end > 0:
+        keep[-1] = True  # the step the run stops on
+    a.kept.append(rows[:end][keep])
+    a.kept_steps.append(steps[keep])
     if a.monitor.bodybody_cols:
         a.touched |= bool((rows[:end, a.monitor.bodybody_cols] > 0).any())
     a.state = last_state
@@ -147,6 +155,5 @@ def _trajectory(a: _Active, dt: float) -> Trajectory:
     if verdict.outcome == "unstable":
         warnings.append(f"unstable: {verdict.reason}")
     rows = np.concatenate(a.kept) if a.kept else np.empty((0, a.request.inst.model.nsensordata))
-    every = a.request.log_every
-    steps = np.arange(0, verdict.last_step + 1, every, dtype=np.int64)[: rows.shape[0]]
-    return Trajectory(steps * timestep_ns(dt), rows, verdict, warnings)
+    steps = np.concatenate(a.kept_steps) if a.kept_steps else np.empty(0, np.int64)
+    return Trajectory(steps.astype(np.int64) * timestep_ns(dt), rows, verdict, warnings)

@@ -10,7 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from impactlab.record.model import PLANE_NAME, InstrumentedModel
+from impactlab.record.geometry import up_vector
+from impactlab.record.model import InstrumentedModel
 from impactlab.record.spec import Stop
 
 
@@ -46,11 +47,18 @@ class _Finite(_Rule):
 
 @dataclass
 class _Bounces(_Rule):
-    """Stop at the apex after the N-th bounce of every body that touches the plane."""
+    """Stop at the apex after the N-th bounce of every body that touches the ground.
+
+    A body touches the ground when any of its contact sensors with a ground surface finds a
+    contact (`contact_cols`: per body, those sensors' columns); its apex is the first step
+    after the N-th release whose velocity along -gravity (`vel_cols`: the body's linear
+    velocity, 3 columns) is not positive.
+    """
 
     n: int
-    contact_cols: list[int]
-    vz_cols: list[int]
+    contact_cols: list[list[int]]
+    vel_cols: list[int]
+    up: np.ndarray
     in_contact: list[bool] = field(default_factory=list)
     count: list[int] = field(default_factory=list)
     done_step: list[int | None] = field(default_factory=list)
@@ -60,16 +68,17 @@ class _Bounces(_Rule):
         self.in_contact, self.count, self.done_step = [False] * k, [0] * k, [None] * k
 
     def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        for b, (ccol, vcol) in enumerate(zip(self.contact_cols, self.vz_cols, strict=True)):
+        for b, (ccols, vcol) in enumerate(zip(self.contact_cols, self.vel_cols, strict=True)):
             if self.done_step[b] is not None:
                 continue
-            touching = rows[:, ccol] > 0
+            touching = (rows[:, ccols] > 0).any(axis=1)
             before = np.concatenate([[self.in_contact[b]], touching[:-1]])
             released = before & ~touching
             total = self.count[b] + np.cumsum(released)
             self.in_contact[b] = bool(touching[-1])
             reached = total >= self.n
-            apex = _first(reached & ~touching & (rows[:, vcol] <= 0.0))
+            v_up = rows[:, vcol : vcol + 3] @ self.up
+            apex = _first(reached & ~touching & (v_up <= 0.0))
             self.count[b] = int(total[-1])
             if apex is not None:
                 self.done_step[b] = step0 + apex
@@ -109,12 +118,15 @@ class _AtRest(_Rule):
 
 @dataclass
 class _Separated(_Rule):
-    """Stop once two bodies have touched and their surfaces are `gap_m` apart again."""
+    """Stop once two bodies have touched and their surfaces are `gap_m` apart again.
+
+    `gap_cols`: per pair of bodies, the columns of MuJoCo's distance sensors between their
+    geoms (the gap is the smallest).
+    """
 
     gap_m: float
     contact_cols: list[int]
-    pos_cols: list[tuple[int, int]]
-    radii: list[tuple[float, float]]
+    gap_cols: list[list[int]]
     touched: bool = False
 
     def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
@@ -123,12 +135,7 @@ class _Separated(_Rule):
             touching |= rows[:, c] > 0
         seen = self.touched | (np.cumsum(touching) > 0)
         self.touched = bool(seen[-1])
-        gaps = np.stack(
-            [
-                np.linalg.norm(rows[:, p1 : p1 + 3] - rows[:, p2 : p2 + 3], axis=1) - r1 - r2
-                for (p1, p2), (r1, r2) in zip(self.pos_cols, self.radii, strict=True)
-            ]
-        ).min(axis=0)
+        gaps = np.stack([rows[:, cols].min(axis=1) for cols in self.gap_cols]).min(axis=0)
         hit = _first(seen & ~touching & (gaps >= self.gap_m))
         if hit is None:
             return None
@@ -231,15 +238,21 @@ class StopMonitor:
         if stop is None:
             return
         by_name = {b.name: b for b in inst.bodies}
-        plane = [c for c in inst.contacts if c.geom1 == PLANE_NAME and c.body2 in by_name]
+        ground = {s.name for s in inst.surfaces}
         bodybody = [c for c in inst.contacts if c.body1 in by_name and c.body2 in by_name]
         self.bodybody_cols = [c.adr for c in bodybody]
         if stop.bounces is not None:
+            landing = {
+                b.name: [c.adr for c in inst.contacts if c.geom1 in ground and c.body2 == b.name]
+                for b in inst.bodies
+            }
+            landing = {name: cols for name, cols in landing.items() if cols}
             self.rules.append(
                 _Bounces(
                     n=stop.bounces,
-                    contact_cols=[c.adr for c in plane],
-                    vz_cols=[by_name[c.body2].adr + 9 for c in plane],
+                    contact_cols=list(landing.values()),
+                    vel_cols=[by_name[name].adr + 7 for name in landing],
+                    up=up_vector(model),
                 )
             )
         if stop.at_rest:
@@ -250,14 +263,12 @@ class StopMonitor:
                     vel_cols=[b.adr + 7 for b in inst.bodies],
                 )
             )
-        if stop.separation is not None:
-            pairs = [(by_name[c.body1], by_name[c.body2]) for c in bodybody]
+        if stop.separation is not None and inst.gaps:
             self.rules.append(
                 _Separated(
                     gap_m=stop.separation,
                     contact_cols=self.bodybody_cols,
-                    pos_cols=[(a.adr, b.adr) for a, b in pairs],
-                    radii=[(a.radius or 0.0, b.radius or 0.0) for a, b in pairs],
+                    gap_cols=[list(g.adrs) for g in inst.gaps],
                 )
             )
 
