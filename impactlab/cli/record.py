@@ -24,10 +24,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="append",
         default=[],
         metavar="PATH=VALUE",
-        help="override a spec field, e.g. --set ball.mass=2 (repeatable; VALUE is TOML)",
+        help="override a spec field, e.g. --set ball.mass=2, or an MJCF model's run options "
+        "(stop.*, logging.*), e.g. --set logging.every=10 (repeatable; VALUE is TOML)",
     )
     rec.add_argument(
-        "--duration", type=float, help="time limit in s for MJCF models (required for them)"
+        "--duration",
+        type=float,
+        help="time limit in s for MJCF models (or --set stop.max_time=...; one is required)",
     )
     rec.add_argument(
         "--overwrite", action="store_true", help="re-run runs whose complete log already exists"

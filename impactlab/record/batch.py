@@ -74,8 +74,7 @@ def record_batches(
     def simulate(batch: Built) -> tuple[list[Trajectory] | str, float]:
         start = time.perf_counter()
         requests = [
-            RunRequest(inst, run.max_time, run.spec.stop if run.spec else None, run.info.log_every)
-            for run, inst in batch
+            RunRequest(inst, run.max_time, run.stop, run.info.log_every) for run, inst in batch
         ]
         try:
             result: list[Trajectory] | str = simulate_batch(requests, threads=threads)

@@ -15,8 +15,9 @@ from typing import Any
 from impactlab.errors import SpecError
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.log_rows import RunInfo
+from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
-from impactlab.record.spec import RunSpec, spec_hash
+from impactlab.record.spec import RunSpec, Stop, spec_hash
 from impactlab.record.sweep import document_runs, load_runs
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
@@ -25,12 +26,16 @@ DOCUMENT_SOURCE = "<python>"  # the source of a spec given as a dict
 
 @dataclass(frozen=True)
 class PlannedRun:
-    """A run ready to simulate: its file name, metadata and how to build and stop it."""
+    """A run ready to simulate: its file name, metadata and how to build and stop it.
+
+    `spec` is the resolved spec (None for an MJCF model); `stop` the run's stop rules.
+    """
 
     info: RunInfo
     build: Callable[[], InstrumentedModel]
     spec: RunSpec | None
     max_time: float
+    stop: Stop | None = None
 
 
 def plan(
@@ -44,8 +49,9 @@ def plan(
     Args:
         inputs: experiment specs (.toml files, or spec documents as dicts) and/or MJCF
             models (.xml).
-        overrides: `PATH=VALUE` settings for specs.
-        duration: time limit in s for MJCF models (required for them).
+        overrides: `PATH=VALUE` settings: any field of a spec; for MJCF models the run
+            options only (`stop.*`, `logging.*`).
+        duration: time limit in s for MJCF models (or `stop.max_time=...`).
 
     Raises:
         SpecError: any input, override or option is wrong.
@@ -92,16 +98,14 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
         sweep_index=run.sweep_index,
         sweep_size=run.sweep_size,
     )
-    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time)
+    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time, run.stop)
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
-    if overrides:
-        raise SpecError(str(path), "--set", "overrides apply to experiment specs, not MJCF models")
-    if duration is None or not duration > 0:
-        raise SpecError(str(path), "--duration", "an MJCF model needs --duration SECONDS > 0")
+    options = mjcf_options(str(path), overrides, duration)
     inst = model_from_mjcf(path)  # validate now; rebuilt when run
-    document = {"mjcf": str(path), "duration": duration, "xml_sha256": _sha256(inst.xml)}
+    check_options(options, inst, str(path))
+    document = {"mjcf": str(path), "xml_sha256": _sha256(inst.xml), **options.document}
     digest = spec_hash(document)
     info = RunInfo(
         run_id=run_name(path.stem, {}, digest),
@@ -111,9 +115,9 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         spec=document,
         sweep={},
         spec_hash=digest,
-        log_every=1,
+        log_every=options.log_every,
     )
-    return PlannedRun(info, lambda: inst, None, duration)
+    return PlannedRun(info, lambda: inst, None, options.stop.max_time, options.stop)
 
 
 def _sha256(text: str) -> str:

@@ -292,19 +292,7 @@ def validate(
     bodies = tuple(
         _body(v, name, body, index) for index, (name, body) in enumerate(doc["bodies"].items())
     )
-    st = doc["stop"]
-    stop = Stop(
-        max_time=v.number(st["max_time"], "stop.max_time", min_exclusive=0.0),
-        bounces=None if st["bounces"] is None else v.integer(st["bounces"], "stop.bounces", 1),
-        at_rest=v.boolean(st["at_rest"], "stop.at_rest"),
-        rest_speed=v.number(st["rest_speed"], "stop.rest_speed", min_exclusive=0.0),
-        rest_time=v.number(st["rest_time"], "stop.rest_time", min_exclusive=0.0),
-        separation=None
-        if st["separation"] is None
-        else v.number(st["separation"], "stop.separation", min_exclusive=0.0),
-        max_energy_gain=v.number(st["max_energy_gain"], "stop.max_energy_gain", min_exclusive=0.0),
-        max_penetration=v.number(st["max_penetration"], "stop.max_penetration", min_exclusive=0.0),
-    )
+    stop = stop_section(v, doc["stop"])
     _check_stop(stop, plane, bodies, options, source)
     log_every = v.integer(doc["logging"]["every"], "logging.every", 1)
     return RunSpec(
@@ -321,6 +309,22 @@ def validate(
         sweep_index=sweep_point[0],
         sweep_size=sweep_point[1],
         document=copy.deepcopy(dict(doc)),
+    )
+
+
+def stop_section(v: FieldChecks, st: Mapping[str, Any]) -> Stop:
+    """The `[stop]` table of a resolved document (every key present), checked."""
+    return Stop(
+        max_time=v.number(st["max_time"], "stop.max_time", min_exclusive=0.0),
+        bounces=None if st["bounces"] is None else v.integer(st["bounces"], "stop.bounces", 1),
+        at_rest=v.boolean(st["at_rest"], "stop.at_rest"),
+        rest_speed=v.number(st["rest_speed"], "stop.rest_speed", min_exclusive=0.0),
+        rest_time=v.number(st["rest_time"], "stop.rest_time", min_exclusive=0.0),
+        separation=None
+        if st["separation"] is None
+        else v.number(st["separation"], "stop.separation", min_exclusive=0.0),
+        max_energy_gain=v.number(st["max_energy_gain"], "stop.max_energy_gain", min_exclusive=0.0),
+        max_penetration=v.number(st["max_penetration"], "stop.max_penetration", min_exclusive=0.0),
     )
 
 

@@ -1,0 +1,93 @@
+"""Run options of an MJCF model: a spec's `[stop]` and `[logging]` tables, and nothing else.
+
+A user's model brings its own bodies, contacts and simulation options (timestep, integrator,
+gravity); what impactlab adds is how the run stops and what it logs, set exactly as for a
+spec: `--set logging.every=10`, `--set stop.bounces=3`, `--set stop.max_time=2` (or
+`--duration 2`). The same defaults and checks apply (`impactlab.record.spec`).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from impactlab.errors import SpecError
+from impactlab.record.model import InstrumentedModel
+from impactlab.record.spec import DEFAULTS, Stop, set_path, stop_section
+from impactlab.record.spec_checks import FieldChecks
+from impactlab.record.sweep import parse_override
+
+MJCF_SECTIONS = ("stop", "logging")
+
+
+@dataclass(frozen=True)
+class MjcfOptions:
+    """An MJCF run's stop rules, logging stride and the resolved tables (for its log)."""
+
+    stop: Stop
+    log_every: int
+    document: dict[str, Any]
+
+
+def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) -> MjcfOptions:
+    """The run options of an MJCF model from `--set` overrides and `--duration`.
+
+    Raises:
+        SpecError: an override names anything but stop.* or logging.*, a value is wrong,
+            or no time limit is given.
+    """
+    doc = {section: copy.deepcopy(DEFAULTS[section]) for section in MJCF_SECTIONS}
+    for text in overrides:
+        key, value = parse_override(text)
+        if key.split(".")[0] not in MJCF_SECTIONS:
+            raise SpecError(
+                source,
+                f"--set {key}",
+                "an MJCF model takes run options only (stop.*, logging.*); "
+                "change the model itself for anything else",
+            )
+        set_path(doc, key, value, "--set")
+    if duration is not None:
+        if doc["stop"]["max_time"] is not None:
+            raise SpecError(source, "--duration", "give --duration or stop.max_time, not both")
+        doc["stop"]["max_time"] = duration
+    if doc["stop"]["max_time"] is None:
+        raise SpecError(
+            source, "--duration", "an MJCF model needs --duration SECONDS (or stop.max_time)"
+        )
+    checks = FieldChecks(source)
+    stop = stop_section(checks, doc["stop"])
+    every = checks.integer(doc["logging"]["every"], "logging.every", 1)
+    return MjcfOptions(stop, every, doc)
+
+
+def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) -> None:
+    """Reject stop rules the model cannot meet (as `spec` does for a spec's own model).
+
+    Raises:
+        SpecError: naming the option and why.
+    """
+    stop = options.stop
+    timestep = float(inst.model.opt.timestep)
+    if stop.bounces is not None and not inst.surfaces:
+        raise SpecError(
+            source,
+            "stop.bounces",
+            "counts bounces on the ground, but no static geom of the model can be landed on",
+        )
+    if stop.separation is not None and len(inst.bodies) < 2:
+        raise SpecError(source, "stop.separation", "a collision needs at least two free bodies")
+    if stop.at_rest and stop.rest_time >= stop.max_time:
+        raise SpecError(
+            source,
+            "stop.rest_time",
+            f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
+        )
+    if timestep >= stop.max_time:
+        raise SpecError(
+            source,
+            "stop.max_time",
+            f"{stop.max_time} s is not longer than the model's timestep {timestep} s",
+        )
