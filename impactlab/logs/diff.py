@@ -4,7 +4,8 @@
 `LogDiff`: pure data, rendered by `LogDiff.report()` (for people) or `LogDiff.to_dict()`
 (JSON for machines). What is compared:
 
-- channels, as load.py decodes them: `/bodies/<body>/state` and `/energy` matched on `t_ns`,
+- channels, as load.py decodes them: `/bodies/<body>/state`, `/bodies/<body>/clearance` (one
+  field per surface, `distance[<surface>]`) and `/energy` matched on `t_ns`,
   `/contacts/<geom1>/<geom2>` on (`t_ns`, point index), `/events` on (`t_ns`, order). Per
   channel: messages present in one log and not the other (count, first and last time); per
   field of the matched messages: the first time the values differ beyond the tolerance, the
@@ -77,6 +78,8 @@ def diff_logs(
     channels = []
     for topic in sorted(ca.keys() | cb.keys(), key=topic_order):
         keys, names = (ca.get(topic) or cb[topic])[1:]
+        if topic in ca and topic in cb:  # fields of one log only are missing in the other
+            names = tuple(n for n in names if n in ca[topic][2] and n in cb[topic][2])
         fa = ca[topic][0] if topic in ca else None
         fb = cb[topic][0] if topic in cb else None
         channels.append(compare_channel(topic, fa, fb, keys, names, tolerance))
@@ -116,6 +119,13 @@ def channel_tables(log: RunLog) -> dict[str, Table]:
                 ("t_ns", "point"),
                 POINT_FIELDS + CONTACT_TEXT_FIELDS,
             )
+    if log.clearance.height:  # one column per surface: distance[<surface>]
+        for (body,), frame in log.clearance.group_by(["body"], maintain_order=True):
+            wide = frame.with_columns(
+                pl.format("distance[{}]", pl.col("surface")).alias("field")
+            ).pivot("field", index="t_ns", values="clearance_m")
+            fields = tuple(c for c in wide.columns if c != "t_ns")
+            out[logformat.CLEARANCE_TOPIC.format(body=body)] = (wide, ("t_ns",), fields)
     if log.energy.height:
         out[logformat.ENERGY_TOPIC] = (log.energy, ("t_ns",), ENERGY_FIELDS)
     if log.events.height:
