@@ -164,7 +164,7 @@ class LogDiff:
     def diverged_fields(self) -> list[FieldDiff]:
         """Fields beyond tolerance, earliest divergence first."""
         out = [f for c in self.channels for f in c.diverged]
-        return sorted(out, key=lambda f: (f.first_t_ns, f.channel))
+        return sorted(out, key=lambda f: (f.first_t_ns, topic_order(f.channel)))
 
     def problems(self) -> list[str]:
         """One sentence per difference, earliest field divergence first."""
@@ -253,10 +253,11 @@ def fmt_t(t_ns: int | None) -> str:
     return sign + f"{s}.{frac:09d}".rstrip("0").rstrip(".")
 
 
-def topic_order(topic: str) -> tuple[int, str]:
+def topic_order(topic: str) -> tuple[int, str, bool]:
     prefixes = ("/bodies/", logformat.CONTACT_TOPIC_PREFIX, logformat.ENERGY_TOPIC)
     rank = next((i for i, p in enumerate(prefixes) if topic.startswith(p)), len(prefixes))
-    return rank, topic
+    derived = topic.endswith("/clearance")  # a body's state before its clearance
+    return rank, topic.removesuffix("/clearance").removesuffix("/state"), derived
 
 
 def _count(n: int) -> str:
