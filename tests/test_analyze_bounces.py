@@ -129,4 +129,4 @@ def test_last_bounce_left_open_is_not_used(record_spec):
     last = a.bounces.row(-1, named=True)
     assert not last["complete"]
     assert last["e_velocity"] is None
-    assert "open" in last["note"]
+    assert "still in contact" in last["note"]

@@ -2,16 +2,19 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from typing import Any
 
 import polars as pl
 
-from impactlab.analyze.bounces import bounces, no_bounce_row
+from impactlab.analyze.bounces import bounces, no_bounce_rows
 from impactlab.analyze.collisions import collisions, no_collision_rows
-from impactlab.analyze.contacts import logged_step_ns, run_intervals, states_long
-from impactlab.analyze.energy import energy_phases, run_energy
+from impactlab.analyze.contacts import contact_rows, raw_intervals, states_long
+from impactlab.analyze.energy import energy_phases, references, run_energy
+from impactlab.analyze.flights import flights
+from impactlab.analyze.ground import Ground, run_ground
+from impactlab.analyze.impacts import approach_and_release, merge_chatter
+from impactlab.analyze.summary import summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 
@@ -23,12 +26,15 @@ class RunAnalysis:
     Attributes:
         run: the decoded log.
         states: every body's state (`states_long`).
-        intervals: contact intervals of every pair.
+        intervals: contacts of every pair, chatter merged (`impacts.merge_chatter`).
         energy: energy per body and total ("total" rows), full resolution.
         phases: flight and contact phases with energy drift and loss.
-        bounces: one row per bounce on the plane (one row with the reason when none).
-        collisions: one row per body-body contact (rows with the reason when none).
+        bounces: one row per bounce of a body on a surface (rows with the reason for bodies
+            without any).
+        collisions: one row per body-body contact (rows with the reason when a collision was
+            expected and none happened).
         summary: the run's row of the runs table.
+        ground: the run's ground surfaces and clearances.
     """
 
     run: RunLog
@@ -39,6 +45,18 @@ class RunAnalysis:
     bounces: pl.DataFrame
     collisions: pl.DataFrame
     summary: dict[str, Any]
+    ground: Ground | None = None
+
+
+def logged_interval_s(run: RunLog) -> float:
+    """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
+    return run.timestep_s * int(run.meta.get("log_every", "1") or 1)
+
+
+def expects_collision(run: RunLog) -> bool:
+    """Whether the run was meant to bring two bodies together (a `stop.separation` rule)."""
+    stop = run.spec.get("stop")
+    return isinstance(stop, dict) and stop.get("separation") is not None
 
 
 def analyze_run(run: RunLog) -> RunAnalysis:
@@ -51,44 +69,83 @@ def analyze_run(run: RunLog) -> RunAnalysis:
         raise LogError(
             str(run.path), "no impactlab.run metadata (timestep, bodies): cannot analyze"
         )
-    step_ns = logged_step_ns(run)
+    ground = run_ground(run)
     states = states_long(run)
-    intervals = run_intervals(run)
-    energy = run_energy(run)
+    rows = states.select("t_ns", "row").unique().sort("row")
+    interval_s = logged_interval_s(run)
+    raw = raw_intervals(
+        contact_rows(run, ground, rows),
+        last_row=int(rows["row"].max() or 0) if rows.height else 0,
+        interval_s=interval_s,
+    )
+    raw = approach_and_release(
+        raw,
+        states,
+        gravity=run.gravity,
+        integrator=run.integrator,
+        timestep_s=run.timestep_s,
+        interval_s=interval_s,
+    )
+    contacts = merge_chatter(raw).with_columns(pl.lit(interval_s).alias("interval_s"))
+    on_ground = (
+        contacts.filter(pl.col("kind") == "ground")
+        .sort("body", "first_row")
+        .with_columns(pl.int_range(pl.len()).over("body").alias("contact"))
+    )
+    first = on_ground.filter(pl.col("contact") == 0).select("body", "other").rows()
+    refs = references(run, ground, states, dict(first))
+    energy = run_energy(run, states, ground, refs)
     total = energy.filter(pl.col("body") == "total").sort("t_ns")
-    contact_times = intervals_steps(intervals, step_ns)
-    phases = energy_phases(total, contact_times)
+    phases = energy_phases(total, contact_times(contacts, rows))
+    fl = flights(
+        states,
+        on_ground,
+        ground.clearance,
+        gravity=run.gravity,
+        integrator=run.integrator,
+        timestep_s=run.timestep_s,
+    )
+    g = [float(x) for x in run.gravity]
+    g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
+    bnc = bounces(on_ground, fl, gravity_n=g_n)
     names = [n for n in run.body_info if n in run.bodies]
-    bnc = bounces(intervals, states, energy, bodies=names, gravity=run.gravity, step_ns=step_ns)
-    if bnc.is_empty() and run.plane_z is not None:
-        bnc = no_bounce_row(run.run_id, no_bounce_reason(run))
-    col = collisions(intervals, states, {n: run.body_info[n] for n in names}, step_ns=step_ns)
-    if col.is_empty() and len(names) >= 2:
+    if ground.surfaces:
+        missing = [n for n in names if n not in set(bnc["body"].to_list())]
+        reasons = {n: no_bounce_reason(n, on_ground, states) for n in missing}
+        if reasons:
+            bnc = pl.concat([bnc, no_bounce_rows(run.run_id, reasons)])
+    infos = {n: run.body_info[n] for n in names}
+    col = collisions(contacts.filter(pl.col("kind") == "body"), states, infos)
+    if col.is_empty() and len(names) >= 2 and expects_collision(run):
         col = no_collision_rows(
             run.run_id,
             states,
-            {n: run.body_info[n] for n in names},
+            infos,
             f"no contact between the bodies in the {duration_s(states):.4g} s logged: the "
             "collision never happened, so 'after' (last logged state) equals 'before'",
         )
-    analysis = RunAnalysis(run, states, intervals, energy, phases, bnc, col, {})
-    analysis.summary = summary_row(analysis)
-    return analysis
-
-
-def intervals_steps(intervals: pl.DataFrame, step_ns: int) -> pl.Series:
-    """t_ns of every logged step inside any contact interval."""
-    if intervals.is_empty():
-        return pl.Series("t_ns", [], dtype=pl.Int64)
-    return (
-        intervals.select(
-            pl.int_ranges(pl.col("start_t_ns"), pl.col("end_t_ns") + 1, step_ns).alias("t_ns")
-        )
-        .explode("t_ns")
-        .get_column("t_ns")
-        .unique()
-        .sort()
+    summary = summary_row(
+        run,
+        states=states,
+        energy=energy,
+        phases=phases,
+        bounces=bnc,
+        collisions=col,
+        ground=bool(ground.surfaces),
     )
+    return RunAnalysis(run, states, contacts, energy, phases, bnc, col, summary, ground)
+
+
+def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
+    """t_ns of every logged row inside any contact (chatter merged)."""
+    if contacts.is_empty():
+        return pl.Series("t_ns", [], dtype=pl.Int64)
+    inside = (
+        contacts.select(pl.int_ranges(pl.col("first_row"), pl.col("last_row") + 1).alias("row"))
+        .explode("row")
+        .unique()
+    )
+    return inside.join(rows, on="row").get_column("t_ns").sort()
 
 
 def duration_s(states: pl.DataFrame) -> float:
@@ -96,77 +153,18 @@ def duration_s(states: pl.DataFrame) -> float:
     return float(states["t_s"].max() or 0.0) if states.height else 0.0
 
 
-def no_bounce_reason(run: RunLog) -> str:
-    """Why a run with a plane has no bounce."""
-    if not run.bodies:
-        return "no body state in the log"
-    return f"no contact with the plane in the {duration_s(states_long(run)):.4g} s logged"
-
-
-def summary_row(a: RunAnalysis) -> dict[str, Any]:
-    """The run's row of the runs table: identity, state of the log, and headline results."""
-    run = a.run
-    total = a.energy.filter(pl.col("body") == "total").sort("t_ns")
-    e0 = total["total_J"][0] if total.height else None
-    e1 = total["total_J"][-1] if total.height else None
-    flights = a.phases.filter(pl.col("kind") == "flight")
-    contacts = a.phases.filter(pl.col("kind") == "contact")
-    good = a.bounces.filter(pl.col("complete"))
-    first = a.bounces.filter(pl.col("bounce") == 1)
-    col = a.collisions.head(1)
-    notes = []
-    if a.bounces.height and a.bounces["bounce"].is_null().all():
-        notes.append(a.bounces["note"][0])
-    if col.height and not col["complete"][0]:
-        notes.append(col["note"][0])
-    scale = abs(e0) if e0 else None
-
-    def c(name: str) -> Any:
-        return col[name][0] if col.height else None
-
-    return {
-        "run_id": run.run_id,
-        "experiment": run.experiment,
-        "description": run.meta.get("description", ""),
-        "file": str(run.path),
-        "partial": run.partial,
-        "problems": "; ".join(run.problems),
-        "outcome": run.outcome,
-        "reason": run.meta.get("reason", ""),
-        "warnings": "; ".join(json.loads(run.meta.get("warnings", "[]") or "[]")),
-        "timestep_s": run.timestep_s,
-        "log_every": int(run.meta.get("log_every", "1") or 1),
-        "duration_s": duration_s(a.states),
-        "n_bodies": len(run.bodies),
-        "plane": run.plane_z is not None,
-        "sweep": run.meta.get("sweep", "{}"),
-        "energy_initial_J": e0,
-        "energy_final_J": e1,
-        "energy_loss_frac": (e0 - e1) / e0 if e0 else None,
-        "flight_drift_max_J": flights["drift_J"].abs().max() if flights.height else None,
-        "flight_drift_max_rel": (flights["max_dev_J"].max() / scale)
-        if flights.height and scale
-        else None,
-        "contact_loss_sum_J": contacts["loss_J"].sum() if contacts.height else 0.0,
-        "mujoco_diff_max_J": total["mujoco_diff_J"].abs().max() if total.height else None,
-        "drop_height_m": first["apex_before_m"][0] if first.height else None,
-        "n_bounces": int(a.bounces["bounce"].count()),
-        "n_bounces_complete": good.height,
-        "first_impact_speed_mps": -first["v_in_mps"][0]
-        if first.height and first["v_in_mps"][0] is not None  # None: in contact from the start
-        else None,
-        "e_velocity_first": first["e_velocity"][0] if first.height else None,
-        "e_velocity_mean": good["e_velocity"].mean() if good.height else None,
-        "e_apex_mean": good["e_apex"].mean() if good.height else None,
-        "n_collisions": int(a.collisions["collision"].count()),
-        "e_collision": c("e_measured"),
-        "v1n_before_mps": c("v1n_before_mps"),
-        "v2n_before_mps": c("v2n_before_mps"),
-        "v1n_after_mps": c("v1n_after_mps"),
-        "v2n_after_mps": c("v2n_after_mps"),
-        "v1n_after_elastic_mps": c("v1n_after_elastic_mps"),
-        "v2n_after_elastic_mps": c("v2n_after_elastic_mps"),
-        "momentum_rel_change": c("momentum_rel_change"),
-        "collision_ke_loss_frac": c("ke_loss_frac"),
-        "note": "; ".join(n for n in notes if n),
-    }
+def no_bounce_reason(body: str, on_ground: pl.DataFrame, states: pl.DataFrame) -> str:
+    """Why a body on a run with a ground has no bounce."""
+    mine = on_ground.filter(pl.col("body") == body).sort("first_row")
+    if mine.is_empty():
+        return f"no contact with the ground in the {duration_s(states):.4g} s logged"
+    first = mine.row(0, named=True)
+    if first["row_b"] is None:
+        return (
+            f"at rest, sliding or rolling on {first['other']} from the first logged step: "
+            "no impact, no bounce"
+        )
+    return (
+        f"touches {first['other']} no faster than v_min = {first['v_min_mps']:.3g} m/s and "
+        "stays: a resting, sliding or rolling contact, no bounce"
+    )

@@ -22,7 +22,7 @@ def _f(x: float | None, fmt: str = ".3g") -> str:
 def energy_answer(runs: pl.DataFrame) -> list[str]:
     """Is energy conserved in flight and lost at contacts?"""
     out = []
-    for r in runs.filter(pl.col("plane")).iter_rows(named=True):
+    for r in runs.filter(pl.col("ground")).iter_rows(named=True):
         if r["energy_initial_J"] is None:
             continue
         drift = r["flight_drift_max_rel"]
@@ -39,25 +39,36 @@ def energy_answer(runs: pl.DataFrame) -> list[str]:
 
 
 def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
-    """Is e constant across bounces (within each run)?"""
+    """Is e constant across bounces? Asked of each body on each surface of each run: bodies
+    with different contacts are never put in one answer."""
     out = []
-    for r in runs.filter(pl.col("plane")).iter_rows(named=True):
-        rows = bounces.filter((pl.col("run_id") == r["run_id"]) & pl.col("complete"))
-        es = rows["e_velocity"].drop_nulls()
+    if bounces.is_empty() or "surface" not in bounces.columns:
+        return out
+    pairs = bounces.filter(pl.col("bounce").is_not_null()).select("run_id", "body", "surface")
+    reasons = {
+        run_id: reason or outcome
+        for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
+    }
+    for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
+        mine = bounces.filter(
+            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
+        )
+        es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls()
+        who = f"`{run_id}`, {body} on {surface}"
         if es.len() >= 2:
             spread = float(es.max() - es.min())
             word = "constant" if spread < E_CONSTANT_SPREAD else "not constant"
             vals = ", ".join(f"{e:.3f}" for e in es)
             out.append(
-                f"`{r['run_id']}`: e is {word} across its {es.len()} complete bounces "
+                f"{who}: e is {word} across its {es.len()} complete bounces "
                 f"({vals}; spread {spread:.3f})."
             )
         else:
             out.append(
-                f"`{r['run_id']}`: {es.len()} complete bounce(s) "
+                f"{who}: {es.len()} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
-                f"cannot be tested: the log ends ({r['reason'] or r['outcome']}) with "
-                f"{r['n_bounces']} contact(s), the last one still open."
+                f"cannot be tested: the log ends ({reasons.get(run_id) or 'n/a'}) after "
+                f"{mine.height} contact(s) with an impact, the last one without a flight after it."
             )
     return out
 

@@ -66,9 +66,17 @@ def slim(a: RunAnalysis) -> RunAnalysis:
     The tables (energy, phases, bounces, collisions, summary) and the run's metadata stay.
     """
     run = dataclasses.replace(
-        a.run, bodies={}, contacts=pl.DataFrame(), energy=pl.DataFrame(), events=pl.DataFrame()
+        a.run,
+        bodies={},
+        contacts=pl.DataFrame(),
+        energy=pl.DataFrame(),
+        events=pl.DataFrame(),
+        clearance=pl.DataFrame(),
     )
-    return dataclasses.replace(a, run=run, states=pl.DataFrame(), intervals=pl.DataFrame())
+    ground = None if a.ground is None else dataclasses.replace(a.ground, clearance=pl.DataFrame())
+    return dataclasses.replace(
+        a, run=run, states=pl.DataFrame(), intervals=pl.DataFrame(), ground=ground
+    )
 
 
 def _task(item: tuple[Path, Path], fig_dir: Path | None) -> AnalyzedLog:

@@ -1,24 +1,26 @@
-"""Bounces of each body on the plane, from the contact channel (not from velocity thresholds).
+"""Bounces of each body on each ground surface, from the contact point (not from thresholds on
+the centre's velocity).
 
-Bounce n (1-based) is the n-th contact interval of a body with the plane. Heights are measured
-from the contact height (centre minus radius above the plane, along -gravity); apex 0 is the
-highest point before the first contact (the drop height above contact for a ball released at
-rest). Normal velocities are along the contact normal pointing from the plane to the body:
-v_in < 0 approaching, v_out > 0 leaving, taken at the last logged step before the contact and the
-first after it; e_velocity = -v_out / v_in, e_apex = sqrt(apex(n) / apex(n-1)). The apex
-predicted from the release is h_release + v_out^2 / (2 g), g the gravity along the normal.
+A bounce is a contact of a body with a surface that is an impact (the body arrives faster
+than v_min, see `impactlab.analyze.impacts`) or is followed by a visible flight; contacts at
+rest, sliding or rolling, chatter included, are one resting contact and no bounce. Bounce n
+(1-based) counts per body and surface. v_in < 0 and v_out > 0 are the normal velocities of
+the contact point at the moments the surfaces meet and part (ballistic extrapolation across
+logging gaps), e_velocity = -v_out / v_in. Heights are the body's clearance above the surface
+(its lowest point): apex_before_m is the apex of the flight that ends in this bounce,
+apex_m that of the flight after it (`impactlab.analyze.flights`), e_apex = sqrt(apex_m /
+apex_before_m), apex_predicted_m = v_out^2 / (2 g_n) with g_n gravity along the normal.
+Quantities a bounce does not define are left empty and the `note` says why.
 """
 
 from __future__ import annotations
 
-import numpy as np
 import polars as pl
-
-from impactlab.analyze.contacts import state_at
 
 BOUNCE_SCHEMA: dict[str, pl.DataType] = {
     "run_id": pl.String,
     "body": pl.String,
+    "surface": pl.String,
     "bounce": pl.Int64,
     "impact_t_s": pl.Float64,
     "release_t_s": pl.Float64,
@@ -33,174 +35,148 @@ BOUNCE_SCHEMA: dict[str, pl.DataType] = {
     "peak_force_N": pl.Float64,
     "impulse_Ns": pl.Float64,
     "max_penetration_m": pl.Float64,
+    "n_raw_contacts": pl.Int64,
     "complete": pl.Boolean,
     "note": pl.String,
 }
+TURNING = (
+    "the body turns in flight (its lowest point moves relative to its centre of mass), so "
+    "apex heights do not measure e"
+)
 
 
-def plane_intervals(intervals: pl.DataFrame, bodies: list[str]) -> pl.DataFrame:
-    """Intervals between a free body and the world (plane), with `body` and the normal's sign.
-
-    `sign` is +1 when the body is body2 (the logged normal points from geom1 to geom2, i.e. from
-    the plane to the body), -1 when it is body1.
-    """
-    return (
-        intervals.filter(pl.col("body1").is_in(bodies) ^ pl.col("body2").is_in(bodies))
-        .with_columns(
-            pl.when(pl.col("body2").is_in(bodies))
-            .then(pl.col("body2"))
-            .otherwise(pl.col("body1"))
-            .alias("body"),
-            pl.when(pl.col("body2").is_in(bodies)).then(1.0).otherwise(-1.0).alias("sign"),
-        )
-        .sort("body", "start_t_ns")
-        .with_columns((pl.int_range(pl.len()).over("body") + 1).alias("bounce"))
-    )
+def is_bounce() -> pl.Expr:
+    """A merged ground contact that is an impact or is followed by a visible flight."""
+    impact = pl.col("row_b").is_not_null() & (pl.col("v_in_mps") < -pl.col("v_min_mps"))
+    return impact | pl.col("visible")
 
 
-def flight_apexes(heights: pl.DataFrame, contacts: pl.DataFrame, *, up: np.ndarray) -> pl.DataFrame:
-    """Highest point of each flight of each body.
+def bounces(contacts: pl.DataFrame, flights: pl.DataFrame, *, gravity_n: pl.Expr) -> pl.DataFrame:
+    """One row per bounce (see the module docstring).
 
     Args:
-        heights: per body and logged step: (body, t_ns, height_m, vx, vy, vz).
-        contacts: the body's plane intervals (body, bounce, start_t_ns, end_t_ns).
-        up: (3,) unit vector against gravity.
+        contacts: the merged ground contacts (`merge_chatter` of kind "ground"), with the
+            per-body contact index `contact` (0-based, over every surface).
+        flights: `impactlab.analyze.flights.flights` of the run.
+        gravity_n: gravity along the release normal towards the surface (m/s^2), an
+            expression over `contacts`.
 
     Returns:
-        (body, bounce, apex_m, apex_reached): the flight after bounce n (0: before the first
-        contact); `apex_reached` is false when the log ends while the body is still rising.
+        Columns of `BOUNCE_SCHEMA`, sorted by body, surface and bounce; no rows without any.
     """
-    vup = up[0] * pl.col("vx") + up[1] * pl.col("vy") + up[2] * pl.col("vz")
-    return (
-        heights.sort("t_ns")
-        .join_asof(
-            contacts.select("body", "bounce", "start_t_ns", "end_t_ns").sort("start_t_ns"),
-            left_on="t_ns",
-            right_on="start_t_ns",
-            by="body",
-            strategy="backward",
-            check_sortedness=False,
-        )
-        .filter(pl.col("end_t_ns").is_null() | (pl.col("t_ns") > pl.col("end_t_ns")))
-        .with_columns(pl.col("bounce").fill_null(0), vup.alias("v_up"))
-        .group_by("body", "bounce")
-        .agg(
-            pl.col("height_m").max().alias("apex_m"),
-            (pl.col("v_up").last() <= 0).alias("apex_reached"),
-        )
-        .sort("body", "bounce")
-    )
-
-
-def bounces(
-    intervals: pl.DataFrame,
-    states: pl.DataFrame,
-    energy: pl.DataFrame,
-    *,
-    bodies: list[str],
-    gravity: np.ndarray,
-    step_ns: int,
-) -> pl.DataFrame:
-    """One row per bounce of each body on the plane (see the module docstring).
-
-    Args:
-        intervals: `contact_intervals` of the run.
-        states: `states_long` of the run.
-        energy: `run_energy` of the run (for height_m per body).
-        bodies: names of the free bodies.
-        gravity: (3,) m/s^2.
-        step_ns: logged step, ns.
-
-    Returns:
-        Columns of `BOUNCE_SCHEMA`; an open interval is marked `complete` = false and not used
-        for e; no rows when no body touches the plane.
-    """
-    g = float(np.linalg.norm(gravity))
-    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    hits = plane_intervals(intervals, bodies)
-    if hits.is_empty():
+    if contacts.is_empty():
         return pl.DataFrame(schema=BOUNCE_SCHEMA)
-    heights = (
-        energy.filter(pl.col("body") != "total")
-        .select("body", "t_ns", "height_m")
-        .join(states.select("body", "t_ns", "vx", "vy", "vz"), on=["body", "t_ns"])
-    )
-    apexes = flight_apexes(heights, hits, up=up)
-    times = hits.with_columns(
-        (pl.col("start_t_ns") - step_ns).alias("before_t_ns"),
-        (pl.col("end_t_ns") + step_ns).alias("after_t_ns"),
-    )
-    times = state_at(states, times, on="before_t_ns", suffix="_in")
-    times = state_at(states, times, on="after_t_ns", suffix="_out")
-    h_out = heights.select(
-        "body", pl.col("t_ns").alias("after_t_ns"), pl.col("height_m").alias("h_release_m")
-    )
-    times = times.join(h_out, on=["body", "after_t_ns"], how="left")
-
-    def vn(s: str) -> pl.Expr:
-        return pl.col("sign") * (
-            pl.col("nx") * pl.col(f"vx{s}")
-            + pl.col("ny") * pl.col(f"vy{s}")
-            + pl.col("nz") * pl.col(f"vz{s}")
-        )
-
-    g_n = pl.col("sign") * -(
-        gravity[0] * pl.col("nx") + gravity[1] * pl.col("ny") + gravity[2] * pl.col("nz")
-    )
-    after = apexes.select("body", "bounce", "apex_m", "apex_reached")
-    before = apexes.select(
+    rows = contacts.filter(is_bounce()).sort("body", "other", "start_t_ns")
+    if rows.is_empty():
+        return pl.DataFrame(schema=BOUNCE_SCHEMA)
+    before = flights.select(
         "body",
-        (pl.col("bounce") + 1).alias("bounce"),
-        pl.col("apex_m").alias("apex_before_m"),
-        pl.col("apex_reached").alias("before_reached"),
+        pl.col("flight").alias("contact"),
+        "apex_before_m",
+        pl.col("reached").alias("before_reached"),
+        pl.col("turning_before"),
     )
-    complete = ~pl.col("open") & pl.col("vx_in").is_not_null() & pl.col("vx_out").is_not_null()
+    after = flights.select(
+        "body",
+        (pl.col("flight") - 1).alias("contact"),
+        "apex_after_m",
+        pl.col("reached").alias("after_reached"),
+        pl.col("turning_after"),
+    )
+    rows = (
+        rows.join(before, on=["body", "contact"], how="left")
+        .join(after, on=["body", "contact"], how="left")
+        .with_columns(
+            (pl.int_range(pl.len()).over("body", "other") + 1).alias("bounce"),
+            gravity_n.alias("g_n"),
+        )
+    )
+    complete = (
+        pl.col("row_b").is_not_null()
+        & pl.col("visible")
+        & (pl.col("v_in_mps") < -pl.col("v_min_mps"))
+    )
+    apex_after_ok = complete & pl.col("after_reached") & ~pl.col("turning_after")
+    apex_before_ok = pl.col("before_reached") & ~pl.col("turning_before")
+    apex_m = pl.when(apex_after_ok).then(pl.col("apex_after_m"))
+    apex_before = pl.when(apex_before_ok).then(pl.col("apex_before_m"))
+    duration = pl.when(pl.col("meet_t_s").is_not_null() & pl.col("release_t_s").is_not_null())
+    start_s = pl.coalesce("meet_t_s", pl.col("start_t_ns") / 1e9)
     return (
-        times.join(after, on=["body", "bounce"], how="left")
-        .join(before, on=["body", "bounce"], how="left")
-        .with_columns(vn("_in").alias("v_in_mps"), vn("_out").alias("v_out_mps"), g_n.alias("g_n"))
+        rows.with_columns(apex_m.alias("apex"), apex_before.alias("apex_b"))
         .select(
             "run_id",
             "body",
+            pl.col("other").alias("surface"),
             "bounce",
-            (pl.col("start_t_ns") / 1e9).alias("impact_t_s"),
-            pl.when(~pl.col("open")).then(pl.col("after_t_ns") / 1e9).alias("release_t_s"),
-            "duration_s",
-            "v_in_mps",
-            pl.when(complete).then(pl.col("v_out_mps")).alias("v_out_mps"),
+            start_s.alias("impact_t_s"),
+            pl.when(pl.col("visible"))
+            .then(pl.coalesce("release_t_s", pl.col("t_a_ns") / 1e9))
+            .alias("release_t_s"),
+            duration.then(pl.col("release_t_s") - pl.col("meet_t_s"))
+            .otherwise((pl.col("end_t_ns") - pl.col("start_t_ns")) / 1e9 + pl.col("interval_s"))
+            .alias("duration_s"),
+            pl.when(pl.col("row_b").is_not_null()).then(pl.col("v_in_mps")).alias("v_in_mps"),
+            pl.when(pl.col("visible")).then(pl.col("v_out_mps")).alias("v_out_mps"),
             pl.when(complete).then(-pl.col("v_out_mps") / pl.col("v_in_mps")).alias("e_velocity"),
-            pl.when(pl.col("before_reached")).then(pl.col("apex_before_m")).alias("apex_before_m"),
-            pl.when(complete & pl.col("apex_reached")).then(pl.col("apex_m")).alias("apex_m"),
-            pl.when(complete & (pl.col("g_n") > 0))
-            .then(pl.col("h_release_m") + pl.col("v_out_mps") ** 2 / (2 * pl.col("g_n")))
+            pl.col("apex_b").alias("apex_before_m"),
+            pl.col("apex").alias("apex_m"),
+            pl.when(complete & (pl.col("g_n") > 0) & ~pl.col("turning_after").fill_null(True))
+            .then(pl.col("v_out_mps") ** 2 / (2 * pl.col("g_n")))
             .alias("apex_predicted_m"),
-            pl.when(
-                complete
-                & pl.col("apex_reached")
-                & pl.col("before_reached")
-                & (pl.col("apex_before_m") > 0)
-            )
-            .then((pl.col("apex_m").clip(0.0) / pl.col("apex_before_m")).sqrt())
+            pl.when(pl.col("apex").is_not_null() & (pl.col("apex_b") > 0))
+            .then((pl.col("apex").clip(0.0) / pl.col("apex_b")).sqrt())
             .alias("e_apex"),
             "peak_force_N",
             "impulse_Ns",
             "max_penetration_m",
+            pl.col("n_raw").alias("n_raw_contacts"),
             complete.alias("complete"),
-            pl.when(pl.col("open"))
-            .then(pl.lit("contact still open at the end of the log (at rest or cut off)"))
-            .when(pl.col("vx_in").is_null())
-            .then(pl.lit("in contact at the first logged step"))
-            .when(~pl.col("apex_reached").fill_null(False))
-            .then(pl.lit("log ends before the apex after this bounce"))
-            .otherwise(pl.lit(""))
-            .alias("note"),
+            note().alias("note"),
         )
         .cast(BOUNCE_SCHEMA)
-        .sort("body", "bounce")
+        .sort("body", "surface", "bounce")
     )
 
 
-def no_bounce_row(run_id: str, reason: str) -> pl.DataFrame:
-    """The row a run without any bounce contributes: only the reason."""
-    row = {k: None for k in BOUNCE_SCHEMA} | {"run_id": run_id, "complete": False, "note": reason}
-    return pl.DataFrame([row], schema=BOUNCE_SCHEMA)
+def note() -> pl.Expr:
+    """Why a bounce lacks a quantity (empty when it has them all)."""
+    surface = pl.col("other")
+    return (
+        pl.when(pl.col("open"))
+        .then(
+            pl.format(
+                "still in contact with {} at the end of the log (at rest, sliding or rolling, "
+                "or cut off)",
+                surface,
+            )
+        )
+        .when(~pl.col("visible"))
+        .then(
+            pl.format(
+                "no visible flight after it: the body stays on {} (a release slower than "
+                "v_min = {} m/s cannot be told from a resting contact)",
+                surface,
+                pl.col("v_min_mps").round_sig_figs(3),
+            )
+        )
+        .when(pl.col("row_b").is_null())
+        .then(pl.lit("in contact at the first logged step"))
+        .when(pl.col("turning_after").fill_null(False))
+        .then(pl.lit(TURNING))
+        .when(pl.col("apex_after_m").is_null())
+        .then(pl.lit("no clearance to this surface in the log, so no heights"))
+        .when(~pl.col("after_reached").fill_null(False))
+        .then(pl.lit("the log ends before the apex after this bounce"))
+        .otherwise(pl.lit(""))
+    )
+
+
+def no_bounce_rows(run_id: str, reasons: dict[str, str]) -> pl.DataFrame:
+    """Rows for bodies without any bounce: body and the reason only."""
+    rows = [
+        {k: None for k in BOUNCE_SCHEMA}
+        | {"run_id": run_id, "body": body, "complete": False, "note": why}
+        for body, why in reasons.items()
+    ]
+    return pl.DataFrame(rows, schema=BOUNCE_SCHEMA)

@@ -1,13 +1,17 @@
 """Body-body collisions: velocities, momentum and kinetic energy before and after, measured e,
-and the analytic 1D outcome along the line of centres.
+and the analytic 1D outcome along the contact normal.
 
-The normal n is the unit vector from body1's centre to body2's at the first logged step in
-contact. "Before" is the state at the last logged step before the contact interval, "after" the
-first logged step after it. v1n, v2n are the velocities along n; the measured
-e = -(v2n' - v1n') / (v2n - v1n). The analytic outcome for restitution e (notes, physics.md):
+The normal n is the contact normal (from body1 to body2) at the first logged row in contact;
+for two spheres it is the line of centres. "Before" is the state at the last logged row
+before the contact, "after" at the first row after it (two free bodies fall alike, so their
+relative velocity is the same at those rows as at the moments they meet and part). v1n, v2n
+are the velocities of the contact point of each body along n (v + w x r); the measured
+e = -(v2n' - v1n') / (v2n - v1n). The analytic outcome for restitution e (notes, physics.md),
 v1' = (m1 v1 + m2 v2 + m2 e (v2 - v1)) / (m1 + m2), v2' = (m1 v1 + m2 v2 + m1 e (v1 - v2)) /
-(m1 + m2), kinetic energy lost (1 - e^2) m1 m2 (v1 - v2)^2 / (2 (m1 + m2)). The relative momentum
-change is |p' - p| / (|m1 v1| + |m2 v2|) (not |p|, which can be zero).
+(m1 + m2), kinetic energy lost (1 - e^2) m1 m2 (v1 - v2)^2 / (2 (m1 + m2)), holds for a
+central impact only (n through both centres of mass); for an eccentric one those columns
+are left empty and the note says so. The relative momentum change is |p' - p| / (|m1 v1| +
+|m2 v2|) (not |p|, which can be zero). Contacts are merged across chatter as for bounces.
 """
 
 from __future__ import annotations
@@ -17,6 +21,10 @@ import polars as pl
 from impactlab.analyze.contacts import state_at
 from impactlab.logs.load import BodyInfo
 from impactlab.physics import collision_after
+
+CENTRAL_LEVER = 1e-6
+"""An impact is central when the normal passes each centre of mass within this fraction of
+the contact point's distance from it."""
 
 COLLISION_SCHEMA: dict[str, pl.DataType] = {
     "run_id": pl.String,
@@ -74,65 +82,69 @@ def _norm(a: list[pl.Expr]) -> pl.Expr:
     return _dot(a, a).sqrt()
 
 
-def pair_states(states: pl.DataFrame, times: pl.DataFrame, on: str, tag: str) -> pl.DataFrame:
-    """Attach body1's and body2's states at time `on` as columns `<col>1<tag>`, `<col>2<tag>`."""
+def pair_states(states: pl.DataFrame, frame: pl.DataFrame, row: str, tag: str) -> pl.DataFrame:
+    """Attach body1's and body2's states at the row number in column `row` as `<col>1<tag>`,
+    `<col>2<tag>`."""
     for k in ("1", "2"):
-        times = state_at(
-            states,
-            times.with_columns(pl.col(f"body{k}").alias("body")),
-            on=on,
-            suffix=f"{k}{tag}",
-        ).drop("body")
-    return times
+        frame = state_at(states, frame, body=f"body{k}", row=row, suffix=f"{k}{tag}")
+    return frame
 
 
 def collisions(
-    intervals: pl.DataFrame, states: pl.DataFrame, infos: dict[str, BodyInfo], *, step_ns: int
+    contacts: pl.DataFrame, states: pl.DataFrame, infos: dict[str, BodyInfo]
 ) -> pl.DataFrame:
-    """One row per contact interval between two free bodies (see the module docstring).
+    """One row per contact between two free bodies (see the module docstring).
 
     Args:
-        intervals: `contact_intervals` of the run.
+        contacts: the run's merged contacts of kind "body" (`impacts.merge_chatter`).
         states: `states_long` of the run.
         infos: the run's bodies (masses in kg).
-        step_ns: logged step, ns.
 
     Returns:
-        Columns of `COLLISION_SCHEMA`; an interval still open at the end of the log is marked
+        Columns of `COLLISION_SCHEMA`; a contact still open at the end of the log is marked
         incomplete and gets no "after" values.
     """
     names = list(infos)
-    hits = (
-        intervals.filter(pl.col("body1").is_in(names) & pl.col("body2").is_in(names))
-        .sort("start_t_ns")
-        .with_columns(
-            (pl.int_range(pl.len()).over("body1", "body2") + 1).alias("collision"),
-            (pl.col("start_t_ns") - step_ns).alias("before_t_ns"),
-            (pl.col("end_t_ns") + step_ns).alias("after_t_ns"),
-            pl.col("body1").replace_strict({n: i.mass for n, i in infos.items()}).alias("m1_kg"),
-            pl.col("body2").replace_strict({n: i.mass for n, i in infos.items()}).alias("m2_kg"),
-        )
-        .drop("nx", "ny", "nz")
-    )
+    hits = contacts.filter(pl.col("body").is_in(names) & pl.col("other").is_in(names))
     if hits.is_empty():
         return pl.DataFrame(schema=COLLISION_SCHEMA)
-    hits = pair_states(states, hits, "start_t_ns", "_c")
-    hits = pair_states(states, hits, "before_t_ns", "_before")
-    hits = pair_states(states, hits, "after_t_ns", "_after")
-    d = [pl.col(f"{c}2_c") - pl.col(f"{c}1_c") for c in "xyz"]
-    hits = hits.with_columns(*[(d[i] / _norm(d)).alias(f"n{c}") for i, c in enumerate("xyz")])
+    mass = {n: i.mass for n, i in infos.items()}
+    hits = (
+        hits.sort("start_t_ns")
+        .rename({"body": "body1", "other": "body2"})
+        .with_columns(
+            (pl.int_range(pl.len()).over("body1", "body2") + 1).alias("collision"),
+            pl.col("body1").replace_strict(mass).alias("m1_kg"),
+            pl.col("body2").replace_strict(mass).alias("m2_kg"),
+            *[pl.col(f"n{c}_in").alias(f"n{c}") for c in "xyz"],
+            pl.col("u1_b").alias("v1n_before_mps"),
+            pl.col("u2_b").alias("v2n_before_mps"),
+            pl.col("u1_a").alias("v1n_after_mps"),
+            pl.col("u2_a").alias("v2n_after_mps"),
+            (pl.max_horizontal("lever1", "lever2") <= CENTRAL_LEVER).alias("central"),
+            ((pl.col("end_t_ns") - pl.col("start_t_ns")) / 1e9 + pl.col("interval_s")).alias(
+                "duration_s"
+            ),
+        )
+    )
+    hits = pair_states(states, hits, "row_b", "_before")
+    hits = pair_states(states, hits, "row_a", "_after")
     return from_pair_states(hits)
 
 
 def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
-    """The collision quantities from a frame with masses, normal, and both bodies' states.
+    """The collision quantities from a frame with masses, normal, normal velocities of the
+    contact points and both bodies' states (see `pair_states`).
 
-    Needs m1_kg, m2_kg, nx, ny, nz, and x1_before .. vz2_after (see `pair_states`).
+    Needs m1_kg, m2_kg, nx, ny, nz, v1n/v2n_before/after_mps, central, open, and x1_before ..
+    vz2_after.
     """
-    n = _vec("n", "")
     m1, m2 = pl.col("m1_kg"), pl.col("m2_kg")
     complete = (
-        ~pl.col("open") & pl.col("vx1_after").is_not_null() & pl.col("vx1_before").is_not_null()
+        ~pl.col("open")
+        & pl.col("vx1_after").is_not_null()
+        & pl.col("vx1_before").is_not_null()
+        & (pl.col("v2n_before_mps") < pl.col("v1n_before_mps"))  # closing
     )
     out = hits.with_columns(
         *[
@@ -145,11 +157,6 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
             (m1 * pl.col(f"v{c}1_{w}") + m2 * pl.col(f"v{c}2_{w}")).alias(f"p{c}_{w}_Ns")
             for w in ("before", "after")
             for c in "xyz"
-        ],
-        *[
-            _dot(_vec("v", f"{k}_{w}"), n).alias(f"v{k}n_{w}_mps")
-            for w in ("before", "after")
-            for k in "12"
         ],
         *[
             (
@@ -176,34 +183,40 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
     v1e, v2e = collision_after(m1, m2, v1, v2, pl.col("e_measured"))
     v1el, v2el = collision_after(m1, m2, v1, v2, 1.0)
     vin, _ = collision_after(m1, m2, v1, v2, 0.0)
-    after_cols = [
-        c
-        for c in COLLISION_SCHEMA
-        if "after" in c or c.startswith("ke_loss") or c in ("e_measured", "momentum_rel_change")
-    ]
+    central = pl.col("central")
     out = out.with_columns(
-        v1e.alias("v1n_after_e_mps"),
-        v2e.alias("v2n_after_e_mps"),
-        v1el.alias("v1n_after_elastic_mps"),
-        v2el.alias("v2n_after_elastic_mps"),
-        vin.alias("v_after_inelastic_mps"),
+        pl.when(central).then(v1e).alias("v1n_after_e_mps"),
+        pl.when(central).then(v2e).alias("v2n_after_e_mps"),
+        pl.when(central).then(v1el).alias("v1n_after_elastic_mps"),
+        pl.when(central).then(v2el).alias("v2n_after_elastic_mps"),
+        pl.when(central).then(vin).alias("v_after_inelastic_mps"),
+        pl.when(central).then(pl.col("ke_loss_predicted_J")).alias("ke_loss_predicted_J"),
         (pl.col("start_t_ns") / 1e9).alias("impact_t_s"),
-        pl.when(~pl.col("open")).then(pl.col("after_t_ns") / 1e9).alias("release_t_s"),
+        pl.when(~pl.col("open")).then(pl.col("t_a_ns") / 1e9).alias("release_t_s"),
         complete.alias("complete"),
         pl.when(pl.col("open"))
         .then(pl.lit("contact still open at the end of the log"))
+        .when(~pl.col("visible"))
+        .then(pl.lit("the bodies stay in contact (no visible separation)"))
+        .when(~central)
+        .then(pl.lit("eccentric impact: the 1D formulas for the outcome do not apply"))
         .otherwise(pl.lit(""))
         .alias("note"),
     )
-    keep_after = [
+    after_cols = [
         c
-        for c in after_cols
-        if c not in ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")
+        for c in COLLISION_SCHEMA
+        if ("after" in c and c not in ELASTIC_COLUMNS)
+        or c.startswith("ke_loss")
+        or c in ("e_measured", "momentum_rel_change")
     ]
     out = out.with_columns(
-        *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in keep_after]
+        *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in after_cols]
     )
     return out.select(list(COLLISION_SCHEMA)).cast(COLLISION_SCHEMA).sort("impact_t_s")
+
+
+ELASTIC_COLUMNS = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")
 
 
 def no_collision_rows(
@@ -211,41 +224,51 @@ def no_collision_rows(
 ) -> pl.DataFrame:
     """Rows for a run whose bodies never touch: first and last logged state, e unknown.
 
-    The normal is the line of centres at the first logged step; "after" is the last logged
-    state, which shows that nothing happened (the handout's Step 3 as written).
+    The normal is the line of centres at the first logged row; "after" is the last logged
+    state, which shows that nothing happened (the handout's Step 3 as written). The elastic
+    and inelastic answers are given for two spheres (whose impact would be central).
     """
     names = [n for n in infos if n in set(states["body"].unique().to_list())]
     if len(names) < 2:
         return pl.DataFrame(schema=COLLISION_SCHEMA)
-    first, last = int(states["t_ns"].min()), int(states["t_ns"].max())
-    rows = []
-    for i, a in enumerate(names):
-        for b in names[i + 1 :]:
-            rows.append(
-                {
-                    "run_id": run_id,
-                    "body1": a,
-                    "body2": b,
-                    "m1_kg": infos[a].mass,
-                    "m2_kg": infos[b].mass,
-                }
-            )
+    first, last = int(states["row"].min()), int(states["row"].max())
+    rows = [
+        {
+            "run_id": run_id,
+            "body1": a,
+            "body2": b,
+            "m1_kg": infos[a].mass,
+            "m2_kg": infos[b].mass,
+            "central": infos[a].radius is not None and infos[b].radius is not None,
+        }
+        for i, a in enumerate(names)
+        for b in names[i + 1 :]
+    ]
     hits = pl.DataFrame(rows).with_columns(
         pl.lit(None, dtype=pl.Int64).alias("collision"),
-        pl.lit(first).alias("start_t_ns"),
-        pl.lit(first).alias("before_t_ns"),
-        pl.lit(last).alias("after_t_ns"),
+        pl.lit(None, dtype=pl.Int64).alias("start_t_ns"),
+        pl.lit(first).alias("row_b"),
+        pl.lit(last).alias("row_a"),
+        pl.lit(None, dtype=pl.Int64).alias("t_a_ns"),
         pl.lit(None, dtype=pl.Float64).alias("duration_s"),
         pl.lit(None, dtype=pl.Float64).alias("peak_force_N"),
         pl.lit(None, dtype=pl.Float64).alias("impulse_Ns"),
         pl.lit(None, dtype=pl.Float64).alias("max_penetration_m"),
         pl.lit(False).alias("open"),
+        pl.lit(True).alias("visible"),
     )
-    hits = pair_states(states, hits, "before_t_ns", "_c")
-    hits = pair_states(states, hits, "before_t_ns", "_before")
-    hits = pair_states(states, hits, "after_t_ns", "_after")
-    d = [pl.col(f"{c}2_c") - pl.col(f"{c}1_c") for c in "xyz"]
-    hits = hits.with_columns(*[(d[i] / _norm(d)).alias(f"n{c}") for i, c in enumerate("xyz")])
+    hits = pair_states(states, hits, "row_b", "_before")
+    hits = pair_states(states, hits, "row_a", "_after")
+    d = [pl.col(f"{c}2_before") - pl.col(f"{c}1_before") for c in "xyz"]
+    n = [d[i] / _norm(d) for i in range(3)]
+    hits = hits.with_columns(
+        *[n[i].alias(f"n{c}") for i, c in enumerate("xyz")],
+        *[
+            _dot(n, _vec("v", f"{k}_{w}")).alias(f"v{k}n_{w}_mps")
+            for k in "12"
+            for w in ("before", "after")
+        ],
+    )
     out = from_pair_states(hits)
     return out.with_columns(
         pl.lit(None, dtype=pl.Float64).alias("e_measured"),

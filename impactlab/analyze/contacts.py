@@ -1,29 +1,34 @@
-"""Contact intervals from the contact channel, and the body states around them.
+"""Contact intervals of each body with each ground surface and with each other body.
 
-A pair of geoms is in contact at a logged step when the log holds a message on the pair's topic
-at that step. A contact interval is a run of consecutive logged steps (step index = t_ns /
-logged step) with a message; the state "before" is the body state at the last logged step before
-the interval, "after" the state at the first logged step after it. An interval that reaches the
-last logged step is open (incomplete): its "after" state does not exist.
+A body touches a surface (or another body) at a logged row when the log holds a message on
+one of their geom pairs' contact topics at that row; the body's geoms are taken together.
+Consecutive rows in contact form a raw interval. Each row's contact point is the mean of its
+points and its normal the first point's, oriented from the surface to the body (for two
+bodies, from `body` to `other`, as logged). Rows are numbered over the run's logged steps
+(`row`), so a log written every N steps, or with its last (stop) step off that grid, is read
+the same way. A raw interval reaching the last row is `open`.
+
+Raw intervals separated by no visible flight are merged into one contact
+(`impactlab.analyze.impacts.merge_chatter`).
 """
 
 from __future__ import annotations
 
 import polars as pl
 
+from impactlab.analyze.ground import Ground
 from impactlab.logs.load import RunLog
+from impactlab.logs.messages import BODY_FIELDS
 
-PAIR = ("geom1", "geom2", "body1", "body2")
-
-
-def logged_step_ns(run: RunLog) -> int:
-    """Time between two logged rows in integer ns (timestep x log_every, as the recorder does)."""
-    step_ns = max(1, round(run.timestep_s * 1e9))
-    return step_ns * int(run.meta.get("log_every", "1") or 1)
+PAIR = ("kind", "body", "other")
+"""An interval's pair: kind "ground" (body on the surface `other`) or "body" (two bodies)."""
 
 
 def states_long(run: RunLog) -> pl.DataFrame:
-    """Every body's state in one frame: (run_id, body, t_ns, t_s, x .. wz), sorted by body, time."""
+    """Every body's state in one frame: (run_id, body, row, t_ns, t_s, x .. wz), by body, time.
+
+    `row` numbers the run's logged steps from 0.
+    """
     frames = [
         frame.with_columns(pl.lit(name).alias("body")).select(
             "run_id", "body", pl.exclude("run_id", "body")
@@ -31,90 +36,130 @@ def states_long(run: RunLog) -> pl.DataFrame:
         for name, frame in run.bodies.items()
     ]
     if not frames:
-        return pl.DataFrame(schema={"run_id": pl.String, "body": pl.String, "t_ns": pl.Int64})
-    return pl.concat(frames).sort("body", "t_ns")
+        schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
+        schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
+        return pl.DataFrame(schema=schema)
+    states = pl.concat(frames)
+    rows = row_numbers(states["t_ns"])
+    return (
+        states.join(rows, on="t_ns", how="left")
+        .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
+        .sort("body", "t_ns")
+    )
 
 
-def contact_steps(contacts: pl.DataFrame, *, step_ns: int) -> pl.DataFrame:
-    """One row per pair and logged step in contact, the points summed.
+def row_numbers(t_ns: pl.Series) -> pl.DataFrame:
+    """(t_ns, row): the logged times, numbered from 0."""
+    times = t_ns.unique().sort()
+    return pl.DataFrame({"t_ns": times, "row": pl.int_range(times.len(), eager=True)})
+
+
+def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:
+    """One row per pair (kind, body, other) and logged row in contact.
 
     Returns:
-        (run_id, geom1, geom2, body1, body2, t_ns, step, n_points, normal_force_N (sum over the
-        points), penetration_m (max), nx, ny, nz (first point, geom1 -> geom2)).
+        (run_id, kind, body, other, row, t_ns, n_points, normal_force_N (sum over the
+        points), penetration_m (max), pen (mean), px, py, pz (mean point), nx, ny, nz
+        (oriented, see the module docstring)).
     """
+    bodies = list(run.bodies)
+    surfaces = list(ground.surfaces)
+    c = run.contacts
+    on_ground_2 = pl.col("geom1").is_in(surfaces) & pl.col("body2").is_in(bodies)
+    on_ground_1 = pl.col("geom2").is_in(surfaces) & pl.col("body1").is_in(bodies)
+    two_bodies = pl.col("body1").is_in(bodies) & pl.col("body2").is_in(bodies)
+    tagged = c.with_columns(
+        pl.when(on_ground_2 | on_ground_1)
+        .then(pl.lit("ground"))
+        .when(two_bodies)
+        .then(pl.lit("body"))
+        .alias("kind"),
+        (on_ground_1 & ~on_ground_2).alias("flip"),  # the surface is geom2
+    ).filter(pl.col("kind").is_not_null())
+    ground_pair = pl.col("kind") == "ground"
+    sign = pl.when(pl.col("flip")).then(-1.0).otherwise(1.0)
+    tagged = tagged.with_columns(
+        pl.when(ground_pair & ~pl.col("flip"))
+        .then(pl.col("body2"))
+        .otherwise(pl.col("body1"))
+        .alias("body"),
+        pl.when(~ground_pair)
+        .then(pl.col("body2"))
+        .when(pl.col("flip"))
+        .then(pl.col("geom2"))
+        .otherwise(pl.col("geom1"))
+        .alias("other"),
+        *[(sign * pl.col(f"n{a}")).alias(f"n{a}") for a in "xyz"],
+    )
     return (
-        contacts.group_by("run_id", *PAIR, "t_ns", maintain_order=True)
+        tagged.group_by("run_id", *PAIR, "t_ns")
         .agg(
             pl.len().alias("n_points"),
             pl.col("normal_force").sum().alias("normal_force_N"),
             pl.col("penetration").max().alias("penetration_m"),
+            pl.col("penetration").mean().alias("pen"),
+            pl.col("x").mean().alias("px"),
+            pl.col("y").mean().alias("py"),
+            pl.col("z").mean().alias("pz"),
             pl.col("nx").first(),
             pl.col("ny").first(),
             pl.col("nz").first(),
         )
-        .with_columns((pl.col("t_ns") // step_ns).alias("step"))
-        .sort(*PAIR, "t_ns")
+        .join(rows, on="t_ns", how="inner")
+        .sort(*PAIR, "row")
     )
 
 
-def contact_intervals(steps: pl.DataFrame, *, step_ns: int, last_t_ns: int) -> pl.DataFrame:
-    """Group consecutive contact steps of each pair into intervals.
+def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> pl.DataFrame:
+    """Group consecutive contact rows of each pair into raw intervals.
 
     Args:
-        steps: `contact_steps` output.
-        step_ns: logged step in ns.
-        last_t_ns: time of the run's last logged row, ns.
+        steps: `contact_rows` output.
+        last_row: the run's last logged row.
+        interval_s: the nominal time between logged rows (for the impulse), s.
 
     Returns:
-        One row per interval: the pair, `interval` (0-based per pair), start_t_ns and end_t_ns
-        (first and last logged step in contact), n_steps, duration_s (n_steps x logged step),
-        peak_force_N, impulse_Ns (sum of normal force x logged step), max_penetration_m, the
-        normal at the first step (nx, ny, nz) and `open` (reaches the end of the log).
+        One row per interval: the pair, `interval` (0-based per pair), first_row, last_row,
+        start_t_ns, end_t_ns, n_steps, peak_force_N, impulse_Ns (sum of normal force x
+        interval_s), max_penetration_m, the point, normal and mean penetration at the first
+        row (px_in .. nz_in, pen_in) and at the last row (px_out .. pen_out), and `open`
+        (reaches the last row).
     """
-    dt_s = step_ns / 1e9
     pair = list(PAIR)
+    point = ("px", "py", "pz", "nx", "ny", "nz", "pen")
     return (
-        steps.sort(*pair, "t_ns")
+        steps.sort(*pair, "row")
         .with_columns(
-            (pl.col("step").diff().fill_null(1).ne(1).cum_sum().over(pair)).alias("interval")
+            pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
         )
         .group_by("run_id", *pair, "interval", maintain_order=True)
         .agg(
+            pl.col("row").first().alias("first_row"),
+            pl.col("row").last().alias("last_row"),
             pl.col("t_ns").first().alias("start_t_ns"),
             pl.col("t_ns").last().alias("end_t_ns"),
             pl.len().alias("n_steps"),
             pl.col("normal_force_N").max().alias("peak_force_N"),
-            (pl.col("normal_force_N").sum() * dt_s).alias("impulse_Ns"),
+            (pl.col("normal_force_N").sum() * interval_s).alias("impulse_Ns"),
             pl.col("penetration_m").max().alias("max_penetration_m"),
-            pl.col("nx").first(),
-            pl.col("ny").first(),
-            pl.col("nz").first(),
+            *[pl.col(c).first().alias(f"{c}_in") for c in point],
+            *[pl.col(c).last().alias(f"{c}_out") for c in point],
         )
         .with_columns(
-            (pl.col("n_steps") * dt_s).alias("duration_s"),
-            (pl.col("end_t_ns") >= last_t_ns).alias("open"),
+            (pl.col("last_row") >= last_row).alias("open"),
             pl.col("interval").cast(pl.Int64),
         )
         .sort("start_t_ns", *pair)
     )
 
 
-def run_intervals(run: RunLog) -> pl.DataFrame:
-    """The contact intervals of one run (empty frame with the same columns when none)."""
-    step_ns = logged_step_ns(run)
-    last = max((int(f["t_ns"].max()) for f in run.bodies.values() if f.height), default=0)
-    return contact_intervals(
-        contact_steps(run.contacts, step_ns=step_ns), step_ns=step_ns, last_t_ns=last
-    )
-
-
-def state_at(states: pl.DataFrame, times: pl.DataFrame, *, on: str, suffix: str) -> pl.DataFrame:
-    """Join each row of `times` with the body state at time `on` (exact ns), columns suffixed.
-
-    `times` must have columns `body` and `on`; missing states give nulls.
-    """
-    cols = ["x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz"]
+def state_at(states: pl.DataFrame, frame: pl.DataFrame, *, body: str, row: str, suffix: str):
+    """Join each row of `frame` with the state of the body named in column `body` at the row
+    number in column `row`; the state's columns get `suffix` (nulls where there is none)."""
+    cols = ["t_ns", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz"]
     right = states.select(
-        "body", pl.col("t_ns").alias(on), *[pl.col(c).alias(f"{c}{suffix}") for c in cols]
+        pl.col("body").alias(body),
+        pl.col("row").alias(row),
+        *[pl.col(c).alias(c + suffix) for c in cols],
     )
-    return times.join(right, on=["body", on], how="left")
+    return frame.join(right, on=[body, row], how="left")

@@ -1,43 +1,63 @@
 """Energy of each body and of the run: kinetic (translational, rotational), potential, total.
 
-Potential energy is measured from a reference position per body: with a plane, the contact
-height (centre at plane_z + radius, so a ball resting on the plane has zero potential energy);
-without a plane, the body's initial position. MuJoCo's own potential energy is m g z of the
-centre (relative to the world origin), so `mujoco_total_J` is shifted by sum(-m g . r_ref) before
-it is compared.
+Potential energy is measured from a reference height per body (`impactlab.analyze.ground`):
+with a ground, the level of the surface the body lands on first plus the body's rest height
+(a ball resting on a plane has zero potential energy; a box resting on its largest face
+too); without one, the body's initial position. MuJoCo's own potential energy is m g z of
+the centre (relative to the world origin), so `mujoco_total_J` is shifted by
+sum(-m g . r_ref) before it is compared. `height_m` is the body's clearance above its
+reference surface (its lowest point), or, without a clearance, its centre's height above
+the reference.
 
-Flight phases are the runs of logged steps with no contact message of any pair; the energy of
-the run should stay constant there (`drift_J`). Each contact phase loses `loss_J`: the energy at
-the last logged step before it minus that at the first logged step after it, so that
-E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
+Flight phases are the runs of logged rows in no contact (contacts merged across chatter);
+the energy of the run should stay constant there (`drift_J`). Each contact phase loses
+`loss_J`: the energy at the last logged row before it minus that at the first logged row
+after it, so that E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.contacts import states_long
+from impactlab.analyze.ground import Ground
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
 
 
-def reference_positions(run: RunLog) -> dict[str, np.ndarray]:
-    """Per body, the position of zero potential energy, m (3,).
+@dataclass(frozen=True)
+class Reference:
+    """Where a body's potential energy is zero: a point (only its height along -gravity
+    matters), and the surface its heights are measured from (None: centre above `point`)."""
 
-    With a plane: (0, 0, plane_z + radius). Without: the body's first logged position.
+    point: np.ndarray
+    surface: str | None
+
+
+def references(
+    run: RunLog, ground: Ground, states: pl.DataFrame, first_surface: dict[str, str]
+) -> dict[str, Reference]:
+    """Per body, its energy reference (see the module docstring).
+
+    Args:
+        first_surface: per body, the surface of its first ground contact (if any).
     """
     refs = {}
     for name, info in run.body_info.items():
-        frame = run.bodies.get(name)
-        if run.plane_z is not None and info.radius is not None:
-            refs[name] = np.array([0.0, 0.0, run.plane_z + info.radius])
-        elif frame is not None and frame.height:
-            refs[name] = frame.select("x", "y", "z").row(0, named=False)
-            refs[name] = np.asarray(refs[name], dtype=float)
-        else:
-            refs[name] = np.zeros(3)
+        surface = ground.reference(name, first_surface.get(name), info.rest_height_m)
+        if surface is not None and info.rest_height_m is not None:
+            level = ground.surfaces[surface].level_m + info.rest_height_m
+            measured = ground.clearance.filter(
+                (pl.col("body") == name) & (pl.col("surface") == surface)
+            ).height
+            refs[name] = Reference(level * ground.up, surface if measured else None)
+            continue
+        mine = states.filter(pl.col("body") == name)
+        start = mine.select("x", "y", "z").row(0) if mine.height else (0.0, 0.0, 0.0)
+        refs[name] = Reference(np.asarray(start, dtype=float), None)
     return refs
 
 
@@ -70,7 +90,7 @@ def body_energy(
 
     Returns:
         (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J); height_m is
-        the centre's height above `ref` along -gravity (above the contact height with a plane).
+        the centre's height above `ref` along -gravity.
     """
     m = info.mass
     ix, iy, iz = info.inertia
@@ -97,28 +117,38 @@ def body_energy(
     )
 
 
-def run_energy(run: RunLog) -> pl.DataFrame:
+def run_energy(
+    run: RunLog, states: pl.DataFrame, ground: Ground, refs: dict[str, Reference]
+) -> pl.DataFrame:
     """Energy per body and for the whole run (body = "total"), with MuJoCo's total compared.
+
+    Args:
+        states: `states_long` of the run.
+        refs: `references` of the run.
 
     Returns:
         (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
         mujoco_total_J, mujoco_diff_J); the MuJoCo columns are set on the "total" rows only:
         MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
     """
-    refs = reference_positions(run)
-    states = states_long(run)
     infos = run.body_info
-    per_body = [
-        body_energy(
-            states.filter(pl.col("body") == name), infos[name], gravity=run.gravity, ref=ref
+    per_body = []
+    for name, ref in refs.items():
+        if name not in run.bodies:
+            continue
+        frame = body_energy(
+            states.filter(pl.col("body") == name), infos[name], gravity=run.gravity, ref=ref.point
         )
-        for name, ref in refs.items()
-        if name in run.bodies
-    ]
+        if ref.surface is not None:  # heights: the lowest point above the reference surface
+            above = ground.clearance.filter(
+                (pl.col("body") == name) & (pl.col("surface") == ref.surface)
+            ).select("t_ns", pl.col("clearance_m").alias("height_m"))
+            frame = frame.drop("height_m").join(above, on="t_ns", how="left")
+        per_body.append(frame.select(ENERGY_FRAME_COLUMNS))
     if not per_body:
         return empty_energy()
     bodies = pl.concat(per_body)
-    shift = float(sum(-infos[n].mass * run.gravity @ refs[n] for n in refs))
+    shift = float(sum(-infos[n].mass * run.gravity @ refs[n].point for n in refs))
     total = (
         bodies.group_by("run_id", "t_ns", "t_s", maintain_order=True)
         .agg(
@@ -139,6 +169,9 @@ def run_energy(run: RunLog) -> pl.DataFrame:
     )
 
 
+ENERGY_FRAME_COLUMNS = ("run_id", "body", "t_ns", "t_s", "height_m", *ENERGY_COLUMNS)
+
+
 def empty_energy() -> pl.DataFrame:
     """An energy frame with no rows."""
     schema = {"run_id": pl.String, "body": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
@@ -152,14 +185,15 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
 
     Args:
         total: the run's "total" energy rows (t_ns, total_J), sorted by time.
-        contact_times: t_ns of every logged step at which any pair is in contact.
+        contact_times: t_ns of every logged row inside a contact (chatter merged).
 
     Returns:
         One row per phase: (run_id, phase, kind = "flight" | "contact", start_t_s, end_t_s,
         e_start_J, e_end_J, drift_J (flight: E(end) - E(start)), max_dev_J (flight: max
-        |E - E(start)|), loss_J (contact: E(last step before) - E(first step after); up to the
-        last logged step when the contact is still open), open).
+        |E - E(start)|), loss_J (contact: E(last row before) - E(first row after); up to the
+        last logged row when the contact is still open), open).
     """
+
     phases = (
         total.select("run_id", "t_ns", "t_s", "total_J")
         .with_columns(pl.col("t_ns").is_in(contact_times.implode()).alias("in_contact"))

@@ -39,14 +39,14 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     ):
         ax_h.plot(frame["t_s"], frame["height_m"], label=str(body[0]))
     _shade_contacts(ax_h, contacts)
-    ax_h.set_ylabel("height above contact (m)")
+    ax_h.set_ylabel("lowest point above the ground (m)")
     ax_h.set_title(title)
     ax_h.legend(loc="upper right")
     ax_h.grid(True, alpha=0.3)
     total = energy.filter(pl.col("body") == "total")
     t = total["t_s"]
     ax_e.plot(t, total["ke_trans_J"] + total["ke_rot_J"], label="kinetic", alpha=0.8)
-    ax_e.plot(t, total["pe_J"], label="potential (zero at contact height)", alpha=0.8)
+    ax_e.plot(t, total["pe_J"], label="potential (zero at rest on the ground)", alpha=0.8)
     ax_e.plot(t, total["total_J"], label="total", lw=2, color="k")
     if total["mujoco_total_J"].drop_nulls().len():
         ax_e.plot(
@@ -63,40 +63,50 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
 def bounce_decay_figure(
     bounces: pl.DataFrame, labels: dict[str, str], *, title: str, path: Path
 ) -> Path:
-    """Apex height (from the contact height) against bounce number, one line per run.
+    """Apex height above the surface against bounce number, one line per run, body and surface.
 
     Args:
-        bounces: bounce rows of several runs (run_id, bounce, apex_before_m, apex_m).
+        bounces: bounce rows of several runs (run_id, body, surface, bounce, apex_before_m,
+            apex_m).
         labels: run_id -> legend label.
     """
     fig, ax = plt.subplots(figsize=(8, 5))
-    legend = len(labels) <= MAX_LEGEND_RUNS
-    colors = plt.cm.viridis(np.linspace(0, 1, max(len(labels), 1)))
-    for i, (run_id, label) in enumerate(labels.items()):
-        rows = bounces.filter((pl.col("run_id") == run_id) & pl.col("bounce").is_not_null()).sort(
-            "bounce"
+    rows = bounces.filter(
+        pl.col("run_id").is_in(list(labels)) & pl.col("bounce").is_not_null()
+    ).sort("bounce")
+    keys = rows.select("run_id", "body", "surface").unique(maintain_order=True).rows()
+    several = len({(b, s) for _, b, s in keys}) > 1
+    legend = len(keys) <= MAX_LEGEND_RUNS
+    colors = plt.cm.viridis(np.linspace(0, 1, max(len(keys), 1)))
+    drawn = set()
+    for i, (run_id, body, surface) in enumerate(keys):
+        mine = rows.filter(
+            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
         )
-        if rows.is_empty():
-            if legend:
-                ax.plot([], [], "o-", label=f"{label}: no bounce")
-            continue
-        n = [0, *rows["bounce"].to_list()]
-        h = [rows["apex_before_m"][0], *rows["apex_m"].to_list()]
+        n = [0, *mine["bounce"].to_list()]
+        h = [mine["apex_before_m"][0], *mine["apex_m"].to_list()]
         pts = [(a, b) for a, b in zip(n, h, strict=True) if b is not None]
         # the last contact of a run that comes to rest has no apex: show it at 0 (resting)
-        if rows["apex_m"][-1] is None:
+        if mine["apex_m"][-1] is None and not mine["complete"][-1]:
             pts.append((n[-1], 0.0))
-        ax.plot(
-            *zip(*pts, strict=True),
-            "o-",
-            color=None if legend else colors[i],
-            label=f"{label} (h0 = {h[0]:.3g} m)" if legend else None,
-        )
+        label = labels[run_id] + (f", {body} on {surface}" if several else "")
+        start = f" (h0 = {h[0]:.3g} m)" if h[0] is not None else ""
+        if pts:
+            ax.plot(
+                *zip(*pts, strict=True),
+                "o-",
+                color=None if legend else colors[i],
+                label=f"{label}{start}" if legend else None,
+            )
+            drawn.add(run_id)
+    for run_id, label in labels.items():
+        if run_id not in drawn and legend:
+            ax.plot([], [], "o-", label=f"{label}: no bounce with a measured apex")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xlabel("bounce number (0: drop)")
-    ax.set_ylabel("apex above contact height (m; 0: at rest)")
-    ax.set_title(title if legend else f"{title}\n{len(labels)} runs, coloured in sweep order")
+    ax.set_ylabel("apex of the lowest point above the surface (m; 0: at rest)")
+    ax.set_title(title if legend else f"{title}\n{len(keys)} runs, coloured in sweep order")
     if legend:
         ax.legend()
     ax.grid(True, which="both", alpha=0.3)
@@ -165,16 +175,22 @@ def collision_figure(
 def restitution_figure(
     bounces: pl.DataFrame, collisions: pl.DataFrame, labels: dict[str, str], *, path: Path
 ) -> Path:
-    """e against impact speed: bounces (from velocities and from apexes) and collisions."""
+    """e against impact speed: bounces (from velocities and from apexes), one colour per run,
+    body and surface, and collisions."""
     fig, ax = plt.subplots(figsize=(8, 5))
-    b = bounces.filter(pl.col("complete"))
-    legend = len(labels) <= MAX_LEGEND_RUNS
-    colors = plt.cm.viridis(np.linspace(0, 1, max(len(labels), 1)))
-    for i, (run_id, label) in enumerate(labels.items()):
-        rows = b.filter(pl.col("run_id") == run_id)
-        if rows.is_empty():
-            continue
+    b = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
+    keys = (
+        b.select("run_id", "body", "surface").unique(maintain_order=True).rows() if b.height else []
+    )
+    several = len({(body, s) for _, body, s in keys}) > 1
+    legend = len(keys) <= MAX_LEGEND_RUNS
+    colors = plt.cm.viridis(np.linspace(0, 1, max(len(keys), 1)))
+    for i, (run_id, body, surface) in enumerate(keys):
+        rows = b.filter(
+            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
+        )
         color = f"C{i % 10}" if legend else colors[i]
+        label = labels[run_id] + (f", {body} on {surface}" if several else "")
         ax.plot(
             -rows["v_in_mps"],
             rows["e_velocity"],
@@ -189,11 +205,11 @@ def restitution_figure(
             "x",
             ms=9,
             color=color,
-            label=f"{label} (apexes)" if legend else None,
+            label=f"{label} (apexes)" if legend and apex.height else None,
         )
     if not legend:
-        ax.plot([], [], "o", color="0.4", label=f"{len(labels)} runs: o velocities, x apexes")
-    c = collisions.filter(pl.col("complete"))
+        ax.plot([], [], "o", color="0.4", label=f"{len(keys)} series: o velocities, x apexes")
+    c = collisions.filter(pl.col("complete")) if collisions.height else collisions
     if c.height:
         ax.plot(
             c["v1n_before_mps"] - c["v2n_before_mps"],
@@ -202,7 +218,7 @@ def restitution_figure(
             color="k",
             label="body-body collisions (closing speed)",
         )
-    ax.set_xlabel("impact speed along the normal (m/s)")
+    ax.set_xlabel("impact speed of the contact point along the normal (m/s)")
     ax.set_ylabel("coefficient of restitution e")
     ax.set_ylim(0, 1.05)
     ax.set_title("Restitution against impact speed")

@@ -11,25 +11,35 @@ import polars as pl
 from impactlab.analyze import answers
 
 METHOD = """\
-- **Contacts** come from the contact channel: a pair is in contact at a logged step when the log
-  holds a message on its topic at that step; consecutive logged steps form one contact interval.
-  No velocity threshold is used. An interval still open at the end of the log (a ball resting on
-  the plane, or a log cut short) is marked incomplete and not used for e.
-- **Velocities in and out** are the body state at the last logged step before the contact and
-  the first logged step after it, along the contact normal (plane to body; for two bodies the
-  line of centres at the first contact step). e = -v_out / v_in (for two bodies, relative normal
-  velocities).
-- **Heights** are measured from the contact height: centre minus radius above the plane (along
-  -gravity). The apex before bounce 1 is the drop height above contact; e from apexes is
-  sqrt(h(n) / h(n-1)). The predicted apex is h_release + v_out^2 / (2 g).
+- **Ground and heights** come from the model: the static geoms a body can land on (planes,
+  boxes, meshes, ...) are the ground surfaces, and a body's height above a surface is its
+  lowest point's, MuJoCo's own distance between the body's geoms and the surface (a sphere:
+  centre minus radius above a plane). Apexes are the highest centre of each flight, refined
+  ballistically, measured above the surface left and the one landed on; they are left empty
+  for a body that turns in flight (its lowest point then moves relative to its centre).
+- **Contacts** come from the contact channel: a body touches a surface (or another body) at a
+  logged step when the log holds a contact message of one of their geom pairs; consecutive
+  steps form a contact. A contact that ends with a release slower than v_min = g_n x (time
+  between logged steps) is merged with the next one: at rest, sliding or rolling, the contact
+  flickers at micrometres per second, and that is one resting contact, not bounces. A contact
+  still open at the end of the log is incomplete and not used for e.
+- **Velocities in and out** are those of the contact point (v + w x r, from the logged linear
+  and angular velocities) along the contact normal, at the moments the surfaces meet and
+  part: the free flight from the last logged step before the contact (first after it) is
+  extrapolated ballistically with the run's gravity and the body's rotation, so e and the
+  impact speed do not depend on the logging rate. e = -v_out / v_in (for two bodies, relative
+  normal velocities at the contact point; the 1D formulas only for central impacts).
 - **Energy**: kinetic = translational + rotational (angular velocity rotated into the body frame
   with the logged quaternion, principal inertia from the log's metadata); potential =
-  m g (height above the contact height), zero for a ball resting on the plane; without a plane,
-  potential is relative to each body's initial position. Flight phases are the logged steps
-  with no contact of any pair; a contact's loss is the energy at the last step before it minus
-  that at the first step after, so initial - final energy = sum of losses - sum of flight drifts.
+  m g (height of the centre above its reference): the level of the surface the body lands on
+  plus its rest height (its lowest possible centre height: a sphere's radius, a box's
+  smallest half size), so a ball resting on the plane has zero potential energy; without a
+  ground, potential is relative to each body's initial position. Flight phases are the logged
+  steps outside every contact; a contact's loss is the energy at the last step before it
+  minus that at the first step after, so initial - final energy = sum of losses - sum of
+  flight drifts.
 - **MuJoCo's own energy** (channel /energy) has its potential as m g z of the centre, so it is
-  compared after subtracting sum(m g z_ref) (z_ref = plane + radius): `mujoco_diff_J`.
+  compared after subtracting sum(m g z_ref): `mujoco_diff_J`.
 - **Impulse** is the sum over logged steps of the normal force times the logged step; peak force
   and penetration are maxima over logged steps (finer with `logging.every = 1`).
 - **Collisions**: momentum change is |p' - p| / (|m1 v1| + |m2 v2|); the analytic outcome uses
@@ -120,8 +130,8 @@ def build_report(
     )
 
     out.append("\n## Step 1: energy\n")
-    out += [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a plane."]
-    gravity_runs = runs.filter(pl.col("plane"))
+    out += [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a ground."]
+    gravity_runs = runs.filter(pl.col("ground"))
     if gravity_runs.height:
         out.append("\nEnergy bookkeeping per run (J):\n")
         out.append(
@@ -158,12 +168,14 @@ def build_report(
     out.append("\n**Does e depend on the drop height (impact velocity)?**\n")
     out += [f"- {s}" for s in answers.height_answer(studies)] or ["- No drop-height study."]
     if bounces.height:
-        out.append("\nBounces (heights from the contact height):\n")
+        out.append("\nBounces (heights: the body's lowest point above the surface):\n")
         out.append(
             md_table(
                 bounces,
                 [
                     "run_id",
+                    "body",
+                    "surface",
                     "bounce",
                     "impact_t_s",
                     "duration_s",
@@ -187,7 +199,7 @@ def build_report(
     out.append("\n## Step 3: collision\n")
     out += [f"- {s}" for s in answers.collision_answer(collisions)] or ["- No two-body run."]
     if collisions.height:
-        out.append("\nCollisions (velocities along the line of centres, m/s):\n")
+        out.append("\nCollisions (contact-point velocities along the contact normal, m/s):\n")
         out.append(
             md_table(
                 collisions,

@@ -49,7 +49,7 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     if not draws_own_figures(*a.run.sweep_point):
         return made
     contacts = a.phases.filter(pl.col("kind") == "contact")
-    if a.run.plane_z is not None and a.energy.height:
+    if a.ground is not None and a.ground.surfaces and a.energy.height:
         path = fig_dir / f"energy-{a.run.run_id}.png"
         made.append(
             ("energy", figures.energy_figure(a.energy, contacts, title=run_title(a), path=path))

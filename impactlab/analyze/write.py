@@ -115,8 +115,9 @@ def summary_figures(
     for a in analyses:
         by_exp.setdefault(a.run.experiment, []).append(a)
     for exp, group in by_exp.items():
-        if any(a.run.plane_z is not None for a in group) and result.bounces.height:
-            labels = {a.run.run_id: run_label(a) for a in group if a.run.plane_z is not None}
+        grounded = [a for a in group if a.ground is not None and a.ground.surfaces]
+        if grounded and result.bounces.height:
+            labels = {a.run.run_id: run_label(a) for a in grounded}
             figs.setdefault("decay", []).append(
                 figures.bounce_decay_figure(
                     result.bounces,

@@ -1,0 +1,99 @@
+"""The ground of a run as its log describes it: surfaces, each body's clearance, energy references.
+
+Ground surfaces are the static geoms of the model that a free body can land on (the log's
+`ground` metadata, written by the recorder from the model). A body's clearance to a surface
+is MuJoCo's own geom distance from the body's collision geoms to it (the log's
+`/bodies/<body>/clearance` channels): the height of the body's lowest point above that
+surface, whatever the shapes. A body's energy reference is the surface it lands on first
+(else the nearest one at the start): zero potential energy when its centre of mass is at the
+surface's level plus the body's rest height (its lowest possible centre height on a flat
+surface: a sphere's radius, a box's smallest half size).
+
+Logs written before surfaces and clearances were recorded describe at most one plane
+(`plane_z`) and spheres with a radius; for them the plane is the only surface and a
+sphere's clearance is its centre's height above the plane minus its radius, which is what
+MuJoCo's distance reports for a sphere on a plane.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import polars as pl
+
+from impactlab.logs.load import RunLog, SurfaceInfo
+
+CLEARANCE_SCHEMA = {
+    "body": pl.String,
+    "surface": pl.String,
+    "t_ns": pl.Int64,
+    "clearance_m": pl.Float64,
+}
+
+
+@dataclass(frozen=True)
+class Ground:
+    """A run's ground surfaces and its bodies' clearances.
+
+    Attributes:
+        surfaces: by name.
+        clearance: (body, surface, t_ns, clearance_m) for every logged step.
+        up: unit vector against gravity, (3,).
+        recorded: whether the log records clearances (False: derived for spheres only).
+    """
+
+    surfaces: dict[str, SurfaceInfo]
+    clearance: pl.DataFrame
+    up: np.ndarray
+    recorded: bool
+
+    def reference(self, body: str, first_surface: str | None, rest: float | None) -> str | None:
+        """The surface a body's energy is referred to: where it lands first, else the nearest
+        one at the first logged step; None when the body cannot be referred to one."""
+        if rest is None or not self.surfaces:
+            return None
+        if first_surface in self.surfaces:
+            return first_surface
+        mine = self.clearance.filter(pl.col("body") == body)
+        if mine.height:
+            first = mine.filter(pl.col("t_ns") == mine["t_ns"].min())
+            return str(first.sort("clearance_m")["surface"][0])
+        return next(iter(self.surfaces)) if len(self.surfaces) == 1 else None
+
+
+def up_vector(gravity: np.ndarray) -> np.ndarray:
+    """Unit vector against gravity, (3,); +z without gravity."""
+    g = float(np.linalg.norm(gravity))
+    return -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+
+
+def run_ground(run: RunLog) -> Ground:
+    """The run's surfaces and clearances (see the module docstring for older logs)."""
+    up = up_vector(run.gravity)
+    surfaces = run.surfaces
+    if surfaces is not None:
+        clearance = run.clearance.select(list(CLEARANCE_SCHEMA)).cast(CLEARANCE_SCHEMA)
+        return Ground({s.name: s for s in surfaces}, clearance, up, recorded=True)
+    if run.plane_z is None:
+        return Ground({}, pl.DataFrame(schema=CLEARANCE_SCHEMA), up, recorded=False)
+    plane = legacy_plane_name(run)
+    frames = [
+        frame.select(
+            pl.lit(name).alias("body"),
+            pl.lit(plane).alias("surface"),
+            "t_ns",
+            (pl.col("z") - run.plane_z - info.radius).alias("clearance_m"),
+        )
+        for name, info in run.body_info.items()
+        if info.radius is not None and (frame := run.bodies.get(name)) is not None
+    ]
+    clearance = pl.concat(frames) if frames else pl.DataFrame(schema=CLEARANCE_SCHEMA)
+    surface = SurfaceInfo(plane, "plane", float(run.plane_z), True)
+    return Ground({plane: surface}, clearance.cast(CLEARANCE_SCHEMA), up, recorded=False)
+
+
+def legacy_plane_name(run: RunLog) -> str:
+    """The plane geom's name in an older log: the world's geom in its contact channels."""
+    world = run.contacts.filter(pl.col("body1") == "world")["geom1"].unique().sort()
+    return str(world[0]) if world.len() else "plane"
