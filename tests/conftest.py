@@ -32,6 +32,30 @@ def record_spec(tmp_path_factory) -> Callable[..., list[Path]]:
 
 
 @pytest.fixture(scope="session")
+def record_model(tmp_path_factory) -> Callable[..., Path]:
+    """Record an inline MJCF model (cached per session); returns the log's path.
+
+    Call as `record_model(name, xml_text, overrides=())`; overrides are run options such as
+    `stop.max_time=1` (a time limit is required) or `logging.every=7`.
+    """
+    from impactlab.record import plan, record_runs
+
+    cache: dict[tuple[str, str, tuple[str, ...]], Path] = {}
+
+    def _record(name: str, xml_text: str, overrides: Sequence[str] = ()) -> Path:
+        key = (name, xml_text, tuple(overrides))
+        if key not in cache:
+            folder = tmp_path_factory.mktemp(name)
+            model = folder / f"{name}.xml"
+            model.write_text(xml_text)
+            (result,) = record_runs(plan([model], overrides=overrides), folder / "logs")
+            cache[key] = result.path
+        return cache[key]
+
+    return _record
+
+
+@pytest.fixture(scope="session")
 def collect_lines():
     """`collect_lines(lines, level=None)`: a progress callback that keeps the lines it is sent
     (only those of `level`, "info", "warning" or "error", when given)."""

@@ -81,6 +81,8 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     raw = approach_and_release(
         raw,
         states,
+        ground.clearance,
+        spheres=[n for n, info in run.body_info.items() if info.radius is not None],
         gravity=run.gravity,
         integrator=run.integrator,
         timestep_s=run.timestep_s,

@@ -4,8 +4,9 @@ Potential energy is measured from a reference height per body (`impactlab.analyz
 with a ground, the level of the surface the body lands on first plus the body's rest height
 (a ball resting on a plane has zero potential energy; a box resting on its largest face
 too); without one, the body's initial position. MuJoCo's own potential energy is m g z of
-the centre (relative to the world origin), so `mujoco_total_J` is shifted by
-sum(-m g . r_ref) before it is compared. `height_m` is the body's clearance above its
+the centre (relative to the world origin) of every body, static ones included (the log's
+`static_potential_J`), so `mujoco_total_J` is shifted by that and sum(-m g . r_ref) before it
+is compared. `height_m` is the body's clearance above its
 reference surface (its lowest point), or, without a clearance, its centre's height above
 the reference.
 
@@ -149,6 +150,7 @@ def run_energy(
         return empty_energy()
     bodies = pl.concat(per_body)
     shift = float(sum(-infos[n].mass * run.gravity @ refs[n].point for n in refs))
+    shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
     total = (
         bodies.group_by("run_id", "t_ns", "t_s", maintain_order=True)
         .agg(

@@ -22,10 +22,14 @@ For each raw contact interval (`impactlab.analyze.contacts`):
   point is constant in free flight, and is taken at rows b and a.
 
 **Chatter.** A raw interval is followed by a visible flight when the body leaves with
-v_out > v_min = |g . n| x (the time between logged rows): a slower release flies for less
-than two logged rows and rises less than g dt_log^2 / 2, which cannot be told from the
-micrometre-per-second flicker of a contact at rest, sliding or rolling. Raw intervals not
-followed by a visible flight are merged with the next one into one contact (`merge_chatter`).
+v_out > v_min = (MIN_FLIGHT_ROWS / 2) |g| dt_log, dt_log the time between logged rows
+(timestep x logging.every): released at v_out against gravity a body flies 2 v_out / g, so
+a slower release is a flight of fewer than MIN_FLIGHT_ROWS logged rows, rising less than
+(MIN_FLIGHT_ROWS dt_log)^2 g / 8. Such hops are what a contact at rest, sliding or rolling
+does in MuJoCo: its contact flickers at micrometres per second, and a sliding ball hops by
+micrometres on the friction pyramid. Raw intervals not followed by a visible flight are
+merged with the next one into one contact (`merge_chatter`); an arrival slower than v_min
+is no impact. Without gravity v_min is 0: every separation is a flight.
 """
 
 from __future__ import annotations
@@ -37,42 +41,82 @@ from impactlab.analyze import kinematics as k
 from impactlab.analyze.contacts import PAIR, state_at
 
 RK4 = "RK4"
+MIN_FLIGHT_ROWS = 10
+"""A flight the analysis can see lasts at least this many logged intervals."""
 NEWTON_STEPS = 4
 """Newton steps refining the meeting time from the parabola (exact at once without turning)."""
 
 
 def point_motion(frame: pl.DataFrame, at: str, contact: str, side: str, tag: str) -> pl.DataFrame:
     """Add, for the body whose states carry suffix `side + at` (the row of interest) and
-    `side + contact` (the contact row), the contact point `tag` as a point of the body:
-    rb<xyz><side><tag> (body frame), its velocity vp.., its centripetal acceleration ap..
-    and, for side 1, its height c<tag> above the surface's tangent plane at the row `at`.
+    `side + contact` (the contact row), where its contact point `tag` is at the row `at`.
 
-    The point is p_<tag> moved half the mean penetration pen_<tag> against the normal.
+    The point is p_<tag> moved half the mean penetration pen_<tag> against the normal, taken
+    relative to the centre of mass at the contact row. As a point of the body (a corner, an
+    edge) it turns with the body: rm<xyz><side><tag> at the row `at`; as the point below the
+    centre (a ball rolling or spinning: the touching point slides over the body) it does not:
+    rg<xyz><side><tag>. For side 1 its heights above the surface's tangent plane at the row
+    `at` are cm<tag> and cg<tag> (turning with the body, or not).
     """
     n = k.vec("n", f"_{tag}")
     half = pl.col(f"pen_{tag}") / 2
     deep = [pl.col(f"p{c}_{tag}") - half * n[i] for i, c in enumerate("xyz")]
-    r_body = k.rotate(f"{side}{contact}", k.sub(deep, k.vec("", f"{side}{contact}")), inverse=True)
-    frame = frame.with_columns(*k.named(r_body, "rb", f"{side}{tag}"))
-    r = k.rotate(f"{side}{at}", k.vec("rb", f"{side}{tag}"))
-    w = k.vec("w", f"{side}{at}")
-    v = k.add(k.vec("v", f"{side}{at}"), k.cross(w, r))
-    acc = k.cross(w, k.cross(w, r))
+    r_geo = k.sub(deep, k.vec("", f"{side}{contact}"))
+    r_body = k.rotate(f"{side}{contact}", r_geo, inverse=True)
+    frame = frame.with_columns(
+        *k.named(r_body, "rb", f"{side}{tag}"), *k.named(r_geo, "rg", f"{side}{tag}")
+    )
+    r_mat = k.rotate(f"{side}{at}", k.vec("rb", f"{side}{tag}"))
     extra = []
     if side == "1":
-        point = k.add(k.vec("", f"{side}{at}"), r)
         surface = [pl.col(f"p{c}_{tag}") + half * n[i] for i, c in enumerate("xyz")]
-        extra.append(k.dot(n, k.sub(point, surface)).alias(f"c{tag}"))
-        extra += k.named(r, "r", tag)
+        for name, r in (("m", r_mat), ("g", k.vec("rg", f"{side}{tag}"))):
+            point = k.add(k.vec("", f"{side}{at}"), r)
+            extra.append(k.dot(n, k.sub(point, surface)).alias(f"c{name}{tag}"))
+    return frame.with_columns(*k.named(r_mat, "rm", f"{side}{tag}"), *extra)
+
+
+def choose_point(frame: pl.DataFrame, side: str, tag: str, at: str, spheres: list[str]):
+    """Add the contact point used (r<xyz><side><tag>), its velocity (vp..), centripetal
+    acceleration (ap..) and, for side 1, its height c<tag> and whether it turns with the body
+    (`turns<side><tag>`): not for a sphere; for another body on a surface, when turning with it
+    puts the point nearer the clearance MuJoCo measured at that row."""
+    body = pl.col("body" if side == "1" else "body2")
+    sphere = body.is_in(spheres)
+    if side == "1":
+        clearance = pl.col(f"clr{tag}")
+        nearer = (pl.col(f"cm{tag}") - clearance).abs() <= (pl.col(f"cg{tag}") - clearance).abs()
+        turns = ~sphere & (clearance.is_null() | nearer)
+    else:
+        turns = ~sphere
+    frame = frame.with_columns(turns.fill_null(True).alias(f"turns{side}{tag}"))
+    turning = pl.col(f"turns{side}{tag}")
+    r = [
+        pl.when(turning).then(m).otherwise(g_)
+        for m, g_ in zip(k.vec("rm", f"{side}{tag}"), k.vec("rg", f"{side}{tag}"), strict=True)
+    ]
+    w = k.vec("w", f"{side}{at}")
+    v = k.add(k.vec("v", f"{side}{at}"), k.cross(w, r))
+    acc = [pl.when(turning).then(a).otherwise(0.0) for a in k.cross(w, k.cross(w, r))]
+    extra = []
+    if side == "1":
+        extra.append(
+            pl.when(turning).then(pl.col(f"cm{tag}")).otherwise(pl.col(f"cg{tag}")).alias(f"c{tag}")
+        )
     return frame.with_columns(
-        *k.named(v, "vp", f"{side}{tag}"), *k.named(acc, "ap", f"{side}{tag}"), *extra
+        *k.named(r, "r", f"{side}{tag}"),
+        *k.named(v, "vp", f"{side}{tag}"),
+        *k.named(acc, "ap", f"{side}{tag}"),
+        *extra,
     )
 
 
 def approach_and_release(
     raw: pl.DataFrame,
     states: pl.DataFrame,
+    clearance: pl.DataFrame,
     *,
+    spheres: list[str],
     gravity: np.ndarray,
     integrator: str,
     timestep_s: float,
@@ -94,9 +138,11 @@ def approach_and_release(
     for side, name in (("1", "body"), ("2", "body2")):
         for at, row in (("_b", "row_b"), ("_f", "first_row"), ("_l", "last_row"), ("_a", "row_a")):
             frame = state_at(states, frame, body=name, row=row, suffix=f"{side}{at}")
+    frame = with_clearance(frame, clearance)
     for tag, at, contact in (("in", "_b", "_f"), ("out", "_a", "_l")):
         for side in ("1", "2"):
             frame = point_motion(frame, at, contact, side, tag)
+            frame = choose_point(frame, side, tag, at, spheres)
     g = [pl.lit(float(x)) for x in gravity]
     ground = pl.col("kind") == "ground"
     out = []
@@ -132,9 +178,7 @@ def approach_and_release(
                 f"lever{side}"
             )
         )
-    n_out = k.vec("n", "_out")
-    g_n = k.dot(n_out, g)
-    v_min = pl.when(ground).then((-g_n).clip(0.0)).otherwise(g_n.abs()) * interval_s
+    v_min = pl.lit(MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(gravity)) * interval_s)
     frame = frame.with_columns(*out, v_min.alias("v_min_mps")).with_columns(
         (
             ~pl.col("open")
@@ -165,6 +209,19 @@ def approach_and_release(
     )
 
 
+def with_clearance(frame: pl.DataFrame, clearance: pl.DataFrame) -> pl.DataFrame:
+    """Add clrin and clrout: the body's clearance to the surface `other` at rows b and a."""
+    for col, t in (("clrin", "t_ns1_b"), ("clrout", "t_ns1_a")):
+        right = clearance.select(
+            "body",
+            pl.col("surface").alias("other"),
+            pl.col("t_ns").alias(t),
+            pl.col("clearance_m").alias(col),
+        )
+        frame = frame.join(right, on=["body", "other", t], how="left")
+    return frame
+
+
 def sorted_bounds(gap: pl.Expr) -> tuple[pl.Expr, pl.Expr]:
     """(lower, upper) bounds of a signed time s between 0 and `gap`."""
     return pl.min_horizontal(gap, pl.lit(0.0)), pl.max_horizontal(gap, pl.lit(0.0))
@@ -172,11 +229,11 @@ def sorted_bounds(gap: pl.Expr) -> tuple[pl.Expr, pl.Expr]:
 
 def flight_height(tag: str, at: str, g: k.Vec, h: float) -> tuple[pl.Expr, pl.Expr]:
     """The contact point's height above the tangent plane s seconds after the row `at`
-    (column s<tag>), and its rate: the centre in free flight, the body turning at its
-    constant angular velocity w (Rodrigues' rotation of r by |w| s about w)."""
+    (column s<tag>), and its rate: the centre in free flight; a point that turns with the body
+    turns at the body's constant angular velocity w (Rodrigues' rotation by |w| s about w)."""
     s = pl.col(f"s{tag}")
     n = k.vec("n", f"_{tag}")
-    r = k.vec("r", tag)
+    r = k.vec("r", f"1{tag}")
     w = k.vec("w", f"1{at}")
     v = k.vec("v", f"1{at}")
     size = k.norm(w)
@@ -184,7 +241,13 @@ def flight_height(tag: str, at: str, g: k.Vec, h: float) -> tuple[pl.Expr, pl.Ex
     cos, sin = (size * s).cos(), (size * s).sin()
     along = k.dot(axis, r)
     side = k.cross(axis, r)
-    r_s = [r[i] * cos + side[i] * sin + axis[i] * along * (1 - cos) for i in range(3)]
+    turning = pl.col(f"turns1{tag}")
+    r_s = [
+        pl.when(turning)
+        .then(r[i] * cos + side[i] * sin + axis[i] * along * (1 - cos))
+        .otherwise(r[i])
+        for i in range(3)
+    ]
     g_n = k.dot(n, g)
     height = (
         pl.col(f"c{tag}") + (k.dot(n, v) + g_n * h) * s + g_n * s * s / 2 + k.dot(n, k.sub(r_s, r))

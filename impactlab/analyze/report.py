@@ -19,10 +19,12 @@ METHOD = """\
   for a body that turns in flight (its lowest point then moves relative to its centre).
 - **Contacts** come from the contact channel: a body touches a surface (or another body) at a
   logged step when the log holds a contact message of one of their geom pairs; consecutive
-  steps form a contact. A contact that ends with a release slower than v_min = g_n x (time
-  between logged steps) is merged with the next one: at rest, sliding or rolling, the contact
-  flickers at micrometres per second, and that is one resting contact, not bounces. A contact
-  still open at the end of the log is incomplete and not used for e.
+  steps form a contact. A bounce needs a flight the log can show: released at v_out a body
+  flies 2 v_out / g, so a release slower than v_min = 5 g x (time between logged steps),
+  a flight of fewer than 10 logged steps, is merged with the next contact. At rest, sliding
+  or rolling a contact flickers at micrometres per second (and a sliding ball hops by
+  micrometres): that is one resting contact, not bounces. A contact still open at the end of
+  the log is incomplete and not used for e.
 - **Velocities in and out** are those of the contact point (v + w x r, from the logged linear
   and angular velocities) along the contact normal, at the moments the surfaces meet and
   part: the free flight from the last logged step before the contact (first after it) is

@@ -88,6 +88,7 @@ class RunMeta:
     sweep_size: int = 1
     integrator: str = ""
     surfaces: Sequence[SurfaceMeta] = ()
+    static_potential_J: float = 0.0
 
     def record(self) -> dict[str, str]:
         """The metadata record, every value a string."""
@@ -129,6 +130,7 @@ class RunMeta:
                     for s in self.surfaces
                 ]
             ),
+            "static_potential_J": repr(float(self.static_potential_J)),
         }
         assert tuple(meta) == logformat.RUN_KEYS
         return meta

@@ -64,9 +64,10 @@ RUN_KEYS = (
     "plane_z",  # height of the plane in m, or "" when there is none
     "integrator",  # MuJoCo's integrator (Euler, RK4, implicit, implicitfast)
     "ground",  # JSON [{name, type, level_m, distance}]: the static geoms bodies can land on
+    "static_potential_J",  # MuJoCo's potential energy of the static bodies (a constant), J
 )
 # keys added after format version 1 was first written; older logs lack them (compatible)
-RUN_KEYS_ADDED = ("integrator", "ground")
+RUN_KEYS_ADDED = ("integrator", "ground", "static_potential_J")
 # keys of the outcome metadata record
 OUTCOME_KEYS = (
     "outcome",  # completed | unstable

@@ -152,6 +152,11 @@ class RunLog:
         ]
 
     @property
+    def static_potential_J(self) -> float:
+        """MuJoCo's potential energy of the static bodies (0 in logs that do not say), J."""
+        return float(self.meta.get("static_potential_J") or 0.0)
+
+    @property
     def integrator(self) -> str:
         """MuJoCo's integrator ("Euler" for logs that do not say)."""
         spec = self.meta.get("integrator") or self.spec.get("options", {}).get("integrator")

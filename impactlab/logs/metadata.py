@@ -55,6 +55,7 @@ def metadata_problem(meta: dict[str, str]) -> str | None:
         "timestep_s": lambda t: number(t) and float(t) > 0,
         "log_every": lambda t: integer(t) and int(t) > 0,
         "plane_z": lambda t: t == "" or number(t),
+        "static_potential_J": number,
         "steps": integer,
     }
     json_checks: dict[str, Callable[[Any], bool]] = {

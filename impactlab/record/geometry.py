@@ -179,6 +179,13 @@ def shape_name(model: mujoco.MjModel, geoms: list[int]) -> str:
     return "+".join(type_name(model, g) for g in geoms)
 
 
+def static_potential(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """MuJoCo's potential energy of the bodies welded to the world (they count in its
+    `energy[0]` though they never move), J."""
+    static = [b for b in range(1, model.nbody) if int(model.body_weldid[b]) == 0]
+    return float(sum(-model.body_mass[b] * model.opt.gravity @ data.xipos[b] for b in static))
+
+
 def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> SurfaceMeta:
     """A ground geom as the log describes it."""
     up = up_vector(model)

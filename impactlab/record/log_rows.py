@@ -76,6 +76,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         sweep_size=info.sweep_size,
         integrator=integrator_name(model),
         surfaces=inst.surfaces,
+        static_potential_J=inst.static_potential,
     )
     clearance = [
         (b.name, tuple(c.other for c in inst.clearance_of(b.name)))

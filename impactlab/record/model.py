@@ -94,6 +94,7 @@ class InstrumentedModel:
     surfaces: list[SurfaceMeta] = field(default_factory=list)
     clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
+    static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -282,6 +283,7 @@ def instrument(
         surfaces=surfaces,
         clearances=channels(clearance_plan),
         gaps=channels(gap_plan),
+        static_potential=geometry.static_potential(plain, data),
     )
 
 
