@@ -42,7 +42,8 @@ RESULT_MACHINE_COLUMNS = ("file",)
 
 @dataclass(frozen=True)
 class Golden:
-    """One golden log: its name (file stem), its spec (in specs/) and overrides (`--set`)."""
+    """One golden log: its name (file stem), its spec or MJCF model (in specs/) and
+    overrides (`--set`; for a model, its run options)."""
 
     name: str
     spec: str
@@ -64,6 +65,11 @@ GOLDENS = (
     Golden("collision", "collision.toml"),
     Golden("drop_restitution", "drop_restitution.toml"),
     Golden("collision_sweep_point", "collision_sweep.toml", ("ball2.mass=2.0",)),
+    Golden(
+        "box_edge",
+        "box_edge.xml",
+        ("stop.bounces=3", "stop.max_time=1", "logging.every=20"),
+    ),
 )
 
 

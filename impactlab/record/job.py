@@ -105,7 +105,8 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     options = mjcf_options(str(path), overrides, duration)
     inst = model_from_mjcf(path)  # validate now; rebuilt when run
     check_options(options, inst, str(path))
-    document = {"mjcf": str(path), "xml_sha256": _sha256(inst.xml), **options.document}
+    # the model by name and content, not by where it is: the same model gives the same run
+    document = {"mjcf": path.name, "xml_sha256": _sha256(inst.xml), **options.document}
     digest = spec_hash(document)
     info = RunInfo(
         run_id=run_name(path.stem, {}, digest),
