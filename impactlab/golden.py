@@ -123,6 +123,43 @@ def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
     return out
 
 
+def table_changes(old: pl.DataFrame, new: pl.DataFrame) -> list[str]:
+    """What changed between two versions of an analysis table, one line each: columns added
+    or removed, rows per run, and per column the largest change of the rows in both."""
+    lines = []
+    added = [c for c in new.columns if c not in old.columns]
+    removed = [c for c in old.columns if c not in new.columns]
+    if added:
+        lines.append(f"columns added: {', '.join(added)}")
+    if removed:
+        lines.append(f"columns removed: {', '.join(removed)}")
+    keys = [c for c in ("run_id", "body", "surface", "bounce", "collision") if c in old.columns]
+    keys = [c for c in keys if c in new.columns]
+    counts = {
+        label: dict(frame.group_by("run_id").len().iter_rows())
+        for label, frame in (("old", old), ("new", new))
+    }
+    for run_id in sorted(counts["old"].keys() | counts["new"].keys()):
+        a, b = counts["old"].get(run_id, 0), counts["new"].get(run_id, 0)
+        if a != b:
+            lines.append(f"{run_id}: {a} -> {b} row(s)")
+    both = old.join(new, on=keys, how="inner", suffix="__new", nulls_equal=True)
+    for col in [c for c in old.columns if c in new.columns and c not in keys]:
+        a, b = both[col], both[f"{col}__new"]
+        if a.dtype.is_numeric() and b.dtype.is_numeric():
+            became = int((a.is_null() & b.is_not_null()).sum())
+            lost = int((a.is_not_null() & b.is_null()).sum())
+            diff = (a.cast(pl.Float64) - b.cast(pl.Float64)).abs().max()
+            parts = [f"max |change| {diff:.3g}"] if diff else []
+            parts += [f"{became} value(s) now measured"] if became else []
+            parts += [f"{lost} value(s) now empty"] if lost else []
+            if parts:
+                lines.append(f"{col}: {', '.join(parts)}")
+        elif not a.equals(b):
+            lines.append(f"{col}: {int((a.ne_missing(b)).sum())} row(s) differ")
+    return lines
+
+
 def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = print) -> int:
     """Regenerate (or with --check, verify) the golden logs and analysis tables."""
     parser = argparse.ArgumentParser(
@@ -164,6 +201,9 @@ def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = pri
             old = RESULTS_DIR / f"{name}.parquet"
             if not old.exists() or not pl.read_parquet(old).equals(frame):
                 echo(f"results/{name}.parquet: {'new' if not old.exists() else 'changed'}")
+                if old.exists():
+                    for line in table_changes(pl.read_parquet(old), frame):
+                        echo(f"  {line}")
                 changed.append(f"results/{name}")
         if args.check:
             if changed or stale:
