@@ -9,7 +9,7 @@ import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
 from impactlab.analyze.collisions import collisions, no_collision_rows
-from impactlab.analyze.contacts import contact_rows, raw_intervals, states_long
+from impactlab.analyze.contacts import contact_rows, raw_intervals, row_numbers, states_long
 from impactlab.analyze.energy import energy_phases, references, run_energy
 from impactlab.analyze.flights import flights
 from impactlab.analyze.ground import Ground, run_ground
@@ -71,7 +71,7 @@ def analyze_run(run: RunLog) -> RunAnalysis:
         )
     ground = run_ground(run)
     states = states_long(run)
-    rows = states.select("t_ns", "row").unique().sort("row")
+    rows = row_numbers(states)
     interval_s = logged_interval_s(run)
     raw = raw_intervals(
         contact_rows(run, ground, rows),

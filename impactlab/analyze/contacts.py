@@ -39,19 +39,17 @@ def states_long(run: RunLog) -> pl.DataFrame:
         schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
         schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
         return pl.DataFrame(schema=schema)
-    states = pl.concat(frames)
-    rows = row_numbers(states["t_ns"])
-    return (
-        states.join(rows, on="t_ns", how="left")
-        .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
-        .sort("body", "t_ns")
+    states = pl.concat(frames).with_columns(
+        (pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row")
+    )
+    return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")).sort(
+        "body", "t_ns"
     )
 
 
-def row_numbers(t_ns: pl.Series) -> pl.DataFrame:
-    """(t_ns, row): the logged times, numbered from 0."""
-    times = t_ns.unique().sort()
-    return pl.DataFrame({"t_ns": times, "row": pl.int_range(times.len(), eager=True)})
+def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
+    """(t_ns, row) of the run's logged rows, from `states_long`."""
+    return states.select("t_ns", "row").unique("row").sort("row")
 
 
 def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:

@@ -34,6 +34,8 @@ is no impact. Without gravity v_min is 0: every separation is a flight.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import polars as pl
 
@@ -47,68 +49,116 @@ NEWTON_STEPS = 4
 """Newton steps refining the meeting time from the parabola (exact at once without turning)."""
 
 
-def point_motion(frame: pl.DataFrame, at: str, contact: str, side: str, tag: str) -> pl.DataFrame:
-    """Add, for the body whose states carry suffix `side + at` (the row of interest) and
-    `side + contact` (the contact row), where its contact point `tag` is at the row `at`.
+STATE = ("t_ns", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
+
+
+@dataclass(frozen=True)
+class States:
+    """One body's state at one row for each interval: t (n,) s, x (n, 3) m, q (n, 4), v and
+    w (n, 3) m/s and rad/s; NaN where there is none."""
+
+    t: np.ndarray
+    x: np.ndarray
+    q: np.ndarray
+    v: np.ndarray
+    w: np.ndarray
+
+    @classmethod
+    def of(cls, frame: pl.DataFrame, suffix: str) -> States:
+        """The columns `<field><suffix>` of `frame` (see `state_at`)."""
+        a = frame.select([pl.col(f"{c}{suffix}").cast(pl.Float64) for c in STATE]).to_numpy()
+        return cls(a[:, 0] / 1e9, a[:, 1:4], a[:, 4:8], a[:, 8:11], a[:, 11:14])
+
+
+def vectors(frame: pl.DataFrame, prefix: str, suffix: str) -> np.ndarray:
+    """The columns `<prefix>x<suffix>` .. `<prefix>z<suffix>` as (n, 3)."""
+    return frame.select([pl.col(f"{prefix}{c}{suffix}") for c in "xyz"]).to_numpy()
+
+
+def column(frame: pl.DataFrame, name: str) -> np.ndarray:
+    """A column as floats, nulls as NaN."""
+    return frame[name].cast(pl.Float64).fill_null(np.nan).to_numpy()
+
+
+@dataclass(frozen=True)
+class Point:
+    """A contact point of one body at one row: r from the centre of mass (n, 3), whether it
+    turns with the body, its velocity and centripetal acceleration (n, 3)."""
+
+    r: np.ndarray
+    turns: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+
+
+def contact_point(
+    frame: pl.DataFrame,
+    tag: str,
+    at: States,
+    contact: States,
+    *,
+    turns: np.ndarray | None,
+    sphere: np.ndarray,
+    clearance: np.ndarray | None = None,
+) -> tuple[Point, np.ndarray]:
+    """The contact point `tag` of one body at the row `at` (see the module docstring), and
+    its height above the surface's tangent plane there.
 
     The point is p_<tag> moved half the mean penetration pen_<tag> against the normal, taken
     relative to the centre of mass at the contact row. As a point of the body (a corner, an
-    edge) it turns with the body: rm<xyz><side><tag> at the row `at`; as the point below the
-    centre (a ball rolling or spinning: the touching point slides over the body) it does not:
-    rg<xyz><side><tag>. For side 1 its heights above the surface's tangent plane at the row
-    `at` are cm<tag> and cg<tag> (turning with the body, or not).
+    edge) it turns with the body; as the point below the centre (a sphere: the touching point
+    slides over a spinning ball) it does not. Which one: not for a sphere; otherwise the one
+    whose height is nearer the clearance MuJoCo measured at that row (turning without it).
     """
-    n = k.vec("n", f"_{tag}")
-    half = pl.col(f"pen_{tag}") / 2
-    deep = [pl.col(f"p{c}_{tag}") - half * n[i] for i, c in enumerate("xyz")]
-    r_geo = k.sub(deep, k.vec("", f"{side}{contact}"))
-    r_body = k.rotate(f"{side}{contact}", r_geo, inverse=True)
-    frame = frame.with_columns(
-        *k.named(r_body, "rb", f"{side}{tag}"), *k.named(r_geo, "rg", f"{side}{tag}")
-    )
-    r_mat = k.rotate(f"{side}{at}", k.vec("rb", f"{side}{tag}"))
-    extra = []
-    if side == "1":
-        surface = [pl.col(f"p{c}_{tag}") + half * n[i] for i, c in enumerate("xyz")]
-        for name, r in (("m", r_mat), ("g", k.vec("rg", f"{side}{tag}"))):
-            point = k.add(k.vec("", f"{side}{at}"), r)
-            extra.append(k.dot(n, k.sub(point, surface)).alias(f"c{name}{tag}"))
-    return frame.with_columns(*k.named(r_mat, "rm", f"{side}{tag}"), *extra)
+    n = vectors(frame, "n", f"_{tag}")
+    half = column(frame, f"pen_{tag}")[:, None] / 2
+    p = vectors(frame, "p", f"_{tag}")
+    deep, surface = p - half * n, p + half * n
+    r_geo = deep - contact.x
+    r_mat = k.rotate(at.q, k.rotate(contact.q, r_geo, inverse=True))
+    c_mat, c_geo = k.dot(n, at.x + r_mat - surface), k.dot(n, at.x + r_geo - surface)
+    if turns is None:
+        nearer = np.abs(c_mat - clearance) <= np.abs(c_geo - clearance)
+        turns = ~sphere & (np.isnan(clearance) | nearer)
+    r = np.where(turns[:, None], r_mat, r_geo)
+    acc = np.where(turns[:, None], np.cross(at.w, np.cross(at.w, r)), 0.0)
+    return Point(r, turns, at.v + np.cross(at.w, r), acc), np.where(turns, c_mat, c_geo)
 
 
-def choose_point(frame: pl.DataFrame, side: str, tag: str, at: str, spheres: list[str]):
-    """Add the contact point used (r<xyz><side><tag>), its velocity (vp..), centripetal
-    acceleration (ap..) and, for side 1, its height c<tag> and whether it turns with the body
-    (`turns<side><tag>`): not for a sphere; for another body on a surface, when turning with it
-    puts the point nearer the clearance MuJoCo measured at that row."""
-    body = pl.col("body" if side == "1" else "body2")
-    sphere = body.is_in(spheres)
-    if side == "1":
-        clearance = pl.col(f"clr{tag}")
-        nearer = (pl.col(f"cm{tag}") - clearance).abs() <= (pl.col(f"cg{tag}") - clearance).abs()
-        turns = ~sphere & (clearance.is_null() | nearer)
-    else:
-        turns = ~sphere
-    frame = frame.with_columns(turns.fill_null(True).alias(f"turns{side}{tag}"))
-    turning = pl.col(f"turns{side}{tag}")
-    r = [
-        pl.when(turning).then(m).otherwise(g_)
-        for m, g_ in zip(k.vec("rm", f"{side}{tag}"), k.vec("rg", f"{side}{tag}"), strict=True)
-    ]
-    w = k.vec("w", f"{side}{at}")
-    v = k.add(k.vec("v", f"{side}{at}"), k.cross(w, r))
-    acc = [pl.when(turning).then(a).otherwise(0.0) for a in k.cross(w, k.cross(w, r))]
-    extra = []
-    if side == "1":
-        extra.append(
-            pl.when(turning).then(pl.col(f"cm{tag}")).otherwise(pl.col(f"cg{tag}")).alias(f"c{tag}")
-        )
-    return frame.with_columns(
-        *k.named(r, "r", f"{side}{tag}"),
-        *k.named(v, "vp", f"{side}{tag}"),
-        *k.named(acc, "ap", f"{side}{tag}"),
-        *extra,
-    )
+def reach_surface(
+    n: np.ndarray,
+    point: Point,
+    at: States,
+    height: np.ndarray,
+    gap: np.ndarray,
+    *,
+    gravity: np.ndarray,
+    h: float,
+    sign: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """When the point reaches the surface's tangent plane from the row `at` (s, signed: after
+    the row for an impact, before it for a release, within `gap`) and its normal speed then.
+
+    The centre flies ballistically (with the integrator's half step h), the body turns at its
+    angular velocity; the parabola's root is refined by Newton steps. NaN when it never does.
+    """
+    lo, hi = np.minimum(gap, 0.0), np.maximum(gap, 0.0)
+    g_n = n @ gravity
+    u = k.dot(n, point.v)
+    a = g_n + k.dot(n, point.a)
+    s = np.clip(sign * k.first_root(height, sign * (u + a * h), a), lo, hi)
+
+    def flight(s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        r_s = np.where(point.turns[:, None], k.turn(point.r, at.w, s), point.r)
+        v_n = k.dot(n, at.v)
+        rise = (v_n + g_n * h) * s + g_n * s * s / 2 + k.dot(n, r_s - point.r)
+        return height + rise, v_n + g_n * (h + s) + k.dot(n, np.cross(at.w, r_s))
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(NEWTON_STEPS):
+            c, rate = flight(s)
+            s = np.clip(s - c / rate, lo, hi)
+        return s, flight(s)[1]
 
 
 def approach_and_release(
@@ -135,58 +185,59 @@ def approach_and_release(
         pl.when(~pl.col("open")).then(pl.col("last_row") + 1).alias("row_a"),
         pl.when(pl.col("kind") == "body").then(pl.col("other")).alias("body2"),
     )
+    rows = ("row_b", "first_row", "last_row", "row_a")
+    needed = pl.concat(
+        [
+            frame.select(pl.col(body).alias("body"), pl.col(row).alias("row"))
+            for body in ("body", "body2")
+            for row in rows
+        ]
+    ).drop_nulls()
+    states = states.join(needed.unique(), on=["body", "row"], how="semi")  # the rows used
+    clearance = clearance.join(states.select("t_ns").unique(), on="t_ns", how="semi")
     for side, name in (("1", "body"), ("2", "body2")):
-        for at, row in (("_b", "row_b"), ("_f", "first_row"), ("_l", "last_row"), ("_a", "row_a")):
+        for at, row in zip(("_b", "_f", "_l", "_a"), rows, strict=True):
             frame = state_at(states, frame, body=name, row=row, suffix=f"{side}{at}")
     frame = with_clearance(frame, clearance)
-    for tag, at, contact in (("in", "_b", "_f"), ("out", "_a", "_l")):
-        for side in ("1", "2"):
-            frame = point_motion(frame, at, contact, side, tag)
-            frame = choose_point(frame, side, tag, at, spheres)
-    g = [pl.lit(float(x)) for x in gravity]
-    ground = pl.col("kind") == "ground"
-    out = []
+    ground = (frame["kind"] == "ground").to_numpy()
+    sphere = [frame[b].is_in(spheres).fill_null(False).to_numpy() for b in ("body", "body2")]
+    out: dict[str, np.ndarray] = {}
+    speeds = {}
     for tag, at, contact, sign in (("in", "_b", "_f", 1.0), ("out", "_a", "_l", -1.0)):
-        n = k.vec("n", f"_{tag}")
-        u_body = k.dot(n, k.vec("vp", f"1{tag}"))
-        a = k.dot(n, g) + k.dot(n, k.vec("ap", f"1{tag}"))
-        gap = (pl.col(f"t_ns1{contact}") - pl.col(f"t_ns1{at}")) / 1e9  # signed
-        first = sign * k.first_root(pl.col(f"c{tag}"), sign * (u_body + a * h), a)
-        frame = frame.with_columns(first.clip(*sorted_bounds(gap)).alias(f"s{tag}"))
-        for _ in range(NEWTON_STEPS):
-            c, dc = flight_height(tag, at, g, h)
-            step = pl.col(f"s{tag}") - c / dc
-            frame = frame.with_columns(step.clip(*sorted_bounds(gap)).alias(f"s{tag}"))
-        u_rel = k.dot(n, k.sub(k.vec("vp", f"2{tag}"), k.vec("vp", f"1{tag}")))
-        found = pl.col(f"s{tag}").is_not_null()
-        speed = pl.when(~ground).then(u_rel).when(found).then(flight_height(tag, at, g, h)[1])
-        t_row = pl.col(f"t_ns1{at}") / 1e9
-        moment = pl.when(ground & found).then(t_row + pl.col(f"s{tag}"))
-        out += [
-            speed.otherwise(u_body).alias(f"v_{tag}_mps"),
-            moment.alias("meet_t_s" if tag == "in" else "release_t_s"),
-        ]
-    n_in = k.vec("n", "_in")
-    for side in ("1", "2"):  # each body's point velocity along the impact normal, at b and a
-        out += [
-            k.dot(n_in, k.vec("vp", f"{side}in")).alias(f"u{side}_b"),
-            k.dot(n_in, k.vec("vp", f"{side}out")).alias(f"u{side}_a"),
-        ]
-        r = k.vec("rb", f"{side}in")  # lever of the normal about the centre of mass
-        out.append(
-            (k.norm(k.cross(r, k.rotate(f"{side}_f", n_in, inverse=True))) / k.norm(r)).alias(
-                f"lever{side}"
-            )
-        )
-    v_min = pl.lit(MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(gravity)) * interval_s)
-    frame = frame.with_columns(*out, v_min.alias("v_min_mps")).with_columns(
+        n = vectors(frame, "n", f"_{tag}")
+        s1, c1 = States.of(frame, f"1{at}"), States.of(frame, f"1{contact}")
+        s2, c2 = States.of(frame, f"2{at}"), States.of(frame, f"2{contact}")
+        clr = column(frame, f"clr{tag}")
+        p1, height = contact_point(frame, tag, s1, c1, turns=None, sphere=sphere[0], clearance=clr)
+        p2, _ = contact_point(frame, tag, s2, c2, turns=~sphere[1], sphere=sphere[1])
+        s, rate = reach_surface(n, p1, s1, height, c1.t - s1.t, gravity=gravity, h=h, sign=sign)
+        found = ground & np.isfinite(s)
+        relative = k.dot(n, p2.v - p1.v)
+        out[f"v_{tag}_mps"] = np.where(ground, np.where(found, rate, k.dot(n, p1.v)), relative)
+        out["meet_t_s" if tag == "in" else "release_t_s"] = np.where(found, s1.t + s, np.nan)
+        speeds[tag] = (p1, p2)
+        if tag == "in":  # the lever of the impact normal about each centre of mass
+            for i, c in enumerate((c1, c2), start=1):
+                r = vectors(frame, "p", "_in") - c.x
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    lever = np.linalg.norm(np.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
+                out[f"lever{i}"] = lever
+    n_in = vectors(frame, "n", "_in")
+    for i in (0, 1):  # each body's point velocity along the impact normal, at rows b and a
+        out[f"u{i + 1}_b"] = k.dot(n_in, speeds["in"][i].v)
+        out[f"u{i + 1}_a"] = k.dot(n_in, speeds["out"][i].v)
+    v_min = MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(gravity)) * interval_s
+    frame = frame.with_columns(
+        *[pl.Series(name, values, dtype=pl.Float64).fill_nan(None) for name, values in out.items()],
+        pl.lit(v_min).alias("v_min_mps"),
+        pl.col("t_ns1_b").alias("t_b_ns"),
+        pl.col("t_ns1_a").alias("t_a_ns"),
+    ).with_columns(
         (
             ~pl.col("open")
             & pl.col("v_out_mps").is_not_null()
             & (pl.col("v_out_mps") > pl.col("v_min_mps"))
         ).alias("visible"),
-        pl.col("t_ns1_b").alias("t_b_ns"),
-        pl.col("t_ns1_a").alias("t_a_ns"),
     )
     return frame.select(
         *raw.columns,
@@ -220,40 +271,6 @@ def with_clearance(frame: pl.DataFrame, clearance: pl.DataFrame) -> pl.DataFrame
         )
         frame = frame.join(right, on=["body", "other", t], how="left")
     return frame
-
-
-def sorted_bounds(gap: pl.Expr) -> tuple[pl.Expr, pl.Expr]:
-    """(lower, upper) bounds of a signed time s between 0 and `gap`."""
-    return pl.min_horizontal(gap, pl.lit(0.0)), pl.max_horizontal(gap, pl.lit(0.0))
-
-
-def flight_height(tag: str, at: str, g: k.Vec, h: float) -> tuple[pl.Expr, pl.Expr]:
-    """The contact point's height above the tangent plane s seconds after the row `at`
-    (column s<tag>), and its rate: the centre in free flight; a point that turns with the body
-    turns at the body's constant angular velocity w (Rodrigues' rotation by |w| s about w)."""
-    s = pl.col(f"s{tag}")
-    n = k.vec("n", f"_{tag}")
-    r = k.vec("r", f"1{tag}")
-    w = k.vec("w", f"1{at}")
-    v = k.vec("v", f"1{at}")
-    size = k.norm(w)
-    axis = [pl.when(size > 0).then(w[i] / size).otherwise(0.0) for i in range(3)]
-    cos, sin = (size * s).cos(), (size * s).sin()
-    along = k.dot(axis, r)
-    side = k.cross(axis, r)
-    turning = pl.col(f"turns1{tag}")
-    r_s = [
-        pl.when(turning)
-        .then(r[i] * cos + side[i] * sin + axis[i] * along * (1 - cos))
-        .otherwise(r[i])
-        for i in range(3)
-    ]
-    g_n = k.dot(n, g)
-    height = (
-        pl.col(f"c{tag}") + (k.dot(n, v) + g_n * h) * s + g_n * s * s / 2 + k.dot(n, k.sub(r_s, r))
-    )
-    rate = k.dot(n, v) + g_n * (h + s) + k.dot(n, k.cross(w, r_s))
-    return height, rate
 
 
 def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:

@@ -1,77 +1,49 @@
-"""Rigid-body kinematics as polars expressions: rotations by the logged quaternions, the
-velocity of a point of a body, and where a ballistic flight meets a surface.
+"""Rigid-body kinematics on arrays of contacts: rotations by the logged quaternions, rotation
+at a constant angular velocity, and the first time a free flight reaches a surface.
 
-Vectors are lists of three expressions (x, y, z). The logged quaternion (qw, qx, qy, qz)
-rotates the body's (principal, centre-of-mass) frame into the world frame.
+Every function works on n rows at once: vectors are (n, 3), quaternions (n, 4) as logged
+(qw, qx, qy, qz: the body's principal frame to the world), times (n,); NaN propagates
+(a row without a state stays without a result).
 """
 
 from __future__ import annotations
 
-import polars as pl
-
-Vec = list[pl.Expr]
+import numpy as np
 
 
-def vec(prefix: str, suffix: str = "") -> Vec:
-    """The columns `<prefix>x<suffix>`, `<prefix>y<suffix>`, `<prefix>z<suffix>`."""
-    return [pl.col(f"{prefix}{c}{suffix}") for c in "xyz"]
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a . b, (n,)."""
+    return np.einsum("ij,ij->i", a, b)
 
 
-def dot(a: Vec, b: Vec) -> pl.Expr:
-    """a . b"""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+def rotate(q: np.ndarray, v: np.ndarray, *, inverse: bool = False) -> np.ndarray:
+    """v rotated by q (body to world; world to body when `inverse`), (n, 3).
+
+    t = 2 u x v, v' = v + qw t + u x t with u the quaternion's vector part (negated to invert).
+    """
+    u = -q[:, 1:] if inverse else q[:, 1:]
+    t = 2 * np.cross(u, v)
+    return v + q[:, :1] * t + np.cross(u, t)
 
 
-def cross(a: Vec, b: Vec) -> Vec:
-    """a x b"""
-    return [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
+def turn(r: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """r after s seconds of rotation at the constant angular velocity w (Rodrigues), (n, 3)."""
+    size = np.linalg.norm(w, axis=1)
+    axis = np.divide(w, size[:, None], out=np.zeros_like(w), where=size[:, None] > 0)
+    angle = (size * s)[:, None]
+    along = dot(axis, r)[:, None]
+    return (
+        r * np.cos(angle) + np.cross(axis, r) * np.sin(angle) + axis * along * (1 - np.cos(angle))
+    )
 
 
-def add(a: Vec, b: Vec) -> Vec:
-    """a + b"""
-    return [a[i] + b[i] for i in range(3)]
+def first_root(c: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:
+    """Smallest s >= 0 with c + b s + a s^2 / 2 = 0 for c >= 0 (0 when c <= 0), NaN when none.
 
-
-def sub(a: Vec, b: Vec) -> Vec:
-    """a - b"""
-    return [a[i] - b[i] for i in range(3)]
-
-
-def norm(a: Vec) -> pl.Expr:
-    """|a|"""
-    return dot(a, a).sqrt()
-
-
-def rotate(suffix: str, v: Vec, *, inverse: bool = False) -> Vec:
-    """v rotated by the quaternion (qw, qx, qy, qz)<suffix>: body to world (world to body when
-    `inverse`): t = 2 u x v, v' = v + qw t + u x t with u the quaternion's vector part."""
-    sign = -1.0 if inverse else 1.0
-    u = [sign * pl.col(f"q{c}{suffix}") for c in "xyz"]
-    t = [2 * c for c in cross(u, v)]
-    ut = cross(u, t)
-    return [v[i] + pl.col(f"qw{suffix}") * t[i] + ut[i] for i in range(3)]
-
-
-def named(v: Vec, prefix: str, suffix: str = "") -> list[pl.Expr]:
-    """The vector as columns `<prefix>x<suffix>` ..."""
-    return [v[i].alias(f"{prefix}{c}{suffix}") for i, c in enumerate("xyz")]
-
-
-def first_root(c: pl.Expr, b: pl.Expr, a: pl.Expr) -> pl.Expr:
-    """Smallest s >= 0 with c + b s + a s^2 / 2 = 0, for c >= 0; null when there is none.
-
-    The numerically stable form 2 c / (-b + sqrt(b^2 - 2 a c)); c <= 0 gives 0.
+    The numerically stable form 2 c / (-b + sqrt(b^2 - 2 a c)).
     """
     disc = b * b - 2 * a * c
-    denom = -b + disc.clip(0.0).sqrt()
-    return (
-        pl.when(c <= 0)
-        .then(pl.lit(0.0))
-        .when((disc >= 0) & (denom > 0))
-        .then(2 * c / denom)
-        .otherwise(pl.lit(None, dtype=pl.Float64))
-    )
+    denom = -b + np.sqrt(np.clip(disc, 0.0, None))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.where((disc >= 0) & (denom > 0), 2 * c / denom, np.nan)
+    return np.where(c <= 0, 0.0, root)
