@@ -11,6 +11,7 @@ import matplotlib.ticker
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.bounces import TURNING
 from impactlab.plotting import plt, save_figure
 
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
@@ -91,6 +92,10 @@ def bounce_decay_figure(
             pts.append((n[-1], 0.0))
         label = labels[run_id] + (f", {body} on {surface}" if several else "")
         start = f" (h0 = {h[0]:.3g} m)" if h[0] is not None else ""
+        if len(pts) < 2 and mine["apex_m"].is_null().all():
+            start += ": no apex measured after a bounce" + (
+                " (turns in flight)" if (mine["note"] == TURNING).any() else ""
+            )
         if pts:
             ax.plot(
                 *zip(*pts, strict=True),
@@ -103,6 +108,7 @@ def bounce_decay_figure(
         if run_id not in drawn and legend:
             ax.plot([], [], "o-", label=f"{label}: no bounce with a measured apex")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+    ax.set_xlim(-0.5, max(1, int(rows["bounce"].max() or 0)) + 0.5)
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xlabel("bounce number (0: drop)")
     ax.set_ylabel("apex of the lowest point above the surface (m; 0: at rest)")
