@@ -1,8 +1,9 @@
 """Analyze: logs -> bounces, restitution, energy budgets, collisions, studies (polars).
 
-Owns: the quantities of one run (`contacts`, `energy`, `bounces`, `collisions`,
-`analysis`), the tables over many runs (`tables`, `studies`), the analysis job (`job`,
-`batch`) and what it writes (`write`, `figures`, `run_figures`, `report`, `answers`).
+Owns: the quantities of one run (`ground`, `contacts`, `impacts` with `kinematics`,
+`flights`, `bounces`, `collisions`, `energy`, `analysis`, `summary`; see docs/analysis.md),
+the tables over many runs (`tables`, `studies`), the analysis job (`job`, `batch`) and what it
+writes (`write`, `figures`, `run_figures`, `report`, `answers`).
 
 May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
 polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
