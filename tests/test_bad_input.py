@@ -40,6 +40,7 @@ max_time = 0.01
 separation = 0.1
 """
 NO_FREE_BODY = '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/></worldbody></mujoco>'
+NO_GROUND = '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
 
 
 def edit(text: str, old: str, new: str) -> str:
@@ -175,6 +176,30 @@ def assert_one_line_error(capsys, code: int, words: list[str], out: Path) -> Non
         ("no free body", NO_FREE_BODY, ["--duration", "1"], ["model.xml", "no free body"]),
         ("no duration", NO_FREE_BODY, [], ["--duration"]),
         ("set on mjcf", NO_FREE_BODY, ["--duration", "1", "--set", "a=1"], ["--set"]),
+        (
+            "mjcf bad option",
+            NO_GROUND,
+            ["--duration", "1", "--set", "logging.every=0"],
+            ["logging.every", ">= 1"],
+        ),
+        (
+            "mjcf two limits",
+            NO_GROUND,
+            ["--duration", "1", "--set", "stop.max_time=2"],
+            ["--duration", "not both"],
+        ),
+        (
+            "mjcf bounces, no ground",
+            NO_GROUND,
+            ["--duration", "1", "--set", "stop.bounces=2"],
+            ["stop.bounces", "ground"],
+        ),
+        (
+            "mjcf collision, one body",
+            NO_GROUND,
+            ["--duration", "1", "--set", "stop.separation=0.1"],
+            ["stop.separation", "two free bodies"],
+        ),
     ],
 )
 def test_bad_mjcf(tmp_path, capsys, case, content, args, words):
