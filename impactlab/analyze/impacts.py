@@ -40,7 +40,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze import kinematics as k
-from impactlab.analyze.contacts import PAIR, state_at
+from impactlab.analyze.contacts import PAIR
 
 RK4 = "RK4"
 MIN_FLIGHT_ROWS = 10
@@ -63,21 +63,60 @@ class States:
     v: np.ndarray
     w: np.ndarray
 
-    @classmethod
-    def of(cls, frame: pl.DataFrame, suffix: str) -> States:
-        """The columns `<field><suffix>` of `frame` (see `state_at`)."""
-        a = frame.select([pl.col(f"{c}{suffix}").cast(pl.Float64) for c in STATE]).to_numpy()
-        return cls(a[:, 0] / 1e9, a[:, 1:4], a[:, 4:8], a[:, 8:11], a[:, 11:14])
+
+class StateTable:
+    """The bodies' logged states, looked up by (body, row) for many contacts at once."""
+
+    def __init__(self, states: pl.DataFrame) -> None:
+        names = sorted(set(states["body"].unique().to_list()))
+        self.codes = {name: float(i) for i, name in enumerate(names)}
+        self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
+        code = states["body"].replace_strict(self.codes, return_dtype=pl.Float64).to_numpy()
+        keys = code * self.stride + states["row"].to_numpy().astype(float)
+        order = np.argsort(keys, kind="stable")
+        self.keys = keys[order]
+        values = states.select([pl.col(c).cast(pl.Float64) for c in STATE]).to_numpy()
+        self.values = values[order]
+
+    def keys_of(self, bodies: list[str | None], rows: np.ndarray) -> np.ndarray:
+        """One number per (body, row); NaN where either is missing or the body is unknown."""
+        code = np.array([self.codes.get(b, np.nan) if b else np.nan for b in bodies])
+        return code * self.stride + rows.astype(float)
+
+    def at(self, bodies: list[str | None], rows: np.ndarray) -> States:
+        """The state of each body at each row (NaN where the log has none)."""
+        key = self.keys_of(bodies, rows)
+        out = np.full((key.size, len(STATE)), np.nan)
+        if self.keys.size:
+            spot = np.searchsorted(self.keys, np.nan_to_num(key, nan=-1.0))
+            idx = np.clip(spot, 0, self.keys.size - 1)
+            found = np.isfinite(key) & (self.keys[idx] == key)
+            out[found] = self.values[idx[found]]
+        return States(out[:, 0] / 1e9, out[:, 1:4], out[:, 4:8], out[:, 8:11], out[:, 11:14])
 
 
-def vectors(frame: pl.DataFrame, prefix: str, suffix: str) -> np.ndarray:
+def clearance_at(
+    clearance: pl.DataFrame, bodies: list[str], surfaces: list[str | None], t_ns: np.ndarray
+) -> np.ndarray:
+    """Each body's clearance to each surface at each time (NaN where the log has none)."""
+    want = pl.DataFrame(
+        {
+            "idx": np.arange(len(bodies)),
+            "body": bodies,
+            "surface": surfaces,
+            "t_ns": pl.Series(t_ns, nan_to_null=True).cast(pl.Int64),
+        },
+        schema_overrides={"body": pl.String, "surface": pl.String},
+    ).drop_nulls()
+    found = want.join(clearance, on=["body", "surface", "t_ns"], how="inner")
+    out = np.full(len(bodies), np.nan)
+    out[found["idx"].to_numpy()] = found["clearance_m"].to_numpy()
+    return out
+
+
+def vectors(cols: dict[str, np.ndarray], prefix: str, suffix: str) -> np.ndarray:
     """The columns `<prefix>x<suffix>` .. `<prefix>z<suffix>` as (n, 3)."""
-    return frame.select([pl.col(f"{prefix}{c}{suffix}") for c in "xyz"]).to_numpy()
-
-
-def column(frame: pl.DataFrame, name: str) -> np.ndarray:
-    """A column as floats, nulls as NaN."""
-    return frame[name].cast(pl.Float64).fill_null(np.nan).to_numpy()
+    return np.column_stack([cols[f"{prefix}{c}{suffix}"] for c in "xyz"])
 
 
 @dataclass(frozen=True)
@@ -92,7 +131,7 @@ class Point:
 
 
 def contact_point(
-    frame: pl.DataFrame,
+    frame: dict[str, np.ndarray],
     tag: str,
     at: States,
     contact: States,
@@ -111,7 +150,7 @@ def contact_point(
     whose height is nearer the clearance MuJoCo measured at that row (turning without it).
     """
     n = vectors(frame, "n", f"_{tag}")
-    half = column(frame, f"pen_{tag}")[:, None] / 2
+    half = frame[f"pen_{tag}"][:, None] / 2
     p = vectors(frame, "p", f"_{tag}")
     deep, surface = p - half * n, p + half * n
     r_geo = deep - contact.x
@@ -180,36 +219,44 @@ def approach_and_release(
     centre of mass relative to the point's distance from it (lever1, lever2: 0 for a central
     impact)."""
     h = 0.0 if integrator == RK4 else timestep_s / 2
-    frame = raw.with_columns(
-        pl.when(pl.col("first_row") > 0).then(pl.col("first_row") - 1).alias("row_b"),
-        pl.when(~pl.col("open")).then(pl.col("last_row") + 1).alias("row_a"),
-        pl.when(pl.col("kind") == "body").then(pl.col("other")).alias("body2"),
-    )
-    rows = ("row_b", "first_row", "last_row", "row_a")
-    needed = pl.concat(
-        [
-            frame.select(pl.col(body).alias("body"), pl.col(row).alias("row"))
-            for body in ("body", "body2")
-            for row in rows
-        ]
-    ).drop_nulls()
-    states = states.join(needed.unique(), on=["body", "row"], how="semi")  # the rows used
-    clearance = clearance.join(states.select("t_ns").unique(), on="t_ns", how="semi")
-    for side, name in (("1", "body"), ("2", "body2")):
-        for at, row in zip(("_b", "_f", "_l", "_a"), rows, strict=True):
-            frame = state_at(states, frame, body=name, row=row, suffix=f"{side}{at}")
-    frame = with_clearance(frame, clearance)
-    ground = (frame["kind"] == "ground").to_numpy()
-    sphere = [frame[b].is_in(spheres).fill_null(False).to_numpy() for b in ("body", "body2")]
+    n_rows = raw.height
+    first, last = raw["first_row"].to_numpy(), raw["last_row"].to_numpy()
+    open_ = raw["open"].fill_null(True).to_numpy().astype(bool)
+    rows = {
+        "row_b": np.where(first > 0, first - 1.0, np.nan),
+        "first_row": first.astype(float),
+        "last_row": last.astype(float),
+        "row_a": np.where(open_, np.nan, last + 1.0),
+    }
+    ground = (raw["kind"] == "ground").fill_null(False).to_numpy().astype(bool)
+    bodies = raw["body"].to_list()
+    others = [o if not g else None for o, g in zip(raw["other"].to_list(), ground, strict=True)]
+    cols = {
+        c: raw[c].cast(pl.Float64).to_numpy()
+        for c in raw.columns
+        if c.endswith(("_in", "_out")) and c[:1] in "pn"
+    }
+    table = StateTable(states)
+    at_row = {
+        (side, row): table.at(names, rows[row])
+        for side, names in (("1", bodies), ("2", others))
+        for row in rows
+    }
+    t_b, t_a = (np.round(at_row[("1", r)].t * 1e9) for r in ("row_b", "row_a"))
+    surfaces = [None if not g else o for o, g in zip(raw["other"].to_list(), ground, strict=True)]
+    sphere = [np.array([b in spheres for b in names], dtype=bool) for names in (bodies, others)]
     out: dict[str, np.ndarray] = {}
     speeds = {}
-    for tag, at, contact, sign in (("in", "_b", "_f", 1.0), ("out", "_a", "_l", -1.0)):
-        n = vectors(frame, "n", f"_{tag}")
-        s1, c1 = States.of(frame, f"1{at}"), States.of(frame, f"1{contact}")
-        s2, c2 = States.of(frame, f"2{at}"), States.of(frame, f"2{contact}")
-        clr = column(frame, f"clr{tag}")
-        p1, height = contact_point(frame, tag, s1, c1, turns=None, sphere=sphere[0], clearance=clr)
-        p2, _ = contact_point(frame, tag, s2, c2, turns=~sphere[1], sphere=sphere[1])
+    for tag, at, contact, sign, t_row in (
+        ("in", "row_b", "first_row", 1.0, t_b),
+        ("out", "row_a", "last_row", -1.0, t_a),
+    ):
+        n = vectors(cols, "n", f"_{tag}")
+        s1, c1 = at_row[("1", at)], at_row[("1", contact)]
+        s2, c2 = at_row[("2", at)], at_row[("2", contact)]
+        clr = clearance_at(clearance, bodies, surfaces, t_row)
+        p1, height = contact_point(cols, tag, s1, c1, turns=None, sphere=sphere[0], clearance=clr)
+        p2, _ = contact_point(cols, tag, s2, c2, turns=~sphere[1], sphere=sphere[1])
         s, rate = reach_surface(n, p1, s1, height, c1.t - s1.t, gravity=gravity, h=h, sign=sign)
         found = ground & np.isfinite(s)
         relative = k.dot(n, p2.v - p1.v)
@@ -218,59 +265,36 @@ def approach_and_release(
         speeds[tag] = (p1, p2)
         if tag == "in":  # the lever of the impact normal about each centre of mass
             for i, c in enumerate((c1, c2), start=1):
-                r = vectors(frame, "p", "_in") - c.x
+                r = vectors(cols, "p", "_in") - c.x
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lever = np.linalg.norm(np.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
                 out[f"lever{i}"] = lever
-    n_in = vectors(frame, "n", "_in")
+    n_in = vectors(cols, "n", "_in")
     for i in (0, 1):  # each body's point velocity along the impact normal, at rows b and a
         out[f"u{i + 1}_b"] = k.dot(n_in, speeds["in"][i].v)
         out[f"u{i + 1}_a"] = k.dot(n_in, speeds["out"][i].v)
     v_min = MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(gravity)) * interval_s
-    frame = frame.with_columns(
-        *[pl.Series(name, values, dtype=pl.Float64).fill_nan(None) for name, values in out.items()],
-        pl.lit(v_min).alias("v_min_mps"),
-        pl.col("t_ns1_b").alias("t_b_ns"),
-        pl.col("t_ns1_a").alias("t_a_ns"),
-    ).with_columns(
-        (
-            ~pl.col("open")
-            & pl.col("v_out_mps").is_not_null()
-            & (pl.col("v_out_mps") > pl.col("v_min_mps"))
-        ).alias("visible"),
-    )
-    return frame.select(
-        *raw.columns,
-        "row_b",
-        "row_a",
-        "t_b_ns",
-        "t_a_ns",
-        "v_in_mps",
-        "v_out_mps",
-        "meet_t_s",
-        "release_t_s",
-        "v_min_mps",
-        "visible",
-        "u1_b",
-        "u2_b",
-        "u1_a",
-        "u2_a",
-        "lever1",
-        "lever2",
-    )
+    visible = ~open_ & np.isfinite(out["v_out_mps"]) & (out["v_out_mps"] > v_min)
 
+    def series(name: str, values: np.ndarray, dtype: pl.DataType = pl.Float64) -> pl.Series:
+        column = pl.Series(name, np.where(np.isfinite(values), values, np.nan), nan_to_null=True)
+        return column if dtype == pl.Float64 else column.cast(dtype)
 
-def with_clearance(frame: pl.DataFrame, clearance: pl.DataFrame) -> pl.DataFrame:
-    """Add clrin and clrout: the body's clearance to the surface `other` at rows b and a."""
-    for col, t in (("clrin", "t_ns1_b"), ("clrout", "t_ns1_a")):
-        right = clearance.select(
-            "body",
-            pl.col("surface").alias("other"),
-            pl.col("t_ns").alias(t),
-            pl.col("clearance_m").alias(col),
-        )
-        frame = frame.join(right, on=["body", "other", t], how="left")
-    return frame
+    added = pl.DataFrame(
+        [
+            series("row_b", rows["row_b"], pl.Int64),
+            series("row_a", rows["row_a"], pl.Int64),
+            series("t_b_ns", t_b, pl.Int64),
+            series("t_a_ns", t_a, pl.Int64),
+            *[series(name, out[name]) for name in ("v_in_mps", "v_out_mps", "meet_t_s")],
+            series("release_t_s", out["release_t_s"]),
+            pl.Series("v_min_mps", np.full(n_rows, v_min)),
+            pl.Series("visible", visible),
+            *[series(name, out[name]) for name in ("u1_b", "u2_b", "u1_a", "u2_a")],
+            *[series(name, out[name]) for name in ("lever1", "lever2")],
+        ]
+    )
+    return pl.concat([raw, added], how="horizontal")
 
 
 def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
