@@ -15,19 +15,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
 from impactlab.contact.checks import ContactModelError, check_restitution, positive
-from impactlab.contact.design import (
-    Evaluation,
-    check_timestep,
-    design_stiffness,
-    evaluate,
-    params_from,
-    speed_range,
-)
+from impactlab.contact.design import design_stiffness, params_from, speed_range
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, table, w0dt_max
+from impactlab.contact.table import PHASE_BUDGET, table
+from impactlab.contact.timestep import check_timestep, largest_timestep
 
 BELOW_RANGE = (0.25, 0.5)
 """Speeds below the range at which the drift is predicted, as fractions of v_lo."""
@@ -127,36 +122,6 @@ def _try(e: float, w0: float, dt: float, speeds: np.ndarray, g: float, integrato
         return None
 
 
-def largest_timestep(params: ContactParams) -> float:
-    """The largest timestep at which the contact's stiffness meets the tolerance (about 1 %)."""
-    e, integrator, g = params.restitution, params.integrator, params.gravity_mps2
-    lo_v, hi_v = params.speed_range_mps
-    speeds = np.array([lo_v]) if lo_v == hi_v else np.array([lo_v, math.sqrt(lo_v * hi_v), hi_v])
-    w0 = math.sqrt(params.stiffness)
-    budget = max(PHASE_BUDGET - params.gravity_spread, 1e-6)
-    estimate = w0dt_max(e, budget, scheme_of(integrator)) / w0
-
-    def ok(dt: float) -> bool:
-        ev = _try(e, w0, dt, speeds, g, integrator)
-        return ev is not None and _ok(ev, integrator)
-
-    lo, hi = estimate, estimate
-    for _ in range(40):
-        if ok(lo):
-            break
-        hi, lo = lo, lo / 2.0
-    else:
-        return lo
-    for _ in range(40):
-        if not ok(hi) or hi > 1.0:
-            break
-        lo, hi = hi, hi * 1.5
-    for _ in range(12):
-        mid = math.sqrt(lo * hi)
-        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
-    return lo
-
-
 def _best(e, dt, speeds, g, integrator, w0_hi) -> Evaluation | None:
     """The stiffness with the smallest predicted error at dt (golden section in log w0)."""
     cap = table(scheme_of(integrator)).w0dt_max
@@ -246,7 +211,7 @@ def design_contact(
         bound = positive("max_penetration_fraction", max_penetration_fraction) * positive(
             "radius_m", radius_m
         )
-    speeds = np.array([lo]) if lo == hi else np.array([lo, math.sqrt(lo * hi), hi])
+    speeds = shift_speeds(lo, hi)
     ev = design_stiffness(
         e, bound_m=bound, duration_s=duration_s, dt=dt, speeds=speeds, g=g, integrator=integrator
     )

@@ -34,55 +34,29 @@ Stiffness rule of :func:`contact_params` (``w0 = sqrt(stiffness)``):
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.checks import (
-    RESTITUTION_FLOOR,
-    ContactModelError,
-    check_restitution,
-    positive,
-)
+from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
+from impactlab.contact.checks import ContactModelError, check_restitution, positive
 from impactlab.contact.closed_form import (
     contact_time_factor,
     max_penetration_factor,
     zeta_for_restitution,
 )
 from impactlab.contact.emulation import SOLIMP, scheme_of
-from impactlab.contact.gravity import gravity_shift
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, table
+from impactlab.contact.table import RESTITUTION_TOLERANCE
+from impactlab.contact.timestep import check_timestep
 
-RESTITUTION_TOLERANCE = 0.005
-"""Accuracy promised for |e_measured - e_target| at every impact speed in the contact's range."""
-
+__all__ = ["RESTITUTION_TOLERANCE", "SPREAD_BUDGET", "check_timestep", "contact_params"]
 
 SPREAD_BUDGET = 0.0015
 """Default bound on gravity's half spread of e over the speed range: the default stiffness is
 at least the one that keeps e(v_lo) and e(v_hi) within this of the target (on average over
 step phases). The rest of ``PHASE_BUDGET`` goes to the phase error, so the timestep needed
 depends on how wide the range is."""
-
-
-@dataclass(frozen=True)
-class Evaluation:
-    """One stiffness evaluated: calibrated zeta and the predicted errors (units of e)."""
-
-    w0: float
-    zeta: float
-    shift: float  # centre of gravity's shift over the range, calibrated out
-    spread: float  # half the change of e by gravity across the range
-    phase: float  # worst-case phase error at this w0 * dt
-    pen: float  # worst-case penetration factor w0 x_max / v_in
-    w0dt: float
-
-    @property
-    def error(self) -> float:
-        """Predicted worst |e - target| over the range and over step phases."""
-        return self.phase + self.spread
 
 
 def speed_range(
@@ -108,65 +82,6 @@ def speed_range(
     if lo > hi:
         raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
     return lo, hi
-
-
-def _speeds(lo: float, hi: float) -> np.ndarray:
-    """Where gravity's shift is evaluated: the ends of the range and its geometric middle."""
-    return np.array([lo]) if lo == hi else np.array([lo, math.sqrt(lo * hi), hi])
-
-
-def evaluate(
-    e: float,
-    w0: float,
-    dt: float,
-    speeds: np.ndarray,
-    g: float,
-    integrator: str,
-) -> Evaluation:
-    """Calibrate zeta at stiffness w0**2 for target e and predict the errors.
-
-    zeta and gravity's shift depend on each other: a few fixed-point iterations. The shift is
-    piecewise constant in zeta (the step in which the ball is back at the surface jumps by one
-    for one phase: about h g / (w0 v) / 16), so the iteration stops at 1e-4.
-
-    Raises:
-        ContactModelError: gravity's shift cannot be calibrated out at this stiffness.
-    """
-    scheme = scheme_of(integrator)
-    cap = table(scheme).w0dt_max
-    h = min(w0 * dt, cap)
-    ratios = g / (w0 * speeds) if g > 0.0 else np.zeros(speeds.size)
-    shift, spread, step = 0.0, 0.0, 0.0
-    for _ in range(12):
-        zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
-        if g <= 0.0:
-            break
-        s = np.asarray(gravity_shift(zeta, h, ratios, integrator))
-        new = 0.5 * (float(s.max()) + float(s.min()))
-        spread = 0.5 * (float(s.max()) - float(s.min()))
-        step, shift = abs(new - shift), new
-        if step <= 1e-4:
-            break
-    if step > 1e-3:
-        raise ContactModelError(
-            f"cannot calibrate e = {e:g} under gravity {g:g} m/s^2 with stiffness {w0 * w0:.4g} "
-            f"(g / (w0 v) up to {ratios.max():.3g}): use a stiffer contact or a higher v_lo"
-        )
-    zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
-    _, phase, pen = discrete(zeta, h, scheme)
-    return Evaluation(w0, zeta, shift, spread, phase, pen, w0 * dt)
-
-
-def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
-    """The zero-gravity e to calibrate for so that gravity's shift brings it to e."""
-    target = e - shift
-    if not RESTITUTION_FLOOR <= target <= 1.0:
-        raise ContactModelError(
-            f"e = {e:g} cannot be reached under gravity with g / (w0 v) up to "
-            f"{float(np.max(ratios)):.3g}: gravity changes e by {shift:+.3g}; use a stiffer "
-            "contact"
-        )
-    return target
 
 
 def design_stiffness(
@@ -265,7 +180,7 @@ def contact_params(
         bound_m=bound,
         duration_s=duration_s,
         dt=dt,
-        speeds=_speeds(lo, hi),
+        speeds=shift_speeds(lo, hi),
         g=g,
         integrator=integrator,
     )
@@ -300,73 +215,4 @@ def params_from(
         gravity_shift=ev.shift,
         gravity_spread=ev.spread,
         phase_error=ev.phase,
-    )
-
-
-def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bool = False) -> int:
-    """Check that a timestep resolves the contact well enough for the restitution tolerance.
-
-    The worst case over the speed range and over where in a step the contact begins is
-    predicted from the calibration table: |midrange e(zeta, w0 dt) + gravity shift - target|
-    + half range + gravity's half spread. It must be within PHASE_BUDGET (the tolerance
-    minus 0.001 for the table's interpolation).
-
-    Args:
-        params: parameters from :func:`contact_params`.
-        timestep_s: simulation timestep in s.
-        allow_coarse: warn (UserWarning) instead of raising.
-
-    Returns:
-        Steps per contact, floor(duration_s / timestep_s).
-
-    Raises:
-        ContactModelError: the timestep is too coarse (message names steps per contact, the
-            steps needed and the largest timestep that would work).
-    """
-    dt = positive("timestep_s", timestep_s)
-    scheme = scheme_of(params.integrator)
-    w0 = math.sqrt(params.stiffness)
-    w0dt = w0 * dt
-    steps = int(params.duration_s / dt)
-    e = params.restitution
-    cap = table(scheme).w0dt_max
-    mid, half, _ = discrete(params.zeta, min(w0dt, cap), scheme)
-    err = abs(mid + params.gravity_shift - e) + half + params.gravity_spread
-    too_coarse = w0dt > cap * (1.0 + 1e-9)
-    if err <= PHASE_BUDGET + 1e-6 and not too_coarse:
-        return steps
-    msg = coarse_message(params, dt) if dt >= params.timestep_s * (1.0 - 1e-9) else None
-    if msg is None:
-        msg = (
-            f"contact parameters were calibrated for timestep {params.timestep_s:.3g} s, not "
-            f"{dt:.3g} s: predicted worst-case error {err:.4f} > {PHASE_BUDGET}; call "
-            f"contact_params with timestep_s={dt:.6g}"
-        )
-    if allow_coarse:
-        warnings.warn(msg, UserWarning, stacklevel=2)
-        return steps
-    raise ContactModelError(msg)
-
-
-def coarse_message(params: ContactParams, dt: float) -> str:
-    """Why a timestep is too coarse for a contact, and the largest one that works."""
-    from impactlab.contact.advice import largest_timestep
-
-    e, (lo, hi) = params.restitution, params.speed_range_mps
-    steps = int(params.duration_s / dt)
-    where = f"at {hi:g} m/s" if lo == hi else f"over {lo:g}..{hi:g} m/s"
-    if params.gravity_spread >= PHASE_BUDGET:
-        return (
-            f"gravity changes e by +-{params.gravity_spread:.4f} {where} with this contact "
-            f"(duration {params.duration_s:.3g} s): e = {e:.4g} within "
-            f"{RESTITUTION_TOLERANCE} needs a shorter contact or a narrower speed range"
-        )
-    dt_max = largest_timestep(params)
-    steps_needed = math.ceil(params.duration_s / dt_max)
-    return (
-        f"timestep {dt:.3g} s gives {steps} steps per contact (w0*dt = "
-        f"{math.sqrt(params.stiffness) * dt:.3g}); e = {e:.4g} within {RESTITUTION_TOLERANCE} "
-        f"{where} needs >= {steps_needed} steps, i.e. timestep <= {dt_max:.3g} s for "
-        f"stiffness {params.stiffness:.4g} (or a softer contact: larger max penetration, "
-        "longer duration, or a narrower speed range)"
     )

@@ -22,6 +22,9 @@ from impactlab.contact.checks import ZETA_MAX, bisect
 from impactlab.contact.closed_form import max_penetration_factor, restitution_closed_form
 from impactlab.contact.emulation import IMPEDANCE, emulate_impact, emulate_surface
 
+RESTITUTION_TOLERANCE = 0.005
+"""Accuracy promised for |e_measured - e_target| at every impact speed in the contact's range."""
+
 PHASE_BUDGET = 0.004
 """Part of the tolerance given to the predicted worst case (phase error plus gravity's spread
 over the speed range); the rest covers table interpolation and the residual of the gravity
