@@ -22,6 +22,7 @@ from impactlab.contact.closed_form import (
 )
 from impactlab.contact.design import (
     RESTITUTION_TOLERANCE,
+    SPEED_FLOOR_MPS,
     SPREAD_BUDGET,
     check_timestep,
     contact_params,
@@ -44,6 +45,7 @@ __all__ = [
     "RESTITUTION_FLOOR",
     "RESTITUTION_TOLERANCE",
     "SOLIMP",
+    "SPEED_FLOOR_MPS",
     "SPREAD_BUDGET",
     "ContactDesign",
     "ContactModelError",

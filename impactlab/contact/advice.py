@@ -229,6 +229,10 @@ def design_contact(
         best = params_from(best_ev, e, (lo, hi), dt, g, integrator)
         if _ok(best_ev, integrator) and best_ev.w0 < ev.w0:
             soft_ev = _stiffest_ok(e, dt, speeds, g, integrator, best_ev, ev.w0)
+            # a little softer than the edge: the designer asked for that penetration makes
+            # the contact 0.5 % stiffer than the bound needs
+            eased = _try(e, max(best_ev.w0, 0.97 * soft_ev.w0), dt, speeds, g, integrator)
+            soft_ev = eased if eased is not None and _ok(eased, integrator) else soft_ev
             softer = params_from(soft_ev, e, (lo, hi), dt, g, integrator)
     notes = ()
     if dt_max is not None and dt_max < 1e-7:

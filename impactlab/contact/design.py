@@ -50,7 +50,18 @@ from impactlab.contact.params import ContactParams
 from impactlab.contact.table import RESTITUTION_TOLERANCE
 from impactlab.contact.timestep import check_timestep
 
-__all__ = ["RESTITUTION_TOLERANCE", "SPREAD_BUDGET", "check_timestep", "contact_params"]
+__all__ = [
+    "RESTITUTION_TOLERANCE",
+    "SPEED_FLOOR_MPS",
+    "SPREAD_BUDGET",
+    "check_timestep",
+    "contact_params",
+]
+
+SPEED_FLOOR_MPS = 0.5
+"""Lowest impact speed of a default speed range, in m/s (specs and ``impactlab contact MODEL``):
+below it a bounce is 1.3 cm high, and holding e there needs a much stiffer contact (gravity's
+effect on e grows as 1 / v). Set the range explicitly to go lower."""
 
 SPREAD_BUDGET = 0.0015
 """Default bound on gravity's half spread of e over the speed range: the default stiffness is

@@ -23,6 +23,7 @@ import numpy as np
 
 from impactlab.contact import (
     RESTITUTION_TOLERANCE,
+    SPEED_FLOOR_MPS,
     ContactModelError,
     ContactParams,
     contact_params,
@@ -32,9 +33,6 @@ from impactlab.record.spec import Body, RunSpec, Stop
 from impactlab.record.spec_contact import ContactTarget
 
 PLANE_GEOM = "plane"
-SPEED_FLOOR_MPS = 0.5
-"""Lowest impact speed of a default speed range, in m/s: below it a bounce is 1.3 cm high, and
-holding e there would need a much stiffer contact (gravity's effect on e grows as 1 / v)."""
 
 
 @dataclass(frozen=True)
