@@ -185,6 +185,7 @@ def emulate_surface(
     released = np.zeros(shape, bool)
     entered = np.zeros(shape, bool)
     done = np.zeros(shape, bool)
+    weightless = not np.any(gr)
     for _ in range(int(t_max / h) + 100):
         y_new, u_new, any_force, _ = step(y, u, h, b, gr, scheme, impedance)
         let_go = pushed & ~any_force & ~released & ~done
@@ -200,6 +201,9 @@ def emulate_surface(
         released |= left
         done |= left
         if done.all():
+            break
+        if weightless and released.all():  # free flight at constant speed from here on
+            surface = np.where(done, surface, np.maximum(u, 0.0))
             break
     release = np.where(released, release, u)
     return release, surface, pen
