@@ -89,9 +89,14 @@ class ContactDesign:
     notes: tuple[str, ...] = field(default=())
 
 
-def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE, n: int = 7):
-    """e over the speed range (n speeds, geometric) and at fractions `below` of v_lo."""
+def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> Prediction:
+    """e over the speed range and at fractions `below` of v_lo.
+
+    Over the range: twice as dense as where the designer evaluates gravity's shift (those
+    speeds included), at least 7 speeds.
+    """
     lo, hi = params.speed_range_mps
+    n = max(7, 2 * len(shift_speeds(lo, hi)) - 1)
     inside = list(np.geomspace(lo, hi, n)) if hi > lo else [lo]
     outside = [lo * f for f in below] if params.gravity_mps2 > 0.0 else []
     speeds = np.array(sorted(outside) + inside)

@@ -37,8 +37,14 @@ class Evaluation:
 
 
 def shift_speeds(lo: float, hi: float) -> np.ndarray:
-    """Where gravity's shift is evaluated: the ends of the range and its geometric middle."""
-    return np.array([lo]) if lo == hi else np.array([lo, math.sqrt(lo * hi), hi])
+    """Where gravity's shift is evaluated over a range: geometrically spaced, both ends
+    included, four points per decade (at least three). The shift is not monotonic in the
+    speed where the constraint grips again on the way out (g / (w0 v) above about 0.1), so
+    the ends alone are not enough for wide ranges."""
+    if lo == hi:
+        return np.array([lo])
+    n = max(3, min(13, 1 + math.ceil(4.0 * math.log10(hi / lo))))
+    return np.geomspace(lo, hi, n)
 
 
 def evaluate(

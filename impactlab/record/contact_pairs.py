@@ -55,6 +55,8 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
     per_pair = dict(con.pairs or {})
     geoms = {b.name for b in run.bodies} | ({PLANE_GEOM} if run.plane.enabled else set())
     for key in per_pair:
+        if len(set(key.split("/"))) < 2:
+            raise SpecError(run.source, f"contact.pairs.{key}", "a pair needs two geoms")
         unknown = [g for g in key.split("/") if g not in geoms]
         if unknown:
             raise SpecError(
@@ -73,6 +75,12 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
         own = per_pair.get(key, ContactTarget())
         e = _pick(own.restitution, con.restitution)
         if e is None:
+            if key in per_pair:
+                raise SpecError(
+                    run.source,
+                    f"contact.pairs.{key}",
+                    "no restitution for this pair (give it here or in [contact])",
+                )
             continue
         where = f"contact.pairs.{key}" if key in per_pair else "contact"
         field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
