@@ -156,8 +156,8 @@ def _model(args: argparse.Namespace) -> int:
                 "geom1": t.pair.geom1,
                 "geom2": t.pair.geom2,
                 "radius_m": t.pair.radius_m,
-                "notes": list(t.pair.notes),
                 **design_dict(t.design, pair_element=t.element),
+                "notes": [*t.pair.notes, *t.design.notes],
             }
             for t in tuned.pairs
         ],

@@ -190,7 +190,7 @@ class _Layout:
 
     root_end: int | None = None
     contact: tuple[int, int, bool] | None = None  # first top-level <contact>: start, end, empty
-    pairs: list[tuple[frozenset[str], int, int, str | None]] | None = None  # geoms, span, name
+    pairs: list[tuple[frozenset[str], int, int, dict]] | None = None  # geoms, span, attributes
 
 
 def _layout(raw: bytes) -> _Layout:
@@ -213,7 +213,7 @@ def _layout(raw: bytes) -> _Layout:
             layout.contact = (begin, here if not empty else stop, empty)
         elif name == "pair" and stack and stack[-1][0] == "contact":
             geoms = frozenset((attrs.get("geom1", ""), attrs.get("geom2", "")))
-            layout.pairs.append((geoms, begin, stop, attrs.get("name")))
+            layout.pairs.append((geoms, begin, stop, attrs))
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end
@@ -263,9 +263,12 @@ def with_pairs(text: str, elements: Sequence[tuple[str, str, str]]) -> str:
     for g1, g2, element in elements:
         match = [p for p in layout.pairs or () if p[0] == frozenset((g1, g2))]
         if match:
-            _, start, stop, name = match[0]
-            if name is not None:  # keep the pair's name: other elements may refer to it
-                element = element.replace("<pair ", f"<pair name={quoteattr(name)} ", 1)
+            _, start, stop, attrs = match[0]
+            if attrs.get("geom1") == g2:  # keep the pair's order (the normal's direction)
+                names = f"geom1={quoteattr(g1)} geom2={quoteattr(g2)}"
+                element = element.replace(names, f"geom1={quoteattr(g2)} geom2={quoteattr(g1)}")
+            if "name" in attrs:  # keep the pair's name: other elements may refer to it
+                element = element.replace("<pair ", f"<pair name={quoteattr(attrs['name'])} ", 1)
             edits += [(start, stop, element.encode())]
             edits += [(start, stop, b"") for _, start, stop, _ in match[1:]]
         else:
