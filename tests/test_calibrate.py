@@ -27,7 +27,7 @@ from impactlab.calibrate.bounces import all_points, bounce_table, summarize_boun
 from impactlab.calibrate.grid import GRIDS, BounceCase, Grid
 from impactlab.calibrate.job import choose_grid, run_calibration
 from impactlab.calibrate.run import record_and_analyze
-from impactlab.cli.calibrate import register
+from impactlab.cli.calibrate import GRID_RUNS, register
 from impactlab.errors import SpecError
 
 TARGETS = (0.2, 0.5, 0.9, 0.99)
@@ -277,5 +277,6 @@ def test_multi_bounce_below_the_range_is_predicted(multi):
 
 def test_multi_bounce_grids_are_declared():
     assert all(len(GRIDS[g].bounce_cases) >= 3 for g in ("quick", "medium", "full"))
+    assert {name: grid.n_runs for name, grid in GRIDS.items()} == GRID_RUNS  # the --help text
     integrators = {c.integrator for c in GRIDS["medium"].bounce_cases}
     assert integrators == {"Euler", "RK4", "implicitfast"}

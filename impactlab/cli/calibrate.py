@@ -14,8 +14,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "calibrate",
         help="record a grid of calibrated impacts and compare target and measured restitution",
         description="Record ball-plane drops (gravity) and ball-ball collisions (zero gravity) "
-        "over targets e, impact speeds and masses with calibrated contacts, measure e with the "
-        "analysis stage, and write tables, figures and calibration.md. Grids: "
+        "over targets e, impact speeds and masses with calibrated contacts, and multi-bounce "
+        "drops whose every bounce is checked (in the contact's speed range against the target, "
+        "below it against the prediction); measure e with the analysis stage, and write "
+        "tables, figures and calibration.md. Grids: "
         + ", ".join(f"{name} ({n} runs)" for name, n in GRID_RUNS.items())
         + "; full is the default.",
     )
