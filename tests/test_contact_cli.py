@@ -212,6 +212,11 @@ def test_a_tuned_model_that_does_not_load_from_its_folder_is_not_left_behind(tmp
         (["--restitution", "0.05", "--radius", "0.1", "--speed", "1", "--timestep", "1e-5"], "0.1353"),
         ([*ALONE[1:], "--timestep", "1e-5", "--pair", "a/b=0.5"], "needs an MJCF model"),
         ([*ALONE[1:], "--timestep", "1e-5", "--max-penetration", "1e-3", "--duration", "1e-3"], "not both"),
+        # absurd sizes: one error, not overflowing arithmetic or an endless emulation
+        ([*ALONE[1:5], "--speed", "1e-300..1", "--timestep", "1e-5"], "outside what the designer"),
+        ([*ALONE[1:], "--timestep", "1e-30"], "outside what the designer handles (1e-09 .. 1)"),
+        ([*ALONE[1:], "--timestep", "1e-5", "--radius", "1e30"], "radius_m = 1e+30 m is outside"),
+        ([*ALONE[1:], "--timestep", "1e-5", "--gravity", "1e9"], "gravity_mps2 = 1e+09"),
     ],
 )  # fmt: skip
 def test_bad_input_is_one_line_and_exit_2(capsys, args, words):

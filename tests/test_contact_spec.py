@@ -117,6 +117,7 @@ BAD = [
     ({"contact__speed_range": "fast"}, "contact.speed_range", "list of 2"),
     ({"contact__speed_range": [1.0, 2.0, 3.0]}, "contact.speed_range", "list of 2"),
     ({"contact__impact_speed": 3.0}, "contact.impact_speed", "speed_range"),
+    ({"contact__speed_range": [1e-9, 3.0]}, "contact.speed_range", "outside what the designer"),
     (
         {"contact__pairs": {"ball/plane": {"speed_range": [2.0, 1.0]}}},
         "contact.pairs.ball/plane.speed_range",

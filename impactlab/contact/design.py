@@ -63,11 +63,34 @@ SPEED_FLOOR_MPS = 0.5
 below it a bounce is 1.3 cm high, and holding e there needs a much stiffer contact (gravity's
 effect on e grows as 1 / v). Set the range explicitly to go lower."""
 
+GRAVITY_RATIO_START = 0.015
+"""g / (w0 v_lo) of the stiffness the iteration starts from."""
+
 SPREAD_BUDGET = 0.0015
 """Default bound on gravity's half spread of e over the speed range: the default stiffness is
 at least the one that keeps e(v_lo) and e(v_hi) within this of the target (on average over
 step phases). The rest of ``PHASE_BUDGET`` goes to the phase error, so the timestep needed
 depends on how wide the range is."""
+
+
+LIMITS = {
+    "speed": (1e-4, 1e4, "m/s"),
+    "timestep_s": (1e-9, 1.0, "s"),
+    "radius_m": (1e-6, 1e3, "m"),
+    "max_penetration_m": (1e-9, 1e3, "m"),
+    "duration_s": (1e-9, 10.0, "s"),
+    "gravity_mps2": (0.0, 1e4, "m/s^2"),
+}
+"""What the designer handles; outside, one clear error instead of overflowing arithmetic."""
+
+
+def _within(name: str, value: float, key: str | None = None) -> float:
+    lo, hi, unit = LIMITS[key or name]
+    if not lo <= value <= hi:
+        raise ContactModelError(
+            f"{name} = {value:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
+        )
+    return value
 
 
 def speed_range(
@@ -76,12 +99,12 @@ def speed_range(
     """(v_lo, v_hi) from a range or a single impact speed (a range of one speed).
 
     Raises:
-        ContactModelError: neither or both given, or not 0 < v_lo <= v_hi.
+        ContactModelError: neither or both given, not 0 < v_lo <= v_hi, or outside LIMITS.
     """
     if (speed_range_mps is None) == (impact_speed_mps is None):
         raise ContactModelError("give speed_range_mps = (v_lo, v_hi) or impact_speed_mps")
     if impact_speed_mps is not None:
-        v = positive("impact_speed_mps", impact_speed_mps)
+        v = _within("impact_speed_mps", positive("impact_speed_mps", impact_speed_mps), "speed")
         return v, v
     try:
         lo, hi = speed_range_mps  # type: ignore[misc]
@@ -92,7 +115,57 @@ def speed_range(
     lo, hi = positive("speed_range_mps[0]", lo), positive("speed_range_mps[1]", hi)
     if lo > hi:
         raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
-    return lo, hi
+    return _within("v_lo", lo, "speed"), _within("v_hi", hi, "speed")
+
+
+def design_inputs(
+    restitution: float,
+    *,
+    radius_m: float | None,
+    timestep_s: float,
+    speed_range_mps: Sequence[float] | None,
+    impact_speed_mps: float | None,
+    integrator: str,
+    duration_s: float | None,
+    max_penetration_m: float | None,
+    max_penetration_fraction: float,
+    gravity_mps2: float,
+) -> tuple[float, tuple[float, float], float, float, float | None, float | None]:
+    """Checked inputs: (e, (v_lo, v_hi), dt, g, penetration bound or None, duration or None).
+
+    Raises:
+        ContactModelError: a value of the wrong type or outside LIMITS, both a duration and
+            a max penetration, or none of radius, max penetration and duration.
+    """
+    e = check_restitution(restitution)
+    speeds = speed_range(speed_range_mps, impact_speed_mps)
+    dt = _within("timestep_s", positive("timestep_s", timestep_s))
+    scheme_of(integrator)
+    try:
+        g = float(gravity_mps2)
+    except (TypeError, ValueError):
+        g = math.nan
+    if not math.isfinite(g) or g < 0.0:
+        raise ContactModelError(f"gravity_mps2 must be a number >= 0, got {gravity_mps2!r}")
+    _within("gravity_mps2", g)
+    if duration_s is not None and max_penetration_m is not None:
+        raise ContactModelError("give duration_s or max_penetration_m, not both")
+    if duration_s is not None:
+        return e, speeds, dt, g, None, _within("duration_s", positive("duration_s", duration_s))
+    if max_penetration_m is not None:
+        bound = positive("max_penetration_m", max_penetration_m)
+        return e, speeds, dt, g, _within("max_penetration_m", bound), None
+    if radius_m is None:
+        raise ContactModelError("give a radius, a max penetration or a contact duration")
+    radius = _within("radius_m", positive("radius_m", radius_m))
+    return (
+        e,
+        speeds,
+        dt,
+        g,
+        positive("max_penetration_fraction", max_penetration_fraction) * radius,
+        None,
+    )
 
 
 def design_stiffness(
@@ -115,8 +188,14 @@ def design_stiffness(
         return evaluate(e, w0, dt, speeds, g, integrator)
     assert bound_m is not None
     w0 = v_hi * max_penetration_factor(zeta_for_restitution(e)) / bound_m
+    if g > 0.0:  # start where gravity's effect is small: the iteration softens if it may
+        w0 = max(w0, g / (GRAVITY_RATIO_START * float(speeds.min())))
     for _ in range(16):
-        ev = evaluate(e, w0, dt, speeds, g, integrator)
+        try:
+            ev = evaluate(e, w0, dt, speeds, g, integrator)
+        except ContactModelError:  # gravity's shift too large to calibrate out: stiffer
+            w0 *= 4.0
+            continue
         w0_pen = v_hi * ev.pen / (0.995 * bound_m)
         # the half spread falls as 1 / w0 (to first order in g / (w0 v))
         w0_g = w0 * ev.spread / (0.99 * SPREAD_BUDGET)
@@ -169,23 +248,18 @@ def contact_params(
         ContactModelError: unreachable restitution, invalid input, both duration_s and
             max_penetration_m given, or a timestep too coarse for the contact.
     """
-    e = check_restitution(restitution)
-    radius = positive("radius_m", radius_m)
-    lo, hi = speed_range(speed_range_mps, impact_speed_mps)
-    dt = positive("timestep_s", timestep_s)
-    scheme_of(integrator)
-    g = float(gravity_mps2)
-    if not math.isfinite(g) or g < 0.0:
-        raise ContactModelError(f"gravity_mps2 must be >= 0, got {gravity_mps2!r}")
-    if duration_s is not None and max_penetration_m is not None:
-        raise ContactModelError("give duration_s or max_penetration_m, not both")
-    if duration_s is not None:
-        duration_s = positive("duration_s", duration_s)
-        bound = None
-    elif max_penetration_m is not None:
-        bound = positive("max_penetration_m", max_penetration_m)
-    else:
-        bound = positive("max_penetration_fraction", max_penetration_fraction) * radius
+    e, (lo, hi), dt, g, bound, duration_s = design_inputs(
+        restitution,
+        radius_m=radius_m,
+        timestep_s=timestep_s,
+        speed_range_mps=speed_range_mps,
+        impact_speed_mps=impact_speed_mps,
+        integrator=integrator,
+        duration_s=duration_s,
+        max_penetration_m=max_penetration_m,
+        max_penetration_fraction=max_penetration_fraction,
+        gravity_mps2=gravity_mps2,
+    )
     ev = design_stiffness(
         e,
         bound_m=bound,
