@@ -236,6 +236,7 @@ def test_bad_input_is_one_line_and_exit_2(capsys, args, words):
         ("ballgeom/boxgeom=0.5", [], "--speed LO..HI"),
         ("ballgeom/floor=0.8", ["--timestep", "1e-5"], "--timestep comes from the model"),
         ("ballgeom/floor=0.8", ["--radius", "0.1"], "--radius comes from the model"),
+        ("ballgeom/floor=0.8", ["-o", "."], "is a folder"),
     ],
 )
 def test_bad_model_input_is_one_line_and_exit_2(tmp_path, capsys, pair, extra, words):

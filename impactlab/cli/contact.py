@@ -122,6 +122,8 @@ def _model(args: argparse.Namespace) -> int:
                 "change it"
             )
     if args.out is not None:
+        if args.out.is_dir():
+            raise ContactModelError(f"-o {args.out} is a folder: give the tuned model's file name")
         check_writable(args.out.resolve().parent)
     tuned = tune_model(
         args.model,
