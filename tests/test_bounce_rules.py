@@ -13,9 +13,11 @@ import polars as pl
 import pytest
 from test_analyze_bounces import DROP_SPEC, G
 
+import impactlab
 from impactlab.analyze import answers
 from impactlab.analyze.analysis import analyze_run
 from impactlab.cli import main
+from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log
 
 GOLDEN = Path(__file__).parent / "golden"
@@ -23,7 +25,7 @@ GOLDEN = Path(__file__).parent / "golden"
 PAIRS = """
 name = "pairs"
 [options]
-timestep = 0.00001
+timestep = 0.000005
 [contact]
 condim = 1
 [contact.pairs."a/plane"]
@@ -273,12 +275,17 @@ def test_a_collision_that_was_expected_and_did_not_happen_says_so(record_model):
 def test_older_logs_are_analyzed_as_before(tmp_path):
     """A log written before surfaces and clearances were recorded (format 1, spheres on a
     plane): the plane and the spheres' clearances come from its metadata, with the same
-    numbers as a log recorded today from the same spec."""
+    numbers as a log recorded today from the model it carries (its attachment), with the
+    same run options."""
     old = tmp_path / "old.mcap"
     shutil.copyfile(GOLDEN / "format1" / "drop_restitution.mcap", old)
     run = load_log(old)
     assert run.surfaces is None and run.clearance.is_empty()
-    then, now = analyze_run(run), analyze_run(load_log(GOLDEN / "logs" / "drop_restitution.mcap"))
+    model = tmp_path / "model.xml"
+    model.write_bytes(read_attachments(old)["model.xml"])
+    options = [f"logging.every={run.meta['log_every']}", "stop.bounces=1"]
+    (today,) = impactlab.record(model, out=tmp_path / "today", duration=1.0, overrides=options)
+    then, now = analyze_run(run), analyze_run(load_log(today.path))
     for col in ("v_in_mps", "v_out_mps", "e_velocity", "apex_before_m"):
         np.testing.assert_allclose(then.bounces[col], now.bounces[col], rtol=1e-12, err_msg=col)
     # the old recorder did not log the step it stopped on, the apex: said, not guessed

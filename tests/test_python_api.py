@@ -19,7 +19,7 @@ def _examples() -> list[str]:
 
 
 def test_the_documented_example_runs(tmp_path):
-    (example,) = _examples()
+    example, *others = _examples()
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
     script = tmp_path / "example.py"
     script.write_text(example)
@@ -30,6 +30,13 @@ def test_the_documented_example_runs(tmp_path):
     assert "analyzed, 0 failed; report: results/report.md" in out.stdout
     assert (tmp_path / "results" / "report.md").is_file()
     assert len(list((tmp_path / "replays").glob("*.rrd"))) == 2
+    for i, other in enumerate(others):  # the shorter examples further down run as well
+        script = tmp_path / f"example{i + 1}.py"
+        script.write_text(other)
+        out = subprocess.run(
+            [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600
+        )
+        assert out.returncode == 0, out.stderr
 
 
 def test_nothing_prints_unless_asked(tmp_path, capfd):

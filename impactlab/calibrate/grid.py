@@ -4,13 +4,15 @@ Three kinds of run, each one short impact with a calibrated contact (``[contact]
 
 - ``plane``: a ball (radius 0.1 m) on the floor with gravity. It starts a few steps of travel
   above the plane, moving down so that it arrives at the requested impact speed, and the
-  contact is designed for that speed (``contact.impact_speed``). The run ends a little after
+  contact is designed for that speed (``contact.speed_range = [v, v]``). The run ends a little after
   the contact (``stop.max_time``), long before the apex.
 - ``ball``: two balls (radius 0.1 m) head-on along x in zero gravity, closing at the requested
   speed (ball 1 at +0.6 v, ball 2 at -0.4 v, so the total momentum is not zero), stopped once
   their surfaces are apart again (``stop.separation``).
 - ``lowspeed``: the ``plane`` run with the contact designed for ``design_speed`` (1 m/s) and
   hitting the floor slower (0.05 .. 1 m/s): e then depends on the impact speed through gravity.
+- ``bounces``: a ball of some radius and mass dropped onto the floor and bouncing several times
+  (``impactlab.calibrate.bounces``), its contact holding e over a speed range.
 
 The timestep of each point is the largest of ``TIMESTEP_LADDER`` that the restitution module
 accepts for the contact (``contact_params`` raises when the timestep does not resolve it), and
@@ -38,7 +40,24 @@ LOWSPEED_MAX_TIMESTEP = 5e-6
 """The analysis takes the velocities one logged step before and after the contact, so they
 carry up to g * dt of free flight; at 0.05 m/s and dt = 5e-5 s that is 1 % of e. The
 low-speed study uses at most 5e-6 s (0.1 % at 0.05 m/s)."""
-KINDS = ("plane", "ball", "lowspeed")
+KINDS = ("plane", "ball", "lowspeed", "bounces")
+
+
+@dataclass(frozen=True)
+class BounceCase:
+    """One multi-bounce drop: target e, radius (m), mass (kg), the contact's range, integrator.
+
+    ``low`` None: the default speed range the recorder derives from the experiment; else the
+    range ``[low, first impact speed]`` in m/s. ``bounces`` None: until the impact speed is
+    about 0.15 m/s (at most 8).
+    """
+
+    target: float
+    radius: float
+    mass: float
+    low: float | None = None
+    integrator: str = "Euler"
+    bounces: int | None = None
 
 
 @dataclass(frozen=True)
@@ -57,6 +76,7 @@ class Grid:
     low_speeds: tuple[float, ...]
     design_speed: float = 1.0
     low_mass: float = 1.0
+    bounce_cases: tuple[BounceCase, ...] = ()
 
     def with_values(
         self,
@@ -74,15 +94,37 @@ class Grid:
 
     @property
     def n_runs(self) -> int:
-        """Number of runs: ball-plane, ball-ball and low-speed."""
+        """Number of runs: ball-plane, ball-ball, low-speed and multi-bounce."""
         main = len(self.targets) * len(self.speeds) * 2 * len(self.masses)
-        return main + len(self.low_targets) * len(self.low_speeds)
+        return main + len(self.low_targets) * len(self.low_speeds) + len(self.bounce_cases)
 
     def mass_pairs(self) -> list[tuple[float, float]]:
         """(m1, m2) of the ball-ball runs."""
         m = sorted(self.masses)
         return [(m[i], m[-1 - i]) for i in range(len(m))]
 
+
+QUICK_BOUNCES = (
+    BounceCase(0.5, 0.1, 1.0),
+    BounceCase(0.9, 0.05, 0.1),
+    BounceCase(0.8, 0.2, 10.0, low=1.5),
+)
+MEDIUM_BOUNCES = (
+    *QUICK_BOUNCES,
+    BounceCase(0.2, 0.1, 1.0),
+    BounceCase(0.35, 0.3, 7.7),
+    BounceCase(0.65, 0.03, 0.13),
+    BounceCase(0.95, 0.1, 1.0),
+    BounceCase(0.7, 0.1, 1.0, integrator="RK4"),
+    BounceCase(0.8, 0.1, 1.0, integrator="implicitfast"),
+)
+FULL_BOUNCES = (
+    *MEDIUM_BOUNCES,
+    BounceCase(0.99, 0.2, 1.0),
+    BounceCase(0.25, 0.05, 0.1, low=1.0),
+    BounceCase(0.5, 0.3, 10.0, integrator="RK4"),
+    BounceCase(0.9, 0.03, 0.1, low=2.0, integrator="implicit"),
+)
 
 GRIDS: dict[str, Grid] = {
     "quick": Grid(
@@ -92,6 +134,7 @@ GRIDS: dict[str, Grid] = {
         masses=(0.1, 10.0),
         low_targets=(0.5, 0.9),
         low_speeds=(0.05, 0.1, 0.3, 1.0),
+        bounce_cases=QUICK_BOUNCES,
     ),
     "medium": Grid(
         name="medium",
@@ -100,6 +143,7 @@ GRIDS: dict[str, Grid] = {
         masses=(0.1, 1.0, 10.0),
         low_targets=(0.3, 0.5, 0.8, 0.9),
         low_speeds=(0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0),
+        bounce_cases=MEDIUM_BOUNCES,
     ),
     "full": Grid(
         name="full",
@@ -108,6 +152,7 @@ GRIDS: dict[str, Grid] = {
         masses=(0.1, 1.0, 10.0),
         low_targets=(0.2, 0.3, 0.5, 0.7, 0.8, 0.9, 0.99),
         low_speeds=(0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0),
+        bounce_cases=FULL_BOUNCES,
     ),
 }
 
@@ -118,14 +163,15 @@ class GridPoint:
 
     Attributes:
         name: experiment name (unique in the grid; letters, digits, _).
-        kind: "plane", "ball" or "lowspeed".
+        kind: "plane", "ball", "lowspeed" or "bounces".
         target: target e.
         speed: impact (closing) speed in m/s.
         m1, m2: masses in kg (m2 None for a ball on the plane).
-        design_speed: the contact's design impact speed in m/s.
+        design_speed: the contact's design impact speed in m/s (the top of its range).
         timestep: simulation timestep in s.
         params: the contact parameters the recorder will compute for this spec.
         toml: the spec's text.
+        radius: the ball's radius in m.
     """
 
     name: str
@@ -138,6 +184,7 @@ class GridPoint:
     timestep: float
     params: ContactParams = field(repr=False)
     toml: str = field(repr=False)
+    radius: float = RADIUS_M
 
 
 def _tag(x: float) -> str:
@@ -200,7 +247,7 @@ gravity = [0.0, 0.0, {-GRAVITY_MPS2!r}]
 
 [contact]
 restitution = {target!r}
-impact_speed = {float(design)!r}
+speed_range = [{float(design)!r}, {float(design)!r}]
 
 [bodies.ball]
 radius = {RADIUS_M!r}
@@ -236,7 +283,7 @@ gravity = [0.0, 0.0, 0.0]
 
 [contact]
 restitution = {target!r}
-impact_speed = {float(speed)!r}
+speed_range = [{float(speed)!r}, {float(speed)!r}]
 
 [plane]
 enabled = false
@@ -264,7 +311,8 @@ every = 1
 
 
 def grid_points(grid: Grid, kinds: Sequence[str] = KINDS) -> list[GridPoint]:
-    """Every point of a grid, ordered by timestep so that the recorder batches them well."""
+    """The single-impact points of a grid (plane, ball, lowspeed), ordered by timestep so that
+    the recorder batches them well (`bounces.all_points` adds the multi-bounce drops)."""
     points: list[GridPoint] = []
     for e in grid.targets:
         for v in grid.speeds:

@@ -3,15 +3,18 @@
 Records a grid of short impacts with calibrated contacts (``[contact] restitution = e``): a ball
 on the floor with gravity and two balls head-on in zero gravity, over targets e, impact speeds
 and masses, plus a low-speed study on the floor (contact designed at 1 m/s, hitting at
-0.05 .. 1 m/s). The logs are analyzed by the analysis stage; the command prints target vs
-measured e, and writes to the output folder:
+0.05 .. 1 m/s) and multi-bounce drops (every bounce checked: in the contact's speed range
+against the target, below it against the designer's prediction). The logs are analyzed by the
+analysis stage; the command prints target vs measured e, and writes to the output folder:
 
-- ``points.parquet`` (one row per grid point), ``lowspeed_curves.parquet`` (predictions),
-  ``runs.parquet``, ``bounces.parquet``, ``collisions.parquet`` (the analysis stage's tables),
-- ``summary.json``, ``calibration.png``, ``lowspeed.png``, ``calibration.md``,
+- ``points.parquet`` (one row per single-impact grid point), ``lowspeed_curves.parquet``
+  (predictions), ``multibounce.parquet`` (one row per bounce of the drops), ``runs.parquet``,
+  ``bounces.parquet``, ``collisions.parquet`` (the analysis stage's tables),
+- ``summary.json``, ``calibration.png``, ``lowspeed.png``, ``bounces.png``, ``calibration.md``,
 - ``specs/`` (the generated TOML specs) and ``logs/`` (the MCAP logs, unless discarded).
 
-Exit code 0 when every ball-plane and ball-ball point meets its bounds, 1 otherwise.
+Exit code 0 when every ball-plane and ball-ball point and every bounce meets its bounds, 1
+otherwise.
 """
 
 from __future__ import annotations
@@ -20,9 +23,11 @@ import math
 import shutil
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import asdict
 from pathlib import Path
 
 from impactlab.calibrate import plots
+from impactlab.calibrate.bounces import bounce_table, prediction_curves, summarize_bounces
 from impactlab.calibrate.grid import GRIDS, RADIUS_M, Grid
 from impactlab.calibrate.report import report, text_table
 from impactlab.calibrate.run import (
@@ -105,8 +110,10 @@ def run_calibration(
     points, table, analysis, timings = calibrate(chosen, out_dir, echo=echo)
     t1 = time.perf_counter()
     curves = lowspeed_curves(points)
+    multi = bounce_table(points, analysis.runs, analysis.bounces)
     summary = summarize(table)
-    result = CalibrationResult(out_dir, chosen, table, summary)
+    summary["bounces"] = summarize_bounces(multi, points)
+    result = CalibrationResult(out_dir, chosen, table, summary, bounces=multi)
     files = [
         write_parquet(table, out_dir / "points.parquet"),
         write_parquet(curves, out_dir / "lowspeed_curves.parquet"),
@@ -114,6 +121,8 @@ def run_calibration(
         write_parquet(analysis.bounces, out_dir / "bounces.parquet"),
         write_parquet(analysis.collisions, out_dir / "collisions.parquet"),
     ]
+    if multi.height:
+        files.append(write_parquet(multi, out_dir / "multibounce.parquet"))
     figs = [
         plots.calibration_figure(
             table,
@@ -129,6 +138,16 @@ def run_calibration(
                 title=f"Ball on the floor below the design speed "
                 f"({chosen.design_speed:g} m/s): e depends on the impact speed",
                 path=out_dir / "lowspeed.png",
+            )
+        )
+    if multi.height:
+        figs.append(
+            plots.bounces_figure(
+                multi,
+                prediction_curves(points),
+                title="Every bounce of a drop (filled: in the contact's speed range; "
+                "line: the designer's prediction)",
+                path=out_dir / "bounces.png",
             )
         )
     files += figs
@@ -149,6 +168,7 @@ def run_calibration(
             "ball_mass_pairs_kg": chosen.mass_pairs(),
             "low_targets": chosen.low_targets,
             "low_speeds_mps": chosen.low_speeds,
+            "bounce_cases": [asdict(c) for c in chosen.bounce_cases],
             "design_speed_mps": chosen.design_speed,
             "radius_m": RADIUS_M,
         },

@@ -138,3 +138,46 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
     for axis in (ax, ax_d):
         axis.grid(True, alpha=0.3, which="both")
     return save_figure(fig, path)
+
+
+def bounces_figure(frame: pl.DataFrame, curves: pl.DataFrame, *, title: str, path: Path) -> Path:
+    """e - target against impact speed for every bounce of the multi-bounce drops.
+
+    One colour per drop; filled markers are bounces inside the contact's speed range (thick
+    segment), open ones below it; the line is the designer's prediction (step emulation, mean
+    over contact-onset phases), the band the tolerance.
+    """
+    fig, ax = plt.subplots(figsize=(10, 6))
+    ax.axhspan(-TOLERANCE, TOLERANCE, color="tab:green", alpha=0.12, label="±0.005")
+    ax.axhline(0.0, color="0.5", lw=1)
+    colors = plt.get_cmap("tab10")
+    for i, name in enumerate(sorted(frame["name"].unique().to_list())):
+        c = colors(i % 10)
+        part = frame.filter(pl.col("name") == name).sort("v_in_mps")
+        d = part.row(0, named=True)
+        target = d["target"]
+        curve = curves.filter(pl.col("name") == name).sort("speed_mps")
+        if curve.height:
+            ax.plot(curve["speed_mps"], curve["e_predicted"] - target, color=c, lw=1.2)
+        ax.plot(
+            [d["range_lo_mps"], d["range_hi_mps"]], [0.0, 0.0], color=c, lw=5, alpha=0.5,
+            solid_capstyle="butt",
+        )  # fmt: skip
+        label = (
+            f"e = {target:g}, r = {d['radius_m']:g} m, {d['mass_kg']:g} kg, "
+            f"{d['integrator']}, range {d['range_lo_mps']:.2g}..{d['range_hi_mps']:.2g} m/s"
+        )
+        for inside, face in ((True, c), (False, "none")):
+            sub = part.filter(pl.col("in_range") == inside)
+            if sub.height:
+                ax.plot(
+                    sub["v_in_mps"], sub["error"], "o", color=c, mfc=face, mec=c,
+                    label=label if inside else None,
+                )  # fmt: skip
+    ax.set_xscale("log")
+    ax.set_xlabel("impact speed (m/s)")
+    ax.set_ylabel("e measured - target (lines: predicted)")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="lower right")
+    return save_figure(fig, path)

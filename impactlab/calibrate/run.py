@@ -1,12 +1,10 @@
 """Record a calibration grid, analyze the logs with the analysis stage, tabulate target vs measured.
 
 The measured e comes only from the recorded logs, through the analysis stage
-(`impactlab.analyze.run_analysis`, tables only): the bounces table for a
-ball on the floor (``e_velocity``: normal velocity one logged step after the contact interval
-over the one one step before it; the interval is the run of steps with a geometric overlap),
-the collisions table for two balls (``e_measured``, velocities, momentum). The recorder's
-contact parameters are used only to describe the runs (stiffness, damping, design duration)
-and for the low-speed predictions.
+(`impactlab.analyze.run_analysis`, tables only): the bounces table for a ball on the floor
+(``e_velocity``: normal velocity one logged step after the contact interval over the one one
+step before it), the collisions table for two balls (``e_measured``, velocities, momentum).
+The recorder's contact parameters only describe the runs and give the predictions.
 
 Low-speed predictions (a ball on the floor, contact designed at 1 m/s, hitting slower):
 
@@ -30,7 +28,8 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze import AnalysisResult, run_analysis
-from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint, grid_points
+from impactlab.calibrate.bounces import all_points
+from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint
 from impactlab.contact import (
     RESTITUTION_TOLERANCE,
     restitution_with_gravity,
@@ -55,8 +54,9 @@ class CalibrationResult:
     Attributes:
         out_dir: the output folder.
         grid: the grid calibrated.
-        points: one row per grid point (see `point_table`).
+        points: one row per single-impact grid point (see `point_table`).
         summary: per kind: runs, max |error|, the worst point, failures (JSON-ready).
+        bounces: one row per bounce of the multi-bounce drops (`bounces.bounce_table`).
         files: every file written (tables, summary, figures, report).
         figures: the PNGs (calibration.png, then lowspeed.png when there is a low-speed study).
         timings: seconds spent per stage ("specs", "record", "analyze", "total").
@@ -66,6 +66,7 @@ class CalibrationResult:
     grid: Grid
     points: pl.DataFrame
     summary: dict
+    bounces: pl.DataFrame = field(default_factory=pl.DataFrame)
     files: list[Path] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
@@ -76,9 +77,15 @@ class CalibrationResult:
         return self.points.filter((pl.col("kind") != "lowspeed") & ~pl.col("ok"))
 
     @property
+    def failing_bounces(self) -> pl.DataFrame:
+        """Bounces of the multi-bounce drops that miss their bound."""
+        return self.bounces.filter(~pl.col("ok")) if self.bounces.height else self.bounces
+
+    @property
     def exit_code(self) -> int:
-        """0 when every grid point is within its bounds, else 1."""
-        return 1 if self.failures.height else 0
+        """0 when every grid point and every bounce is within its bounds, else 1."""
+        missing = (self.summary.get("bounces") or {}).get("runs_without_bounces")
+        return 1 if self.failures.height or self.failing_bounces.height or missing else 0
 
 
 def write_specs(points: Sequence[GridPoint], folder: Path) -> list[Path]:
@@ -143,7 +150,7 @@ def point_table(
     """
     run_of = dict(zip(runs["experiment"], runs["run_id"], strict=True))
     rows = []
-    for p in points:
+    for p in (q for q in points if q.kind != "bounces"):
         run_id = run_of.get(p.name)
         row = {
             "kind": p.kind,
@@ -369,12 +376,13 @@ def calibrate(
         The points, the point table, the analysis stage's tables and the timings in s.
     """
     t0 = time.perf_counter()
-    points = grid_points(grid)
+    points = all_points(grid)
     echo(
         f"calibration grid {grid.name}: {len(points)} runs "
         f"({sum(p.kind == 'plane' for p in points)} ball-plane, "
         f"{sum(p.kind == 'ball' for p in points)} ball-ball, "
-        f"{sum(p.kind == 'lowspeed' for p in points)} low-speed)"
+        f"{sum(p.kind == 'lowspeed' for p in points)} low-speed, "
+        f"{sum(p.kind == 'bounces' for p in points)} multi-bounce)"
     )
     table, analysis, timings = record_and_analyze(points, out_dir, echo=echo)
     timings["grid"] = time.perf_counter() - t0 - sum(timings.values())

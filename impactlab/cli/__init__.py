@@ -14,10 +14,10 @@ import threading
 from collections.abc import Sequence
 
 from impactlab import __version__
-from impactlab.cli import analyze, calibrate, diff, info, lab, record, replay
+from impactlab.cli import analyze, calibrate, contact, diff, info, lab, record, replay
 from impactlab.errors import ImpactlabError
 
-COMMANDS = (record, info, analyze, replay, diff, calibrate, lab)  # in help order
+COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in help order
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--calibration",
         choices=("none", "quick", "medium", "full"),
         default="medium",
-        help="restitution calibration grid for the report (medium: ~170 runs, ~40 s)",
+        help="restitution calibration grid for the report (medium: 181 runs, about 30 s)",
     )
     add_executor_options(p)
     p.set_defaults(func=run)

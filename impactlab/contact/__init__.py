@@ -1,15 +1,18 @@
 """The contact model: a target coefficient of restitution -> MuJoCo contact parameters.
 
-Owns: the linear spring-dashpot's closed form (`closed_form`), the exact emulation of
-MuJoCo's step for one impact (`emulation`), the discretisation table built from it
-(`table`, `restitution_table.json`), gravity's effect on e (`gravity`), the designer that
-turns a target into parameters (`design`, returning `params.ContactParams`) and helpers that
-measure one impact in MuJoCo (`measure`, used by tests and the calibration).
+Owns: the linear spring-dashpot's closed form (`closed_form`), exact emulations of MuJoCo's
+step for one impact per integrator (`emulation`, and `fast` without stepping the contact), the
+discretisation tables built from them (`table`, `restitution_table*.json`), gravity's effect
+on e (`gravity`), the designer that turns a target over a range of impact speeds into
+parameters (`design`, returning `params.ContactParams`; `advice` adds predictions and what to
+do when the timestep is too coarse), MJCF models with calibrated pairs (`mjcf`) and helpers
+that measure one impact in MuJoCo (`measure`, used by tests and the calibration).
 
-May import: numpy, and MuJoCo inside `measure` only. Must not import: any stage (record,
-analyze, replay, calibrate) or the log format; record and calibrate build on it.
+May import: numpy, and MuJoCo inside `measure` and `mjcf` only. Must not import: any stage
+(record, analyze, replay, calibrate) or the log format; record and calibrate build on it.
 """
 
+from impactlab.contact.advice import ContactDesign, Prediction, design_contact, predict
 from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
 from impactlab.contact.closed_form import (
     contact_time_factor,
@@ -18,28 +21,44 @@ from impactlab.contact.closed_form import (
     zeta_for_restitution,
 )
 from impactlab.contact.design import (
-    GRAVITY_RATIO_MAX,
     RESTITUTION_TOLERANCE,
+    SPEED_FLOOR_MPS,
+    SPREAD_BUDGET,
     check_timestep,
     contact_params,
 )
-from impactlab.contact.emulation import IMPEDANCE, SOLIMP
-from impactlab.contact.gravity import restitution_with_gravity, surface_restitution
+from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP
+from impactlab.contact.gravity import (
+    restitution_spread,
+    restitution_with_gravity,
+    surface_restitution,
+)
 from impactlab.contact.params import ContactParams
 
+INTEGRATORS = tuple(SCHEMES)
+"""MuJoCo's integrators, every one calibrated (implicit and implicitfast step this contact as
+Euler does)."""
+
 __all__ = [
-    "GRAVITY_RATIO_MAX",
     "IMPEDANCE",
+    "INTEGRATORS",
     "RESTITUTION_FLOOR",
     "RESTITUTION_TOLERANCE",
     "SOLIMP",
+    "SPEED_FLOOR_MPS",
+    "SPREAD_BUDGET",
+    "ContactDesign",
     "ContactModelError",
     "ContactParams",
+    "Prediction",
     "check_timestep",
     "contact_params",
     "contact_time_factor",
+    "design_contact",
     "max_penetration_factor",
+    "predict",
     "restitution_closed_form",
+    "restitution_spread",
     "restitution_with_gravity",
     "surface_restitution",
     "zeta_for_restitution",

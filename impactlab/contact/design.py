@@ -1,4 +1,4 @@
-"""The designer: a target coefficient of restitution -> MuJoCo contact parameters.
+"""The designer: a target restitution over a range of impact speeds -> MuJoCo contact parameters.
 
 MuJoCo has no restitution parameter (google-deepmind/mujoco issue #2080). This module uses the
 direct form of ``solref`` (``(-stiffness, -damping)``) with a constant impedance close to 1, for
@@ -9,81 +9,211 @@ of the masses::
 
 The Schwager & Poeschel closed form (Granular Matter 9, 2007) gives e(zeta) for that law with the
 contact ending when the force vanishes; it is inverted for zeta and then corrected for MuJoCo's
-time discretisation with a table (``restitution_table.json``) computed once by an exact numpy
-emulation of ``mj_step`` for this contact (the emulation matches ``mj_step`` to 1e-14; the
-tests check it). Regenerate the table with ``python -m impactlab.contact.table``.
+time discretisation with a table per integrator (``restitution_table*.json``) computed once by
+an exact numpy emulation of ``mj_step`` for this contact (the tests check it against MuJoCo).
 
-Stiffness rule of :func:`contact_params` (``w0 = sqrt(stiffness)``, ``v`` the impact speed):
+Without gravity e does not depend on the impact speed. With gravity (a ball on a fixed surface)
+the e measured surface to surface (as ``impactlab.analyze.bounces`` does) is lower than the
+zero-gravity e by about ``2 zeta g / (w0 v)``: after the force lets go the ball is still inside
+the floor and gravity slows it on the way out. Over a range of impact speeds [v_lo, v_hi] that
+shift changes by ``2 zeta g / w0 (1 / v_lo - 1 / v_hi)``. The designer centres it across the
+range (zeta is calibrated for ``target - (shift(v_lo) + shift(v_hi)) / 2``) and picks the
+stiffness so that the remaining half spread stays within ``SPREAD_BUDGET``.
 
-1. ``duration_s`` given: w0 from the contact duration; else ``max_penetration_m`` given: w0 from
-   that penetration at ``v``; else the softest w0 that keeps the worst-case penetration at ``v``
-   below ``max_penetration_fraction * radius_m`` and ``g / (w0 v) <= GRAVITY_RATIO_MAX`` (pass
-   ``gravity_mps2=0`` for zero-gravity scenes). The softest contact is the one with the most
-   steps per contact.
-2. The timestep must resolve that contact: ``w0 * timestep_s`` must not exceed what keeps the
-   worst-case error (over where in a step the contact begins) within the budget, otherwise
+Stiffness rule of :func:`contact_params` (``w0 = sqrt(stiffness)``):
+
+1. ``duration_s`` given: w0 from the contact duration. Otherwise the softest w0 that keeps the
+   worst-case penetration at ``v_hi`` below the bound (``max_penetration_m``, default
+   ``max_penetration_fraction * radius_m``) and gravity's half spread over the range below
+   ``SPREAD_BUDGET``. The softest contact has the most steps per contact.
+2. The timestep must resolve that contact: the predicted worst case (phase error from the
+   table, plus the half spread) must stay within ``PHASE_BUDGET``; otherwise
    :class:`ContactModelError` names the steps per contact and the largest timestep that works.
-
-Gravity (a body on a fixed surface): e is measured surface to surface, from the velocity in the
-last state before the overlap to the one in the first state after it (as
-``impactlab.analyze.bounces`` does). When the force lets go the ball is still inside the floor
-(overlap about 2 zeta v_out / w0) and gravity slows it on the way out, which lowers that e by
-about 2 zeta g / (w0 v) (0.02 for e = 0.2 at g / (w0 v) = 0.015). :func:`contact_params`
-calibrates zeta for ``target - shift``, the shift computed for the design speed by a closed-form
-evaluation of the same step emulation continued until the ball is back at the surface
-(:func:`impact_fast`, a few fixed-point iterations); :func:`surface_restitution` and
-:func:`restitution_with_gravity` predict e at other speeds (lower below the design speed, higher
-above it, by at most the shift).
 """
 
 from __future__ import annotations
 
 import math
-import warnings
+from collections.abc import Sequence
 
-from impactlab.contact.checks import (
-    RESTITUTION_FLOOR,
-    ContactModelError,
-    check_restitution,
-    positive,
-)
+import numpy as np
+
+from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
+from impactlab.contact.checks import ContactModelError, check_restitution, positive
 from impactlab.contact.closed_form import (
     contact_time_factor,
     max_penetration_factor,
     zeta_for_restitution,
 )
-from impactlab.contact.emulation import SOLIMP
-from impactlab.contact.gravity import gravity_shift
+from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, table, w0dt_max
+from impactlab.contact.table import RESTITUTION_TOLERANCE
+from impactlab.contact.timestep import check_timestep
 
-RESTITUTION_TOLERANCE = 0.005
-"""Accuracy promised for |e_measured - e_target| at the design point."""
+__all__ = [
+    "RESTITUTION_TOLERANCE",
+    "SPEED_FLOOR_MPS",
+    "SPREAD_BUDGET",
+    "check_timestep",
+    "contact_params",
+]
+
+SPEED_FLOOR_MPS = 0.5
+"""Lowest impact speed of a default speed range, in m/s (specs and ``impactlab contact MODEL``):
+below it a bounce is 1.3 cm high, and holding e there needs a much stiffer contact (gravity's
+effect on e grows as 1 / v). Set the range explicitly to go lower."""
+
+GRAVITY_RATIO_START = 0.015
+"""g / (w0 v_lo) of the stiffness the iteration starts from."""
+
+SPREAD_BUDGET = 0.0015
+"""Default bound on gravity's half spread of e over the speed range: the default stiffness is
+at least the one that keeps e(v_lo) and e(v_hi) within this of the target (on average over
+step phases). The rest of ``PHASE_BUDGET`` goes to the phase error, so the timestep needed
+depends on how wide the range is."""
 
 
-GRAVITY_RATIO_MAX = 0.015
-"""Default bound on g / (w0 * v_in) at the design speed. Gravity's shift of the surface-to-surface
-e, about -2 zeta g / (w0 v), is calibrated out at the design speed; this bound keeps it (and so
-the change of e with the impact speed) to about 0.02 at most."""
+LIMITS = {
+    "speed": (1e-4, 1e4, "m/s"),
+    "timestep_s": (1e-9, 1.0, "s"),
+    "radius_m": (1e-6, 1e3, "m"),
+    "max_penetration_m": (1e-9, 1e3, "m"),
+    "duration_s": (1e-9, 10.0, "s"),
+    "gravity_mps2": (0.0, 1e4, "m/s^2"),
+}
+"""What the designer handles; outside, one clear error instead of overflowing arithmetic."""
 
 
-def shifted_target(e: float, shift: float, gravity_ratio: float) -> float:
-    """The zero-gravity e to calibrate for so that gravity's shift brings it to e."""
-    target = e - shift
-    if not RESTITUTION_FLOOR <= target <= 1.0:
+def _within(name: str, value: float, key: str | None = None) -> float:
+    lo, hi, unit = LIMITS[key or name]
+    if not lo <= value <= hi:
         raise ContactModelError(
-            f"e = {e:g} cannot be reached under gravity with g / (w0 v) = {gravity_ratio:.3g}: "
-            f"gravity changes e by {shift:+.3g} at the design speed; use a stiffer contact"
+            f"{name} = {value:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
         )
-    return target
+    return value
+
+
+def speed_range(
+    speed_range_mps: Sequence[float] | None, impact_speed_mps: float | None
+) -> tuple[float, float]:
+    """(v_lo, v_hi) from a range or a single impact speed (a range of one speed).
+
+    Raises:
+        ContactModelError: neither or both given, not 0 < v_lo <= v_hi, or outside LIMITS.
+    """
+    if (speed_range_mps is None) == (impact_speed_mps is None):
+        raise ContactModelError("give speed_range_mps = (v_lo, v_hi) or impact_speed_mps")
+    if impact_speed_mps is not None:
+        v = _within("impact_speed_mps", positive("impact_speed_mps", impact_speed_mps), "speed")
+        return v, v
+    try:
+        lo, hi = speed_range_mps  # type: ignore[misc]
+    except (TypeError, ValueError):
+        raise ContactModelError(
+            f"speed_range_mps must be two speeds (v_lo, v_hi), got {speed_range_mps!r}"
+        ) from None
+    lo, hi = positive("speed_range_mps[0]", lo), positive("speed_range_mps[1]", hi)
+    if lo > hi:
+        raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
+    return _within("v_lo", lo, "speed"), _within("v_hi", hi, "speed")
+
+
+def design_inputs(
+    restitution: float,
+    *,
+    radius_m: float | None,
+    timestep_s: float,
+    speed_range_mps: Sequence[float] | None,
+    impact_speed_mps: float | None,
+    integrator: str,
+    duration_s: float | None,
+    max_penetration_m: float | None,
+    max_penetration_fraction: float,
+    gravity_mps2: float,
+) -> tuple[float, tuple[float, float], float, float, float | None, float | None]:
+    """Checked inputs: (e, (v_lo, v_hi), dt, g, penetration bound or None, duration or None).
+
+    Raises:
+        ContactModelError: a value of the wrong type or outside LIMITS, both a duration and
+            a max penetration, or none of radius, max penetration and duration.
+    """
+    e = check_restitution(restitution)
+    speeds = speed_range(speed_range_mps, impact_speed_mps)
+    dt = _within("timestep_s", positive("timestep_s", timestep_s))
+    scheme_of(integrator)
+    try:
+        g = float(gravity_mps2)
+    except (TypeError, ValueError):
+        g = math.nan
+    if not math.isfinite(g) or g < 0.0:
+        raise ContactModelError(f"gravity_mps2 must be a number >= 0, got {gravity_mps2!r}")
+    _within("gravity_mps2", g)
+    if duration_s is not None and max_penetration_m is not None:
+        raise ContactModelError("give duration_s or max_penetration_m, not both")
+    if duration_s is not None:
+        return e, speeds, dt, g, None, _within("duration_s", positive("duration_s", duration_s))
+    if max_penetration_m is not None:
+        bound = positive("max_penetration_m", max_penetration_m)
+        return e, speeds, dt, g, _within("max_penetration_m", bound), None
+    if radius_m is None:
+        raise ContactModelError("give a radius, a max penetration or a contact duration")
+    radius = _within("radius_m", positive("radius_m", radius_m))
+    return (
+        e,
+        speeds,
+        dt,
+        g,
+        positive("max_penetration_fraction", max_penetration_fraction) * radius,
+        None,
+    )
+
+
+def design_stiffness(
+    e: float,
+    *,
+    bound_m: float | None,
+    duration_s: float | None,
+    dt: float,
+    speeds: np.ndarray,
+    g: float,
+    integrator: str,
+) -> Evaluation:
+    """The stiffness rule (module docstring) and the calibrated contact it gives."""
+    v_hi = float(speeds.max())
+    if duration_s is not None:
+        w0 = contact_time_factor(zeta_for_restitution(e)) / duration_s
+        for _ in range(5):
+            ev = evaluate(e, w0, dt, speeds, g, integrator)
+            w0 = contact_time_factor(ev.zeta) / duration_s
+        return evaluate(e, w0, dt, speeds, g, integrator)
+    assert bound_m is not None
+    w0 = v_hi * max_penetration_factor(zeta_for_restitution(e)) / bound_m
+    if g > 0.0:  # start where gravity's effect is small: the iteration softens if it may
+        w0 = max(w0, g / (GRAVITY_RATIO_START * float(speeds.min())))
+    for _ in range(16):
+        try:
+            ev = evaluate(e, w0, dt, speeds, g, integrator)
+        except ContactModelError:  # gravity's shift too large to calibrate out: stiffer
+            w0 *= 4.0
+            continue
+        w0_pen = v_hi * ev.pen / (0.995 * bound_m)
+        # the half spread falls as 1 / w0 (to first order in g / (w0 v))
+        w0_g = w0 * ev.spread / (0.99 * SPREAD_BUDGET)
+        new = min(max(w0_pen, w0_g), 100.0 * w0)
+        if abs(new - w0) <= 1e-4 * w0:
+            break
+        w0 = new
+    return evaluate(e, w0, dt, speeds, g, integrator)
 
 
 def contact_params(
     restitution: float,
     *,
     radius_m: float,
-    impact_speed_mps: float,
     timestep_s: float,
+    speed_range_mps: Sequence[float] | None = None,
+    impact_speed_mps: float | None = None,
+    integrator: str = "Euler",
     duration_s: float | None = None,
     max_penetration_m: float | None = None,
     max_penetration_fraction: float = 0.02,
@@ -92,20 +222,23 @@ def contact_params(
 ) -> ContactParams:
     """Contact parameters (solref, solimp) that make MuJoCo deliver a restitution.
 
+    No simulation: the closed form, the discretisation table and a closed-form evaluation of
+    the step emulation for gravity's shift (a few ms).
+
     Args:
         restitution: target e, RESTITUTION_FLOOR <= e <= 1.
         radius_m: smaller radius of the two bodies in m (sets the default penetration bound).
-        impact_speed_mps: design normal impact speed in m/s.
         timestep_s: simulation timestep in s (the calibration is for this timestep).
-        duration_s: contact duration in s; overrides the penetration rule.
-        max_penetration_m: max penetration in m at the impact speed; overrides the default.
+        speed_range_mps: (v_lo, v_hi), the normal impact speeds in m/s at which e must be
+            within RESTITUTION_TOLERANCE of the target.
+        impact_speed_mps: a single impact speed instead of a range (v_lo = v_hi).
+        integrator: MuJoCo's integrator ("Euler", "implicit", "implicitfast", "RK4").
+        duration_s: contact duration in s; overrides the stiffness rule.
+        max_penetration_m: max penetration in m at v_hi; overrides the default bound.
         max_penetration_fraction: default penetration bound as a fraction of radius_m.
         gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
             (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
-            does not change). Gravity lowers the e measured surface to surface by about
-            2 zeta g / (w0 v); the calibration compensates that at the design speed (see
-            :func:`surface_restitution`), and the default stiffness keeps
-            g / (w0 v) <= GRAVITY_RATIO_MAX.
+            does not change).
         allow_coarse: warn instead of raising if the timestep does not resolve the contact.
 
     Returns:
@@ -115,133 +248,56 @@ def contact_params(
         ContactModelError: unreachable restitution, invalid input, both duration_s and
             max_penetration_m given, or a timestep too coarse for the contact.
     """
-    e = check_restitution(restitution)
-    radius = positive("radius_m", radius_m)
-    v = positive("impact_speed_mps", impact_speed_mps)
-    dt = positive("timestep_s", timestep_s)
-    g = float(gravity_mps2)
-    if not math.isfinite(g) or g < 0.0:
-        raise ContactModelError(f"gravity_mps2 must be >= 0, got {gravity_mps2!r}")
-    if duration_s is not None and max_penetration_m is not None:
-        raise ContactModelError("give duration_s or max_penetration_m, not both")
-
-    wh_cap = table().w0dt_max
-
-    def zeta_at(w0: float, shift: float) -> float:
-        return calibrated_zeta(shifted_target(e, shift, g / (w0 * v)), min(w0 * dt, wh_cap))
-
-    def shift_at(zeta: float, w0: float) -> float:
-        return gravity_shift(zeta, min(w0 * dt, wh_cap), g / (w0 * v)) if g > 0.0 else 0.0
-
-    # zeta is calibrated for the zero-gravity e, target - shift, where shift is gravity's change
-    # of the surface-to-surface e at the design speed; shift depends on zeta and w0, w0 (through
-    # the penetration or duration rule) on zeta: iterate both, then converge the shift at w0.
-    shift = 0.0
-    if duration_s is not None:
-        tc = positive("duration_s", duration_s)
-        w0 = contact_time_factor(zeta_for_restitution(e)) / tc
-        for _ in range(4):
-            z = zeta_at(w0, shift)
-            w0 = contact_time_factor(z) / tc
-            shift = shift_at(z, w0)
-    else:
-        if max_penetration_m is not None:
-            bound = positive("max_penetration_m", max_penetration_m)
-            w0_gravity = 0.0
-        else:
-            fraction = positive("max_penetration_fraction", max_penetration_fraction)
-            bound = fraction * radius
-            w0_gravity = g / (GRAVITY_RATIO_MAX * v)
-        w0 = v * max_penetration_factor(zeta_for_restitution(e)) / bound
-        for _ in range(6):
-            z = zeta_at(w0, shift)
-            pen = discrete(z, min(w0 * dt, wh_cap))[2]
-            w0 = max(v * pen / (bound * 0.995), w0_gravity)
-            shift = shift_at(z, w0)
-    # the shift is piecewise constant in zeta (the step in which the ball is back at the
-    # surface jumps by one for one phase: h g / (w0 v) / 16, up to ~5e-5), so the iteration may
-    # end in a tiny cycle: stop at 1e-4
-    for _ in range(12):
-        zeta = zeta_at(w0, shift)
-        new_shift = shift_at(zeta, w0)
-        step, shift = abs(new_shift - shift), new_shift
-        if step <= 1e-4:
-            break
-    if step > 1e-3:
-        raise ContactModelError(
-            f"cannot calibrate e = {e:g} under gravity {g:g} m/s^2 at {v:g} m/s with stiffness "
-            f"{w0 * w0:.4g} (g / (w0 v) = {g / (w0 * v):.3g}): use a stiffer contact"
-        )
-    zeta = zeta_at(w0, shift)
-
-    w0dt = w0 * dt
-    _, _, pen = discrete(zeta, min(w0dt, wh_cap))
-    k = w0 * w0
-    b = 2.0 * zeta * w0
-    params = ContactParams(
-        solref=(-k, -b),
-        solimp=SOLIMP,
-        stiffness=k,
-        damping=b,
-        zeta=zeta,
-        duration_s=contact_time_factor(zeta) / w0,
-        max_penetration_m=v * pen / w0,
-        restitution=e,
-        impact_speed_mps=v,
-        timestep_s=dt,
-        gravity_mps2=g,
-        gravity_shift=shift,
+    e, (lo, hi), dt, g, bound, duration_s = design_inputs(
+        restitution,
+        radius_m=radius_m,
+        timestep_s=timestep_s,
+        speed_range_mps=speed_range_mps,
+        impact_speed_mps=impact_speed_mps,
+        integrator=integrator,
+        duration_s=duration_s,
+        max_penetration_m=max_penetration_m,
+        max_penetration_fraction=max_penetration_fraction,
+        gravity_mps2=gravity_mps2,
     )
+    ev = design_stiffness(
+        e,
+        bound_m=bound,
+        duration_s=duration_s,
+        dt=dt,
+        speeds=shift_speeds(lo, hi),
+        g=g,
+        integrator=integrator,
+    )
+    params = params_from(ev, e, (lo, hi), dt, g, integrator)
     check_timestep(params, dt, allow_coarse=allow_coarse)
     return params
 
 
-def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bool = False) -> int:
-    """Check that a timestep resolves the contact well enough for the restitution tolerance.
-
-    The worst-case error (over where in a step the contact begins) is predicted from the
-    calibration table: |midrange e(zeta, w0 dt) + gravity shift - target| + half range. It must
-    be within RESTITUTION_TOLERANCE - 0.001.
-
-    Args:
-        params: parameters from :func:`contact_params`.
-        timestep_s: simulation timestep in s.
-        allow_coarse: warn (UserWarning) instead of raising.
-
-    Returns:
-        Steps per contact, floor(duration_s / timestep_s).
-
-    Raises:
-        ContactModelError: the timestep is too coarse (message names steps per contact, the
-            steps needed and the largest timestep that would work).
-    """
-    dt = positive("timestep_s", timestep_s)
-    w0 = math.sqrt(params.stiffness)
-    w0dt = w0 * dt
-    steps = int(params.duration_s / dt)
-    e = params.restitution
-    mid, half, _ = discrete(params.zeta, min(w0dt, table().w0dt_max))
-    err = abs(mid + params.gravity_shift - e) + half
-    too_coarse = w0dt > table().w0dt_max * (1.0 + 1e-9)
-    if err <= PHASE_BUDGET + 1e-6 and not too_coarse:
-        return steps
-    wh_max = w0dt_max(e)
-    dt_max = wh_max / w0
-    steps_needed = math.ceil(params.duration_s / dt_max)
-    if too_coarse or w0dt > wh_max * (1.0 + 1e-6):
-        msg = (
-            f"timestep {dt:.3g} s gives {steps} steps per contact (w0*dt = {w0dt:.3g}); "
-            f"e = {e:.4g} within {RESTITUTION_TOLERANCE} needs >= {steps_needed} steps, i.e. "
-            f"timestep <= {dt_max:.3g} s for stiffness {params.stiffness:.4g} "
-            f"(or a softer contact: larger max penetration / longer duration)"
-        )
-    else:
-        msg = (
-            f"contact parameters were calibrated for timestep {params.timestep_s:.3g} s, not "
-            f"{dt:.3g} s: predicted worst-case error {err:.4f} > {PHASE_BUDGET}; call "
-            f"contact_params with timestep_s={dt:.6g}"
-        )
-    if allow_coarse:
-        warnings.warn(msg, UserWarning, stacklevel=2)
-        return steps
-    raise ContactModelError(msg)
+def params_from(
+    ev: Evaluation,
+    e: float,
+    speeds: tuple[float, float],
+    dt: float,
+    g: float,
+    integrator: str,
+) -> ContactParams:
+    """The ContactParams of an evaluated stiffness."""
+    k = ev.w0 * ev.w0
+    return ContactParams(
+        solref=(-k, -2.0 * ev.zeta * ev.w0),
+        solimp=SOLIMP,
+        stiffness=k,
+        damping=2.0 * ev.zeta * ev.w0,
+        zeta=ev.zeta,
+        duration_s=contact_time_factor(ev.zeta) / ev.w0,
+        max_penetration_m=speeds[1] * ev.pen / ev.w0,
+        restitution=e,
+        speed_range_mps=speeds,
+        timestep_s=dt,
+        integrator=integrator,
+        gravity_mps2=g,
+        gravity_shift=ev.shift,
+        gravity_spread=ev.spread,
+        phase_error=ev.phase,
+    )

@@ -1,12 +1,18 @@
-"""Exact numpy emulations of `mj_step` (semi-implicit Euler) for one impact of this contact.
+"""Exact numpy emulations of `mj_step` for one impact of this contact, per integrator.
 
 In units w0 = sqrt(stiffness) = 1 and impact speed = 1; the tests check them against MuJoCo
-step by step.
+step by step. MuJoCo's ``Euler`` is semi-implicit Euler (velocity first, then position with
+the new velocity); ``implicit`` and ``implicitfast`` differ from it only through
+velocity-dependent passive and actuator forces, which a free ball does not have, so they step
+this contact exactly as ``Euler`` does (a test checks it in MuJoCo). ``RK4`` is the classical
+four-stage Runge-Kutta step, MuJoCo evaluating collisions and constraint forces at every stage.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from impactlab.contact.checks import ContactModelError
 
 IMPEDANCE = 0.9999
 """solimp dmin = dmax: MuJoCo's largest impedance (mjMAXIMP). With the direct solref, MuJoCo
@@ -16,6 +22,67 @@ uses K = stiffness / d^2 and B = damping / d, so the contact acceleration is exa
 
 SOLIMP: tuple[float, float, float, float, float] = (IMPEDANCE, IMPEDANCE, 0.001, 0.5, 2.0)
 """Constant impedance: with dmin = dmax, width, midpoint and power have no effect."""
+
+
+SCHEMES = {"Euler": "euler", "implicit": "euler", "implicitfast": "euler", "RK4": "rk4"}
+"""MuJoCo's integrators and how each one steps this contact (see the module docstring)."""
+
+
+def scheme_of(integrator: str) -> str:
+    """The stepping scheme ("euler" or "rk4") of a MuJoCo integrator name.
+
+    Raises:
+        ContactModelError: an integrator MuJoCo does not have.
+    """
+    try:
+        return SCHEMES[integrator]
+    except (KeyError, TypeError):
+        raise ContactModelError(
+            f"integrator must be one of {', '.join(SCHEMES)}, got {integrator!r}"
+        ) from None
+
+
+def _acceleration(y, u, b, gr, d):
+    """MuJoCo's contact rule: (acceleration, force on) at states (y, u)."""
+    aref = -(b * u + y) / d
+    force = (y < 0.0) & (aref > -gr)
+    return np.where(force, d * aref + (1.0 - d) * -gr, -gr), force
+
+
+def step(y, u, h: float, b, gr, scheme: str, d: float = IMPEDANCE):
+    """One step of MuJoCo's integrator for this contact (units w0 = v_in = 1).
+
+    Args:
+        y, u: signed distance and normal velocity (arrays, broadcastable).
+        h: w0 * timestep.
+        b: 2 zeta.
+        gr: g / (w0 v_in) (gravity towards the surface).
+        scheme: "euler" or "rk4" (:func:`scheme_of`).
+        d: solimp impedance.
+
+    Returns:
+        (y, u, any_force, all_force): the next state, and whether the constraint pushed in
+        some / every evaluation of the step (one for Euler, four stages for RK4).
+    """
+    if scheme == "euler":
+        a, f = _acceleration(y, u, b, gr, d)
+        u = u + h * a
+        return y + h * u, u, f, f
+    a1, f1 = _acceleration(y, u, b, gr, d)
+    y2, u2 = y + 0.5 * h * u, u + 0.5 * h * a1
+    a2, f2 = _acceleration(y2, u2, b, gr, d)
+    y3, u3 = y + 0.5 * h * u2, u + 0.5 * h * a2
+    a3, f3 = _acceleration(y3, u3, b, gr, d)
+    y4, u4 = y + h * u3, u + h * a3
+    a4, f4 = _acceleration(y4, u4, b, gr, d)
+    y_new = y + h / 6.0 * (u + 2.0 * u2 + 2.0 * u3 + u4)
+    u_new = u + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    return y_new, u_new, f1 | f2 | f3 | f4, f1 & f2 & f3 & f4
+
+
+def free_step_travel(h: float, gr, scheme: str):
+    """Distance one free-flight step covers towards the surface from velocity -1 (w0 = 1)."""
+    return h * (1.0 + h * gr) if scheme == "euler" else h * (1.0 + 0.5 * h * gr)
 
 
 def emulate_impact(
@@ -73,130 +140,70 @@ def emulate_impact(
 
 
 def emulate_surface(
-    zeta: float,
+    zeta,
     w0dt: float,
     phases: np.ndarray,
     gravity_ratio: float | np.ndarray = 0.0,
     impedance: float = IMPEDANCE,
     t_max: float = 40.0,
-) -> tuple[np.ndarray, np.ndarray]:
+    integrator: str = "Euler",
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mj_step emulation of one impact, continued until the ball is back at the surface.
 
     Units w0 = 1 and v_in = 1, v_in being the speed in the last state before the overlap (what
-    the analysis stage takes): the first overlapping state has velocity -(1 + w0dt * gr) and
-    dist = -phase * w0dt * (1 + w0dt * gr), phase in (0, 1]. Each step applies MuJoCo's rule
-    (the constraint pushes while dist < 0 and aref > a_free), also after the force has let go,
-    until the first state with dist >= 0.
+    the analysis stage takes). That state is ``(1 - phase)`` free-flight steps above the
+    surface, phase in (0, 1]. Each step applies MuJoCo's rule (the constraint pushes while
+    dist < 0 and aref > a_free, at every stage of the integrator), also after the force has let
+    go, until the first state with dist >= 0.
 
     Args:
-        zeta: damping ratio.
+        zeta: damping ratio, scalar or broadcastable with phases (e.g. shape (nz, 1)).
         w0dt: w0 * timestep.
-        phases: contact-onset phases, shape (n,).
-        gravity_ratio: g / (w0 v_in), scalar or shape (n,).
+        phases: contact-onset phases.
+        gravity_ratio: g / (w0 v_in), scalar or broadcastable with phases.
         impedance: solimp d.
         t_max: give up (e = 0: the ball does not leave) after this time, in 1 / w0.
+        integrator: MuJoCo's integrator name (:data:`SCHEMES`).
 
     Returns:
-        (release, surface), each shape (n,): the velocity after the last step with a positive
-        force, and the velocity in the first state back at the surface (0 if it never leaves).
+        (release, surface, penetration), each of the broadcast shape: the velocity when the
+        force first lets go, the velocity in the first state back at the surface (0 if it
+        never leaves), and the largest overlap of a state * w0 / v_in.
     """
+    scheme = scheme_of(integrator)
     h = float(w0dt)
-    gr = np.broadcast_to(np.asarray(gravity_ratio, float), np.shape(phases)).copy()
-    u = -(1.0 + h * gr)
-    y = np.asarray(phases, float) * h * u
-    d = impedance
-    release = np.full(y.shape, np.nan)
-    surface = np.zeros(y.shape)
-    released = np.zeros(y.shape, bool)
-    done = np.zeros(y.shape, bool)
+    b = 2.0 * np.asarray(zeta, float)
+    ph = np.asarray(phases, float)
+    gr = np.asarray(gravity_ratio, float)
+    shape = np.broadcast_shapes(b.shape, ph.shape, gr.shape)
+    y = np.broadcast_to((1.0 - ph) * free_step_travel(h, gr, scheme), shape).copy()
+    u = -np.ones(shape)
+    release = np.full(shape, np.nan)
+    surface = np.zeros(shape)
+    pen = np.zeros(shape)
+    pushed = np.zeros(shape, bool)
+    released = np.zeros(shape, bool)
+    entered = np.zeros(shape, bool)
+    done = np.zeros(shape, bool)
+    weightless = not np.any(gr)
     for _ in range(int(t_max / h) + 100):
-        aref = -(2.0 * zeta * u + y) / d
-        force = (y < 0.0) & (aref > -gr)
-        let_go = ~force & ~released
+        y_new, u_new, any_force, _ = step(y, u, h, b, gr, scheme, impedance)
+        let_go = pushed & ~any_force & ~released & ~done
         release = np.where(let_go, u, release)
         released |= let_go
-        u = u + h * np.where(force, d * aref + (1.0 - d) * -gr, -gr)
-        y = y + h * u
-        left = ~done & (y >= 0.0)
+        pushed |= any_force
+        y, u = y_new, u_new
+        entered |= y < 0.0
+        pen = np.where(entered & ~done, np.maximum(pen, -y), pen)
+        left = entered & ~done & (y >= 0.0)
         surface = np.where(left, np.maximum(u, 0.0), surface)
+        release = np.where(left & ~released, u, release)  # pushed until it left
+        released |= left
         done |= left
         if done.all():
             break
+        if weightless and released.all():  # free flight at constant speed from here on
+            surface = np.where(done, surface, np.maximum(u, 0.0))
+            break
     release = np.where(released, release, u)
-    return release, surface
-
-
-def _step_powers(m: np.ndarray, n: int) -> np.ndarray:
-    """M^0 .. M^(n-1) of a 2 x 2 matrix, shape (n, 2, 2), by doubling (log2 n matmuls)."""
-    p = np.empty((n, 2, 2))
-    p[0] = np.eye(2)
-    k = 1
-    while k < n:
-        mk = p[k - 1] @ m
-        j = min(k, n - k)
-        p[k : k + j] = p[:j] @ mk
-        k += j
-    return p
-
-
-def impact_fast(
-    zeta: float,
-    w0dt: float,
-    phases: np.ndarray,
-    gravity_ratio: np.ndarray,
-    impedance: float = IMPEDANCE,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The result of :func:`emulate_surface`, without stepping (same rounding level).
-
-    While the constraint pushes, one step is affine in (dist, velocity), so the states of the
-    force phase are powers of the step matrix; after the force lets go the ball flies freely
-    and the first state at the surface follows from a quadratic. Columns whose force phase does
-    not end within 3.6 / w0, or whose constraint would grip again on the way out (very low
-    impact speed), are emulated step by step.
-    """
-    h = float(w0dt)
-    ph = np.asarray(phases, float)
-    gr = np.broadcast_to(np.asarray(gravity_ratio, float), ph.shape)
-    d = impedance
-    b = 2.0 * zeta
-    u0 = -(1.0 + h * gr)
-    x0 = np.stack([ph * h * u0, u0])  # (2, n): dist, velocity
-    m = np.array([[1.0 - h * h, h * (1.0 - b * h)], [-h, 1.0 - b * h]])
-    c = -(1.0 - d) * h * np.stack([h * gr, gr])  # (2, n)
-    fixed = np.linalg.solve(np.eye(2) - m, c)
-    n = int(3.6 / h) + 3
-    x = np.einsum("kij,jn->kin", _step_powers(m, n), x0 - fixed) + fixed[None]
-    y, u = x[:, 0], x[:, 1]
-    force = (y < 0.0) & (-(b * u + y) / d > -gr)
-    force[0] = True
-    r = np.argmin(force, axis=0)
-    cols = np.arange(ph.size)
-    ok = ~force[r, cols]
-    yr, ur = y[r, cols], u[r, cols]
-    # free flight: u_k = ur - k h gr, y_k = yr + h k ur - h^2 gr k (k + 1) / 2; first y_k >= 0
-    a2 = 0.5 * h * h * gr
-    b2 = h * ur - a2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        k = np.where(
-            gr > 0.0,
-            (b2 - np.sqrt(np.maximum(b2 * b2 + 4.0 * a2 * yr, 0.0))) / (2.0 * a2),
-            -yr / (h * ur),
-        )
-    k = np.maximum(np.ceil(np.nan_to_num(k, nan=0.0, posinf=0.0, neginf=0.0)), 0.0)
-
-    def dist(k: np.ndarray) -> np.ndarray:
-        return yr + h * k * ur - a2 * k * (k + 1.0)
-
-    k = np.where((k > 0.0) & (dist(k - 1.0) >= 0.0), k - 1.0, k)
-    k = np.where(dist(k) < 0.0, k + 1.0, k)
-    # the constraint stays off on the way out if it is off at the last state inside (the
-    # margin y + 2 zeta u - d gr is concave in k): otherwise step through it
-    last = np.maximum(k - 1.0, 0.0)
-    grip = (k > 0.0) & (dist(last) + b * (ur - last * h * gr) < d * gr)
-    ok &= (ur > 0.0) & ~grip & (dist(k) >= 0.0)
-    release, surface = ur, np.maximum(ur - k * h * gr, 0.0)
-    if not ok.all():
-        bad = ~ok
-        release, surface = release.copy(), surface.copy()
-        release[bad], surface[bad] = emulate_surface(zeta, h, ph[bad], gr[bad], impedance)
-    return release, surface
+    return release, surface, pen

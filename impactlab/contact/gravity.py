@@ -13,7 +13,8 @@ from typing import Literal
 import numpy as np
 
 from impactlab.contact.checks import ContactModelError, positive
-from impactlab.contact.emulation import IMPEDANCE, emulate_impact, emulate_surface, impact_fast
+from impactlab.contact.emulation import IMPEDANCE, emulate_impact, emulate_surface, scheme_of
+from impactlab.contact.fast import impact_fast
 from impactlab.contact.params import ContactParams
 
 _SHIFT_PHASES = (np.arange(16) + 0.5) / 16
@@ -22,22 +23,35 @@ _SHIFT_PHASES = (np.arange(16) + 0.5) / 16
 _SHIFT_W0DT_MIN = 0.01
 
 
-def gravity_shift(zeta: float, w0dt: float, gravity_ratio: float) -> float:
-    """Gravity's change of the surface-to-surface e at one impact speed (mean over phases).
+def gravity_shift(
+    zeta: float, w0dt: float, gravity_ratio: float | Sequence[float], integrator: str = "Euler"
+) -> float | np.ndarray:
+    """Gravity's change of the surface-to-surface e at impact speeds (mean over phases).
 
     ``mean(e_surface at g / (w0 v)) - mean(e at zero gravity)`` by :func:`impact_fast` over 16
     contact-onset phases; about -2 zeta g / (w0 v): after the force lets go the ball is still
     inside the floor (overlap about 2 zeta v_out / w0) and gravity slows it on the way out.
     Steps finer than w0 dt = 0.01 are evaluated at 0.01 (the shift changes by O(w0 dt g / (w0 v)),
     below 1e-4 there).
+
+    Args:
+        zeta: damping ratio.
+        w0dt: w0 * timestep.
+        gravity_ratio: g / (w0 v), one value or several (one per impact speed).
+        integrator: MuJoCo's integrator name.
+
+    Returns:
+        The shift, a float for one ratio or an array (one per ratio).
     """
-    if gravity_ratio <= 0.0:
-        return 0.0
+    ratios = np.atleast_1d(np.asarray(gravity_ratio, float))
     h = max(float(w0dt), _SHIFT_W0DT_MIN)
     n = _SHIFT_PHASES.size
-    gr = np.concatenate([np.zeros(n), np.full(n, float(gravity_ratio))])
-    _, surface = impact_fast(zeta, h, np.tile(_SHIFT_PHASES, 2), gr)
-    return float(surface[n:].mean() - surface[:n].mean())
+    gr = np.concatenate([np.zeros(n), np.repeat(np.maximum(ratios, 0.0), n)])
+    phases = np.tile(_SHIFT_PHASES, ratios.size + 1)
+    _, surface = impact_fast(zeta, h, phases, gr, integrator=integrator)
+    means = surface.reshape(ratios.size + 1, n).mean(axis=1)
+    shift = np.where(ratios > 0.0, means[1:] - means[0], 0.0)
+    return float(shift[0]) if np.ndim(gravity_ratio) == 0 else shift
 
 
 def restitution_with_gravity(
@@ -97,7 +111,10 @@ def restitution_with_gravity(
                 params, impact_speed_mps=v, gravity_mps2=g, timestep_s=dt, phases=64
             )
         phases = (np.arange(64) + 0.5) / 64
-        e, _, _ = emulate_impact(np.array([zeta]), w0 * dt, phases, gr)
+        if scheme_of(params.integrator) == "euler":
+            e, _, _ = emulate_impact(np.array([zeta]), w0 * dt, phases, gr)
+        else:
+            e, _, _ = emulate_surface(zeta, w0 * dt, phases, gr, integrator=params.integrator)
         return float(e.mean())
     if at == "surface":
         return _surface_speed_continuous(zeta, gr, contact_law)
@@ -117,15 +134,16 @@ def surface_restitution(
 ) -> float | np.ndarray:
     """e of a ball on a floor measured surface to surface, by the mj_step emulation.
 
-    Emulates MuJoCo's step for this contact and continues after the force lets go until the
-    ball is back at the surface: e = (velocity in the first state after the overlap) / (speed
-    in the last state before it), what the analysis stage measures. Mean over `phases`
-    contact-onset phases; 0 when the ball does not leave within 40 / w0.
+    Emulates MuJoCo's step (with the integrator of ``params``) for this contact and continues
+    after the force lets go until the ball is back at the surface: e = (velocity in the first
+    state after the overlap) / (speed in the last state before it), what the analysis stage
+    measures. Mean over `phases` contact-onset phases; 0 when the ball does not leave within
+    40 / w0.
 
     While the ball is still inside the floor after the force lets go (overlap about
     2 zeta v_out / w0), gravity slows it for about 2 zeta / w0 s, so e_surface = e_release -
-    2 zeta g / (w0 v) to first order; :func:`contact_params` compensates that at its design
-    speed, so e_surface equals the target there and is lower at lower speeds.
+    2 zeta g / (w0 v) to first order; :func:`contact_params` centres that over its speed range,
+    so e_surface is within the tolerance of the target there and lower at lower speeds.
 
     Args:
         params: contact parameters.
@@ -137,6 +155,32 @@ def surface_restitution(
     Returns:
         e, a float for one speed or an array (one per speed).
     """
+    mean, _, _ = restitution_spread(
+        params,
+        impact_speed_mps=impact_speed_mps,
+        gravity_mps2=gravity_mps2,
+        timestep_s=timestep_s,
+        phases=phases,
+    )
+    return float(mean[0]) if np.ndim(impact_speed_mps) == 0 else mean
+
+
+def restitution_spread(
+    params: ContactParams,
+    *,
+    impact_speed_mps: float | Sequence[float],
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Surface-to-surface e at impact speeds: mean, lowest and highest over contact-onset phases.
+
+    The same emulation as :func:`surface_restitution`; the lowest and highest are what single
+    impacts at that speed may give, depending on where in a step the contact begins.
+
+    Returns:
+        (mean, lowest, highest), each one value per speed.
+    """
     speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
     if not np.all(speeds > 0.0):
         raise ContactModelError(f"impact speeds must be positive, got {impact_speed_mps!r}")
@@ -146,12 +190,15 @@ def surface_restitution(
     w0 = math.sqrt(params.stiffness)
     zeta = params.damping / (2.0 * w0)
     ph = (np.arange(phases) + 0.5) / phases
-    gr = np.repeat(g / (w0 * speeds), phases)
-    _, surface = emulate_surface(
-        zeta, w0 * positive("timestep_s", timestep_s), np.tile(ph, speeds.size), gr
+    gr = (g / (w0 * speeds))[:, None]
+    _, surface, _ = emulate_surface(
+        zeta,
+        w0 * positive("timestep_s", timestep_s),
+        ph[None, :],
+        gr,
+        integrator=params.integrator,
     )
-    e = surface.reshape(speeds.size, phases).mean(axis=1)
-    return float(e[0]) if np.ndim(impact_speed_mps) == 0 else e
+    return surface.mean(axis=1), surface.min(axis=1), surface.max(axis=1)
 
 
 def _surface_speed_continuous(

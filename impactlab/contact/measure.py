@@ -41,7 +41,8 @@ def ball_plane_mjcf(
 ) -> str:
     """Inline MJCF: a frictionless (condim 1) ball on a plane, the pair set by ``<pair>``."""
     a = params.mjcf_attributes()
-    return f"""<mujoco><option timestep="{params.timestep_s!r}" gravity="0 0 {-gravity_mps2!r}"/>
+    return f"""<mujoco><option timestep="{params.timestep_s!r}" integrator="{params.integrator}"
+gravity="0 0 {-gravity_mps2!r}"/>
 <worldbody><geom name="floor" type="plane" size="10 10 1" condim="1"/>
 <body name="ball" pos="0 0 1"><freejoint/>
 <geom name="ball" type="sphere" size="{radius_m!r}" mass="{mass_kg!r}" condim="1"/></body>
@@ -54,7 +55,8 @@ def ball_ball_mjcf(
 ) -> str:
     """Inline MJCF: two frictionless balls on the x axis in zero gravity, ``<pair>`` contact."""
     a = params.mjcf_attributes()
-    return f"""<mujoco><option timestep="{params.timestep_s!r}" gravity="0 0 0"/>
+    return f"""<mujoco><option timestep="{params.timestep_s!r}" integrator="{params.integrator}"
+gravity="0 0 0"/>
 <worldbody>
 <body name="b1" pos="-1 0 0"><freejoint/>
 <geom name="b1" type="sphere" size="{radius_m[0]!r}" mass="{mass_kg[0]!r}" condim="1"/></body>

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
 
 
 @dataclass(frozen=True)
 class ContactParams:
-    """MuJoCo contact parameters that deliver a target restitution.
+    """MuJoCo contact parameters that deliver a target restitution over a range of speeds.
 
     Attributes:
         solref: ``(-stiffness, -damping)``, MuJoCo's direct form.
@@ -16,14 +17,20 @@ class ContactParams:
         damping: b in 1/s (acceleration per m/s of normal velocity).
         zeta: damping ratio b / (2 sqrt(k)), calibrated for ``timestep_s``.
         duration_s: predicted contact duration in s (independent of the impact speed).
-        max_penetration_m: predicted worst-case penetration in m at ``impact_speed_mps``.
+        max_penetration_m: predicted worst-case penetration in m at the top of the speed range.
         restitution: the target e.
-        impact_speed_mps: design impact speed in m/s.
+        speed_range_mps: (lowest, highest) normal impact speed in m/s at which e is promised
+            within the tolerance.
         timestep_s: the timestep in s the calibration is for.
+        integrator: MuJoCo's integrator the calibration is for.
         gravity_mps2: gravity along the contact normal the calibration is for (0: none).
-        gravity_shift: predicted change of e by gravity at the design speed (about
-            -2 zeta g / (w0 v); 0 without gravity), calibrated out: zeta is chosen so that the
-            zero-gravity e is ``restitution - gravity_shift``.
+        gravity_shift: gravity's change of e in the middle of its effect over the speed range
+            (about -2 zeta g / (w0 v)), calibrated out: zeta is chosen so that the zero-gravity
+            e is ``restitution - gravity_shift``.
+        gravity_spread: half the change of e by gravity between the ends of the speed range
+            (e is ``restitution - gravity_spread`` at the lowest speed and
+            ``restitution + gravity_spread`` at the highest, on average over step phases).
+        phase_error: worst-case change of e by where in a step the contact begins.
     """
 
     solref: tuple[float, float]
@@ -34,10 +41,23 @@ class ContactParams:
     duration_s: float
     max_penetration_m: float
     restitution: float
-    impact_speed_mps: float
+    speed_range_mps: tuple[float, float]
     timestep_s: float
+    integrator: str = "Euler"
     gravity_mps2: float = 0.0
     gravity_shift: float = 0.0
+    gravity_spread: float = 0.0
+    phase_error: float = 0.0
+
+    @property
+    def predicted_error(self) -> float:
+        """Predicted worst |e - target| at any impact speed in the range (phase + gravity)."""
+        return self.phase_error + self.gravity_spread
+
+    @property
+    def steps_per_contact(self) -> float:
+        """Contact duration in timesteps."""
+        return self.duration_s / self.timestep_s
 
     def mjcf_attributes(self) -> dict[str, str]:
         """Return ``{"solref": ..., "solimp": ...}`` as MJCF attribute strings (full precision)."""
@@ -45,3 +65,11 @@ class ContactParams:
             "solref": " ".join(repr(float(x)) for x in self.solref),
             "solimp": " ".join(repr(float(x)) for x in self.solimp),
         }
+
+    def mjcf_pair(self, geom1: str, geom2: str) -> str:
+        """An MJCF ``<pair>`` element that gives the pair of geoms this contact (frictionless)."""
+        a = self.mjcf_attributes()
+        return (
+            f'<pair geom1={quoteattr(geom1)} geom2={quoteattr(geom2)} condim="1" '
+            f'solref="{a["solref"]}" solimp="{a["solimp"]}"/>'
+        )

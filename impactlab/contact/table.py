@@ -1,8 +1,9 @@
-"""The discretisation table: how MuJoCo's time steps change e, over (zeta, w0 * dt).
+"""The discretisation tables: how MuJoCo's time steps change e, over (zeta, w0 * dt).
 
-Computed once with the step emulation and committed (`restitution_table.json`); regenerate
-with `python -m impactlab.contact.table`, check with `--check` (numerically: the last bit of
-a float differs between CPUs, the table must not).
+One table per stepping scheme (`emulation.SCHEMES`): `restitution_table.json` for Euler (and
+implicit, implicitfast), `restitution_table_rk4.json` for RK4. Computed once with the step
+emulation and committed; regenerate with `python -m impactlab.contact.table`, check with
+`--check` (numerically: the last bit of a float differs between CPUs, the table must not).
 """
 
 from __future__ import annotations
@@ -19,13 +20,21 @@ import numpy as np
 
 from impactlab.contact.checks import ZETA_MAX, bisect
 from impactlab.contact.closed_form import max_penetration_factor, restitution_closed_form
-from impactlab.contact.emulation import IMPEDANCE, emulate_impact
+from impactlab.contact.emulation import IMPEDANCE, emulate_impact, emulate_surface
+
+RESTITUTION_TOLERANCE = 0.005
+"""Accuracy promised for |e_measured - e_target| at every impact speed in the contact's range."""
 
 PHASE_BUDGET = 0.004
-"""Part of the tolerance given to the timestep (worst case over contact-onset phase); the rest
-covers table interpolation and the residual of the gravity calibration."""
+"""Part of the tolerance given to the predicted worst case (phase error plus gravity's spread
+over the speed range); the rest covers table interpolation and the residual of the gravity
+calibration."""
 
-TABLE_PATH = Path(__file__).with_name("restitution_table.json")
+TABLE_PATHS = {
+    "euler": Path(__file__).with_name("restitution_table.json"),
+    "rk4": Path(__file__).with_name("restitution_table_rk4.json"),
+}
+TABLE_PATH = TABLE_PATHS["euler"]
 
 
 _TABLE_ZETA = np.linspace(0.0, 1.0, 41) ** 1.5
@@ -37,12 +46,15 @@ _TABLE_W0DT = np.geomspace(0.002, 0.3, 31)
 _TABLE_PHASES = np.linspace(0.0, 1.0, 257)[1:]
 
 
-def generate_table() -> dict:
+def generate_table(scheme: str = "euler") -> dict:
     """Compute the discretisation table over (zeta, w0 * dt) with the mj_step emulation.
 
     For each node, over 256 contact-onset phases: ``delta`` = midrange of e minus the closed
     form, ``half`` = half the range of e (worst-case phase error once delta is calibrated out),
     ``pen`` = worst-case max penetration * w0 / v_in.
+
+    Args:
+        scheme: "euler" (Euler, implicit, implicitfast) or "rk4".
 
     Returns:
         A JSON-serialisable dict (arrays shaped len(zeta) x len(w0dt)).
@@ -51,15 +63,21 @@ def generate_table() -> dict:
     delta, half, pen = (np.zeros((nz, nw)) for _ in range(3))
     closed = np.array([restitution_closed_form(z) for z in _TABLE_ZETA])
     for j, wh in enumerate(_TABLE_W0DT):
-        e, p, _ = emulate_impact(_TABLE_ZETA, float(wh), _TABLE_PHASES)
+        if scheme == "euler":
+            e, p, _ = emulate_impact(_TABLE_ZETA, float(wh), _TABLE_PHASES)
+        else:
+            _, e, p = emulate_surface(
+                _TABLE_ZETA[:, None], float(wh), _TABLE_PHASES[None, :], integrator="RK4"
+            )
         delta[:, j] = 0.5 * (e.max(1) + e.min(1)) - closed
         half[:, j] = 0.5 * (e.max(1) - e.min(1))
         pen[:, j] = p.max(1)
+    name = "semi-implicit Euler" if scheme == "euler" else "RK4 (four stages)"
     return {
         "generated_by": "python -m impactlab.contact.table",
         "description": (
             "MuJoCo linear spring-dashpot contact (direct solref, solimp d = "
-            f"{IMPEDANCE}), zero gravity, semi-implicit Euler; over {len(_TABLE_PHASES)} "
+            f"{IMPEDANCE}), zero gravity, {name}; over {len(_TABLE_PHASES)} "
             "contact-onset phases: delta = midrange(e) - closed form, half = range(e) / 2, "
             "pen = max penetration * w0 / v_in"
         ),
@@ -109,8 +127,9 @@ class Table:
 
 
 @functools.cache
-def table() -> Table:
-    raw = json.loads(TABLE_PATH.read_text())
+def table(scheme: str = "euler") -> Table:
+    """The committed table of a stepping scheme ("euler" or "rk4")."""
+    raw = json.loads(TABLE_PATHS[scheme].read_text())
     zeta = np.asarray(raw["zeta"], float)
     return Table(
         zeta=zeta,
@@ -122,9 +141,9 @@ def table() -> Table:
     )
 
 
-def discrete(zeta: float, w0dt: float) -> tuple[float, float, float]:
+def discrete(zeta: float, w0dt: float, scheme: str = "euler") -> tuple[float, float, float]:
     """Return (midrange e, worst phase error, worst penetration factor) at (zeta, w0dt)."""
-    tab = table()
+    tab = table(scheme)
     delta, half, pen = tab.columns(w0dt)
     return (
         restitution_closed_form(zeta) + float(np.interp(zeta, tab.zeta, delta)),
@@ -133,9 +152,9 @@ def discrete(zeta: float, w0dt: float) -> tuple[float, float, float]:
     )
 
 
-def calibrated_zeta(e: float, w0dt: float) -> float:
+def calibrated_zeta(e: float, w0dt: float, scheme: str = "euler") -> float:
     """zeta whose phase-midrange discrete e equals e at w0dt."""
-    tab = table()
+    tab = table(scheme)
     delta, _, _ = tab.columns(w0dt)
     return bisect(
         lambda z: restitution_closed_form(z) + float(np.interp(z, tab.zeta, delta)) - e,
@@ -144,17 +163,17 @@ def calibrated_zeta(e: float, w0dt: float) -> float:
     )
 
 
-def w0dt_max(e: float) -> float:
-    """Largest w0 * dt (within the table) at which the calibrated worst-case error fits."""
-    tab = table()
+def w0dt_max(e: float, budget: float = PHASE_BUDGET, scheme: str = "euler") -> float:
+    """Largest w0 * dt (within the table) at which the calibrated phase error fits `budget`."""
+    tab = table(scheme)
     prev_wh, prev_err = None, None
     for lw in tab.log_w0dt:
         wh = float(math.exp(lw))
-        _, half, _ = discrete(calibrated_zeta(e, wh), wh)
-        if half > PHASE_BUDGET:
+        _, half, _ = discrete(calibrated_zeta(e, wh, scheme), wh, scheme)
+        if half > budget:
             if prev_wh is None:
-                return wh * PHASE_BUDGET / half
-            t = (PHASE_BUDGET - prev_err) / (half - prev_err)
+                return wh * budget / half
+            t = (budget - prev_err) / (half - prev_err)
             return math.exp(math.log(prev_wh) + t * (lw - math.log(prev_wh)))
         prev_wh, prev_err = wh, half
     return tab.w0dt_max
@@ -187,25 +206,31 @@ def table_difference(committed: dict, fresh: dict) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Regenerate (or check) the committed calibration table."""
+    """Regenerate (or check) the committed calibration tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=TABLE_PATH, help="output JSON path")
     parser.add_argument(
-        "--check", action="store_true", help="fail if the committed table is out of date"
+        "--scheme", choices=sorted(TABLE_PATHS), action="append", help="only this table"
+    )
+    parser.add_argument(
+        "--check", action="store_true", help="fail if a committed table is out of date"
     )
     args = parser.parse_args(argv)
-    fresh = generate_table()
-    if args.check:
-        current = json.loads(args.out.read_text()) if args.out.exists() else {}
-        problem = table_difference(current, fresh)
-        if problem:
-            print(f"{args.out} is out of date ({problem}); run python -m impactlab.contact.table")
-            return 1
-        print(f"{args.out} is up to date")
-        return 0
-    args.out.write_text(json.dumps(fresh, indent=1) + "\n")
-    print(f"wrote {args.out}")
-    return 0
+    status = 0
+    for scheme in args.scheme or sorted(TABLE_PATHS):
+        path = TABLE_PATHS[scheme]
+        fresh = generate_table(scheme)
+        if args.check:
+            current = json.loads(path.read_text()) if path.exists() else {}
+            problem = table_difference(current, fresh)
+            if problem:
+                print(f"{path} is out of date ({problem}); run python -m impactlab.contact.table")
+                status = 1
+            else:
+                print(f"{path} is up to date")
+            continue
+        path.write_text(json.dumps(fresh, indent=1) + "\n")
+        print(f"wrote {path}")
+    return status
 
 
 if __name__ == "__main__":

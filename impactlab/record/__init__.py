@@ -33,6 +33,7 @@ __getattr__ = lazy_exports(
         "PlannedRun": "impactlab.record.job",
         "RecordedRun": "impactlab.record.results",
         "RecordResult": "impactlab.record.results",
+        "calibrated_pairs": "impactlab.record.contact_pairs",
         "record_runs": "impactlab.record.recorder",
     },
 )

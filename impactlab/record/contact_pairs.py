@@ -1,8 +1,16 @@
 """Per-pair contacts of a spec whose contact asks for a coefficient of restitution.
 
 Each ball-plane and ball-ball pair with a target e gets calibrated MuJoCo parameters
-(`impactlab.contact`) at a design impact speed: the spec's `contact.impact_speed`,
-or else the speed the initial state gives (fall height under gravity, or closing speed).
+(`impactlab.contact`) for the pair's own range of impact speeds: the pair's
+`contact.pairs."a/b".speed_range`, else the global `contact.speed_range`, else the range the
+experiment gives (`default_speed_range`):
+
+- a ball on the plane under gravity: from its first impact speed (fall height and initial
+  vertical velocity) down to the impact speed of the last bounce that matters, the N-th for
+  `stop.bounces = N` and the last before `stop.max_time`, each bounce taken at
+  `(e - RESTITUTION_TOLERANCE)` times the speed of the one before (the slowest decay the
+  tolerance allows), floored at `SPEED_FLOOR_MPS`;
+- a ball on the plane without gravity, and two balls: their initial closing speed (one impact).
 """
 
 from __future__ import annotations
@@ -13,9 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact import ContactModelError, ContactParams, contact_params
+from impactlab.contact import (
+    RESTITUTION_TOLERANCE,
+    SPEED_FLOOR_MPS,
+    ContactModelError,
+    ContactParams,
+    contact_params,
+)
 from impactlab.errors import SpecError
-from impactlab.record.spec import Body, RunSpec
+from impactlab.record.spec import Body, RunSpec, Stop
+from impactlab.record.spec_contact import ContactTarget
 
 PLANE_GEOM = "plane"
 
@@ -34,12 +49,14 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
 
     Raises:
         SpecError: a pair names an unknown geom, the target cannot be reached, the impact
-            speed cannot be derived, or the timestep does not resolve the contact.
+            speeds cannot be derived, or the timestep does not resolve the contact.
     """
     con = run.contact
-    per_pair = dict(con.pair_restitution or {})
+    per_pair = dict(con.pairs or {})
     geoms = {b.name for b in run.bodies} | ({PLANE_GEOM} if run.plane.enabled else set())
     for key in per_pair:
+        if len(set(key.split("/"))) < 2:
+            raise SpecError(run.source, f"contact.pairs.{key}", "a pair needs two geoms")
         unknown = [g for g in key.split("/") if g not in geoms]
         if unknown:
             raise SpecError(
@@ -55,29 +72,48 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
     candidates += [(a.name, b, a) for a, b in itertools.combinations(run.bodies, 2)]
     for geom1, body, other in candidates:
         key = "/".join(sorted((geom1, body.name)))
-        e = per_pair.get(key, con.restitution)
+        own = per_pair.get(key, ContactTarget())
+        e = _pick(own.restitution, con.restitution)
         if e is None:
+            if key in per_pair:
+                raise SpecError(
+                    run.source,
+                    f"contact.pairs.{key}",
+                    "no restitution for this pair (give it here or in [contact])",
+                )
             continue
-        field = f"contact.pairs.{key}" if key in per_pair else "contact.restitution"
+        where = f"contact.pairs.{key}" if key in per_pair else "contact"
+        field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
         if other is None:
             radius, (speed, g_normal) = body.radius, _plane_impact(body, g)
         else:
             radius = min(body.radius, other.radius)
             speed, g_normal = _closing_speed(other, body, g)
-        if con.impact_speed is not None:
-            speed = con.impact_speed
-        if not speed > 0:
+        speeds = _pick(own.speed_range, con.speed_range)
+        if speeds is not None:
+            field = f"{where}.speed_range" if own.speed_range is not None else "contact.speed_range"
+        elif not speed > 0:
             raise SpecError(
-                run.source, field, f"the bodies of {key} do not approach; set contact.impact_speed"
+                run.source,
+                field,
+                f"the bodies of {key} do not approach; set contact.speed_range "
+                f'(or contact.pairs."{key}".speed_range)',
             )
+        else:
+            speeds = default_speed_range(speed, e, g_normal, run.stop, body, other is None)
+        if own.duration is not None or own.max_penetration is not None:
+            duration, max_pen = own.duration, own.max_penetration
+        else:
+            duration, max_pen = con.duration, con.max_penetration
         try:
             params = contact_params(
                 e,
                 radius_m=radius,
-                impact_speed_mps=speed,
+                speed_range_mps=speeds,
                 timestep_s=run.options.timestep,
-                duration_s=con.duration,
-                max_penetration_m=con.max_penetration,
+                integrator=run.options.integrator,
+                duration_s=duration,
+                max_penetration_m=max_pen,
                 gravity_mps2=g_normal,
                 allow_coarse=con.allow_coarse_timestep,
             )
@@ -85,6 +121,34 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
             raise SpecError(run.source, field, str(exc)) from None
         out.append(PairContact(geom1, body.name, params))
     return out
+
+
+def _pick(own, default):
+    return own if own is not None else default
+
+
+def default_speed_range(
+    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body, on_plane: bool
+) -> tuple[float, float]:
+    """The impact speeds (m/s) a pair's contact must hold e over, from the experiment.
+
+    See the module docstring. `first_mps` is the first impact speed, `g_normal` gravity along
+    the contact normal (0: one impact).
+    """
+    if not on_plane or g_normal <= 0.0:
+        return first_mps, first_mps
+    decay = max(e - RESTITUTION_TOLERANCE, 0.0)
+    height = max(body.pos[2] - body.radius, 0.0)
+    vz = body.vel[2]
+    t = (vz + math.sqrt(vz * vz + 2.0 * g_normal * height)) / g_normal  # first impact
+    v, n = first_mps, 1
+    bounces = stop.bounces if stop.bounces is not None else math.inf
+    while n < bounces and v > SPEED_FLOOR_MPS:
+        t += 2.0 * v * decay / g_normal  # the flight to the next impact, at its speed
+        if t > stop.max_time:
+            break
+        v, n = v * decay, n + 1
+    return min(max(v, SPEED_FLOOR_MPS), first_mps), first_mps
 
 
 def _plane_impact(body: Body, g: np.ndarray) -> tuple[float, float]:

@@ -20,6 +20,7 @@ from typing import Any
 from impactlab.errors import SpecError
 from impactlab.logs.scene import BODY_PALETTE
 from impactlab.record.spec_checks import FieldChecks
+from impactlab.record.spec_contact import ContactTarget, contact_target, pair_targets
 
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 SPEC_TOP_KEYS = ("name", "description", "options", "contact", "plane", "bodies", "stop", "logging")
@@ -34,7 +35,7 @@ DEFAULTS: dict[str, Any] = {
         "solimp": [0.9, 0.95, 0.001, 0.5, 2.0],
         "friction": [1.0, 0.005, 0.0001],
         "restitution": None,
-        "impact_speed": None,
+        "speed_range": None,
         "duration": None,
         "max_penetration": None,
         "allow_coarse_timestep": False,
@@ -80,10 +81,10 @@ class Body:
 class Contact:
     """MuJoCo contact parameters applied to every geom (the handout's `<default><geom>`).
 
-    When `restitution` is set (for every pair, or per pair in `pair_restitution`, keyed by
-    the sorted geom names "a/b"), those pairs get calibrated parameters instead
-    (`impactlab.contact`): design impact speed in m/s (derived from the initial
-    state when None), contact duration in s or max penetration in m (both optional).
+    When `restitution` is set (for every pair, or per pair in `pairs`, keyed by the sorted
+    geom names "a/b"), those pairs get calibrated parameters instead (`impactlab.contact`):
+    a target e over a range of impact speeds, with an optional contact duration or max
+    penetration. A pair's table overrides the global values field by field.
     """
 
     condim: int
@@ -91,11 +92,11 @@ class Contact:
     solimp: tuple[float, ...]
     friction: tuple[float, float, float]
     restitution: float | None = None
-    impact_speed: float | None = None
+    speed_range: tuple[float, float] | None = None
     duration: float | None = None
     max_penetration: float | None = None
     allow_coarse_timestep: bool = False
-    pair_restitution: Mapping[str, float] | None = None
+    pairs: Mapping[str, ContactTarget] | None = None
 
 
 @dataclass(frozen=True)
@@ -265,24 +266,21 @@ def validate(
         raise SpecError(
             source, "contact.solimp", f"need 0 < dmin, dmax < 1 and width > 0, got {list(solimp)}"
         )
+    target = contact_target(v, con, "contact")
     contact = Contact(
         condim=condim,
         solref=solref,
         solimp=solimp,
         friction=v.vector(con["friction"], "contact.friction", 3, min_value=0.0),
-        restitution=v.optional(con["restitution"], "contact.restitution"),
-        impact_speed=v.optional(con["impact_speed"], "contact.impact_speed", positive=True),
-        duration=v.optional(con["duration"], "contact.duration", positive=True),
-        max_penetration=v.optional(
-            con["max_penetration"], "contact.max_penetration", positive=True
-        ),
+        restitution=target.restitution,
+        speed_range=target.speed_range,
+        duration=target.duration,
+        max_penetration=target.max_penetration,
         allow_coarse_timestep=v.boolean(
             con["allow_coarse_timestep"], "contact.allow_coarse_timestep"
         ),
-        pair_restitution=_pair_restitution(v, con["pairs"]),
+        pairs=pair_targets(v, con["pairs"]),
     )
-    if contact.duration is not None and contact.max_penetration is not None:
-        raise SpecError(source, "contact.duration", "give duration or max_penetration, not both")
     pl = doc["plane"]
     plane = Plane(
         enabled=v.boolean(pl["enabled"], "plane.enabled"),
@@ -326,22 +324,6 @@ def stop_section(v: FieldChecks, st: Mapping[str, Any]) -> Stop:
         max_energy_gain=v.number(st["max_energy_gain"], "stop.max_energy_gain", min_exclusive=0.0),
         max_penetration=v.number(st["max_penetration"], "stop.max_penetration", min_exclusive=0.0),
     )
-
-
-def _pair_restitution(v: FieldChecks, pairs: Any) -> dict[str, float]:
-    """`[contact.pairs."a/b"] restitution = e` tables, keyed by sorted geom names."""
-    if not isinstance(pairs, Mapping):
-        raise v.fail("contact.pairs", 'must be a table of "geom1/geom2" = { restitution = e }')
-    out = {}
-    for key, table in pairs.items():
-        field = f"contact.pairs.{key}"
-        names = key.split("/")
-        if len(names) != 2 or not all(names):
-            raise v.fail(field, 'pair keys are two geom names joined by /, e.g. "ball/plane"')
-        if not isinstance(table, Mapping) or set(table) != {"restitution"}:
-            raise v.fail(field, "must be a table with exactly one key, restitution")
-        out["/".join(sorted(names))] = v.number(table["restitution"], f"{field}.restitution")
-    return out
 
 
 def _body(v: FieldChecks, name: str, body: Mapping[str, Any], index: int) -> Body:

@@ -1,0 +1,168 @@
+"""`impactlab contact`: MuJoCo contact parameters for a target restitution, alone or in a model.
+
+Exit codes: 0 the target is met, 1 it is not at this timestep (the advice is printed), 2 bad
+input.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")  # checked against contact by a test
+SOURCE = "impactlab contact"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the `contact` subcommand."""
+    p = sub.add_parser(
+        "contact",
+        help="solref/solimp for a target restitution over a range of impact speeds (any MJCF)",
+        description="Design a MuJoCo contact (direct-form solref, constant solimp) whose "
+        "coefficient of restitution is within 0.005 of a target at every impact speed of a "
+        "range, for a timestep and integrator; print the parameters, the predicted e, the "
+        "penetration, the steps per contact and an MJCF <pair>. With MODEL.xml and --pair, "
+        "take the timestep, integrator, radii and gravity from the model and write it back "
+        "with calibrated <pair> elements (-o), everything else as it was. Exit 0 when the "
+        "target is met, 1 when the timestep is too coarse (with what would work), 2 on bad "
+        "input. See docs/contact-model.md.",
+    )
+    p.add_argument("model", nargs="?", type=Path, metavar="MODEL.xml", help="an MJCF model")
+    p.add_argument("--restitution", metavar="E", help="target e (0.1354..1)")
+    p.add_argument("--radius", metavar="M", help="smaller ball radius in m (without a model)")
+    p.add_argument("--speed", metavar="LO..HI", help="normal impact speeds in m/s, or one speed")
+    p.add_argument("--timestep", metavar="S", help="timestep in s (without a model)")
+    p.add_argument(
+        "--integrator", choices=INTEGRATORS, help="MuJoCo integrator (default Euler; no model)"
+    )
+    p.add_argument(
+        "--gravity",
+        metavar="G",
+        help="gravity along the contact normal in m/s^2 (default 9.81, or from the model; "
+        "0 for two free bodies or zero gravity)",
+    )
+    p.add_argument("--max-penetration", metavar="M", help="max penetration in m at the top speed")
+    p.add_argument("--duration", metavar="S", help="contact duration in s (instead)")
+    p.add_argument(
+        "--pair",
+        action="append",
+        default=[],
+        metavar="G1/G2=E[@LO..HI]",
+        help="a pair of the model's geoms, its target e and impact speeds (repeatable)",
+    )
+    p.add_argument("-o", "--out", type=Path, metavar="TUNED.xml", help="write the tuned model")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Design (and write); 0 when every target is met, 1 when not."""
+    from impactlab.contact import ContactModelError
+    from impactlab.errors import SpecError
+
+    try:
+        return _model(args) if args.model is not None else _alone(args)
+    except ContactModelError as exc:
+        raise SpecError(str(args.model) if args.model else SOURCE, "", str(exc)) from None
+
+
+def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None:
+    from impactlab.contact import ContactModelError
+    from impactlab.contact.tune import parse_number
+
+    text = getattr(args, name.replace("-", "_"))
+    if text is None:
+        if required:
+            raise ContactModelError(f"--{name} is required")
+        return None
+    return parse_number(text, f"--{name}")
+
+
+def _emit(args: argparse.Namespace, lines: list[str], document: object) -> None:
+    import json
+
+    print(json.dumps(document, indent=2, allow_nan=False) if args.json else "\n".join(lines))
+
+
+def _alone(args: argparse.Namespace) -> int:
+    from impactlab.contact import ContactModelError, design_contact
+    from impactlab.contact.summary import design_dict, design_lines
+    from impactlab.contact.tune import parse_speeds
+
+    for flag, given in (("--pair", args.pair), ("-o", args.out)):
+        if given:
+            raise ContactModelError(f"{flag} needs an MJCF model: impactlab contact MODEL.xml")
+    if args.speed is None:
+        raise ContactModelError("--speed LO..HI is required (normal impact speeds in m/s)")
+    radius = _number(args, "radius")
+    design = design_contact(
+        _number(args, "restitution", required=True),
+        radius_m=radius,
+        timestep_s=_number(args, "timestep", required=True),
+        speed_range_mps=parse_speeds(args.speed),
+        integrator=args.integrator or "Euler",
+        gravity_mps2=9.81 if args.gravity is None else _number(args, "gravity"),
+        max_penetration_m=_number(args, "max-penetration"),
+        duration_s=_number(args, "duration"),
+    )
+    _emit(args, design_lines(design, radius_m=radius), design_dict(design))
+    return 0 if design.ok else 1
+
+
+def _model(args: argparse.Namespace) -> int:
+    from impactlab.contact import ContactModelError
+    from impactlab.contact.summary import design_dict, design_lines
+    from impactlab.contact.tune import parse_pair, parse_speeds, tune_model, write_tuned
+    from impactlab.files import check_writable
+
+    for flag in ("radius", "timestep", "integrator"):
+        if getattr(args, flag) is not None:
+            raise ContactModelError(
+                f"--{flag} comes from the model (its geoms and <option>); edit the model to "
+                "change it"
+            )
+    if args.out is not None:
+        if args.out.is_dir():
+            raise ContactModelError(f"-o {args.out} is a folder: give the tuned model's file name")
+        check_writable(args.out.resolve().parent)
+    tuned = tune_model(
+        args.model,
+        [parse_pair(text) for text in args.pair],
+        restitution=_number(args, "restitution"),
+        speeds=None if args.speed is None else parse_speeds(args.speed),
+        gravity_mps2=_number(args, "gravity"),
+        max_penetration_m=_number(args, "max-penetration"),
+        duration_s=_number(args, "duration"),
+    )
+    lines = [
+        f"{args.model}: timestep {tuned.options.timestep_s:g} s, integrator "
+        f"{tuned.options.integrator}"
+    ]
+    for t in tuned.pairs:
+        lines += design_lines(t.design, radius_m=t.pair.radius_m, pair_element=t.element)
+        lines += [f"  note: {n}" for n in t.pair.notes]
+    written = None
+    if args.out is not None and tuned.ok:
+        written = str(write_tuned(tuned, args.out))
+        lines.append(f"wrote {written}: the model with {len(tuned.pairs)} calibrated <pair>(s)")
+    elif args.out is not None:
+        lines.append(f"nothing written to {args.out}: a pair misses its target")
+    document = {
+        "model": str(args.model),
+        "timestep_s": tuned.options.timestep_s,
+        "integrator": tuned.options.integrator,
+        "ok": tuned.ok,
+        "written": written,
+        "pairs": [
+            {
+                "geom1": t.pair.geom1,
+                "geom2": t.pair.geom2,
+                "radius_m": t.pair.radius_m,
+                **design_dict(t.design, pair_element=t.element),
+                "notes": [*t.pair.notes, *t.design.notes],
+            }
+            for t in tuned.pairs
+        ],
+    }
+    _emit(args, lines, document)
+    return 0 if tuned.ok else 1

@@ -1,0 +1,101 @@
+"""One stiffness calibrated: zeta for a target e over a speed range, and the predicted errors.
+
+zeta and gravity's shift depend on each other (the shift is about -2 zeta g / (w0 v)); the
+shift is centred across the speed range and the remaining half spread, with the phase error
+from the discretisation table, is the predicted worst case.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
+from impactlab.contact.emulation import scheme_of
+from impactlab.contact.gravity import gravity_shift
+from impactlab.contact.table import calibrated_zeta, discrete, table
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One stiffness evaluated: calibrated zeta and the predicted errors (units of e)."""
+
+    w0: float
+    zeta: float
+    shift: float  # centre of gravity's shift over the range, calibrated out
+    spread: float  # half the change of e by gravity across the range
+    phase: float  # worst-case phase error at this w0 * dt
+    pen: float  # worst-case penetration factor w0 x_max / v_in
+    w0dt: float
+
+    @property
+    def error(self) -> float:
+        """Predicted worst |e - target| over the range and over step phases."""
+        return self.phase + self.spread
+
+
+def shift_speeds(lo: float, hi: float) -> np.ndarray:
+    """Where gravity's shift is evaluated over a range: geometrically spaced, both ends
+    included, four points per decade (at least three). The shift is not monotonic in the
+    speed where the constraint grips again on the way out (g / (w0 v) above about 0.1), so
+    the ends alone are not enough for wide ranges."""
+    if lo == hi:
+        return np.array([lo])
+    n = max(3, min(13, 1 + math.ceil(4.0 * math.log10(hi / lo))))
+    return np.geomspace(lo, hi, n)
+
+
+def evaluate(
+    e: float,
+    w0: float,
+    dt: float,
+    speeds: np.ndarray,
+    g: float,
+    integrator: str,
+) -> Evaluation:
+    """Calibrate zeta at stiffness w0**2 for target e and predict the errors.
+
+    zeta and gravity's shift depend on each other: a few fixed-point iterations. The shift is
+    piecewise constant in zeta (the step in which the ball is back at the surface jumps by one
+    for one phase: about h g / (w0 v) / 16), so the iteration stops at 1e-4.
+
+    Raises:
+        ContactModelError: gravity's shift cannot be calibrated out at this stiffness.
+    """
+    scheme = scheme_of(integrator)
+    cap = table(scheme).w0dt_max
+    h = min(w0 * dt, cap)
+    ratios = g / (w0 * speeds) if g > 0.0 else np.zeros(speeds.size)
+    shift, spread, step = 0.0, 0.0, 0.0
+    for _ in range(12):
+        zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
+        if g <= 0.0:
+            break
+        s = np.asarray(gravity_shift(zeta, h, ratios, integrator))
+        new = 0.5 * (float(s.max()) + float(s.min()))
+        spread = 0.5 * (float(s.max()) - float(s.min()))
+        step, shift = abs(new - shift), new
+        if step <= 1e-4:
+            break
+    if step > 1e-3:
+        raise ContactModelError(
+            f"cannot calibrate e = {e:g} under gravity {g:g} m/s^2 with stiffness {w0 * w0:.4g} "
+            f"(g / (w0 v) up to {ratios.max():.3g}): use a stiffer contact or a higher v_lo"
+        )
+    zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
+    _, phase, pen = discrete(zeta, h, scheme)
+    return Evaluation(w0, zeta, shift, spread, phase, pen, w0 * dt)
+
+
+def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
+    """The zero-gravity e to calibrate for so that gravity's shift brings it to e."""
+    target = e - shift
+    if not RESTITUTION_FLOOR <= target <= 1.0:
+        raise ContactModelError(
+            f"e = {e:g} cannot be reached under gravity with g / (w0 v) up to "
+            f"{float(np.max(ratios)):.3g}: gravity changes e by {shift:+.3g}; use a stiffer "
+            "contact"
+        )
+    return target

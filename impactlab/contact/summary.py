@@ -1,0 +1,162 @@
+"""A contact design for people (lines of text) and for scripts (a JSON-ready dict)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from impactlab.contact.advice import ContactDesign, Prediction
+from impactlab.contact.params import ContactParams
+from impactlab.contact.table import RESTITUTION_TOLERANCE
+
+
+def _range(p: ContactParams) -> str:
+    lo, hi = p.speed_range_mps
+    return f"{lo:.4g} m/s" if lo == hi else f"{lo:.4g}..{hi:.4g} m/s"
+
+
+def _pen(p: ContactParams, radius_m: float | None) -> str:
+    text = f"{p.max_penetration_m * 1e3:.3g} mm at {p.speed_range_mps[1]:.4g} m/s"
+    return text + (f" ({p.max_penetration_m / radius_m:.2%} of the radius)" if radius_m else "")
+
+
+def _e_line(pred: Prediction, target: float) -> str:
+    lo, hi = pred.e_range()
+    means = [m for m, inside in zip(pred.mean, pred.in_range, strict=True) if inside]
+    return (
+        f"{lo:.4f} .. {hi:.4f} (worst |e - {target:g}| = {pred.worst_error(target):.4f}; "
+        f"mean over step phases {min(means):.4f} .. {max(means):.4f})"
+    )
+
+
+def round_up(x: float, digits: int = 3) -> float:
+    """x rounded up to `digits` significant digits (a bound the user can type)."""
+    scale = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    return math.ceil(x / scale * (1.0 - 1e-12)) * scale
+
+
+def design_lines(
+    design: ContactDesign,
+    *,
+    radius_m: float | None,
+    geom1: str = "GEOM1",
+    geom2: str = "GEOM2",
+    pair_element: str | None = None,
+) -> list[str]:
+    """What ``impactlab contact`` prints for one designed contact."""
+    p = design.params
+    k = p.stiffness
+    lines = [
+        f"contact for e = {p.restitution:g} over impact speeds {_range(p)}: timestep "
+        f"{p.timestep_s:g} s ({p.integrator}), gravity along the normal {p.gravity_mps2:g} m/s^2",
+        f"  solref    {p.solref[0]!r} {p.solref[1]!r}   (stiffness {k:.6g} 1/s^2, damping "
+        f"{p.damping:.6g} 1/s, zeta {p.zeta:.5f}; direct form, mass independent)",
+        "  solimp    " + " ".join(f"{x:g}" for x in p.solimp),
+    ]
+    pred = design.prediction
+    if design.ok:
+        lines.append(f"  e over {_range(p)}: {_e_line(pred, p.restitution)}")
+        below = [
+            f"{m:.4f} at {v:.3g} m/s"
+            for v, m, inside in zip(pred.speeds_mps, pred.mean, pred.in_range, strict=True)
+            if not inside
+        ]
+        if below:
+            lines.append("  below the range, gravity lowers e: " + ", ".join(below))
+        lines += [
+            f"  worst penetration {_pen(p, radius_m)}",
+            f"  contact duration {p.duration_s * 1e3:.4g} ms = {p.steps_per_contact:.1f} steps",
+            "  " + (pair_element or p.mjcf_pair(geom1, geom2)),
+        ]
+        return lines
+    if design.timestep_max_s is None:
+        lines.append(f"  NOT MET at timestep {p.timestep_s:g} s: {design.problem}")
+    else:
+        steps = math.ceil(p.duration_s / design.timestep_max_s)
+        lines += [
+            f"  NOT MET at timestep {p.timestep_s:g} s: {p.steps_per_contact:.3g} steps per "
+            f"contact of {p.duration_s * 1e3:.4g} ms",
+            f"  the target needs timestep <= {design.timestep_max_s:.3g} s ({steps} steps per "
+            f"contact, stiffness {k:.4g}), or a softer contact or a narrower speed range",
+        ]
+    if design.best is not None and design.best_prediction is not None:
+        b = design.best
+        lines.append(
+            f"  best at {p.timestep_s:g} s: e {_e_line(design.best_prediction, p.restitution)}, "
+            f"penetration {_pen(b, radius_m)}, stiffness {b.stiffness:.4g}"
+        )
+        if radius_m and b.max_penetration_m > 0.5 * radius_m:
+            lines.append("  note: that penetration is more than half the radius: not usable")
+    if design.softer is not None:
+        pen = round_up(design.softer.max_penetration_m)
+        lines.append(
+            f"  a softer contact meets e within {RESTITUTION_TOLERANCE} at {p.timestep_s:g} s "
+            f"if the penetration may reach {pen:g} m: --max-penetration {pen:g}"
+        )
+    lines += [f"  note: {n}" for n in design.notes]
+    return lines
+
+
+def _prediction(pred: Prediction, target: float) -> dict[str, Any] | None:
+    if not pred.speeds_mps:
+        return None
+    lo, hi = pred.e_range()
+    return {
+        "speeds_mps": list(pred.speeds_mps),
+        "mean": list(pred.mean),
+        "lowest": list(pred.lowest),
+        "highest": list(pred.highest),
+        "in_range": list(pred.in_range),
+        "e_lowest_in_range": lo,
+        "e_highest_in_range": hi,
+        "worst_error_in_range": pred.worst_error(target),
+    }
+
+
+def params_dict(p: ContactParams) -> dict[str, Any]:
+    """The parameters and the designer's own (table) predictions."""
+    return {
+        "solref": list(p.solref),
+        "solimp": list(p.solimp),
+        "stiffness": p.stiffness,
+        "damping": p.damping,
+        "zeta": p.zeta,
+        "duration_s": p.duration_s,
+        "steps_per_contact": p.steps_per_contact,
+        "max_penetration_m": p.max_penetration_m,
+        "gravity_shift": p.gravity_shift,
+        "gravity_spread": p.gravity_spread,
+        "phase_error": p.phase_error,
+    }
+
+
+def design_dict(
+    design: ContactDesign, *, geom1: str = "GEOM1", geom2: str = "GEOM2", pair_element=None
+) -> dict[str, Any]:
+    """The design as JSON-ready data (``impactlab contact --json``)."""
+    p = design.params
+    out: dict[str, Any] = {
+        "ok": design.ok,
+        "problem": design.problem,
+        "restitution": p.restitution,
+        "tolerance": RESTITUTION_TOLERANCE,
+        "speed_range_mps": list(p.speed_range_mps),
+        "timestep_s": p.timestep_s,
+        "integrator": p.integrator,
+        "gravity_mps2": p.gravity_mps2,
+        **params_dict(p),
+        "predicted": _prediction(design.prediction, p.restitution),
+        "mjcf_pair": pair_element or p.mjcf_pair(geom1, geom2),
+        "timestep_max_s": design.timestep_max_s,
+        "best": None,
+        "softer": None,
+        "notes": list(design.notes),
+    }
+    if design.best is not None:
+        out["best"] = params_dict(design.best)
+        if design.best_prediction is not None:
+            out["best"]["predicted"] = _prediction(design.best_prediction, p.restitution)
+    if design.softer is not None:
+        out["softer"] = params_dict(design.softer)
+        out["softer"]["max_penetration_m_to_ask"] = round_up(design.softer.max_penetration_m)
+    return out

@@ -1,0 +1,179 @@
+"""Tune a user's MJCF model: a calibrated ``<pair>`` for each pair of geoms asked for.
+
+The model gives the timestep, the integrator and, per pair, the radius and gravity along the
+contact normal (`mjcf.model_pairs`); the user gives the target e per pair and the impact
+speeds (per pair, for all pairs, or, for a sphere above a static plane, derived from the
+model's initial state: from the first impact down to ``SPEED_FLOOR_MPS``).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from impactlab.contact.advice import ContactDesign, design_contact
+from impactlab.contact.checks import ContactModelError
+from impactlab.contact.design import SPEED_FLOOR_MPS
+from impactlab.contact.mjcf import (
+    ModelOptions,
+    ModelPair,
+    check_tuned,
+    load_model,
+    model_options,
+    model_pairs,
+    pair_element,
+    with_pairs,
+)
+from impactlab.files import atomic_path
+
+_PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
+
+
+@dataclass(frozen=True)
+class PairRequest:
+    """What the user asks of one pair: ``G1/G2[=E][@LO..HI]``."""
+
+    geom1: str
+    geom2: str
+    restitution: float | None
+    speeds: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class TunedPair:
+    """One pair of the model with its design and the ``<pair>`` element that carries it."""
+
+    pair: ModelPair
+    design: ContactDesign
+    element: str
+
+
+@dataclass(frozen=True)
+class TunedModel:
+    """A model's calibrated pairs; ``ok`` when every pair meets its target."""
+
+    path: Path
+    options: ModelOptions
+    pairs: tuple[TunedPair, ...]
+
+    @property
+    def ok(self) -> bool:
+        """Every pair meets its target at the model's timestep."""
+        return all(t.design.ok for t in self.pairs)
+
+
+def parse_number(text: str, what: str) -> float:
+    """A finite number from the command line, or ContactModelError naming `what`."""
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise ContactModelError(f"{what} must be a number, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise ContactModelError(f"{what} must be finite, got {text!r}")
+    return value
+
+
+def parse_speeds(text: str, what: str = "--speed") -> tuple[float, float]:
+    """``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
+    lo_text, sep, hi_text = text.partition("..")
+    lo = parse_number(lo_text, what)
+    hi = parse_number(hi_text, what) if sep else lo
+    if not 0.0 < lo <= hi:
+        raise ContactModelError(f"{what} must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
+    return lo, hi
+
+
+def parse_pair(text: str) -> PairRequest:
+    """``G1/G2[=E][@LO..HI]`` -> PairRequest."""
+    m = _PAIR.match(text)
+    if not m:
+        raise ContactModelError(f"--pair must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
+    g1, g2, e, speeds = m.groups()
+    return PairRequest(
+        g1,
+        g2,
+        None if e is None else parse_number(e, f"--pair {text}: restitution"),
+        None if speeds is None else parse_speeds(speeds, f"--pair {text}: speeds"),
+    )
+
+
+def tune_model(
+    path: Path,
+    requests: Sequence[PairRequest],
+    *,
+    restitution: float | None = None,
+    speeds: tuple[float, float] | None = None,
+    gravity_mps2: float | None = None,
+    max_penetration_m: float | None = None,
+    duration_s: float | None = None,
+) -> TunedModel:
+    """Design every requested pair of a model (nothing written).
+
+    Raises:
+        ContactModelError: the model, a geom name, a target or the speeds are wrong.
+    """
+    if not requests:
+        raise ContactModelError("name the pairs to calibrate: --pair GEOM1/GEOM2=E")
+    model = load_model(path)
+    options = model_options(model)
+    described = model_pairs(model, [(r.geom1, r.geom2) for r in requests])
+    tuned = []
+    for request, pair in zip(requests, described, strict=True):
+        name = f"{pair.geom1}/{pair.geom2}"
+        e = request.restitution if request.restitution is not None else restitution
+        if e is None:
+            raise ContactModelError(f"{name}: give its restitution (--pair {name}=E)")
+        rng = request.speeds or speeds or _default_speeds(pair)
+        if pair.radius_m is None and max_penetration_m is None and duration_s is None:
+            raise ContactModelError(
+                f"{name}: neither geom is a sphere, so the default penetration bound (2 % of "
+                "the radius) does not apply: give --max-penetration or --duration"
+            )
+        try:
+            design = design_contact(
+                e,
+                radius_m=pair.radius_m,
+                timestep_s=options.timestep_s,
+                speed_range_mps=rng,
+                integrator=options.integrator,
+                gravity_mps2=pair.gravity_mps2 if gravity_mps2 is None else gravity_mps2,
+                max_penetration_m=max_penetration_m,
+                duration_s=duration_s,
+            )
+        except ContactModelError as exc:
+            raise ContactModelError(f"{name}: {exc}") from None
+        tuned.append(TunedPair(pair, design, pair_element(pair, design.params)))
+    return TunedModel(path, options, tuple(tuned))
+
+
+def _default_speeds(pair: ModelPair) -> tuple[float, float]:
+    v1 = pair.first_impact_mps
+    if v1 is None:
+        raise ContactModelError(
+            f"{pair.geom1}/{pair.geom2}: the impact speeds do not follow from the model (only "
+            "for a sphere above a static plane under gravity): give --speed LO..HI or "
+            f"--pair {pair.geom1}/{pair.geom2}=E@LO..HI"
+        )
+    return min(SPEED_FLOOR_MPS, v1), v1
+
+
+def write_tuned(tuned: TunedModel, out: Path) -> Path:
+    """Write the model's text with the calibrated pairs to `out` (atomically), checked by
+    compiling it with MuJoCo from its new folder.
+
+    Raises:
+        ContactModelError: a pair misses its target, or the written model does not compile
+            or does not carry the pairs (nothing is left behind then).
+    """
+    if not tuned.ok:
+        raise ContactModelError("a pair misses its target: nothing written")
+    text = with_pairs(
+        tuned.path.read_text(encoding="utf-8"),
+        [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs],
+    )
+    with atomic_path(out) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+        check_tuned(tmp, [(t.pair, t.design.params) for t in tuned.pairs])
+    return out
