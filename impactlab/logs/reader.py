@@ -7,6 +7,11 @@ fancy indexing instead of one Python step per message; a chunk without indexes, 
 indexes disagree with it (they carry no CRC), is walked record by record. Damage (truncation,
 a bad CRC, an undecompressable chunk, an unreadable record) stops the walk: everything
 complete before it is returned, with the problem.
+
+Reads are bounded (`bounded`): only regular files, at most `max_log_bytes()` for the file and
+its decompressed chunks together, never more decompressed than a chunk declares. Message
+times are unsigned 64-bit in MCAP; the frames hold signed 64-bit nanoseconds, so a message at
+log_time >= 2^63 ns (292 years) is skipped and reported.
 """
 
 from __future__ import annotations
@@ -17,20 +22,30 @@ import struct
 import zlib
 from collections import defaultdict
 from dataclasses import dataclass, field
+from itertools import compress
 from pathlib import Path
 
-import lz4.frame
 import numpy as np
-import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Channel, Metadata, Schema
+from mcap.records import Channel, Header, Metadata, Schema
+
+from impactlab.logs.bounded import (
+    DamagedData,
+    UnreadableFile,
+    decompress_chunk,
+    max_log_bytes,
+    read_file,
+)
 
 MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER = 0x01
 OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_MESSAGE_INDEX = 0x03, 0x04, 0x05, 0x06, 0x07
-OP_METADATA, OP_DATA_END = 0x0C, 0x0F
+OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x09, 0x0C, 0x0F
+CHUNK_OPS = frozenset({OP_SCHEMA, OP_CHANNEL, OP_MESSAGE})  # what a chunk may hold
 MESSAGE_HEADER_SIZE = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel, sequence, two times
 FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, summary offset start, CRC
+MAX_TIME_NS = (1 << 63) - 1  # the largest log_time the frames' signed nanoseconds hold
 
 
 @dataclass
@@ -55,10 +70,12 @@ class McapContent:
     channels: dict[int, ChannelData]
     metadata: dict[str, dict[str, str]]
     problems: list[str]
+    attachments: dict[str, int] = field(default_factory=dict)  # name -> size in bytes
+    summary: bool = False  # the footer points at a summary section
+    library: str = ""  # the writer, as its header says
 
 
-class _Damage(Exception):
-    pass
+_Damage = DamagedData
 
 
 def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapContent:
@@ -67,15 +84,19 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
     Messages on `skip_topics` are not gathered (their channels are still listed).
 
     Raises:
-        ValueError: the file does not start with the MCAP magic bytes.
+        UnreadableFile: not a regular file, larger than the limit, or not MCAP (bad magic).
         OSError: the file cannot be read.
     """
-    buf = memoryview(Path(path).read_bytes())
+    limit = max_log_bytes()
+    buf = memoryview(read_file(Path(path), limit=limit))
     if bytes(buf[:8]) != MAGIC:
-        raise ValueError("not an MCAP file (bad magic bytes)")
+        raise UnreadableFile("not an MCAP file (bad magic bytes)")
+    budget = [limit - len(buf)]  # bytes the decompressed chunks may still take
     schemas: dict[int, str] = {}
     channels: dict[int, ChannelData] = {}
     metadata: dict[str, dict[str, str]] = {}
+    attachments: dict[str, int] = {}
+    library = ""
     problems: list[str] = []
     loose: dict[int, tuple[list[int], list[bytes]]] = defaultdict(lambda: ([], []))
     pos = 8
@@ -89,6 +110,8 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
             end = pos + 9 + length
             if end > len(buf):
                 raise _Damage(f"truncated inside a record at byte {pos}")
+            if op == 0:
+                raise _Damage(f"invalid record (opcode 0) at byte {pos}")
             body = buf[pos + 9 : end]
             if op != OP_MESSAGE_INDEX and pending is not None:
                 done, pending = pending, None
@@ -98,8 +121,13 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
             elif op == OP_METADATA:
                 m = Metadata.read(ReadDataStream(io.BytesIO(body)))
                 metadata[m.name] = dict(m.metadata)
+            elif op == OP_HEADER:
+                library = Header.read(ReadDataStream(io.BytesIO(body))).library
+            elif op == OP_ATTACHMENT:
+                name, _, size = _attachment_header(body)
+                attachments[name] = size
             elif op == OP_CHUNK:
-                pending = (_decompress(body), {}, pos)
+                pending = (decompress_chunk(body, budget), {}, pos)
             elif op == OP_MESSAGE_INDEX and pending is not None:
                 channel_id = int.from_bytes(body[0:2], "little")
                 size = int.from_bytes(body[2:6], "little")
@@ -118,51 +146,100 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
             _gather(done, schemas, channels, loose, skip_topics, problems)
         if pos >= len(buf):  # a cut after a chunk may have left only some of its indexes
             raise _Damage(f"truncated at byte {pos}, before the end of the data")
-        if len(buf) < end + FOOTER_SIZE + len(MAGIC) or bytes(buf[-len(MAGIC) :]) != MAGIC:
+        footer_at = len(buf) - FOOTER_SIZE - len(MAGIC)
+        if footer_at < end or bytes(buf[-len(MAGIC) :]) != MAGIC:
             raise _Damage("truncated after the data: the summary or footer is missing")
+        summary = (
+            buf[footer_at] == 0x02
+            and int.from_bytes(buf[footer_at + 9 : footer_at + 17], "little") != 0
+        )
     except _Damage as exc:
         problems.append(f"damaged: {exc}")
         _salvage(pending, schemas, channels, loose)
+        summary = False
     except (ValueError, IndexError, KeyError, McapError, struct.error) as exc:
         problems.append(f"damaged: unreadable record ({type(exc).__name__}: {exc})")
         _salvage(pending, schemas, channels, loose)
+        summary = False
     for channel_id, (times, datas) in loose.items():
         if channel_id in channels:
-            channels[channel_id].pieces.append((np.asarray(times, dtype=np.int64), datas))
-    return McapContent(channels, metadata, problems)
+            channels[channel_id].pieces.append((np.asarray(times, dtype=np.uint64), datas))
+    _signed_times(channels, problems)
+    return McapContent(channels, metadata, problems, attachments, summary, library)
+
+
+def _signed_times(channels: dict[int, ChannelData], problems: list[str]) -> None:
+    """Message times as int64 ns; messages at log_time >= 2^63 are dropped and reported."""
+    dropped: dict[str, int] = {}
+    for channel in channels.values():
+        kept = []
+        for t, data in channel.pieces:
+            ok = t <= MAX_TIME_NS
+            if not ok.all():
+                dropped[channel.topic] = dropped.get(channel.topic, 0) + int((~ok).sum())
+                t = t[ok]
+                data = data[ok] if isinstance(data, np.ndarray) else list(compress(data, ok))
+            if len(t):
+                kept.append((t.astype(np.int64), data))
+        channel.pieces = kept
+    if dropped:
+        problems.append(
+            f"damaged: {sum(dropped.values())} message(s) at log_time >= 2^63 ns (beyond 292 "
+            f"years) skipped, on {', '.join(dropped)}"
+        )
 
 
 def _salvage(pending, schemas, channels, loose) -> None:
     """The messages of a complete chunk whose message indexes the damage cut off."""
     if pending is None:
         return
-    with contextlib.suppress(ValueError, IndexError, KeyError, McapError, struct.error):
+    with contextlib.suppress(_Damage, ValueError, IndexError, KeyError, McapError, struct.error):
         _walk_chunk(pending[0], schemas, channels, loose)
 
 
-def _decompress(body: memoryview) -> bytes:
-    """The uncompressed records of a Chunk record body, CRC-checked."""
-    uncompressed_size = int.from_bytes(body[16:24], "little")
-    crc = int.from_bytes(body[24:28], "little")
-    name_len = int.from_bytes(body[28:32], "little")
-    compression = bytes(body[32 : 32 + name_len]).decode()
-    at = 32 + name_len
-    size = int.from_bytes(body[at : at + 8], "little")
-    data = body[at + 8 : at + 8 + size]
+def read_attachments(path: Path) -> dict[str, bytes]:
+    """Every complete, CRC-checked attachment of an MCAP file, by name (chunks are skipped, not
+    decompressed; damage, or a file that cannot be read, ends the walk)."""
     try:
-        if compression == "zstd":
-            raw = zstandard.ZstdDecompressor().decompress(data, max_output_size=uncompressed_size)
-        elif compression == "lz4":
-            raw = lz4.frame.decompress(bytes(data))
-        elif compression == "":
-            raw = bytes(data)
-        else:
-            raise _Damage(f"unknown chunk compression {compression!r}")
-    except (zstandard.ZstdError, RuntimeError, OverflowError, MemoryError) as exc:
-        raise _Damage(f"chunk cannot be decompressed ({exc})") from None
-    if len(raw) != uncompressed_size or (crc and zlib.crc32(raw) != crc):
-        raise _Damage("chunk CRC or size mismatch")
-    return raw
+        buf = memoryview(read_file(Path(path)))
+    except (OSError, ValueError):
+        return {}
+    out: dict[str, bytes] = {}
+    pos = len(MAGIC) if bytes(buf[: len(MAGIC)]) == MAGIC else len(buf)
+    while pos + 9 <= len(buf):
+        op = buf[pos]
+        end = pos + 9 + int.from_bytes(buf[pos + 1 : pos + 9], "little")
+        if op in (0, OP_DATA_END) or end > len(buf):
+            break
+        if op == OP_ATTACHMENT:
+            body = buf[pos + 9 : end]
+            try:
+                name, data_at, size = _attachment_header(body)
+            except (DamagedData, UnicodeDecodeError):
+                break
+            crc = int.from_bytes(body[data_at + size : data_at + size + 4], "little")
+            if crc and zlib.crc32(body[: data_at + size]) != crc:
+                break
+            out[name] = bytes(body[data_at : data_at + size])
+        pos = end
+    return out
+
+
+def _attachment_header(body: memoryview) -> tuple[str, int, int]:
+    """Name, data offset and data size of an Attachment record body (the data not copied).
+
+    Raises:
+        DamagedData: the record is cut short.
+    """
+    at = 16  # log time, create time
+    name_len = int.from_bytes(body[at : at + 4], "little")
+    name = bytes(body[at + 4 : at + 4 + name_len]).decode()
+    at += 4 + name_len
+    at += 4 + int.from_bytes(body[at : at + 4], "little")  # media type
+    size = int.from_bytes(body[at : at + 8], "little")
+    if at + 8 + size + 4 > len(body):
+        raise DamagedData("attachment record cut short")
+    return name, at + 8, size
 
 
 def _definition(op: int, body, schemas: dict[int, str], channels: dict[int, ChannelData]):
@@ -198,7 +275,7 @@ def _gather(
     for channel_id, pairs in indexes.items():
         if not len(pairs) or channels[channel_id].topic in skip_topics:
             continue
-        times = pairs[:, 0].astype(np.int64)
+        times = pairs[:, 0]  # uint64 ns
         offsets = pairs[:, 1].astype(np.int64)
         lengths = _indexed_lengths(arr, channel_id, times, offsets)
         if lengths is None:
@@ -216,7 +293,7 @@ def _gather(
 
 def _indexed_lengths(arr: np.ndarray, channel_id: int, times: np.ndarray, offsets: np.ndarray):
     """Payload lengths (n,) of the indexed records, or None unless every one is a whole
-    message of `channel_id` at its indexed time."""
+    message of `channel_id` at its indexed time (`times`: uint64 ns)."""
     if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > arr.size:
         return None
     lengths = _u64_at(arr, offsets + 1).astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
@@ -228,7 +305,7 @@ def _indexed_lengths(arr: np.ndarray, channel_id: int, times: np.ndarray, offset
     agrees = (
         (arr[offsets] == OP_MESSAGE).all()
         and (channel == channel_id).all()
-        and (_u64_at(arr, offsets + 15).astype(np.int64) == times).all()
+        and (_u64_at(arr, offsets + 15) == times).all()
     )
     return lengths if agrees else None
 
@@ -252,21 +329,29 @@ def _u64_at(arr: np.ndarray, offsets: np.ndarray) -> np.ndarray:
 
 
 def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
-    """Schemas, channels and messages of a chunk, record by record."""
+    """Schemas, channels and messages of a chunk, record by record.
+
+    Raises:
+        _Damage: a record that a chunk cannot hold, or one that overruns the chunk.
+    """
     pos = 0
     view = memoryview(raw)
-    while pos + 9 <= len(raw):
+    while pos < len(raw):
         op = raw[pos]
         length = int.from_bytes(view[pos + 1 : pos + 9], "little")
+        if op not in CHUNK_OPS or pos + 9 + length > len(raw):
+            raise _Damage(f"invalid record (opcode {op}) inside a chunk")
         body = view[pos + 9 : pos + 9 + length]
         if op == OP_MESSAGE:
             _loose_message(body, loose)
-        elif op in (OP_SCHEMA, OP_CHANNEL):
+        else:
             _definition(op, body, schemas, channels)
         pos += 9 + length
 
 
 def _loose_message(body: memoryview, loose) -> None:
+    if len(body) < MESSAGE_HEADER_SIZE - 9:
+        raise _Damage("message record cut short")
     channel_id = int.from_bytes(body[0:2], "little")
     log_time = int.from_bytes(body[6:14], "little")
     times, datas = loose[channel_id]

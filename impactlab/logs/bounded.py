@@ -1,0 +1,132 @@
+"""Bounded reading: a log's bytes and its decompressed chunks never take unbounded time or memory.
+
+Only regular files are read: a device such as /dev/zero, a pipe or a socket could never end
+(and opening a pipe can block). A file together with its decompressed chunks may take at most
+`max_log_bytes()` (`MAX_LOG_BYTES`, 4 GiB, or the environment variable
+`IMPACTLAB_MAX_LOG_BYTES`), and one chunk may declare at most `MAX_CHUNK_BYTES` (256 MiB;
+impactlab and the official writer make 1 MiB chunks). Decompression never produces more than
+the chunk's header declares, whatever the compressed frame claims about itself, so a small
+file that inflates to gigabytes (a "zip bomb") costs no more than its declared size.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import zlib
+from pathlib import Path
+
+import lz4.frame
+import zstandard
+
+
+class UnreadableFile(ValueError):
+    """The path is not a file that can be read as a log (not regular, too large, not MCAP)."""
+
+
+class DamagedData(Exception):
+    """Bytes of a log that cannot be what they claim (a bad chunk, an impossible record)."""
+
+
+MAX_CHUNK_BYTES = 256 << 20
+"""Largest uncompressed size a chunk may declare (impactlab and the official writer: 1 MiB)."""
+MAX_LOG_BYTES = 4 << 30
+"""Default cap on a file plus its decompressed chunks (a 400,000-step log needs ~0.2 GiB)."""
+MAX_LOG_BYTES_ENV = "IMPACTLAB_MAX_LOG_BYTES"
+
+
+def max_log_bytes() -> int:
+    """The cap on a file plus its decompressed chunks, in bytes (`IMPACTLAB_MAX_LOG_BYTES`).
+
+    Raises:
+        UnreadableFile: the environment variable is not a positive integer.
+    """
+    text = os.environ.get(MAX_LOG_BYTES_ENV, "").strip()
+    if not text:
+        return MAX_LOG_BYTES
+    if not text.isdigit() or int(text) <= 0:
+        raise UnreadableFile(f"{MAX_LOG_BYTES_ENV} must be a positive number of bytes: {text!r}")
+    return int(text)
+
+
+def check_regular_file(path: Path) -> os.stat_result:
+    """The file's status, when it is a regular file (symbolic links followed).
+
+    Raises:
+        FileNotFoundError, IsADirectoryError, PermissionError: as for opening it.
+        UnreadableFile: a device, pipe or socket (reading it may never end).
+    """
+    info = os.stat(path)
+    if stat.S_ISDIR(info.st_mode):
+        raise IsADirectoryError(path)
+    if not stat.S_ISREG(info.st_mode):
+        raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
+    return info
+
+
+def read_file(path: Path, *, limit: int | None = None) -> bytes:
+    """The bytes of a regular file of at most `limit` bytes (default `max_log_bytes()`).
+
+    Raises:
+        OSError: it cannot be read (FileNotFoundError, IsADirectoryError, ...).
+        UnreadableFile: not a regular file, or larger than the limit.
+    """
+    limit = max_log_bytes() if limit is None else limit
+    size = check_regular_file(path).st_size
+    if size > limit:
+        raise UnreadableFile(f"{_mib(size)} is more than the limit of {_mib(limit)} ({_HINT})")
+    # O_NONBLOCK: should the path have become a pipe since the check, opening does not hang
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    with open(fd, "rb", closefd=True) as stream:
+        if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
+            raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
+        return stream.read(limit + 1)[:limit]
+
+
+_HINT = f"raise it with the environment variable {MAX_LOG_BYTES_ENV}"
+
+
+def _mib(n: int) -> str:
+    return f"{n / (1 << 20):.1f} MiB" if n < 1 << 30 else f"{n / (1 << 30):.2f} GiB"
+
+
+def decompress_chunk(body: memoryview, budget: list[int]) -> bytes:
+    """The uncompressed records of a Chunk record body, CRC-checked.
+
+    Never more than the chunk declares (at most `MAX_CHUNK_BYTES`, and within `budget[0]`,
+    the bytes the file's decompressed chunks may still take, which it decreases).
+    """
+    uncompressed_size = int.from_bytes(body[16:24], "little")
+    crc = int.from_bytes(body[24:28], "little")
+    name_len = int.from_bytes(body[28:32], "little")
+    compression = bytes(body[32 : 32 + name_len]).decode()
+    at = 32 + name_len
+    size = int.from_bytes(body[at : at + 8], "little")
+    data = body[at + 8 : at + 8 + size]
+    if uncompressed_size > MAX_CHUNK_BYTES:
+        raise DamagedData(
+            f"a chunk declares {_mib(uncompressed_size)} uncompressed, more than the limit of "
+            f"{_mib(MAX_CHUNK_BYTES)} per chunk"
+        )
+    if uncompressed_size > budget[0]:
+        raise DamagedData(
+            f"the decompressed chunks exceed the limit of {_mib(max_log_bytes())} ({_HINT})"
+        )
+    budget[0] -= uncompressed_size
+    try:
+        if compression == "zstd":
+            # not ZstdDecompressor.decompress: it trusts the frame's own content size
+            reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
+            raw = reader.read(uncompressed_size + 1) if uncompressed_size else b""
+        elif compression == "lz4":
+            decompressor = lz4.frame.LZ4FrameDecompressor()
+            raw = decompressor.decompress(bytes(data), max_length=uncompressed_size + 1)
+        elif compression == "":
+            raw = bytes(data)
+        else:
+            raise DamagedData(f"unknown chunk compression {compression!r}")
+    except (zstandard.ZstdError, RuntimeError, OverflowError, MemoryError) as exc:
+        raise DamagedData(f"chunk cannot be decompressed ({exc})") from None
+    if len(raw) != uncompressed_size or (crc and zlib.crc32(raw) != crc):
+        raise DamagedData("chunk CRC or size mismatch")
+    return raw
