@@ -326,22 +326,28 @@ def test_damaged_message_index_is_recovered(tmp_path, layout, reference):
     assert run.contacts.equals(reference.contacts)
 
 
-def test_damaged_metadata_is_an_error(tmp_path, capsys, layout):
-    """Metadata carry no CRC: a value that no longer parses is a clear error, not a crash."""
+def test_damaged_metadata_is_named_and_the_rest_still_read(tmp_path, capsys, layout):
+    """Metadata carry no CRC: a value that no longer parses is named (log and key). The
+    masses are needed for the analysis, which refuses that log; diff, replay and info still
+    read it. Every key and kind of damage: tests/test_reliability_metadata.py."""
     data = layout[0]
     at = data.rindex(b'"mass"')  # in the bodies record (the spec's comes first)
     broken = bytearray(data)
     broken[at + 8] = ord("x")  # "mass": x.0 ...
     bad = tmp_path / "meta.mcap"
     bad.write_bytes(bytes(broken))
-    with pytest.raises(LogError, match="damaged metadata: bodies is not valid JSON"):
-        load_log(bad)
+    run = load_log(bad)
+    assert run.partial and "bodies" in run.checked.problems
+    assert any(p.startswith("metadata bodies: ") and "not valid JSON" in p for p in run.problems)
     code, _, err = run_cli(capsys, "analyze", str(bad), "-o", str(tmp_path / "out"))
-    assert code == 1 and "damaged metadata" in assert_error_line(err, bad)
+    problem = assert_error_line(err, bad)
+    assert code == 1 and problem.startswith("damaged metadata: bodies: ")
     code, _, err = run_cli(capsys, "diff", str(bad), str(bad))
-    assert code == 2
+    assert code == 0 and f"impactlab: warning: {bad}: metadata bodies: " in err
+    code, _, err = run_cli(capsys, "replay", str(bad), "-o", str(tmp_path / "rrd"))
+    assert code == 0 and (tmp_path / "rrd" / "meta.rrd").stat().st_size > 0
     code, stdout, err = run_cli(capsys, "info", str(bad))  # info shows the metadata as is
-    assert code == 0 and "fragile" in stdout
+    assert code == 0 and "fragile" in stdout and "damaged:    metadata bodies: " in stdout
 
 
 # ---------------------------------------------------------------------------------------------

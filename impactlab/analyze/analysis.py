@@ -50,7 +50,7 @@ class RunAnalysis:
 
 def logged_interval_s(run: RunLog) -> float:
     """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
-    return run.timestep_s * int(run.meta.get("log_every", "1") or 1)
+    return run.timestep_s * run.log_every
 
 
 def expects_collision(run: RunLog) -> bool:
@@ -63,12 +63,13 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     """Compute energy, bounces, collisions and the summary row of one decoded log.
 
     Raises:
-        LogError: the log lacks the run metadata the analysis needs (timestep, bodies).
+        LogError: the metadata the analysis needs (masses, sizes, gravity, ground, timestep,
+            logging stride, integrator) is missing, damaged or contradicts the channels; the
+            message names the key.
     """
-    if "timestep_s" not in run.meta or "bodies" not in run.meta:
-        raise LogError(
-            str(run.path), "no impactlab.run metadata (timestep, bodies): cannot analyze"
-        )
+    reason = run.unanalyzable()
+    if reason is not None:
+        raise LogError(str(run.path), reason)
     ground = run_ground(run)
     states = states_long(run)
     rows = row_numbers(states)

@@ -8,7 +8,6 @@ never averaged together.
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import polars as pl
@@ -67,13 +66,13 @@ def summary_row(
         "problems": "; ".join(run.problems),
         "outcome": run.outcome,
         "reason": run.meta.get("reason", ""),
-        "warnings": "; ".join(json.loads(run.meta.get("warnings", "[]") or "[]")),
+        "warnings": "; ".join(run.warnings),
         "timestep_s": run.timestep_s,
-        "log_every": int(run.meta.get("log_every", "1") or 1),
+        "log_every": run.log_every,
         "duration_s": float(states["t_s"].max() or 0.0) if states.height else 0.0,
         "n_bodies": len(run.bodies),
         "ground": ground,
-        "sweep": run.meta.get("sweep", "{}"),
+        "sweep": "{}" if "sweep" in run.checked.problems else run.meta.get("sweep", "{}"),
         "energy_initial_J": e0,
         "energy_final_J": e1,
         "energy_loss_frac": (e0 - e1) / e0 if e0 else None,

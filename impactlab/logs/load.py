@@ -10,7 +10,6 @@ damage; such a run is marked `partial`.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +36,7 @@ from impactlab.logs.decode import (
     loose_payloads,
 )
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS
-from impactlab.logs.metadata import metadata_problem
+from impactlab.logs.metadata import ANALYSIS_KEYS, MetadataCheck, check_channels, check_metadata
 from impactlab.logs.reader import read_mcap
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
@@ -85,15 +84,18 @@ class RunLog:
     Attributes:
         path: the file.
         run_id: the run's id (file stem when the metadata lacks it).
-        meta: the `impactlab.run` record merged with `impactlab.outcome` (strings).
+        meta: the `impactlab.run` record merged with `impactlab.outcome`, as stored (strings).
         bodies: per body name, a frame (run_id, t_ns, t_s, x .. wz), world frame, SI units.
         contacts: one row per contact point (run_id, t_ns, t_s, geom1, geom2, body1, body2,
             point, x .. fz), see `schemas/impactlab.proto`.
         energy: MuJoCo's energy (run_id, t_ns, t_s, kinetic, potential, total), J.
         events: the log's text events (run_id, t_ns, level, message).
-        partial: the file is damaged or incomplete; `problems` says how.
+        partial: the file is damaged or incomplete, or its metadata; `problems` says how.
         clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
             surface, clearance_m); empty in logs written before it was recorded.
+        checked: the metadata checked against its schema and the channels
+            (`impactlab.logs.metadata`): typed values, and the problem of each bad key. The
+            properties below read it, so a bad value reads as unknown.
     """
 
     path: Path
@@ -105,109 +107,193 @@ class RunLog:
     events: pl.DataFrame
     partial: bool = False
     problems: list[str] = field(default_factory=list)
+    checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
 
     @property
     def experiment(self) -> str:
-        """The experiment's name."""
-        return self.meta.get("experiment", "")
+        """The experiment's name ("" when unknown)."""
+        return self.checked.values.get("experiment", "")
 
     @property
     def sweep(self) -> dict[str, Any]:
-        """This run's sweep point: {dotted path: value}."""
-        return json.loads(self.meta.get("sweep", "{}"))
+        """This run's sweep point: {dotted path: value} ({} when unknown)."""
+        return self.checked.values.get("sweep", {})
 
     @property
     def sweep_point(self) -> tuple[int, int]:
-        """(index, size) of this run in its sweep grid; (0, 1) without a sweep."""
-        return int(self.meta.get("sweep_index", 0)), int(self.meta.get("sweep_size", 1))
+        """(index, size) of this run in its sweep grid; (0, 1) without a sweep or unknown."""
+        values = self.checked.values
+        return values.get("sweep_index", 0), values.get("sweep_size", 1)
 
     @property
     def spec(self) -> dict[str, Any]:
-        """The resolved spec document the run was made from."""
-        return json.loads(self.meta.get("spec", "{}"))
+        """The resolved spec document the run was made from ({} when unknown)."""
+        return self.checked.values.get("spec", {})
 
     @property
     def body_info(self) -> dict[str, BodyInfo]:
-        """Mass, inertia, radius and shape of each free body."""
+        """Mass, inertia, radius and shape of each free body ({} when unknown)."""
         out = {}
-        for b in json.loads(self.meta.get("bodies", "[]")):
+        for b in self.checked.values.get("bodies", []):
             radius = b.get("radius")
             rest = b.get("rest_height_m", radius)  # older logs: spheres only
             shape = b.get("shape", "sphere" if radius is not None else "")
-            geoms = tuple(b.get("geoms", ()))
+            inertia = tuple(float(x) for x in b["inertia"])
             out[b["name"]] = BodyInfo(
-                b["name"], b["mass"], tuple(b["inertia"]), radius, rest, shape, geoms
+                b["name"], float(b["mass"]), inertia, radius, rest, shape, tuple(b.get("geoms", ()))
             )
         return out
 
     @property
     def surfaces(self) -> list[SurfaceInfo] | None:
-        """The ground surfaces; None for logs written before they were recorded."""
-        if "ground" not in self.meta:
+        """The ground surfaces; None for logs written before they were recorded (or when
+        the value is damaged: the analysis refuses such a run)."""
+        ground = self.checked.values.get("ground")
+        if ground is None:
             return None
         return [
             SurfaceInfo(s["name"], s["type"], float(s["level_m"]), bool(s["distance"]))
-            for s in json.loads(self.meta["ground"])
+            for s in ground
         ]
 
     @property
     def static_potential_J(self) -> float:
         """MuJoCo's potential energy of the static bodies (0 in logs that do not say), J."""
-        return float(self.meta.get("static_potential_J") or 0.0)
+        return float(self.checked.values.get("static_potential_J", 0.0))
 
     @property
     def integrator(self) -> str:
         """MuJoCo's integrator ("Euler" for logs that do not say)."""
-        spec = self.meta.get("integrator") or self.spec.get("options", {}).get("integrator")
-        return spec or "Euler"
+        options = self.spec.get("options") or {}
+        spec = options.get("integrator") if isinstance(options, dict) else None
+        return self.checked.values.get("integrator") or spec or "Euler"
 
     @property
     def gravity(self) -> np.ndarray:
-        """Gravity vector, m/s^2, (3,)."""
-        return np.array(json.loads(self.meta.get("gravity", "[0, 0, -9.81]")), dtype=float)
+        """Gravity vector, m/s^2, (3,).
+
+        Raises:
+            LogError: the log does not say (its metadata is missing or damaged).
+        """
+        return np.array(self._known("gravity"), dtype=float)
 
     @property
     def plane_z(self) -> float | None:
-        """Height of the ground plane in m, or None without a plane."""
-        value = self.meta.get("plane_z", "")
-        return float(value) if value else None
+        """Height of the ground plane in m, or None without a plane (or when unknown)."""
+        return self.checked.values.get("plane_z")
 
     @property
     def timestep_s(self) -> float:
-        """The simulation timestep in s."""
-        return float(self.meta["timestep_s"])
+        """The simulation timestep in s.
+
+        Raises:
+            LogError: the log does not say (its metadata is missing or damaged).
+        """
+        return float(self._known("timestep_s"))
+
+    @property
+    def log_every(self) -> int:
+        """Simulation steps between two logged rows (1 when the log does not say)."""
+        return int(self.checked.values.get("log_every", 1))
 
     @property
     def outcome(self) -> str:
-        """completed, unstable, or incomplete (the log has no outcome record)."""
-        return self.meta.get("outcome", "incomplete")
+        """completed, unstable, or incomplete (no outcome record, or an unknown outcome)."""
+        return self.checked.values.get("outcome", "incomplete")
+
+    @property
+    def warnings(self) -> list[str]:
+        """The run's warnings, as recorded ([] when unknown)."""
+        return self.checked.values.get("warnings", [])
+
+    def unanalyzable(self) -> str | None:
+        """Why the analysis cannot trust this run's metadata, or None.
+
+        The masses, sizes, gravity, ground, timestep, logging stride and integrator must be
+        known and agree with the channels: every energy, height and restitution depends on
+        them (keys older logs lack, `format.RUN_KEYS_ADDED`, may be missing).
+        """
+        missing = [
+            k
+            for k in ANALYSIS_KEYS
+            if k not in self.meta
+            and k not in self.checked.problems
+            and k not in logformat.RUN_KEYS_ADDED
+        ]
+        if missing and not self.meta:
+            return "no impactlab.run metadata: cannot analyze"
+        parts = [f"{k}: {p}" for k, p in self.checked.blocking().items()]
+        parts += [f"{k}: missing" for k in missing]
+        return f"damaged metadata: {'; '.join(parts)}: cannot analyze" if parts else None
+
+    def _known(self, key: str) -> Any:
+        if key in self.checked.values:
+            return self.checked.values[key]
+        problem = self.checked.problems.get(key, "missing")
+        raise LogError(str(self.path), f"damaged metadata: {key}: {problem}")
 
 
-def find_logs(inputs: Sequence[str | Path]) -> list[Path]:
-    """Expand files, folders (their *.mcap, recursively) and glob patterns, sorted, unique."""
+class NoLogs(LogError):
+    """No input holds a log: a mistake in the command, nothing was done (exit code 2)."""
+
+    exit_code = 2
+
+
+def find_logs(
+    inputs: Sequence[str | Path], *, empty: list[tuple[str, str]] | None = None
+) -> list[Path]:
+    """Expand files, folders (their *.mcap files, recursively) and glob patterns, sorted, unique.
+
+    A folder named like a log (`x.mcap/`) is searched like any folder. Inputs that give no
+    log are added to `empty` as (input, why), when it is given.
+    """
     out: list[Path] = []
     for item in inputs:
         path = Path(item)
         if path.is_dir():
-            out += sorted(path.rglob("*.mcap"))
+            found = sorted(p for p in path.rglob("*.mcap") if not p.is_dir())
+            why = "a folder without .mcap logs"
         elif any(c in str(item) for c in "*?["):
-            out += (
+            found = (
                 sorted(Path().glob(str(item)))
                 if not path.is_absolute()
                 else sorted(Path(path.anchor).glob(str(path.relative_to(path.anchor))))
             )
+            found = [p for p in found if not p.is_dir()]
+            why = "matches no file"
         else:
-            out.append(path)
+            found, why = [path], ""
+        if not found and empty is not None:
+            empty.append((str(item), why))
+        out += found
     return list(dict.fromkeys(out))
+
+
+def require_logs(inputs: Sequence[str | Path]) -> tuple[list[Path], list[tuple[str, str]]]:
+    """The logs the inputs name (`find_logs`), and the inputs that name none, with why.
+
+    Raises:
+        NoLogs: no input names a log (a folder without logs, a pattern matching nothing).
+    """
+    empty: list[tuple[str, str]] = []
+    paths = find_logs(inputs, empty=empty)
+    if not paths:
+        if len(empty) == 1:
+            raise NoLogs(*empty[0])
+        raise NoLogs(" ".join(map(str, inputs)) or "(no input)", "none of these holds a log")
+    return paths, empty
 
 
 def load_log(path: str | Path) -> RunLog:
     """Decode one log into frames.
 
+    Damage and bad metadata do not raise: whatever is readable is returned, marked partial,
+    with one problem per damage and per bad metadata key (`RunLog.problems`).
+
     Raises:
-        LogError: the file does not exist, is not MCAP, holds no impactlab channel, or its
-            metadata values do not parse (damaged).
+        LogError: the file does not exist, is not a regular file, is too large, is not MCAP,
+            or holds no impactlab channel or metadata.
     """
     path = Path(path)
     try:
@@ -218,7 +304,7 @@ def load_log(path: str | Path) -> RunLog:
         raise LogError(str(path), "is a folder, not a log") from None
     except OSError as exc:
         raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    except ValueError as exc:
+    except ValueError as exc:  # not a regular file, too large, not MCAP
         raise LogError(str(path), str(exc)) from None
     data = [c for c in raw.channels.values() if c.schema in DATA_SCHEMAS]
     if logformat.RUN_METADATA not in raw.metadata and not any(c.pieces for c in data):
@@ -232,10 +318,8 @@ def load_log(path: str | Path) -> RunLog:
         meta.update(raw.metadata[logformat.OUTCOME_METADATA])
     else:
         problems.append("no outcome record: the log is incomplete")
-    damaged = metadata_problem(meta)
-    if damaged:
-        raise LogError(str(path), f"damaged metadata: {damaged}")
-    run_id = meta.get("run_id", path.stem)
+    checked = check_metadata(raw.metadata)
+    run_id = checked.values.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
     clearance_frames: list[pl.DataFrame] = []
@@ -267,6 +351,9 @@ def load_log(path: str | Path) -> RunLog:
         if contact_frames
         else empty_contacts(run_id)
     )
+    times = {name: f["t_ns"].to_numpy() for name, f in bodies.items()}
+    check_channels(checked, times, complete=not raw.problems)
+    problems += checked.lines()
     return RunLog(
         path=path,
         run_id=run_id,
@@ -277,5 +364,6 @@ def load_log(path: str | Path) -> RunLog:
         events=events,
         partial=bool(problems),
         problems=problems,
+        checked=checked,
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
     )

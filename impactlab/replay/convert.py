@@ -110,28 +110,47 @@ def _times(t_ns: np.ndarray) -> rr.TimeColumn:
 def body_colors(run: RunLog) -> dict[str, tuple[int, int, int]]:
     """Each body's colour (0-255 RGB) from the spec's rgba, else from the default palette."""
     spec_bodies = run.spec.get("bodies", {})
-    out = {}
-    for i, name in enumerate(run.bodies):
-        rgba = spec_bodies.get(name, {}).get("rgba") or BODY_PALETTE[i % len(BODY_PALETTE)]
-        out[name] = tuple(round(255 * c) for c in rgba[:3])
-    return out
+    return {
+        name: _rgb(spec_bodies.get(name, {}).get("rgba"), BODY_PALETTE[i % len(BODY_PALETTE)])
+        for i, name in enumerate(run.bodies)
+    }
+
+
+def _rgb(rgba: object, default: Sequence[float]) -> tuple[int, int, int]:
+    """0-255 RGB of an rgba list of numbers in [0, 1]; `default` when it is anything else."""
+    ok = (
+        isinstance(rgba, list)
+        and len(rgba) in (3, 4)
+        and all(isinstance(c, int | float) and 0.0 <= c <= 1.0 for c in rgba)
+    )
+    values = rgba if ok else default
+    return tuple(round(255 * float(c)) for c in values[:3])  # type: ignore[index,return-value]
+
+
+def _size(value: object, default: Sequence[float]) -> np.ndarray:
+    """A plane's half sizes (x, y) in m from the spec; `default` unless two positive numbers."""
+    ok = (
+        isinstance(value, list)
+        and len(value) >= 2
+        and all(isinstance(v, int | float) and 0 < v < 1e6 for v in value[:2])
+    )
+    return np.asarray((value if ok else default)[:2], dtype=float)  # type: ignore[index]
 
 
 def _log_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
     """The plane, cut to 0.5 m around where the bodies go (within its real size)."""
     if run.plane_z is None:
         return
-    plane = run.spec.get("plane", {})
-    size = np.asarray((plane.get("size") or [5.0, 5.0])[:2], dtype=float)
+    plane = run.spec.get("plane") or {}
+    size = _size(plane.get("size"), [5.0, 5.0])
     reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
     sx, sy = np.minimum(size, reach + 0.5)
-    rgba = plane.get("rgba") or [0.8, 0.8, 0.8, 1.0]
     rec.log(
         f"{prefix}/world/plane",
         rr.Boxes3D(
             half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
             centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
-            colors=[[int(255 * c) for c in rgba[:3]]],
+            colors=[_rgb(plane.get("rgba"), [0.8, 0.8, 0.8])],
             fill_mode="solid",
         ),
         static=True,

@@ -82,16 +82,16 @@ def normal_kinematics(run: RunLog, pair: Pair) -> tuple[np.ndarray, np.ndarray]:
     For the plane: height of the lowest point above the plane and vz. For two spheres: distance
     of the centres minus both radii, and (v2 - v1) along the line from the first to the second.
     """
-    info = run.body_info
+    radius = {name: b.radius or 0.0 for name, b in run.body_info.items()}  # 0: unknown
     b = run.bodies[pair.second].select("x", "y", "z", "vx", "vy", "vz").to_numpy()
-    r2 = info[pair.second].radius or 0.0
+    r2 = radius.get(pair.second, 0.0)
     if pair.first == WORLD:
         return b[:, 2] - r2 - float(run.plane_z or 0.0), b[:, 5]
     a = run.bodies[pair.first].select("x", "y", "z", "vx", "vy", "vz").to_numpy()
     d = b[:, :3] - a[:, :3]
     dist = np.linalg.norm(d, axis=1)
     n = d / np.where(dist > 0, dist, 1.0)[:, None]
-    gap = dist - r2 - (info[pair.first].radius or 0.0)
+    gap = dist - r2 - radius.get(pair.first, 0.0)
     return gap, np.einsum("ij,ij->i", b[:, 3:] - a[:, 3:], n)
 
 
