@@ -15,40 +15,36 @@
   a NaN against a number (or an infinity against anything else) always differs. With
   `atol = rtol = 0` the comparison is exact (decoded doubles equal, so -0.0 equals 0.0).
 - text fields (contact body names, event level and message) must be equal.
-- metadata, key by key (records `impactlab.run` and `impactlab.outcome`), as exact strings,
-  except the keys in `ignore_meta` (by default `impactlab_version`: a new release with the
-  same physics gives an equal log). JSON values (spec, sweep, bodies, ...) are reported by
-  the paths inside them that changed.
-- attachments (`model.xml`) byte for byte; a difference names the first differing line.
+- metadata, key by key (records `impactlab.run` and `impactlab.outcome`), except the keys in
+  `ignore_meta` (by default `impactlab_version`: a new release with the same physics gives an
+  equal log): the numbers in them (a timestep, the masses in `bodies`, a solref in `spec`)
+  within the tolerance, the rest exactly; JSON values are reported by the paths inside them
+  that changed (`impactlab.logs.diff_meta`).
+- attachments (`model.xml`): as text, the numbers in it within the tolerance and the rest
+  exactly (byte for byte when it is not text); a difference names the first differing line.
 """
 
 from __future__ import annotations
 
-import json
-from collections.abc import Iterable, Mapping
-from pathlib import Path
+from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
 import polars as pl
-from mcap.records import Attachment
-from mcap.stream_reader import StreamReader
 
 from impactlab.logs import format as logformat
+from impactlab.logs.diff_meta import compare_attachments, compare_meta, read_attachments
 from impactlab.logs.diff_result import (
     CONTACT_TEXT_FIELDS,
     DEFAULT_IGNORED_META,
     DEFAULT_TOLERANCE,
     EVENT_FIELDS,
     EXACT,
-    AttachmentDiff,
     ChannelDiff,
     FieldDiff,
     LogDiff,
-    MetaDiff,
     Missing,
     Tolerance,
-    short,
     topic_order,
 )
 from impactlab.logs.load import RunLog
@@ -92,9 +88,11 @@ def diff_logs(
         tolerance=tolerance,
         ignored_meta=ignored,
         channels=tuple(channels),
-        meta=tuple(compare_meta(a.meta, b.meta, ignore=ignored)),
+        meta=tuple(compare_meta(a.meta, b.meta, ignore=ignored, tolerance=tolerance)),
         attachments=tuple(
-            compare_attachments(read_attachments(a.path), read_attachments(b.path))
+            compare_attachments(
+                read_attachments(a.path), read_attachments(b.path), tolerance=tolerance
+            )
             if attachments
             else ()
         ),
@@ -293,108 +291,3 @@ def _text_diff(
         first_a=va[i],
         first_b=vb[i],
     )
-
-
-def compare_meta(
-    a: Mapping[str, str], b: Mapping[str, str], *, ignore: Iterable[str] = ()
-) -> list[MetaDiff]:
-    """Metadata keys whose values differ, in the order of the format (then unknown keys)."""
-    skip = set(ignore)
-    known = logformat.RUN_KEYS + logformat.OUTCOME_KEYS
-    keys = [k for k in known if k in a or k in b]
-    keys += sorted((a.keys() | b.keys()) - set(known))
-    out = []
-    for key in keys:
-        if key in skip or a.get(key) == b.get(key):
-            continue
-        record = (
-            logformat.OUTCOME_METADATA if key in logformat.OUTCOME_KEYS else logformat.RUN_METADATA
-        )
-        out.append(
-            MetaDiff(record, key, a.get(key), b.get(key), _json_changes(a.get(key), b.get(key)))
-        )
-    return out
-
-
-def _json_changes(a: str | None, b: str | None) -> tuple[str, ...]:
-    """For two JSON containers: the paths inside them whose values differ."""
-    try:
-        ja, jb = json.loads(a or ""), json.loads(b or "")
-    except ValueError:
-        return ()
-    if not isinstance(ja, dict | list) or not isinstance(jb, dict | list):
-        return ()
-    fa, fb = _flatten(ja), _flatten(jb)
-    out = []
-    for path in list(dict.fromkeys([*fa, *fb])):
-        if fa.get(path, _ABSENT) != fb.get(path, _ABSENT):
-            out.append(f"{path or '(value)'}: A {_json_value(fa, path)}, B {_json_value(fb, path)}")
-    return tuple(out)
-
-
-_ABSENT = object()
-
-
-def _json_value(flat: Mapping[str, Any], path: str) -> str:
-    return short(json.dumps(flat[path])) if path in flat else "(absent)"
-
-
-def _flatten(value: Any, prefix: str = "") -> dict[str, Any]:
-    """Nested dicts and lists of containers as {dotted path: leaf}; scalar lists are leaves."""
-    if isinstance(value, dict) and value:
-        out: dict[str, Any] = {}
-        for k, v in value.items():
-            out |= _flatten(v, f"{prefix}.{k}" if prefix else str(k))
-        return out
-    if isinstance(value, list) and any(isinstance(v, dict | list) for v in value):
-        out = {}
-        for i, v in enumerate(value):
-            out |= _flatten(v, f"{prefix}[{i}]")
-        return out
-    return {prefix: value}
-
-
-def read_attachments(path: Path) -> dict[str, bytes]:
-    """Every complete attachment record of an MCAP file (a damaged tail ends the read)."""
-    out: dict[str, bytes] = {}
-    try:
-        with open(path, "rb") as stream:
-            for record in StreamReader(stream, skip_magic=False, validate_crcs=True).records:
-                if isinstance(record, Attachment):
-                    out[record.name] = bytes(record.data)
-    except Exception:  # a damaged file: load_log has already reported it as partial
-        pass
-    return out
-
-
-def compare_attachments(a: Mapping[str, bytes], b: Mapping[str, bytes]) -> list[AttachmentDiff]:
-    """Per attachment name: equal, missing from one log, or the first differing line."""
-    out = []
-    for name in sorted(a.keys() | b.keys()):
-        da, db = a.get(name), b.get(name)
-        size_a = None if da is None else len(da)
-        size_b = None if db is None else len(db)
-        if da == db:
-            out.append(AttachmentDiff(name, True, size_a, size_b))
-            continue
-        if da is None or db is None:
-            out.append(AttachmentDiff(name, False, size_a, size_b))
-            continue
-        la = da.decode(errors="replace").splitlines()
-        lb = db.decode(errors="replace").splitlines()
-        line = next(
-            (k for k, (x, y) in enumerate(zip(la, lb, strict=False)) if x != y),
-            min(len(la), len(lb)),
-        )
-        out.append(
-            AttachmentDiff(
-                name,
-                False,
-                size_a,
-                size_b,
-                first_line=line + 1,
-                line_a=la[line].strip() if line < len(la) else None,
-                line_b=lb[line].strip() if line < len(lb) else None,
-            )
-        )
-    return out
