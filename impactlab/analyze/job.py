@@ -1,7 +1,9 @@
 """The analysis job: logs -> every run analyzed -> tables (and, when asked, files).
 
 Each unreadable input is reported (a progress line at level "error") and the others are
-still analyzed.
+still analyzed. The files are written into a staging folder and published as a set when all
+are written (`publish`): an interrupted analysis leaves the previous results as they were,
+and a new one removes the files of the previous one that it does not write again.
 """
 
 from __future__ import annotations
@@ -10,12 +12,12 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from impactlab.analyze.batch import analyze_logs, slim
+from impactlab.analyze.publish import publish, staged
 from impactlab.analyze.tables import AnalysisResult, tables
 from impactlab.analyze.write import write_all
-from impactlab.errors import LogError
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
-from impactlab.logs.load import find_logs
+from impactlab.logs.load import require_logs
 from impactlab.progress import Progress, say
 
 
@@ -45,20 +47,38 @@ def run_analysis(
 
     Raises:
         OutputError: the output folder cannot be written (exit code 2).
-        LogError: no input names any log.
+        NoLogs: no input names any log (exit code 2); an input among others that names none
+            is reported as failed.
     """
+    paths, empty = require_logs(inputs)
     out = None if out_dir is None else Path(out_dir)
-    if out is not None:
-        check_writable(out)
-    paths = find_logs(inputs)
-    if not paths:
-        raise LogError(" ".join(map(str, inputs)), "no logs found")
-    draw = out is not None and figures
-    fig_dir = out / "figures" if draw and out is not None else None
+    if out is None:
+        return _analysis(paths, empty, None, None, figures, report, executor, progress)
+    check_writable(out)
+    with staged(out) as stage:
+        return _analysis(paths, empty, out, stage, figures, report, executor, progress)
+
+
+def _analysis(
+    paths: Sequence[Path],
+    empty: Sequence[tuple[str, str]],
+    out: Path | None,
+    stage: Path | None,
+    figures: bool,
+    report: bool,
+    executor: Executor | None,
+    progress: Progress | None,
+) -> AnalysisResult:
+    """Analyze; with `out`, write every file into `stage` and then publish them into `out`."""
+    draw = stage is not None and figures
+    fig_dir = stage / "figures" if draw and stage is not None else None
     done = analyze_logs(paths, fig_dir=fig_dir, executor=executor, progress=progress)
     analyses = [slim(d.analysis) for d in done if d.analysis is not None]
     run_figs = [d.figures for d in done if d.analysis is not None]
     failed = [d.error for d in done if d.error is not None]
+    for where, why in empty:
+        say(progress, "analyze", f"impactlab: error: {where}: {why}", "error")
+    failed = [*empty, *failed]
     for a in analyses:
         if a.run.partial:
             problems = "; ".join(a.run.problems)
@@ -69,8 +89,9 @@ def run_analysis(
                 "warning",
             )
     result = tables(analyses, out, failed)
-    if analyses and out is not None:
-        result.files = write_all(result, analyses, run_figs, out=out, figures=draw, report=report)
+    if analyses and out is not None and stage is not None:
+        written = write_all(result, analyses, run_figs, out=stage, figures=draw, report=report)
+        result.files = publish(stage, out, written)
         where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
         say(progress, "analyze", f"{len(analyses)} run(s) analyzed, {len(failed)} failed; {where}")
     return result
