@@ -95,9 +95,13 @@ def test_unwritable_output(logs, tmp_path, capsys):
 
 
 def test_no_logs_found(tmp_path, capsys):
+    """Nothing to analyze is a mistake in the command: one line, exit 2, nothing written."""
     code = main(["analyze", str(tmp_path / "*.mcap"), "-o", str(tmp_path / "r")])
-    assert code == 1
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert code == 2
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"impactlab: error: {tmp_path / '*.mcap'}: matches no file"
+    ]
+    assert not (tmp_path / "r").exists()
 
 
 def test_analysis_does_not_import_mujoco(logs, tmp_path):

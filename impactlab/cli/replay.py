@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     import rerun as rr
 
     from impactlab.errors import ImpactlabError, LogError
-    from impactlab.logs.load import find_logs
+    from impactlab.logs.load import require_logs
     from impactlab.progress import console_progress
     from impactlab.replay.recordings import replay_logs
 
@@ -61,10 +61,10 @@ def run(args: argparse.Namespace) -> int:
     if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
         logs.append(Path(connect))
         connect = DEFAULT_URL
-    paths = find_logs(logs)
-    if not paths:
-        raise LogError(" ".join(map(str, logs)), "no logs found")
-    failed: list[ImpactlabError] = []
+    paths, empty = require_logs(logs)
+    failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
+    for error in failed:
+        print(f"impactlab: error: {error}", file=sys.stderr)
     sinks: list = []
     if args.spawn:
         rr.spawn(connect=False, executable_path=_rerun_executable())

@@ -42,18 +42,19 @@ def replay(
         verbose: report progress on the console (when `progress` is None).
 
     Raises:
-        LogError: no input names a log, or the analysis folder cannot be read.
+        NoLogs: no input names a log (a folder without logs, a pattern matching nothing).
+        OutputError: `out` cannot be written (e.g. it is a file that is not `.rrd`).
+        LogError: the analysis folder cannot be read.
     """
-    from impactlab.errors import LogError
-    from impactlab.logs.load import find_logs
-    from impactlab.progress import reporter
+    from impactlab.logs.load import require_logs
+    from impactlab.progress import reporter, say
     from impactlab.replay.recordings import replay_logs
 
     inputs = [logs] if isinstance(logs, str | Path) else list(logs)
-    paths = find_logs(inputs)
-    if not paths:
-        raise LogError(" ".join(map(str, inputs)), "no logs found")
+    paths, empty = require_logs(inputs)
     with reporter(progress, verbose) as shown:
+        for where, why in empty:
+            say(shown, "replay", f"impactlab: error: {where}: {why}", "error")
         return replay_logs(
             paths,
             out=None if out is None else Path(out),

@@ -14,7 +14,7 @@ from pathlib import Path
 import rerun as rr
 
 from impactlab.errors import ImpactlabError, LogError
-from impactlab.files import temporary_path
+from impactlab.files import OutputError, check_writable, temporary_path
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 from impactlab.replay.blueprint import replay_blueprint
@@ -50,11 +50,18 @@ def replay_logs(
 
     Raises:
         LogError: the analysis folder is missing or holds an unreadable table.
+        OutputError: `out` cannot be written: a file that is not `.rrd`, a folder that
+            cannot be created or written (checked before any conversion).
     """
     tables = load_analysis(analysis_dir) if analysis_dir is not None else None
     if out is not None and out.suffix.lower() == ".rrd" and not out.is_dir():
+        check_writable(out.parent)
         groups = [(out, list(logs))]
     else:
+        if out is not None and out.exists() and not out.is_dir():
+            raise OutputError(out, "is a file, not a folder (give FILE.rrd for one recording)")
+        if out is not None:
+            check_writable(out)
         folder = out
         groups = [((folder or log.parent) / f"{log.stem}.rrd", [log]) for log in logs]
     tracker = Tracker("replay", len(groups), progress)
