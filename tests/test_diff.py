@@ -129,6 +129,7 @@ def test_identical_logs_are_equal(base, capsys):
 
 def test_recording_twice_gives_bitwise_equal_logs(base, tmp_path, capsys):
     again = record_spec(tmp_path)
+    # bitwise: both recorded on this machine in this session (across machines: test_golden)
     # the spec's path is compared by default: the two specs are in different folders
     code, out, _ = run_cli(capsys, base, again, "--atol", "0", "--rtol", "0")
     assert code == 1

@@ -96,6 +96,7 @@ def test_ray_logs_are_byte_identical_to_the_local_executor(local_logs, ray_sweep
     assert [r.status for r in sweep] == ["recorded"] * 4
     assert sorted(p.name for p in out.glob("*.mcap")) == sorted(local_logs)
     for name, data in local_logs.items():
+        # byte for byte: both recorded on this machine in this session (local Ray workers)
         assert (out / name).read_bytes() == data, name
     assert not list(out.glob("*.partial"))
 
@@ -138,6 +139,7 @@ def test_ray_analysis_equals_the_local_analysis(
             )
         else:
             assert (tmp_path / "ray" / file).read_text() == (tmp_path / "local" / file).read_text()
+    # exact: the same logs analyzed on this machine in one session, here and by local workers
     assert (tmp_path / "ray/report.md").read_text() == (tmp_path / "local/report.md").read_text()
     assert [p.relative_to(tmp_path / "ray") for p in there.files] == [
         p.relative_to(tmp_path / "local") for p in here.files
@@ -255,4 +257,4 @@ def test_an_mjcf_model_records_the_same_on_ray(ray_executor, tmp_path):
     sweep = record_runs(runs, tmp_path / "ray", executor=ray_executor)
     (summary,) = sweep.recorded
     assert summary.outcome == "completed"
-    assert summary.path.read_bytes() == local.path.read_bytes()
+    assert summary.path.read_bytes() == local.path.read_bytes()  # same machine, same session

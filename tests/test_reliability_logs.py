@@ -104,7 +104,8 @@ def assert_error_line(err: str, path: Path) -> str:
 
 
 def assert_prefix_of(run: RunLog, reference: RunLog) -> None:
-    """Every frame of `run` holds rows of the intact log: same times, same values."""
+    """Every frame of `run` holds rows of the intact log: same times, same values (exactly:
+    both are decoded from the same bytes, no arithmetic involved)."""
     assert set(run.bodies) <= set(reference.bodies)
     for name, frame in run.bodies.items():
         full = reference.bodies[name]
