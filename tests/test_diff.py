@@ -401,3 +401,33 @@ def test_tolerance_rejects_negative_values():
 def test_diff_logs_of_a_log_with_itself_is_equal(base):
     run = load_log(base)
     assert diff_logs(run, run, tolerance=EXACT).equal
+
+
+def test_numbers_in_metadata_and_model_compare_within_the_tolerance():
+    """A last-bit difference in a number of the metadata or the model is no difference (another
+    CPU may round numpy's exp differently); a real one is, and text around numbers is exact."""
+    tol = Tolerance(atol=0.0, rtol=1e-12)
+    a = {
+        "timestep_s": "1e-05",
+        "spec": json.dumps({"contact": {"solref": [-436000.0, -44.87587001604219]}}),
+    }
+    b = {
+        "timestep_s": "1.0000000000000002e-05",
+        "spec": json.dumps({"contact": {"solref": [-436000.0000000001, -44.875870016042194]}}),
+    }
+    assert compare_meta(a, b, tolerance=tol) == []
+    assert [m.key for m in compare_meta(a, b)] == ["spec", "timestep_s"]  # EXACT by default
+    c = {**b, "spec": json.dumps({"contact": {"solref": [-436000.0, -44.9]}})}
+    (spec,) = compare_meta(a, c, tolerance=tol)
+    assert spec.changes == (
+        "contact.solref: A [-436000.0, -44.87587001604219], B [-436000.0, -44.9]",
+    )
+    assert [m.key for m in compare_meta({"v": "1"}, {"v": "1.0"}, tolerance=tol)] == ["v"]
+    assert [m.key for m in compare_meta({"e": "ball"}, {"e": "balls"}, tolerance=tol)] == ["e"]
+    model_a = {"model.xml": b'<pair solref="-436000.0000000001 -44.87587001604219"/>\n'}
+    model_b = {"model.xml": b'<pair solref="-436000 -44.875870016042194"/>\n'}
+    model_c = {"model.xml": b'<pair solimp="-436000 -44.875870016042194"/>\n'}
+    assert compare_attachments(model_a, model_b, tolerance=tol)[0].equal
+    assert not compare_attachments(model_a, model_b)[0].equal
+    (other,) = compare_attachments(model_a, model_c, tolerance=tol)
+    assert not other.equal and other.first_line == 1
