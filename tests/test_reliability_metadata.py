@@ -164,6 +164,10 @@ def test_the_schema_declares_every_key_the_format_has():
     assert set(KEYS) == set(logformat.RUN_KEYS) | set(logformat.OUTCOME_KEYS)
     assert set(ANALYSIS_KEYS) <= set(KEYS)
     assert {k for k in KEYS if k not in FREE_TEXT} == set(BAD)  # every typed key has cases
+    doc = (Path(__file__).parents[1] / "docs" / "log-format.md").read_text()
+    for key in KEYS.values():  # the documented table is the schema
+        needed = "needed" if key.name in ANALYSIS_KEYS else ""
+        assert f"| `{key.name}` | `{key.record}` | {key.holds} | {needed} |" in doc, key.name
 
 
 @pytest.mark.parametrize("case", cases(), ids=case_id)

@@ -1,8 +1,9 @@
 """`impactlab analyze LOGS... -o results/`: tables, figures and report.md.
 
 Each unreadable input gives one line on stderr (`impactlab: error: <path>: <problem>`) and the
-others are still analyzed; the exit code is 1 when any input failed, 2 when the output folder
-cannot be written.
+others are still analyzed; the exit code is 1 when any input failed, 2 when no input holds a
+log or the output folder cannot be written. The files replace the folder's previous analysis
+as one set (`impactlab.analyze.publish`).
 """
 
 from __future__ import annotations
