@@ -18,8 +18,10 @@ import matplotlib.image
 import polars as pl
 import pytest
 
-from impactlab.analyze.publish import MANIFEST, STAGING_PREFIX, read_manifest
 from impactlab.cli import main
+
+MANIFEST = ".impactlab-analysis.json"  # documented in docs/reliability.md
+STAGING_PREFIX = ".impactlab-staging-"
 
 SPEC = """
 name = "drops"
@@ -46,6 +48,12 @@ def add_user_files(out: Path) -> None:
     for name, text in USER_FILES.items():
         (out / name).parent.mkdir(parents=True, exist_ok=True)
         (out / name).write_text(text)
+
+
+def read_manifest(out: Path) -> list[str]:
+    """The files the manifest says impactlab wrote ([] without one)."""
+    path = out / MANIFEST
+    return json.loads(path.read_text())["files"] if path.exists() else []
 
 
 def visible(out: Path) -> set[str]:

@@ -85,11 +85,12 @@ def publish(stage: Path, out: Path, files: Sequence[Path]) -> list[Path]:
         files: the files written, all inside `stage`.
 
     Returns:
-        The files' final paths, in the order of `files`.
+        The files' final paths, in the order of `files` (each once).
 
     Raises:
         OutputError: a file cannot be moved into place (e.g. a folder is in its way).
     """
+    files = list(dict.fromkeys(files))  # two runs of one id draw one figure file, once
     names = [str(PurePosixPath(*Path(f).relative_to(stage).parts)) for f in files]
     with _locked(out / LOCK):
         previous = read_manifest(out)

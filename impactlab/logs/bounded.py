@@ -80,7 +80,7 @@ def read_file(path: Path, *, limit: int | None = None) -> bytes:
     with open(fd, "rb", closefd=True) as stream:
         if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
             raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
-        return stream.read(limit + 1)[:limit]
+        return stream.read(size)  # what the file held when checked (it may still grow)
 
 
 _HINT = f"raise it with the environment variable {MAX_LOG_BYTES_ENV}"
