@@ -48,11 +48,15 @@ def staged(out: Path) -> Iterator[Path]:
     remove_abandoned(out)
     try:
         stage = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
-        owner = open(stage / OWNER, "w")  # noqa: SIM115 (held until the block ends)
+        # the owner file appears under its name only once locked: another analysis cleaning
+        # up never finds it unlocked while this one lives
+        claim = stage / f"{OWNER}.{os.getpid()}"
+        owner = open(claim, "w")  # noqa: SIM115 (held until the block ends)
+        fcntl.flock(owner, fcntl.LOCK_EX)  # held while this process lives
+        os.replace(claim, stage / OWNER)
     except OSError as exc:
         raise OutputError(out, f"cannot write there: {exc.strerror or exc}") from None
     try:
-        fcntl.flock(owner, fcntl.LOCK_EX)  # held while this process lives
         yield stage
     finally:
         shutil.rmtree(stage, ignore_errors=True)
