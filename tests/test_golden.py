@@ -297,7 +297,7 @@ def nudged(golden: Golden, path: Path, *, rel: float | None = None) -> Path:
                     for f in target.DESCRIPTOR.fields:
                         if f.type != f.TYPE_DOUBLE:
                             continue
-                        if f.label == f.LABEL_REPEATED:  # the clearance's distances
+                        if f.is_repeated:  # the clearance's distances
                             values = getattr(target, f.name)
                             values[:] = [_nudge_float(v, rel) for v in values]
                         else:
