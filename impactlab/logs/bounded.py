@@ -115,9 +115,7 @@ def decompress_chunk(body: memoryview, budget: list[int]) -> bytes:
     budget[0] -= uncompressed_size
     try:
         if compression == "zstd":
-            # not ZstdDecompressor.decompress: it trusts the frame's own content size
-            reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
-            raw = reader.read(uncompressed_size + 1) if uncompressed_size else b""
+            raw = _zstd(data, uncompressed_size)
         elif compression == "lz4":
             decompressor = lz4.frame.LZ4FrameDecompressor()
             raw = decompressor.decompress(bytes(data), max_length=uncompressed_size + 1)
@@ -130,3 +128,20 @@ def decompress_chunk(body: memoryview, budget: list[int]) -> bytes:
     if len(raw) != uncompressed_size or (crc and zlib.crc32(raw) != crc):
         raise DamagedData("chunk CRC or size mismatch")
     return raw
+
+
+def _zstd(data: memoryview, declared: int) -> bytes:
+    """At most `declared` + 1 bytes of a zstd chunk (one more tells a chunk that lies).
+
+    `ZstdDecompressor.decompress` allocates what the frame header claims, whatever its
+    `max_output_size`: it is used only when that claim is the chunk's own (the fast path for
+    every well-formed chunk); otherwise the frames are streamed up to the declared size.
+    """
+    try:
+        claimed = zstandard.frame_content_size(data)
+    except zstandard.ZstdError:
+        claimed = -1
+    if claimed == declared and declared > 0:
+        return zstandard.ZstdDecompressor().decompress(data, max_output_size=declared)
+    reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
+    return reader.read(declared + 1) if declared else b""
