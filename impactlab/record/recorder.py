@@ -66,6 +66,7 @@ def record_runs(
             out_dir,
             batch_size=batch_size,
             threads=threads,
+            reuse=None if overwrite else lambda run: reusable(out_dir, run),
             on_run=lambda run: count_run(tracker, run),
         )
     else:
