@@ -179,25 +179,23 @@ class _Batch:
 
 
 def _advance(
-    a: _Active, rows: np.ndarray, last_state: np.ndarray, step0: int, times: np.ndarray
+    a: _Active,
+    rows: np.ndarray,
+    last_state: np.ndarray,
+    step0: int,
+    times: np.ndarray | None = None,
 ) -> np.ndarray:
     """Feed one chunk of a run's rows to its stop rules; returns the rows it keeps (all
     simulated steps of the chunk up to its stop, (n, nsensordata)).
 
-    `times` is the simulation time after each step of the rollout, (nstep + 1,): where it
-    stops advancing, MuJoCo raised a warning in the step before and stopped the run.
+    `times` is the simulation time after each step of the rollout, (nstep + 1,) (see
+    `_warning`).
     """
     n = min(rows.shape[0], a.total_steps - step0)
-    warned = _first(times[1 : n + 1] == times[:n])  # step of the chunk that raised it
-    limit = n if warned is None else warned
-    verdict = a.monitor.update(rows[:limit], step0) if limit else None
-    if verdict is None and warned is not None:
-        step = step0 + warned
-        t = step * a.request.inst.model.opt.timestep
-        reason = f"MuJoCo warning at t = {t:.6g} s (step {step}): " + first_warning(
-            a.request.inst.model, a.state, warned + 1
-        )
-        verdict = Verdict(step - 1, "unstable", reason)
+    warning = _warning(a, times[: n + 1], step0) if times is not None else None
+    limit = n if warning is None else warning.last_step + 1 - step0
+    verdict = a.monitor.update(rows[:limit], step0) if limit > 0 else None
+    verdict = verdict or warning
     if verdict is None and step0 + n >= a.total_steps:
         verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
     end = n if verdict is None else verdict.last_step - step0 + 1
@@ -208,6 +206,32 @@ def _advance(
     every = a.request.log_every
     first = -step0 % every  # the first row of the chunk whose global step is logged
     return rows[first:end:every]
+
+
+def _warning(a: _Active, times: np.ndarray, step0: int) -> Verdict | None:
+    """The unstable verdict of a run whose chunk raised a MuJoCo warning, else None.
+
+    After a warning, `mujoco.rollout` repeats the run's last state for the rest of the chunk,
+    and a warning that reset the state also reset its time: either way the time after some
+    step is not the chunk's start time plus the steps taken. The chunk is then stepped again
+    alone to find the step that raised the warning and to name it (the rows from that step
+    on are MuJoCo's reset or repeated state, not the run's).
+    """
+    dt = float(a.request.inst.model.opt.timestep)
+    expected = a.state[0] + dt * np.arange(1, times.size + 1)
+    bad = _first(np.abs(times - expected) > 0.5 * dt)
+    if bad is None:
+        return None
+    found = first_warning(a.request.inst.model, a.state, bad + 1)
+    if found is None:
+        step, text = max(bad - 1, 0), "MuJoCo stopped the rollout (a warning not raised again)"
+    else:
+        step, text = found
+    if step >= times.size - 1:  # in the step after the run's last: not the run's
+        return None
+    t = (step0 + step) * dt
+    reason = f"MuJoCo warning at t = {t:.6g} s (step {step0 + step}): {text}"
+    return Verdict(step0 + step - 1, "unstable", reason)
 
 
 def _first(mask: np.ndarray) -> int | None:
