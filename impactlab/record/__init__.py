@@ -46,7 +46,11 @@ def _items(inputs: Inputs) -> list[Any]:
 
 
 def plan(
-    inputs: Inputs, *, overrides: Sequence[str] = (), duration: float | None = None
+    inputs: Inputs,
+    *,
+    overrides: Sequence[str] = (),
+    duration: float | None = None,
+    allow_large: bool = False,
 ) -> list[PlannedRun]:
     """Validate specs or models and return the runs they give, without simulating.
 
@@ -55,13 +59,17 @@ def plan(
             TOML file's content), or a list of them.
         overrides: `PATH=VALUE` settings (VALUE is TOML), e.g. `"ball.mass=2"`.
         duration: time limit in s for MJCF models.
+        allow_large: plan a job beyond the work limits (`impactlab.record.work`).
 
     Raises:
         SpecError: an input, override or option is wrong (the message names it).
+        WorkError: the job is beyond the work limits (and not `allow_large`).
     """
     from impactlab.record.job import plan as plan_runs
 
-    return plan_runs(_items(inputs), overrides=overrides, duration=duration)
+    return plan_runs(
+        _items(inputs), overrides=overrides, duration=duration, allow_large=allow_large
+    )
 
 
 def record(
@@ -71,6 +79,7 @@ def record(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     overwrite: bool = False,
+    allow_large: bool = False,
     executor: Executor | str | None = None,
     progress: Progress | None = None,
     verbose: bool = False,
@@ -84,6 +93,7 @@ def record(
         out: the output folder (created).
         overrides, duration: as for `plan`.
         overwrite: record again runs whose complete log exists.
+        allow_large: record a job beyond the work limits (`impactlab.record.work`).
         executor: "local" (default), "ray", or an `impactlab.executors` executor.
         progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
         verbose: report progress on the console (when `progress` is None).
@@ -93,19 +103,33 @@ def record(
 
     Raises:
         SpecError: an input is wrong (nothing is simulated).
+        WorkError: the job is beyond the work limits (nothing is simulated).
         OutputError: `out` cannot be written.
     """
     from impactlab.executors.choose import executor_for
     from impactlab.progress import reporter
     from impactlab.record.job import PlannedRun
+    from impactlab.record.job import plan as plan_runs
     from impactlab.record.recorder import record_runs
 
     items = _items(inputs)
     runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
     if runs is None:
-        runs = plan(items, overrides=overrides, duration=duration)
+        runs = plan_runs(
+            items,
+            overrides=overrides,
+            duration=duration,
+            allow_large=allow_large,
+        )
     with executor_for(executor) as chosen, reporter(progress, verbose) as shown:
-        return record_runs(runs, Path(out), executor=chosen, overwrite=overwrite, progress=shown)
+        return record_runs(
+            runs,
+            Path(out),
+            executor=chosen,
+            overwrite=overwrite,
+            allow_large=allow_large,
+            progress=shown,
+        )
 
 
 callable_package(__name__, record)

@@ -16,7 +16,6 @@ chunk is then stepped again alone to name the warning (`impactlab.record.mujoco_
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import time
 from collections.abc import Iterable, Iterator
@@ -32,6 +31,7 @@ from impactlab.record.model import InstrumentedModel
 from impactlab.record.mujoco_warnings import first_warning, quiet_mujoco
 from impactlab.record.spec import Stop
 from impactlab.record.stop import StopMonitor, Verdict
+from impactlab.record.work import run_steps
 
 CHUNK_SECONDS = 1.0
 MIN_CHUNK_STEPS = 1000
@@ -47,11 +47,6 @@ def timestep_ns(timestep_s: float) -> int:
 def chunk_steps(timestep_s: float) -> int:
     """Steps per rollout chunk: about CHUNK_SECONDS of simulated time, within bounds."""
     return int(np.clip(round(CHUNK_SECONDS / timestep_s), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
-
-
-def total_steps(max_time_s: float, timestep_s: float) -> int:
-    """Rows of a run that reaches its time limit: steps 0 .. ceil(max_time / timestep)."""
-    return max(1, math.ceil(max_time_s / timestep_s - 1e-9)) + 1
 
 
 @dataclass(eq=False)  # hashable by identity: a key for the run's log while it is written
@@ -129,7 +124,7 @@ class _Batch:
             _Active(
                 request=r,
                 monitor=StopMonitor(r.inst, r.stop, timestep=self.dt),
-                total_steps=total_steps(r.max_time, self.dt),
+                total_steps=run_steps(r.max_time, self.dt),
                 state=r.inst.initial_state(),
             )
             for r in requests
