@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor
+from impactlab.cli.options import add_executor_options, make_executor, path, seconds
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,8 +16,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Simulate each run of the given specs or MJCF models and write one MCAP "
         "log per run to the output folder.",
     )
-    rec.add_argument("inputs", nargs="+", type=Path, metavar="SPEC_OR_MJCF")
-    rec.add_argument("-o", "--out", type=Path, default=Path("logs"), help="output folder (logs/)")
+    rec.add_argument("inputs", nargs="+", type=path, metavar="SPEC_OR_MJCF")
+    rec.add_argument("-o", "--out", type=path, default=Path("logs"), help="output folder (logs/)")
     rec.add_argument(
         "--set",
         dest="overrides",
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     rec.add_argument(
         "--duration",
-        type=float,
+        type=seconds,
         help="time limit in s for MJCF models (or --set stop.max_time=...; one is required)",
     )
     rec.add_argument(

@@ -52,7 +52,7 @@ def batches(
         try:
             inst = run.build()
         except Exception as exc:  # e.g. a model that no longer compiles on a worker
-            fail(run, describe_error(exc))
+            fail(run, str(exc) if isinstance(exc, ImpactlabError) else describe_error(exc))
             continue
         m = inst.model
         this = (m.nq, m.nv, m.na, m.nu, m.nbody, m.ngeom, m.nsensordata, m.opt.timestep)

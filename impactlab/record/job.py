@@ -91,7 +91,9 @@ def plan(
     runs: list[PlannedRun] = []
     for part in parts:
         if isinstance(part, SpecSweep):
-            runs += [_plan_spec(run) for run in part.runs()]
+            planned = [_plan_spec(run) for run in part.runs()]
+            planned[0].build()  # MuJoCo compiles the model (its own checks fail now)
+            runs += planned
         else:
             runs.append(part)
     first: dict[str, PlannedRun] = {}

@@ -31,6 +31,7 @@ MAX_TIME_S = 1e9  # log times are int64 nanoseconds (2^63 ns is 292 years)
 MAX_LOG_EVERY = 1_000_000_000
 MAX_NAME_LENGTH = 64
 MAX_BODIES = 64
+MUJOCO_MINVAL = 1e-15  # mjMINVAL: MuJoCo refuses lighter moving bodies
 
 
 def problem(text: str, field: str = "") -> PydanticCustomError:
@@ -198,6 +199,17 @@ class BodySpec(Section):
     vel: Annotated[Vector(3), unit("m/s")] = (0.0, 0.0, 0.0)
     angvel: Annotated[Vector(3), unit("rad/s")] = (0.0, 0.0, 0.0)
     rgba: Vector(4, item=Fraction) | None = None  # None: a colour of the palette
+
+    @model_validator(mode="after")
+    def _massive(self) -> BodySpec:
+        inertia = 0.4 * self.mass * self.radius**2  # a solid sphere's, kg m^2
+        if min(self.mass, inertia) < MUJOCO_MINVAL:
+            raise problem(
+                f"with radius {self.radius:g} m its inertia is {inertia:.3g} kg m^2, below "
+                f"MuJoCo's minimum {MUJOCO_MINVAL:g} for mass and inertia",
+                "mass",
+            )
+        return self
 
 
 class Body(BodySpec):
