@@ -107,11 +107,14 @@ def record(
         OutputError: `out` cannot be written.
     """
     from impactlab.executors.choose import executor_for
+    from impactlab.files import OutputError
     from impactlab.progress import reporter
     from impactlab.record.job import PlannedRun
     from impactlab.record.job import plan as plan_runs
     from impactlab.record.recorder import record_runs
 
+    if not str(out).strip():
+        raise OutputError(str(out), "the output folder must not be empty (for this folder: '.')")
     items = _items(inputs)
     runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
     if runs is None:

@@ -24,6 +24,7 @@ from impactlab.record.work import Work, check_work, run_steps
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
 DOCUMENT_SOURCE = "<python>"  # the source of a spec given as a dict
+MAX_READABLE_NAME = 160  # characters of a log's name before its hash
 
 
 @dataclass(frozen=True)
@@ -175,5 +176,7 @@ def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -
         leaf = key.removeprefix("bodies.").removeprefix("contact.").removeprefix("options.")
         text = "_".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)
         parts.append(f"{leaf}={text}")
-    stem = "-".join([*parts, digest[:8]])
-    return re.sub(r"[^A-Za-z0-9._=+-]", "_", stem)
+    readable = re.sub(r"[^A-Za-z0-9._=+-]", "_", "-".join(parts))
+    if len(readable) > MAX_READABLE_NAME:  # file names have at most 255 bytes
+        readable = readable[: MAX_READABLE_NAME - 3] + "..."
+    return f"{readable}-{digest[:8]}"

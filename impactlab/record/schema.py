@@ -63,7 +63,7 @@ Flag = Annotated[bool, Field(strict=True)]
 def _name(value: str) -> str:
     if not value or not value.replace("_", "a").isalnum() or len(value) > MAX_NAME_LENGTH:
         raise problem(
-            f"must be a name of 1 to {MAX_NAME_LENGTH} letters, digits and _, got {value!r}"
+            f"must be a name of 1 to {MAX_NAME_LENGTH} letters, digits and _, got {short(value)}"
         )
     return value
 

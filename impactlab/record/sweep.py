@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from impactlab.errors import SpecError
-from impactlab.record.schema import short
+from impactlab.record.schema import MAX_LOG_EVERY, MAX_TIME_S, MIN_TIMESTEP_S, short
 from impactlab.record.spec import (
     RunSpec,
     check_path,
@@ -94,8 +94,13 @@ class SpecSweep:
         for point in itertools.product(*(self.sweep[k] for k in varied)):
             values = dict(zip(varied, point, strict=True))
             dt, max_time, every = (values.get(k, _get(self.doc, k)) for k in WORK_FIELDS)
-            if not all(_positive(x) for x in (dt, max_time, every)):
-                continue  # not a number: validation names it
+            if not (
+                all(_positive(x) for x in (dt, max_time, every))
+                and dt >= MIN_TIMESTEP_S
+                and max_time <= MAX_TIME_S
+                and every <= MAX_LOG_EVERY
+            ):
+                continue  # not a valid value: validation names it
             steps = run_steps(float(max_time), float(dt))
             total += Work.of_runs(others, steps, int(every), len(self.doc["bodies"]))
         return total
