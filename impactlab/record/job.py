@@ -17,7 +17,6 @@ from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.log_rows import RunInfo
 from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
-from impactlab.record.schema import MAX_TIME_S
 from impactlab.record.spec import RunSpec, Stop, spec_hash
 from impactlab.record.sweep import SpecSweep
 from impactlab.record.work import Work, check_work, run_steps

@@ -20,6 +20,7 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    field_validator,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
@@ -118,10 +119,45 @@ class Options(Section):
         return self
 
 
-class PairContact(Section):
-    """One geom pair's contact (`[contact.pairs."ball/plane"]`)."""
+def _speed_range(value: tuple[float, ...]) -> tuple[float, ...]:
+    if not 0.0 < value[0] <= value[1]:
+        raise problem(f"need 0 < v_lo <= v_hi (m/s), got {list(value)}")
+    return value
 
-    restitution: Number
+
+SpeedRange = Annotated[Vector(2), AfterValidator(_speed_range), unit("m/s")]
+
+
+class ContactTarget(Section):
+    """What a calibrated contact must deliver; None means: as the global contact, or default.
+
+    `restitution`: target e. `speed_range`: (lowest, highest) normal impact speed in m/s at
+    which e is promised (default: from the experiment, see `impactlab.record.contact_pairs`).
+    `duration` in s or `max_penetration` in m: the stiffness (both optional, not both).
+    """
+
+    restitution: Number | None = None
+    speed_range: SpeedRange | None = None
+    duration: Annotated[Positive | None, unit("s")] = None
+    max_penetration: Annotated[Positive | None, unit("m")] = None
+
+    @model_validator(mode="after")
+    def _one_stiffness(self) -> ContactTarget:
+        if self.duration is not None and self.max_penetration is not None:
+            raise problem("give duration or max_penetration, not both", "duration")
+        return self
+
+
+class PairContact(ContactTarget):
+    """One geom pair's table (`[contact.pairs."ball/plane"]`): any field of `ContactTarget`,
+    overriding the global contact's field by field."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _not_empty(cls, value: Any) -> Any:
+        if isinstance(value, Mapping) and not value:
+            raise problem(f"must be a table with some of {', '.join(cls.model_fields)}")
+        return value
 
 
 def _pair_key(key: str) -> str:
@@ -140,24 +176,34 @@ def _condim(value: int) -> int:
     return value
 
 
-class Contact(Section):
+class Contact(ContactTarget):
     """MuJoCo contact parameters applied to every geom (the handout's `<default><geom>`).
 
-    When `restitution` is set (for every pair, or per pair in `pairs`, keyed "geom1/geom2"),
-    those pairs get calibrated parameters instead (`impactlab.contact`): design impact speed
-    (derived from the initial state when None), contact duration or max penetration.
+    When `restitution` is set (for every pair, or per pair in `pairs`, keyed by the sorted
+    geom names "a/b" once validated), those pairs get calibrated parameters instead
+    (`impactlab.contact`): a target e over a range of impact speeds, with an optional contact
+    duration or max penetration (the fields of `ContactTarget`). A pair's table overrides
+    the global values field by field.
     """
 
     condim: Annotated[Integer, AfterValidator(_condim)] = 3
     solref: Vector(2) = (0.02, 1.0)
     solimp: Vector(3, 5) = (0.9, 0.95, 0.001, 0.5, 2.0)
     friction: Vector(3, item=NonNegative) = (1.0, 0.005, 0.0001)
-    restitution: Number | None = None
-    impact_speed: Annotated[Positive | None, unit("m/s")] = None
-    duration: Annotated[Positive | None, unit("s")] = None
-    max_penetration: Annotated[Positive | None, unit("m")] = None
     allow_coarse_timestep: Flag = False
     pairs: dict[PairKey, PairContact] = Field(default_factory=dict)
+
+    @field_validator("pairs")
+    @classmethod
+    def _sorted_pairs(cls, pairs: dict[str, PairContact]) -> dict[str, PairContact]:
+        out: dict[str, PairContact] = {}
+        given: dict[str, str] = {}
+        for key, table in pairs.items():
+            same = "/".join(sorted(key.split("/")))
+            if same in out:
+                raise problem(f"names the same pair as {given[same]!r}", key)
+            out[same], given[same] = table, key
+        return out
 
     @model_validator(mode="after")
     def _consistent(self) -> Contact:
@@ -166,20 +212,7 @@ class Contact(Section):
         s = self.solimp
         if not (0 < s[0] < 1 and 0 < s[1] < 1 and s[2] > 0):
             raise problem(f"need 0 < dmin, dmax < 1 and width > 0, got {list(s)}", "solimp")
-        if self.duration is not None and self.max_penetration is not None:
-            raise problem("give duration or max_penetration, not both", "duration")
-        seen: dict[str, str] = {}
-        for key in self.pairs:
-            same = "/".join(sorted(key.split("/")))
-            if same in seen:
-                raise problem(f"names the same pair as {seen[same]!r}", f"pairs.{key}")
-            seen[same] = key
         return self
-
-    @property
-    def pair_restitution(self) -> dict[str, float]:
-        """Target restitution per pair, keyed by the sorted geom names "a/b"."""
-        return {"/".join(sorted(k.split("/"))): p.restitution for k, p in self.pairs.items()}
 
 
 class Plane(Section):
@@ -285,6 +318,14 @@ class SpecDocument(Section):
                     f"bodies.{name}.pos",
                 )
         return self
+
+
+class MjcfRunOptions(Section):
+    """What an MJCF model's run takes from impactlab: how it stops and what it logs (the model
+    brings everything else)."""
+
+    stop: Stop
+    logging: Logging = Logging()
 
 
 SECTIONS: Mapping[str, type[Section]] = {

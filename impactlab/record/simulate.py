@@ -6,6 +6,8 @@ Chunks continue from the last state; the solver's warm start restarts at each ch
 (every CHUNK_SECONDS of simulated time), which is the only difference from a plain `mj_step`
 loop (about 1e-12 in the state), and what makes a run independent of its batch.
 
+A run logs every `log_every`-th step from step 0, and always the step it stops on (the apex
+a stop rule waited for, the time limit), so the last logged row is the end of the run.
 Rows are handed on chunk by chunk (`simulate`), never gathered: memory per run is bounded by
 the chunk, whatever the time limit or the timestep. MuJoCo's warnings (a state it had to
 reset, too many contacts, ...) stop a run as unstable: `mujoco.rollout` stops stepping a run
@@ -153,8 +155,10 @@ class _Batch:
         pieces = []
         wall = (time.perf_counter() - self.started) / len(self.active)
         for i, a in enumerate(self.running):
-            rows = _advance(a, sens[i, :nstep], states[i, nstep - 1], self.step0, states[i, :, 0])
-            t_ns = _logged_steps(a, rows.shape[0], self.step0) * self.dt_ns
+            rows, steps = _advance(
+                a, sens[i, :nstep], states[i, nstep - 1], self.step0, states[i, :, 0]
+            )
+            t_ns = steps * self.dt_ns
             if t_ns.size:
                 a.logged += t_ns.size
                 a.last_t_ns = int(t_ns[-1])
@@ -179,9 +183,10 @@ def _advance(
     last_state: np.ndarray,
     step0: int,
     times: np.ndarray | None = None,
-) -> np.ndarray:
-    """Feed one chunk of a run's rows to its stop rules; returns the rows it keeps (all
-    simulated steps of the chunk up to its stop, (n, nsensordata)).
+) -> tuple[np.ndarray, np.ndarray]:
+    """Feed one chunk of a run's rows to its stop rules; returns the rows it logs and their
+    global step indices: every `log_every`-th step of the chunk up to its stop, and the step
+    the run stops on ((n, nsensordata), (n,)).
 
     `times` is the simulation time after each step of the rollout, (nstep + 1,) (see
     `_warning`).
@@ -200,7 +205,11 @@ def _advance(
     a.verdict = verdict
     every = a.request.log_every
     first = -step0 % every  # the first row of the chunk whose global step is logged
-    return rows[first:end:every]
+    keep = np.arange(first, end, every, dtype=np.int64)
+    if verdict is not None and end > 0 and (keep.size == 0 or keep[-1] != end - 1):
+        keep = np.append(keep, end - 1)  # the step the run stops on
+        return rows[keep], step0 + keep
+    return rows[first:end:every], step0 + keep
 
 
 def _warning(a: _Active, times: np.ndarray, step0: int) -> Verdict | None:
@@ -232,13 +241,6 @@ def _warning(a: _Active, times: np.ndarray, step0: int) -> Verdict | None:
 def _first(mask: np.ndarray) -> int | None:
     idx = np.flatnonzero(mask)
     return int(idx[0]) if idx.size else None
-
-
-def _logged_steps(a: _Active, count: int, step0: int) -> np.ndarray:
-    """Global step index of the `count` rows `_advance` kept from the chunk at `step0`."""
-    every = a.request.log_every
-    first = step0 + (-step0 % every)
-    return first + every * np.arange(count, dtype=np.int64)
 
 
 def _ending(a: _Active, dt: float) -> Ending:

@@ -5,7 +5,7 @@ timestep) and the size of their logs (logged rows times the bytes a row takes, m
 `check_work` refuses a job beyond any of the limits below with one line (exit code 2),
 unless it is allowed explicitly (`impactlab record --allow-large`, `allow_large=True`).
 The limits are far beyond the lab's own jobs (the largest, the full calibration grid, is
-538 runs and 9 million steps) and catch a typo such as `timestep = 1e-7` or a sweep of a
+551 runs and 9 million steps) and catch a typo such as `timestep = 1e-7` or a sweep of a
 million points before it fills the memory or the disk. Estimating never expands a sweep.
 """
 
@@ -24,7 +24,7 @@ MAX_JOB_STEPS = 1_000_000_000  # steps of the whole job (about 2 hours on two co
 MAX_LOG_BYTES = 20 * 10**9  # logs written by the job
 US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (README)
 LOG_BYTES_PER_ROW = 40  # per logged row: energy and the row's share of the chunk overhead
-LOG_BYTES_PER_BODY_ROW = 110  # per logged row and body: its state and transform (zstd)
+LOG_BYTES_PER_BODY_ROW = 130  # per logged row and body: its state, transform, clearance (zstd)
 ALLOW_FLAG = "--allow-large"
 
 
