@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from impactlab.cli import main
-from impactlab.record.schema import SpecDocument
+from impactlab.record.schema import Logging, PairContact, SpecDocument, Stop
 from impactlab.record.sweep import load_runs
 
 GOOD = """
@@ -270,3 +270,91 @@ def test_the_document_and_its_hash_are_unchanged_by_the_schema(tmp_path):
     }
     # the hash the same spec had before the schema (commit 718ee37)
     assert run.spec_hash == "d6facaf5a6ecc8dd6e21bf174f4e7708882640e04b727c74a605bc18665cb16e"
+
+
+def _section_fields(model) -> list[tuple[str, set[str]]]:
+    schema = model.model_json_schema()
+    return [(k, _types(v, schema.get("$defs", {}))) for k, v in schema["properties"].items()]
+
+
+PAIR_WRONG_TYPES = [
+    (key, SAMPLES[sample])
+    for key, types in _section_fields(PairContact)
+    for sample in SAMPLES
+    if not _accepts(types, sample)
+]
+
+
+@pytest.mark.parametrize(("key", "value"), PAIR_WRONG_TYPES)
+def test_every_pair_field_with_every_wrong_type(tmp_path, capsys, key, value):
+    """A `[contact.pairs."a/b"]` table takes the calibrated-contact fields of [contact]
+    (issue 15), checked by the same declarations."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(GOOD + f'[contact.pairs."plane/ball"]\n{key} = {value}\n')
+    out = tmp_path / "out"
+    line = one_line(capsys, main(["record", str(spec), "-o", str(out)]), out)
+    assert f"spec.toml: contact.pairs.plane/ball.{key}: " in line, line
+
+
+def test_pair_tables_are_checked_as_a_whole(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert {k for k, _ in PAIR_WRONG_TYPES} == {
+        "restitution",
+        "speed_range",
+        "duration",
+        "max_penetration",
+    }
+    cases = [
+        (
+            '"ball/plane" = { restitution = 0.5 }\n"plane/ball" = { restitution = 0.6 }',
+            "names the same pair as 'ball/plane'",
+        ),
+        ('"ball/plane" = {}', "must be a table with some of restitution, speed_range"),
+        ('"ball" = { restitution = 0.5 }', "pair keys are two geom names joined by /"),
+        ('"ball/plane" = { speed_range = [2.0, 1.0] }', "need 0 < v_lo <= v_hi (m/s)"),
+    ]
+    for table, words in cases:
+        spec = tmp_path / "spec.toml"
+        spec.write_text(GOOD + f"[contact.pairs]\n{table}\n")
+        line = one_line(capsys, main(["record", str(spec), "-o", str(out)]), out)
+        assert words in line and "spec.toml: contact.pairs" in line, line
+
+
+MJCF = '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
+MJCF_WRONG_TYPES = [
+    (f"{section}.{key}", SAMPLES[sample])
+    for section, model in (("stop", Stop), ("logging", Logging))
+    for key, types in _section_fields(model)
+    for sample in SAMPLES
+    if not _accepts(types, sample)
+]
+
+
+@pytest.mark.parametrize(("path", "value"), MJCF_WRONG_TYPES)
+def test_every_mjcf_run_option_with_every_wrong_type(tmp_path, capsys, path, value):
+    """An MJCF model's run options (issue 14) are the spec's [stop] and [logging] fields,
+    validated by the same schema."""
+    model = tmp_path / "m.xml"
+    model.write_text(MJCF)
+    out = tmp_path / "out"
+    duration = [] if path == "stop.max_time" else ["--duration", "1"]
+    args = ["record", str(model), *duration, "-o", str(out), "--set", f"{path}={value}"]
+    line = one_line(capsys, main(args), out)
+    assert f"m.xml: {path}: " in line, line
+
+
+def test_mjcf_run_options_out_of_range(tmp_path, capsys):
+    model = tmp_path / "m.xml"
+    model.write_text(MJCF)
+    out = tmp_path / "out"
+    for override, words in [
+        ("logging.every=0", "logging.every: must be >= 1, got 0"),
+        ("stop.max_time=1e12", "stop.max_time: must be <= 1e+09"),
+        ("stop.rest_speed=-1", "stop.rest_speed: must be > 0"),
+        ("options.timestep=0.001", "--set options.timestep: an MJCF model takes run options"),
+        ("stop=1", "stop: is a table; set its fields instead"),
+    ]:
+        duration = [] if override.startswith("stop.max_time") else ["--duration", "1"]
+        args = ["record", str(model), *duration, "-o", str(out), "--set", override]
+        line = one_line(capsys, main(args), out)
+        assert words in line, line
