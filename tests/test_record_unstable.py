@@ -33,6 +33,7 @@ HUGE = [
 ]
 
 
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # no overflow in our own code
 @pytest.mark.parametrize(("override", "warning", "step"), HUGE, ids=[h[0] for h in HUGE])
 def test_huge_values_are_unstable_runs(tmp_path, monkeypatch, capsys, override, warning, step):
     monkeypatch.chdir(tmp_path)
