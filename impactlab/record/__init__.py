@@ -1,9 +1,10 @@
 """Record: experiment specs or MJCF models -> MuJoCo runs -> one MCAP log per run.
 
-Owns: experiment specs and sweeps (`spec`, `sweep`), an MJCF model's run options
-(`mjcf_options`), the instrumented MuJoCo models (`model`, `geometry`, `contact_pairs`),
-batched rollouts with their stop rules (`simulate`, `stop`), and the record job (`job`
-plans, `recorder` runs here or as executor `tasks`).
+Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`, `sweep`),
+an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
+`geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
+and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`job`
+plans, `work` estimates and refuses absurd jobs, `recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
 MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
