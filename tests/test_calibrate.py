@@ -19,6 +19,7 @@ checks it where the shift is largest (e = 0.2 at 1 m/s: 0.02).
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import polars as pl
 import pytest
@@ -280,3 +281,35 @@ def test_multi_bounce_grids_are_declared():
     assert {name: grid.n_runs for name, grid in GRIDS.items()} == GRID_RUNS  # the --help text
     integrators = {c.integrator for c in GRIDS["medium"].bounce_cases}
     assert integrators == {"Euler", "RK4", "implicitfast"}
+
+
+def test_calibrate_twice_into_one_folder(tmp_path):
+    """`impactlab calibrate` run again into the same folder reuses the logs and writes the
+    same report and tables (the quick grid cut to one target, speed and mass: 13 runs)."""
+    from polars.testing import assert_frame_equal
+
+    from impactlab.cli import main
+
+    out = tmp_path / "cal"
+    args = ["calibrate", "--grid", "quick", "--targets", "0.9", "--speeds", "10"]
+    args += ["--masses", "1", "-o", str(out)]
+    assert main(args) == 0
+    first = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    written = {p: p.stat().st_mtime_ns for p in out.glob("logs/*.mcap")}
+    assert len(written) == 13
+    assert main(args) == 0
+    assert {p: p.stat().st_mtime_ns for p in out.glob("logs/*.mcap")} == written  # reused
+    again = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert sorted(again) == sorted(first)
+
+    def untimed(md: bytes) -> list[str]:  # the line that says how long it took differs
+        return [line for line in md.decode().splitlines() if " runs, " not in line]
+
+    md = untimed(first[Path("calibration.md")])
+    assert untimed(again[Path("calibration.md")]) == md and len(md) > 20
+    summary = [json.loads(x[Path("summary.json")]) for x in (first, again)]
+    for s in summary:
+        del s["timings_s"]
+    assert summary[0] == summary[1]
+    for name in (n for n in first if n.suffix == ".parquet"):
+        assert_frame_equal(pl.read_parquet(out / name), pl.read_parquet(first[name]), rel_tol=1e-12)

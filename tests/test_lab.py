@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import io
+import json
 from pathlib import Path
+
+import polars as pl
+from polars.testing import assert_frame_equal
 
 from impactlab.cli import main
 
@@ -64,9 +69,29 @@ def test_lab_records_analyzes_and_links_replays(tmp_path, capsys):
     assert [p.stem for p in replays] == [p.stem for p in logs]
     for p in replays:
         assert f"(replays/{p.name})" in report
-    # a second run reuses every log
-    assert main([*args, "--no-replay"]) == 0
+    # a second run into the same folder reuses every log and gives the same report and tables
+    first = _outputs(out)
+    assert main(args) == 0
     assert "reused 2 complete log(s)" in capsys.readouterr().out
+    again = _outputs(out)
+    assert sorted(again) == sorted(first)
+    assert again["results/report.md"] == first["results/report.md"]
+    assert json.loads(again["results/summary.json"]) == json.loads(first["results/summary.json"])
+    for name in (n for n in first if n.endswith(".parquet")):
+        assert_frame_equal(
+            pl.read_parquet(out / name), pl.read_parquet(io.BytesIO(first[name])), rel_tol=1e-12
+        )
+    for log in logs:  # reused, not recorded again
+        assert again[f"logs/{log.name}"] == first[f"logs/{log.name}"]
+
+
+def _outputs(folder: Path) -> dict[str, bytes]:
+    """Every file under `folder` by relative path (replays excepted: Rerun stamps them)."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in folder.rglob("*")
+        if p.is_file() and p.suffix != ".rrd" and p.name != ".impactlab-analysis.lock"
+    }
 
 
 def test_lab_without_specs_is_one_line(tmp_path, capsys):

@@ -120,11 +120,11 @@ def test_non_finite_state(tmp_path, capsys, monkeypatch):
     that run as unstable with the rows before it; the batch's other runs are unaffected."""
     real = simulate_module._advance
 
-    def poisoned(a, rows, last_state, step0):
+    def poisoned(a, rows, last_state, step0, *rest):
         if abs(a.request.inst.model.body_mass[1] - 2.0) < 1e-9 and step0 == 0:
             rows = rows.copy()
             rows[100:] = np.nan  # what the rollout returns once the state has blown up
-        return real(a, rows, last_state, step0)
+        return real(a, rows, last_state, step0, *rest)
 
     monkeypatch.setattr(simulate_module, "_advance", poisoned)
     spec = spec_file(tmp_path, "nan", extra='[sweep]\n"ball.mass" = [1.0, 2.0, 3.0]')

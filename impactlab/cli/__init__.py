@@ -2,7 +2,8 @@
 
 Building the parser imports no heavy library (MuJoCo, polars, matplotlib, rerun): each
 command imports what it needs when it runs. User mistakes (`ImpactlabError`) become one
-line on stderr and a non-zero exit code; SIGTERM unwinds like Ctrl-C (exit 130).
+line on stderr and a non-zero exit code, and so do wrong options (exit 2); SIGTERM unwinds
+like Ctrl-C (exit 130).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections.abc import Sequence
 
 from impactlab import __version__
 from impactlab.cli import analyze, calibrate, contact, diff, info, lab, record, replay
+from impactlab.cli.options import OneLineParser
 from impactlab.errors import ImpactlabError
 
 COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in help order
@@ -22,7 +24,7 @@ COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in 
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="impactlab",
         description="Simulated impact experiments: record MuJoCo runs to MCAP logs, analyze "
         "them, replay them in Rerun, compare them. `impactlab lab` does it all.",

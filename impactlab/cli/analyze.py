@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor
+from impactlab.cli.options import add_executor_options, make_executor, path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("logs", nargs="+", metavar="LOG", help="log files, folders or glob patterns")
     p.add_argument(
-        "-o", "--out", type=Path, default=Path("results"), help="output folder (results/)"
+        "-o", "--out", type=path, default=Path("results"), help="output folder (results/)"
     )
     add_executor_options(p)
     p.set_defaults(func=run)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from impactlab.cli.options import path
+
 GRID_RUNS = {"quick": 43, "medium": 181, "full": 551}  # checked against the grids by a test
 
 
@@ -22,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         + "; full is the default.",
     )
     p.add_argument(
-        "-o", "--out", type=Path, default=Path("calibration"), help="output folder (calibration/)"
+        "-o", "--out", type=path, default=Path("calibration"), help="output folder (calibration/)"
     )
     p.add_argument("--quick", action="store_true", help="the quick grid (43 runs, about 20 s)")
     p.add_argument(

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor
+from impactlab.cli.options import add_executor_options, make_executor, path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,10 +16,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run the whole lab: record each spec in the experiments folder, analyze "
         "all logs into tables, figures and a report, and write one Rerun replay per run.",
     )
-    p.add_argument("-o", "--out", type=Path, default=Path("lab-output"), help="output folder")
+    p.add_argument("-o", "--out", type=path, default=Path("lab-output"), help="output folder")
     p.add_argument(
         "--experiments",
-        type=Path,
+        type=path,
         default=Path("experiments"),
         help="folder of experiment specs (experiments/)",
     )

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import math
+from pathlib import Path
 
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
 
@@ -29,3 +31,29 @@ def make_executor(args: argparse.Namespace):
     from impactlab.executors.choose import make_executor as make
 
     return make(args.executor, args.address)
+
+
+def path(text: str) -> Path:
+    """An argument that names a file or folder: not empty (which would mean the working
+    folder)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must not be empty (for this folder, give '.')")
+    return Path(text)
+
+
+def seconds(text: str) -> float:
+    """An argument that is a duration in seconds: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text!r}")
+    return value
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose mistakes are one line on stderr and exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")

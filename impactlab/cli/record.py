@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor
+from impactlab.cli.options import add_executor_options, make_executor, path, seconds
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,8 +16,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Simulate each run of the given specs or MJCF models and write one MCAP "
         "log per run to the output folder.",
     )
-    rec.add_argument("inputs", nargs="+", type=Path, metavar="SPEC_OR_MJCF")
-    rec.add_argument("-o", "--out", type=Path, default=Path("logs"), help="output folder (logs/)")
+    rec.add_argument("inputs", nargs="+", type=path, metavar="SPEC_OR_MJCF")
+    rec.add_argument("-o", "--out", type=path, default=Path("logs"), help="output folder (logs/)")
     rec.add_argument(
         "--set",
         dest="overrides",
@@ -29,11 +29,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     rec.add_argument(
         "--duration",
-        type=float,
+        type=seconds,
         help="time limit in s for MJCF models (or --set stop.max_time=...; one is required)",
     )
     rec.add_argument(
         "--overwrite", action="store_true", help="re-run runs whose complete log already exists"
+    )
+    rec.add_argument(
+        "--allow-large",
+        action="store_true",
+        help="record even a job beyond the work limits (more than 100,000 runs, a run of "
+        "more than 1e8 steps, 1e9 steps in all, 20 GB of logs or more than the free space; "
+        "see docs/reliability.md)",
     )
     add_executor_options(rec)
     rec.set_defaults(func=run)
@@ -42,15 +49,26 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     """Plan (everything validated first), record, print one line per run and a summary."""
     from impactlab.progress import console_progress
-    from impactlab.record import plan
     from impactlab.record.recorder import record_runs
 
     executor = make_executor(args)
-    runs = plan(args.inputs, overrides=args.overrides, duration=args.duration)
+    from impactlab.record.job import plan
+
+    runs = plan(
+        args.inputs,
+        overrides=args.overrides,
+        duration=args.duration,
+        allow_large=args.allow_large,
+    )
     progress = console_progress()
     try:
         result = record_runs(
-            runs, args.out, executor=executor, overwrite=args.overwrite, progress=progress
+            runs,
+            args.out,
+            executor=executor,
+            overwrite=args.overwrite,
+            allow_large=args.allow_large,
+            progress=progress,
         )
     finally:
         progress.close()

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from impactlab.cli.options import path
+
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
 
 
@@ -19,16 +21,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "with -o FILE.rrd, all runs go into one recording, one subtree per run, to compare "
         "them. Open a recording with `rerun FILE.rrd`.",
     )
-    p.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="logs, folders or globs")
+    p.add_argument("logs", nargs="+", type=path, metavar="LOG", help="logs, folders or globs")
     p.add_argument(
         "-o",
         "--out",
-        type=Path,
+        type=path,
         help="FILE.rrd: one recording of all runs; otherwise a folder for one .rrd per log",
     )
     p.add_argument(
         "--analysis",
-        type=Path,
+        type=path,
         metavar="DIR",
         help="analysis output folder (bounces.parquet, collisions.parquet) for the event texts",
     )
@@ -84,8 +86,8 @@ def run(args: argparse.Namespace) -> int:
         )
     finally:
         progress.close()
-    for path in written:
-        print(f"wrote {path}")
+    for rrd in written:
+        print(f"wrote {rrd}")
     if args.serve and written:
         subprocess.run([_rerun_executable() or "rerun", "--serve-web", *map(str, written)])
     return 1 if failed else 0

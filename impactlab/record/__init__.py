@@ -1,9 +1,10 @@
 """Record: experiment specs or MJCF models -> MuJoCo runs -> one MCAP log per run.
 
-Owns: experiment specs and sweeps (`spec`, `sweep`), an MJCF model's run options
-(`mjcf_options`), the instrumented MuJoCo models (`model`, `geometry`, `contact_pairs`),
-batched rollouts with their stop rules (`simulate`, `stop`), and the record job (`job`
-plans, `recorder` runs here or as executor `tasks`).
+Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`, `sweep`),
+an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
+`geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
+and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`job`
+plans, `work` estimates and refuses absurd jobs, `recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
 MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
@@ -46,7 +47,11 @@ def _items(inputs: Inputs) -> list[Any]:
 
 
 def plan(
-    inputs: Inputs, *, overrides: Sequence[str] = (), duration: float | None = None
+    inputs: Inputs,
+    *,
+    overrides: Sequence[str] = (),
+    duration: float | None = None,
+    allow_large: bool = False,
 ) -> list[PlannedRun]:
     """Validate specs or models and return the runs they give, without simulating.
 
@@ -55,13 +60,17 @@ def plan(
             TOML file's content), or a list of them.
         overrides: `PATH=VALUE` settings (VALUE is TOML), e.g. `"ball.mass=2"`.
         duration: time limit in s for MJCF models.
+        allow_large: plan a job beyond the work limits (`impactlab.record.work`).
 
     Raises:
         SpecError: an input, override or option is wrong (the message names it).
+        WorkError: the job is beyond the work limits (and not `allow_large`).
     """
     from impactlab.record.job import plan as plan_runs
 
-    return plan_runs(_items(inputs), overrides=overrides, duration=duration)
+    return plan_runs(
+        _items(inputs), overrides=overrides, duration=duration, allow_large=allow_large
+    )
 
 
 def record(
@@ -71,6 +80,7 @@ def record(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     overwrite: bool = False,
+    allow_large: bool = False,
     executor: Executor | str | None = None,
     progress: Progress | None = None,
     verbose: bool = False,
@@ -84,6 +94,7 @@ def record(
         out: the output folder (created).
         overrides, duration: as for `plan`.
         overwrite: record again runs whose complete log exists.
+        allow_large: record a job beyond the work limits (`impactlab.record.work`).
         executor: "local" (default), "ray", or an `impactlab.executors` executor.
         progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
         verbose: report progress on the console (when `progress` is None).
@@ -93,19 +104,36 @@ def record(
 
     Raises:
         SpecError: an input is wrong (nothing is simulated).
+        WorkError: the job is beyond the work limits (nothing is simulated).
         OutputError: `out` cannot be written.
     """
     from impactlab.executors.choose import executor_for
+    from impactlab.files import OutputError
     from impactlab.progress import reporter
     from impactlab.record.job import PlannedRun
+    from impactlab.record.job import plan as plan_runs
     from impactlab.record.recorder import record_runs
 
+    if not str(out).strip():
+        raise OutputError(str(out), "the output folder must not be empty (for this folder: '.')")
     items = _items(inputs)
     runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
     if runs is None:
-        runs = plan(items, overrides=overrides, duration=duration)
+        runs = plan_runs(
+            items,
+            overrides=overrides,
+            duration=duration,
+            allow_large=allow_large,
+        )
     with executor_for(executor) as chosen, reporter(progress, verbose) as shown:
-        return record_runs(runs, Path(out), executor=chosen, overwrite=overwrite, progress=shown)
+        return record_runs(
+            runs,
+            Path(out),
+            executor=chosen,
+            overwrite=overwrite,
+            allow_large=allow_large,
+            progress=shown,
+        )
 
 
 callable_package(__name__, record)

@@ -1,44 +1,105 @@
-"""Record a list of planned runs: batched rollouts, each run's log written as its batch ends.
+"""Record a list of planned runs: batched rollouts, each run's rows streamed into its log.
 
 Runs that share MuJoCo's size signature and timestep are simulated side by side in one
-multi-threaded rollout (`batches`); while one batch's logs are written, the next batch
-simulates (MuJoCo releases the GIL).
+multi-threaded rollout (`batches`, built as they are needed). Each chunk of a run's rows goes
+into the run's `LogWriter` as soon as it is simulated, while the next chunk simulates (MuJoCo
+releases the GIL), so memory stays bounded by the chunks whatever the runs' lengths.
 """
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+import contextlib
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
+from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
 from impactlab.record.job import PlannedRun
-from impactlab.record.log_rows import write_run_log
+from impactlab.record.log_rows import log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.results import RecordedRun
-from impactlab.record.simulate import RunRequest, Trajectory, simulate_batch
+from impactlab.record.simulate import Piece, RunRequest, simulate
 
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
 
-Built = list[tuple[PlannedRun, InstrumentedModel]]
+Reuse = Callable[[PlannedRun], "RecordedRun | None"]
+Report = Callable[[RecordedRun], None]
 
 
-def batches(runs: Sequence[PlannedRun], size: int) -> list[Built]:
-    """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built."""
-    out: list[Built] = []
+def batches(
+    runs: Sequence[PlannedRun],
+    size: int,
+    *,
+    reuse: Reuse | None = None,
+    report: Report = lambda _: None,
+    fail: Callable[[PlannedRun, str], None] = lambda run, reason: None,
+) -> Iterator[list[RunRequest]]:
+    """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built.
+
+    Each run is built when its batch is needed. A run whose complete log `reuse` finds (e.g.
+    written by a concurrent job meanwhile) is `report`ed, one whose model fails to build is
+    `fail`ed, instead of simulated.
+    """
+    batch: list[RunRequest] = []
     key = None
     for run in runs:
-        inst = run.build()
+        found = reuse(run) if reuse is not None else None
+        if found is not None:
+            report(found)
+            continue
+        try:
+            inst = run.build()
+        except Exception as exc:  # e.g. a model that no longer compiles on a worker
+            fail(run, str(exc) if isinstance(exc, ImpactlabError) else describe_error(exc))
+            continue
         m = inst.model
         this = (m.nq, m.nv, m.na, m.nu, m.nbody, m.ngeom, m.nsensordata, m.opt.timestep)
-        if not out or this != key or len(out[-1]) >= size:
-            out.append([])
-            key = this
-        out[-1].append((run, inst))
-    return out
+        if batch and (this != key or len(batch) >= size):
+            yield batch
+            batch = []
+        key = this
+        batch.append(RunRequest(inst, run.max_time, run.stop, run.info.log_every, tag=run))
+    if batch:
+        yield batch
+
+
+def _failed(run: PlannedRun, path: Path, reason: str) -> RecordedRun:
+    return RecordedRun(run.info.run_id, path, "failed", reason=reason)
+
+
+class _OpenLog:
+    """One run's log being written as its pieces arrive."""
+
+    def __init__(self, run: PlannedRun, inst: InstrumentedModel, path: Path) -> None:
+        self.run, self.inst, self.path = run, inst, path
+        self.writer = LogWriter(path, log_header(inst, run.info))
+
+    def add(self, piece: Piece) -> RecordedRun | None:
+        """Write a piece's rows; on the run's last piece, finish the log and say so."""
+        if piece.t_ns.size:
+            self.writer.write(log_rows(self.inst, piece.t_ns, piece.sensordata))
+        if piece.ending is None:
+            return None
+        end = piece.ending
+        self.writer.finish(outcome(end))
+        v = end.verdict
+        return RecordedRun(
+            self.run.info.run_id,
+            self.path,
+            "recorded",
+            v.outcome,
+            v.reason,
+            tuple(end.warnings),
+            end.t_end_ns / 1e9,
+            end.steps,
+            end.logged,
+            piece.wall_s,
+        )
+
+    def abort(self) -> None:
+        self.writer.abort()
 
 
 def record_batches(
@@ -48,80 +109,63 @@ def record_batches(
     batch_size: int = BATCH_RUNS,
     threads: int | None = None,
     stop_on_write_error: bool = True,
-    on_run: Callable[[RecordedRun], None] = lambda _: None,
+    reuse: Reuse | None = None,
+    on_run: Report = lambda _: None,
 ) -> list[RecordedRun]:
     """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
     written fails its run, or, with `stop_on_write_error` (a full disk: nothing more can be
     written), raises `ImpactlabError` saying how many logs of the job are complete.
-    `on_run` is called with each run as soon as its log is written.
+    `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
+    it meanwhile). `on_run` is called with each run as soon as its log is written. On any
+    exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
 
-    def failed(run: PlannedRun, reason: str) -> RecordedRun:
-        return RecordedRun(run.info.run_id, log_path(out_dir, run), "failed", reason=reason)
+    def report(run: RecordedRun) -> None:
+        out.append(run)
+        on_run(run)
 
+    logs: dict[RunRequest, _OpenLog] = {}
+    dead: set[RunRequest] = set()  # runs whose log failed: their further rows are dropped
+
+    def fail(run: PlannedRun, reason: str) -> None:
+        report(_failed(run, log_path(out_dir, run), reason))
+
+    groups = batches(runs, batch_size, reuse=reuse, report=report, fail=fail)
     try:
-        groups = batches(runs, batch_size)
-    except Exception as exc:  # e.g. a model that no longer compiles on a worker
-        reason = describe_error(exc)
-        for run in runs:
-            out.append(failed(run, reason))
-            on_run(out[-1])
-        return out
-
-    def simulate(batch: Built) -> tuple[list[Trajectory] | str, float]:
-        start = time.perf_counter()
-        requests = [
-            RunRequest(inst, run.max_time, run.stop, run.info.log_every) for run, inst in batch
-        ]
-        try:
-            result: list[Trajectory] | str = simulate_batch(requests, threads=threads)
-        except Exception as exc:
-            result = describe_error(exc)
-        return result, time.perf_counter() - start
-
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-sim") as pool:
-        pending = pool.submit(simulate, groups[0]) if groups else None
-        for i, batch in enumerate(groups):
-            assert pending is not None
-            trajectories, seconds = pending.result()
-            if i + 1 < len(groups):
-                pending = pool.submit(simulate, groups[i + 1])
-            if isinstance(trajectories, str):
-                for run, _ in batch:
-                    out.append(failed(run, trajectories))
-                    on_run(out[-1])
-                continue
-            for (run, inst), traj in zip(batch, trajectories, strict=True):
-                t0 = time.perf_counter()
+        with contextlib.closing(simulate(groups, threads=threads)) as pieces:
+            for piece in pieces:
+                request, run = piece.request, piece.request.tag
                 path = log_path(out_dir, run)
+                if piece.error is not None:
+                    if request in logs:
+                        logs.pop(request).abort()
+                    fail(run, piece.error)
+                    continue
+                if request in dead:
+                    continue
                 try:
-                    write_run_log(path, inst, run.info, traj)
+                    if request not in logs:
+                        logs[request] = _OpenLog(run, request.inst, path)
+                    done = logs[request].add(piece)
                 except Exception as exc:
+                    if request in logs:
+                        logs.pop(request).abort()
                     if stop_on_write_error and isinstance(exc, OSError):
-                        done = sum(r.status == "recorded" for r in out)
+                        written = sum(r.status == "recorded" for r in out)
                         raise ImpactlabError(
                             f"{path}: cannot write the log: {exc.strerror or exc} "
-                            f"({done} log(s) of this job written before it are complete)"
+                            f"({written} log(s) of this job written before it are complete)"
                         ) from None
-                    out.append(failed(run, f"cannot write the log: {describe_error(exc)}"))
-                else:
-                    v = traj.verdict
-                    out.append(
-                        RecordedRun(
-                            run.info.run_id,
-                            path,
-                            "recorded",
-                            v.outcome,
-                            v.reason,
-                            tuple(traj.warnings),
-                            traj.t_ns[-1] / 1e9 if traj.t_ns.size else 0.0,
-                            v.last_step + 1,
-                            int(traj.t_ns.size),
-                            seconds / len(batch) + time.perf_counter() - t0,
-                        )
-                    )
-                on_run(out[-1])
+                    dead.add(request)
+                    fail(run, f"cannot write the log: {describe_error(exc)}")
+                    continue
+                if done is not None:
+                    del logs[request]
+                    report(done)
+    finally:
+        for log in logs.values():
+            log.abort()
     return out

@@ -29,8 +29,8 @@ from impactlab.contact import (
     contact_params,
 )
 from impactlab.errors import SpecError
+from impactlab.record.schema import ContactTarget
 from impactlab.record.spec import Body, RunSpec, Stop
-from impactlab.record.spec_contact import ContactTarget
 
 PLANE_GEOM = "plane"
 

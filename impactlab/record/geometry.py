@@ -71,8 +71,11 @@ def ground_geoms(model: mujoco.MjModel, free_geoms: list[int]) -> list[int]:
 def up_vector(model: mujoco.MjModel) -> np.ndarray:
     """Unit vector against gravity, (3,); +z without gravity."""
     g = np.asarray(model.opt.gravity, dtype=float)
-    norm = float(np.linalg.norm(g))
-    return -g / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+    scale = float(np.abs(g).max())
+    if not 0 < scale < np.inf:
+        return np.array([0.0, 0.0, 1.0])
+    g = g / scale  # a huge gravity (1e300) would overflow the norm to inf
+    return -g / np.linalg.norm(g)
 
 
 def support(

@@ -8,7 +8,7 @@ from __future__ import annotations
 import hashlib
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,10 +18,12 @@ from impactlab.record.log_rows import RunInfo
 from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
 from impactlab.record.spec import RunSpec, Stop, spec_hash
-from impactlab.record.sweep import document_runs, load_runs
+from impactlab.record.sweep import SpecSweep
+from impactlab.record.work import Work, check_work, run_steps
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
 DOCUMENT_SOURCE = "<python>"  # the source of a spec given as a dict
+MAX_READABLE_NAME = 160  # characters of a log's name before its hash
 
 
 @dataclass(frozen=True)
@@ -36,6 +38,7 @@ class PlannedRun:
     spec: RunSpec | None
     max_time: float
     stop: Stop | None = None
+    work: Work = field(default_factory=Work)  # at most (`impactlab.record.work`)
 
 
 def plan(
@@ -43,8 +46,12 @@ def plan(
     *,
     overrides: Sequence[str] = (),
     duration: float | None = None,
+    allow_large: bool = False,
 ) -> list[PlannedRun]:
     """Validate every input and return the runs to record, in order.
+
+    The job's work is estimated first, from the specs' sweeps without expanding them
+    (`impactlab.record.work`): a job beyond the limits is refused unless `allow_large`.
 
     Args:
         inputs: experiment specs (.toml files, or spec documents as dicts) and/or MJCF
@@ -52,18 +59,20 @@ def plan(
         overrides: `PATH=VALUE` settings: any field of a spec; for MJCF models the run
             options only (`stop.*`, `logging.*`).
         duration: time limit in s for MJCF models (or `stop.max_time=...`).
+        allow_large: plan a job beyond the limits of `impactlab.record.work`.
 
     Raises:
         SpecError: any input, override or option is wrong.
+        WorkError: the job is beyond the limits (and not `allow_large`).
     """
-    runs: list[PlannedRun] = []
+    parts: list[SpecSweep | PlannedRun] = []
     for item in inputs:
         if isinstance(item, Mapping):
-            runs += [_plan_spec(run) for run in document_runs(item, DOCUMENT_SOURCE, overrides)]
+            parts.append(SpecSweep.of(item, DOCUMENT_SOURCE, overrides))
             continue
         path = Path(item)
         if path.suffix.lower() in MJCF_SUFFIXES:
-            runs.append(_plan_mjcf(path, overrides=overrides, duration=duration))
+            parts.append(_plan_mjcf(path, overrides=overrides, duration=duration))
         elif path.suffix.lower() == ".toml":
             if duration is not None:
                 raise SpecError(
@@ -71,16 +80,45 @@ def plan(
                     "--duration",
                     "applies to MJCF models; for specs use --set stop.max_time=...",
                 )
-            runs += [_plan_spec(run) for run in load_runs(path, overrides)]
+            parts.append(SpecSweep.read(path, overrides))
         else:
             raise SpecError(
                 str(path), "", "expected an experiment spec (.toml) or an MJCF model (.xml)"
             )
-    ids = [r.info.run_id for r in runs]
-    dup = next((i for i in ids if ids.count(i) > 1), None)
-    if dup is not None:
-        raise SpecError(dup, "", "two inputs give the same run; remove one of them")
+    work = sum((_work(part) for part in parts), Work())
+    sources = [p.source if isinstance(p, SpecSweep) else p.info.source for p in parts]
+    check_work(work, source=", ".join(dict.fromkeys(sources)), allow_large=allow_large)
+    runs: list[PlannedRun] = []
+    for part in parts:
+        if isinstance(part, SpecSweep):
+            planned = [_plan_spec(run) for run in part.runs()]
+            planned[0].build()  # MuJoCo compiles the model (its own checks fail now)
+            runs += planned
+        else:
+            runs.append(part)
+    first: dict[str, PlannedRun] = {}
+    for run in runs:
+        other = first.setdefault(run.info.run_id, run)
+        if other is not run:
+            where = f"sweep point {_point(run)}" if run.info.sweep else "its only run"
+            raise SpecError(
+                run.info.source,
+                "",
+                f"{where} is the same run as {_point(other)} of {other.info.source}; "
+                "give each input once",
+            )
     return runs
+
+
+def _work(part: SpecSweep | PlannedRun) -> Work:
+    if isinstance(part, SpecSweep):
+        return part.work()
+    return part.work
+
+
+def _point(run: PlannedRun) -> str:
+    values = ", ".join(f"{k} = {v}" for k, v in run.info.sweep.items())
+    return f"({values})" if values else "the run"
 
 
 def _plan_spec(run: RunSpec) -> PlannedRun:
@@ -98,7 +136,9 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
         sweep_index=run.sweep_index,
         sweep_size=run.sweep_size,
     )
-    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time, run.stop)
+    steps = run_steps(run.stop.max_time, run.options.timestep)
+    work = Work.of_runs(1, steps, run.log_every, len(run.bodies))
+    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time, run.stop, work)
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
@@ -118,7 +158,10 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         spec_hash=digest,
         log_every=options.log_every,
     )
-    return PlannedRun(info, lambda: inst, None, options.stop.max_time, options.stop)
+    max_time = options.stop.max_time
+    steps = run_steps(max_time, float(inst.model.opt.timestep))
+    work = Work.of_runs(1, steps, options.log_every, len(inst.bodies))
+    return PlannedRun(info, lambda: inst, None, max_time, options.stop, work)
 
 
 def _sha256(text: str) -> str:
@@ -132,5 +175,7 @@ def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -
         leaf = key.removeprefix("bodies.").removeprefix("contact.").removeprefix("options.")
         text = "_".join(f"{v:g}" for v in value) if isinstance(value, list) else str(value)
         parts.append(f"{leaf}={text}")
-    stem = "-".join([*parts, digest[:8]])
-    return re.sub(r"[^A-Za-z0-9._=+-]", "_", stem)
+    readable = re.sub(r"[^A-Za-z0-9._=+-]", "_", "-".join(parts))
+    if len(readable) > MAX_READABLE_NAME:  # file names have at most 255 bytes
+        readable = readable[: MAX_READABLE_NAME - 3] + "..."
+    return f"{readable}-{digest[:8]}"

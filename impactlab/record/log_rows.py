@@ -9,21 +9,19 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import mujoco
 import numpy as np
 
 from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
-from impactlab.logs.writer import write_log
 from impactlab.record.model import (
     BODY_STATE_SIZE,
     CONTACT_SLOT_SIZE,
     ContactChannel,
     InstrumentedModel,
 )
-from impactlab.record.simulate import Trajectory
+from impactlab.record.simulate import Ending
 
 
 @dataclass(frozen=True)
@@ -122,13 +120,7 @@ def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, 
     return count, points
 
 
-def outcome(traj: Trajectory) -> Outcome:
+def outcome(ending: Ending) -> Outcome:
     """How the run ended, for the log."""
-    v = traj.verdict
-    return Outcome(v.outcome, v.reason, v.last_step + 1, tuple(traj.warnings))
-
-
-def write_run_log(path: Path, inst: InstrumentedModel, info: RunInfo, traj: Trajectory) -> Path:
-    """Write one simulated run's log atomically. Returns `path`."""
-    rows = log_rows(inst, traj.t_ns, traj.sensordata)
-    return write_log(path, log_header(inst, info), rows, outcome(traj))
+    v = ending.verdict
+    return Outcome(v.outcome, v.reason, ending.steps, tuple(ending.warnings))

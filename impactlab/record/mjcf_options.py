@@ -3,20 +3,21 @@
 A user's model brings its own bodies, contacts and simulation options (timestep, integrator,
 gravity); what impactlab adds is how the run stops and what it logs, set exactly as for a
 spec: `--set logging.every=10`, `--set stop.bounces=3`, `--set stop.max_time=2` (or
-`--duration 2`). The same defaults and checks apply (`impactlab.record.spec`).
+`--duration 2`). The same defaults and checks apply (`impactlab.record.schema`).
 """
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from pydantic import ValidationError
+
 from impactlab.errors import SpecError
 from impactlab.record.model import InstrumentedModel
-from impactlab.record.spec import DEFAULTS, Stop, set_path, stop_section
-from impactlab.record.spec_checks import FieldChecks
+from impactlab.record.schema import MAX_TIME_S, SECTIONS, MjcfRunOptions, Stop, defaults
+from impactlab.record.spec import schema_error, set_path
 from impactlab.record.sweep import parse_override
 
 MJCF_SECTIONS = ("stop", "logging")
@@ -32,13 +33,15 @@ class MjcfOptions:
 
 
 def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) -> MjcfOptions:
-    """The run options of an MJCF model from `--set` overrides and `--duration`.
+    """The run options of an MJCF model from `--set` overrides and `--duration`, validated
+    against the schema's `MjcfRunOptions`.
 
     Raises:
         SpecError: an override names anything but stop.* or logging.*, a value is wrong,
             or no time limit is given.
     """
-    doc = {section: copy.deepcopy(DEFAULTS[section]) for section in MJCF_SECTIONS}
+    doc: dict[str, Any] = {section: defaults(SECTIONS[section]) for section in MJCF_SECTIONS}
+    doc["stop"]["max_time"] = None
     for text in overrides:
         key, value = parse_override(text)
         if key.split(".")[0] not in MJCF_SECTIONS:
@@ -48,8 +51,15 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
                 "an MJCF model takes run options only (stop.*, logging.*); "
                 "change the model itself for anything else",
             )
-        set_path(doc, key, value, "--set")
+        set_path(doc, key, value, source)
     if duration is not None:
+        if not 0 < duration <= MAX_TIME_S:
+            raise SpecError(
+                source,
+                "--duration",
+                f"an MJCF model needs --duration SECONDS, > 0 and <= {MAX_TIME_S:g}, "
+                f"got {duration}",
+            )
         if doc["stop"]["max_time"] is not None:
             raise SpecError(source, "--duration", "give --duration or stop.max_time, not both")
         doc["stop"]["max_time"] = duration
@@ -57,10 +67,11 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         raise SpecError(
             source, "--duration", "an MJCF model needs --duration SECONDS (or stop.max_time)"
         )
-    checks = FieldChecks(source)
-    stop = stop_section(checks, doc["stop"])
-    every = checks.integer(doc["logging"]["every"], "logging.every", 1)
-    return MjcfOptions(stop, every, doc)
+    try:
+        options = MjcfRunOptions.model_validate(doc)
+    except ValidationError as exc:
+        raise schema_error(exc, source) from None
+    return MjcfOptions(options.stop, options.logging.every, doc)
 
 
 def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) -> None:

@@ -14,6 +14,7 @@ from impactlab.record.folder import log_path, reusable
 from impactlab.record.job import PlannedRun
 from impactlab.record.results import RecordedRun, RecordResult
 from impactlab.record.tasks import count_run, record_on
+from impactlab.record.work import Work, check_space
 
 
 def record_runs(
@@ -22,6 +23,7 @@ def record_runs(
     *,
     executor: Executor | None = None,
     overwrite: bool = False,
+    allow_large: bool = False,
     threads: int | None = None,
     batch_size: int = BATCH_RUNS,
     progress: Progress | None = None,
@@ -34,6 +36,8 @@ def record_runs(
         executor: where the runs are simulated (default: here, batched rollouts on every
             core, the next batch simulating while the last one's logs are written).
         overwrite: record again runs whose complete log exists.
+        allow_large: record even when the logs to write are estimated larger than the
+            free space in `out_dir`.
         threads: rollout threads (default: one per core here, one per task on a cluster).
         batch_size: runs per rollout here.
         progress: receives the job's progress (see `impactlab.progress`); None: silent.
@@ -43,6 +47,7 @@ def record_runs(
 
     Raises:
         OutputError: the folder cannot be written (before any simulation).
+        WorkError: the logs to write would not fit in the folder's free space.
         ImpactlabError: here, a log cannot be written (a full disk); the logs written before
             are complete.
     """
@@ -57,6 +62,7 @@ def record_runs(
         else:
             remove_stale_partials(log_path(out_dir, run))
             todo.append(run)
+    check_space(sum((r.work for r in todo), Work()), out_dir, allow_large=allow_large)
     tracker = Tracker("record", len(todo), progress, reused=len(by_id))
     if by_id:
         tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
@@ -66,6 +72,7 @@ def record_runs(
             out_dir,
             batch_size=batch_size,
             threads=threads,
+            reuse=None if overwrite else lambda run: reusable(out_dir, run),
             on_run=lambda run: count_run(tracker, run),
         )
     else:

@@ -8,42 +8,37 @@ loop (about 1e-12 in the state), and what makes a run independent of its batch.
 
 A run logs every `log_every`-th step from step 0, and always the step it stops on (the apex
 a stop rule waited for, the time limit), so the last logged row is the end of the run.
+Rows are handed on chunk by chunk (`simulate`), never gathered: memory per run is bounded by
+the chunk, whatever the time limit or the timestep. MuJoCo's warnings (a state it had to
+reset, too many contacts, ...) stop a run as unstable: `mujoco.rollout` stops stepping a run
+as soon as one is raised and repeats its last state, which the time column shows; the run's
+chunk is then stepped again alone to name the warning (`impactlab.record.mujoco_warnings`).
 """
 
 from __future__ import annotations
 
-import math
+import contextlib
 import os
-from dataclasses import dataclass, field
+import time
+from collections.abc import Iterable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
 from impactlab.record.model import InstrumentedModel
+from impactlab.record.mujoco_warnings import first_warning, quiet_mujoco
 from impactlab.record.spec import Stop
 from impactlab.record.stop import StopMonitor, Verdict
+from impactlab.record.work import run_steps
 
 CHUNK_SECONDS = 1.0
 MIN_CHUNK_STEPS = 1000
 MAX_CHUNK_STEPS = 5_000
-
-
-@dataclass
-class Trajectory:
-    """The logged rows of one run.
-
-    Attributes:
-        t_ns: simulation time of each logged row, integer ns, (nrow,).
-        sensordata: the recorder's sensors at those times, (nrow, nsensordata).
-        verdict: why and when the run stopped.
-        warnings: sentences for the log and the console.
-    """
-
-    t_ns: np.ndarray
-    sensordata: np.ndarray
-    verdict: Verdict
-    warnings: list[str] = field(default_factory=list)
+STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # its first value is the simulation time
 
 
 def timestep_ns(timestep_s: float) -> int:
@@ -51,14 +46,58 @@ def timestep_ns(timestep_s: float) -> int:
     return max(1, round(timestep_s * 1e9))
 
 
-@dataclass
+def chunk_steps(timestep_s: float) -> int:
+    """Steps per rollout chunk: about CHUNK_SECONDS of simulated time, within bounds."""
+    return int(np.clip(round(CHUNK_SECONDS / timestep_s), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
+
+
+@dataclass(eq=False)  # hashable by identity: a key for the run's log while it is written
 class RunRequest:
-    """One run of a batch: the model, its time limit (s), stop rules and logging stride."""
+    """One run of a batch: the model, its time limit (s), stop rules and logging stride.
+
+    `tag` is the caller's (e.g. the planned run); it comes back with every `Piece`.
+    """
 
     inst: InstrumentedModel
     max_time: float
     stop: Stop | None = None
     log_every: int = 1
+    tag: Any = None
+
+
+@dataclass
+class Ending:
+    """How a run ended: the verdict, its warnings, steps simulated and rows logged."""
+
+    verdict: Verdict
+    warnings: list[str]
+    logged: int
+    t_end_ns: int
+
+    @property
+    def steps(self) -> int:
+        return self.verdict.last_step + 1
+
+
+@dataclass
+class Piece:
+    """What `simulate` hands on: a run's next logged rows, or its end, or its failure.
+
+    Attributes:
+        request: the run.
+        t_ns: simulation time of each logged row, integer ns, (nrow,).
+        sensordata: the recorder's sensors at those times, (nrow, nsensordata).
+        ending: set on the run's last piece.
+        error: set when the run's batch failed (nothing more comes for it).
+        wall_s: wall time of the run's batch so far, shared among its runs.
+    """
+
+    request: RunRequest
+    t_ns: np.ndarray
+    sensordata: np.ndarray
+    ending: Ending | None = None
+    error: str | None = None
+    wall_s: float = 0.0
 
 
 @dataclass
@@ -67,93 +106,222 @@ class _Active:
     monitor: StopMonitor
     total_steps: int
     state: np.ndarray
-    kept: list[np.ndarray] = field(default_factory=list)
-    kept_steps: list[np.ndarray] = field(default_factory=list)
     touched: bool = False
     verdict: Verdict | None = None
+    logged: int = 0
+    last_t_ns: int = 0
 
 
-def simulate_batch(requests: list[RunRequest], *, threads: int | None = None) -> list[Trajectory]:
-    """Run several models side by side with multi-threaded `mujoco.rollout`.
+class _Batch:
+    """Runs sharing MuJoCo's size signature and timestep, stepped chunk by chunk together."""
 
-    The models must share MuJoCo's size signature (e.g. points of one sweep) and timestep.
-    Every run advances in chunks of the same number of steps from step 0, and the solver's
-    warm start restarts at each chunk, so a run's result does not depend on the batch it is
-    in or on the number of threads.
-
-    Args:
-        requests: the runs.
-        threads: rollout threads (default: one per core, at most one per run).
-
-    Returns:
-        One trajectory per request, in order.
-    """
-    model0 = requests[0].inst.model
-    dt = float(model0.opt.timestep)
-    chunk = int(np.clip(round(CHUNK_SECONDS / dt), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
-    nthread = max(1, min(threads or os.cpu_count() or 1, len(requests)))
-    datas = [mujoco.MjData(model0) for _ in range(nthread)]
-    active = [
-        _Active(
-            request=r,
-            monitor=StopMonitor(r.inst, r.stop, timestep=dt),
-            total_steps=max(1, math.ceil(r.max_time / dt - 1e-9)) + 1,
-            state=r.inst.initial_state(),
-        )
-        for r in requests
-    ]
-    step0 = 0
-    running = list(active)
-    with rollout.Rollout(nthread=nthread if nthread > 1 else 0) as pool:
-        while running:
-            # never past the longest remaining time limit: the chunk boundaries of every run
-            # stay at multiples of `chunk` from its start, whatever the batch
-            nstep = min(chunk, max(a.total_steps for a in running) - step0)
-            states, sens = pool.rollout(
-                [a.request.inst.model for a in running],
-                datas,
-                np.stack([a.state for a in running]),
-                nstep=nstep,
+    def __init__(self, requests: list[RunRequest], threads: int | None) -> None:
+        model0 = requests[0].inst.model
+        self.dt = float(model0.opt.timestep)
+        self.dt_ns = timestep_ns(self.dt)
+        self.chunk = chunk_steps(self.dt)
+        self.nthread = max(1, min(threads or os.cpu_count() or 1, len(requests)))
+        self.datas = [mujoco.MjData(model0) for _ in range(self.nthread)]
+        self.active = [
+            _Active(
+                request=r,
+                monitor=StopMonitor(r.inst, r.stop, timestep=self.dt),
+                total_steps=run_steps(r.max_time, self.dt),
+                state=r.inst.initial_state(),
             )
-            for i, a in enumerate(running):
-                _advance(a, sens[i], states[i, -1], step0)
-            running = [a for a in running if a.verdict is None]
-            step0 += chunk
-    return [_trajectory(a, dt) for a in active]
+            for r in requests
+        ]
+        self.running = list(self.active)
+        self.step0 = 0
+        self.started = time.perf_counter()
+        self.pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
+
+    def rollout(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """Step every running run through the next chunk (plus one step that shows a warning
+        raised in the chunk's last step). Returns states, sensordata and the chunk's steps."""
+        # never past the longest remaining time limit: the chunk boundaries of every run
+        # stay at multiples of `chunk` from its start, whatever the batch
+        nstep = min(self.chunk, max(a.total_steps for a in self.running) - self.step0)
+        states, sens = self.pool.rollout(
+            [a.request.inst.model for a in self.running],
+            self.datas,
+            np.stack([a.state for a in self.running]),
+            nstep=nstep + 1,
+        )
+        return states, sens, nstep
+
+    def take(self, states: np.ndarray, sens: np.ndarray, nstep: int) -> list[Piece]:
+        """Apply a chunk's rows to each running run's stop rules; the pieces to hand on."""
+        pieces = []
+        wall = (time.perf_counter() - self.started) / len(self.active)
+        for i, a in enumerate(self.running):
+            rows, steps = _advance(
+                a, sens[i, :nstep], states[i, nstep - 1], self.step0, states[i, :, 0]
+            )
+            t_ns = steps * self.dt_ns
+            if t_ns.size:
+                a.logged += t_ns.size
+                a.last_t_ns = int(t_ns[-1])
+            ending = None if a.verdict is None else _ending(a, self.dt)
+            pieces.append(Piece(a.request, t_ns, rows, ending, wall_s=wall))
+        self.running = [a for a in self.running if a.verdict is None]
+        self.step0 += self.chunk
+        return pieces
+
+    def fail(self, reason: str) -> list[Piece]:
+        """The pieces that end every running run of the batch as failed."""
+        self.running, failed = [], self.running
+        return [_failed(a.request, reason) for a in failed]
+
+    def close(self) -> None:
+        self.pool.close()
 
 
-def _advance(a: _Active, rows: np.ndarray, last_state: np.ndarray, step0: int) -> None:
-    """Feed one chunk of a run's rows to its stop rules and keep its logged rows."""
+def _advance(
+    a: _Active,
+    rows: np.ndarray,
+    last_state: np.ndarray,
+    step0: int,
+    times: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Feed one chunk of a run's rows to its stop rules; returns the rows it logs and their
+    global step indices: every `log_every`-th step of the chunk up to its stop, and the step
+    the run stops on ((n, nsensordata), (n,)).
+
+    `times` is the simulation time after each step of the rollout, (nstep + 1,) (see
+    `_warning`).
+    """
     n = min(rows.shape[0], a.total_steps - step0)
-    rows = rows[:n]
-    verdict = a.monitor.update(rows, step0)
+    warning = _warning(a, times[: n + 1], step0) if times is not None else None
+    limit = n if warning is None else warning.last_step + 1 - step0
+    verdict = a.monitor.update(rows[:limit], step0) if limit > 0 else None
+    verdict = verdict or warning
     if verdict is None and step0 + n >= a.total_steps:
         verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
     end = n if verdict is None else verdict.last_step - step0 + 1
-    steps = np.arange(step0, step0 + end)
-    keep = steps % a.request.log_every == 0
-    if verdict is not None and end > 0:
-        keep[-1] = True  # the step the run stops on
-    a.kept.append(rows[:end][keep])
-    a.kept_steps.append(steps[keep])
     if a.monitor.bodybody_cols:
         a.touched |= bool((rows[:end, a.monitor.bodybody_cols] > 0).any())
     a.state = last_state
     a.verdict = verdict
+    every = a.request.log_every
+    first = -step0 % every  # the first row of the chunk whose global step is logged
+    keep = np.arange(first, end, every, dtype=np.int64)
+    if verdict is not None and end > 0 and (keep.size == 0 or keep[-1] != end - 1):
+        keep = np.append(keep, end - 1)  # the step the run stops on
+        return rows[keep], step0 + keep
+    return rows[first:end:every], step0 + keep
 
 
-def _trajectory(a: _Active, dt: float) -> Trajectory:
+def _warning(a: _Active, times: np.ndarray, step0: int) -> Verdict | None:
+    """The unstable verdict of a run whose chunk raised a MuJoCo warning, else None.
+
+    After a warning, `mujoco.rollout` repeats the run's last state for the rest of the chunk,
+    and a warning that reset the state also reset its time: either way the time after some
+    step is not the chunk's start time plus the steps taken. The chunk is then stepped again
+    alone to find the step that raised the warning and to name it (the rows from that step
+    on are MuJoCo's reset or repeated state, not the run's).
+    """
+    dt = float(a.request.inst.model.opt.timestep)
+    expected = a.state[0] + dt * np.arange(1, times.size + 1)
+    bad = _first(np.abs(times - expected) > 0.5 * dt)
+    if bad is None:
+        return None
+    found = first_warning(a.request.inst.model, a.state, bad + 1)
+    if found is None:
+        step, text = max(bad - 1, 0), "MuJoCo stopped the rollout (a warning not raised again)"
+    else:
+        step, text = found
+    if step >= times.size - 1:  # in the step after the run's last: not the run's
+        return None
+    t = (step0 + step) * dt
+    reason = f"MuJoCo warning at t = {t:.6g} s (step {step0 + step}): {text}"
+    return Verdict(step0 + step - 1, "unstable", reason)
+
+
+def _first(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def _ending(a: _Active, dt: float) -> Ending:
     verdict = a.verdict
     assert verdict is not None
     stop = a.request.stop
     warnings = []
     if stop is not None and stop.separation is not None and not a.touched:
         warnings.append(
-            f"no contact between the bodies within {verdict.last_step * dt:g} s: "
+            f"no contact between the bodies within {max(verdict.last_step, 0) * dt:g} s: "
             "the collision never happened, so 'after' equals 'before'"
         )
     if verdict.outcome == "unstable":
         warnings.append(f"unstable: {verdict.reason}")
-    rows = np.concatenate(a.kept) if a.kept else np.empty((0, a.request.inst.model.nsensordata))
-    steps = np.concatenate(a.kept_steps) if a.kept_steps else np.empty(0, np.int64)
-    return Trajectory(steps.astype(np.int64) * timestep_ns(dt), rows, verdict, warnings)
+    return Ending(verdict, warnings, a.logged, a.last_t_ns)
+
+
+def simulate(batches: Iterable[list[RunRequest]], *, threads: int | None = None) -> Iterator[Piece]:
+    """Simulate batches of runs and yield their logged rows chunk by chunk, as they come.
+
+    The runs of a batch must share MuJoCo's size signature (e.g. points of one sweep) and
+    timestep. Every run advances in chunks of the same number of steps from step 0, and the
+    solver's warm start restarts at each chunk, so a run's rows do not depend on the batch it
+    is in or on the number of threads. While the caller handles a chunk's pieces, the next
+    chunk (of this batch or the next) is simulated on another thread (MuJoCo releases the
+    GIL). Closing the generator waits for at most the chunk being simulated.
+
+    Args:
+        batches: lists of runs (consumed lazily, one batch ahead).
+        threads: rollout threads (default: one per core, at most one per run).
+
+    Yields:
+        `Piece`s: each run's rows in time order, its last piece with its `ending`; a batch
+        whose simulation fails ends each of its runs with a piece carrying `error`.
+    """
+    quiet_mujoco()
+    queue = iter(batches)
+    current: _Batch | None = None
+    pending: Future | None = None
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-sim") as pool:
+        try:
+            current, failed = _next_batch(queue, threads)
+            yield from failed
+            pending = pool.submit(current.rollout) if current else None
+            while current is not None and pending is not None:
+                try:
+                    pieces = current.take(*pending.result())
+                except Exception as exc:  # MuJoCo errors, e.g. a model it cannot step
+                    pieces = current.fail(f"{type(exc).__name__}: {exc}")
+                if current.running:
+                    pending = pool.submit(current.rollout)
+                else:  # the next batch's first chunk simulates while these pieces are handled
+                    current.close()
+                    current, pending = None, None
+                    current, failed = _next_batch(queue, threads)
+                    pieces += failed
+                    pending = pool.submit(current.rollout) if current else None
+                yield from pieces
+        finally:
+            if pending is not None:
+                pending.cancel()
+                with contextlib.suppress(Exception):
+                    pending.result()
+            if current is not None:
+                current.close()
+
+
+def _next_batch(
+    queue: Iterator[list[RunRequest]], threads: int | None
+) -> tuple[_Batch | None, list[Piece]]:
+    """The next batch that can be set up, and pieces failing the runs of those that cannot."""
+    failed: list[Piece] = []
+    for requests in queue:
+        if not requests:
+            continue
+        try:
+            return _Batch(requests, threads), failed
+        except Exception as exc:
+            failed += [_failed(r, f"{type(exc).__name__}: {exc}") for r in requests]
+    return None, failed
+
+
+def _failed(request: RunRequest, reason: str) -> Piece:
+    return Piece(request, np.empty(0, np.int64), np.empty((0, 0)), error=reason)

@@ -213,7 +213,7 @@ class StopMonitor:
         self.rules: list[_Rule] = [_Finite()]
         self.bodybody_cols: list[int] = []
         model = inst.model
-        gain = stop.max_energy_gain if stop else Stop.max_energy_gain
+        gain = stop.max_energy_gain if stop else Stop.model_fields["max_energy_gain"].default
         self.rules.append(
             _EnergyGain(
                 masses=np.array([model.body_mass[b.body_id] for b in inst.bodies]),
@@ -225,7 +225,7 @@ class StopMonitor:
             )
         )
         radius = {b.name: b.radius for b in inst.bodies}
-        fraction = stop.max_penetration if stop else Stop.max_penetration
+        fraction = stop.max_penetration if stop else Stop.model_fields["max_penetration"].default
         limited = [
             (c.adr + 4, fraction * min(r for r in (radius.get(c.body1), radius[c.body2]) if r))
             for c in inst.contacts

@@ -2,28 +2,34 @@
 
 `[sweep]` maps dotted field paths to lists of values; the runs are their Cartesian product,
 in the order the keys are written. `--set PATH=VALUE` overrides a field (VALUE is a TOML
-value: `2`, `[0, 0, 1]`, `"RK4"`); overriding a swept field replaces its list.
+value: `2`, `[0, 0, 1]`, `"RK4"`); overriding a swept field replaces its list: with one value
+(`--set ball.pos=[0, 0, 1]`, one run) or a list of values (`--set 'ball.pos=[[0, 0, 1],
+[0, 0, 2]]'`). A path names a value, never a table (`contact`, `ball`): set its fields.
 """
 
 from __future__ import annotations
 
-import copy
 import itertools
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from impactlab.errors import SpecError
+from impactlab.record.schema import MAX_LOG_EVERY, MAX_TIME_S, MIN_TIMESTEP_S, short
 from impactlab.record.spec import (
     RunSpec,
+    check_path,
+    is_list_valued,
     merge_defaults,
+    parse_toml,
+    plain_copy,
     read_toml,
-    resolve_path,
     set_path,
     validate,
 )
+from impactlab.record.work import MAX_RUNS, Work, run_steps
 
 
 def parse_override(text: str, source: str = "--set") -> tuple[str, Any]:
@@ -33,15 +39,17 @@ def parse_override(text: str, source: str = "--set") -> tuple[str, Any]:
     if not sep or not path:
         raise SpecError(source, text, "expected PATH=VALUE, e.g. ball.mass=2")
     try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
+        value = parse_toml(f"v = {raw.strip()}", source, path)["v"]
+    except SpecError as exc:
+        if "nested too deeply" in exc.problem:
+            raise
         value = raw.strip()
     return path, value
 
 
 def load_runs(path: Path, overrides: Sequence[str] = ()) -> list[RunSpec]:
     """Read a spec file and return its runs, validated, with overrides applied."""
-    return document_runs(read_toml(path), str(path), overrides)
+    return SpecSweep.read(path, overrides).runs()
 
 
 def document_runs(
@@ -51,37 +59,153 @@ def document_runs(
 
     `source` names the document in errors and in the log (a file path, or e.g. "<python>").
     """
+    return SpecSweep.of(raw, source, overrides).runs()
+
+
+@dataclass(frozen=True)
+class SpecSweep:
+    """A spec document with its overrides applied and its sweep, not yet expanded."""
+
+    doc: dict[str, Any]
+    sweep: dict[str, list[Any]]
+    source: str
+
+    @classmethod
+    def read(cls, path: Path, overrides: Sequence[str] = ()) -> SpecSweep:
+        """A spec file's sweep, overrides applied."""
+        return cls.of(read_toml(path), str(path), overrides)
+
+    @classmethod
+    def of(cls, raw: Mapping[str, Any], source: str, overrides: Sequence[str] = ()) -> SpecSweep:
+        """A spec document's sweep, overrides applied (see `document_runs`)."""
+        doc, sweep = _prepare(raw, source, overrides)
+        return cls(doc, sweep, source)
+
+    def __len__(self) -> int:
+        return math.prod(len(v) if isinstance(v, list) else 1 for v in self.sweep.values())
+
+    def work(self) -> Work:
+        """The work its runs ask for at most, without expanding the sweep."""
+        varied = [k for k in WORK_FIELDS if k in self.sweep and isinstance(self.sweep[k], list)]
+        if len(self) > MAX_RUNS or math.prod(len(self.sweep[k]) for k in varied) > MAX_RUNS:
+            return Work(runs=len(self))  # refused on its count alone
+        others = len(self) // max(1, math.prod(len(self.sweep[k]) for k in varied))
+        total = Work()
+        for point in itertools.product(*(self.sweep[k] for k in varied)):
+            values = dict(zip(varied, point, strict=True))
+            dt, max_time, every = (values.get(k, _get(self.doc, k)) for k in WORK_FIELDS)
+            if not (
+                all(_positive(x) for x in (dt, max_time, every))
+                and dt >= MIN_TIMESTEP_S
+                and max_time <= MAX_TIME_S
+                and every <= MAX_LOG_EVERY
+            ):
+                continue  # not a valid value: validation names it
+            steps = run_steps(float(max_time), float(dt))
+            total += Work.of_runs(others, steps, int(every), len(self.doc["bodies"]))
+        return total
+
+    def runs(self) -> list[RunSpec]:
+        """Every run of the sweep, validated."""
+        return expand(self.doc, self.sweep, self.source)
+
+
+WORK_FIELDS = ("options.timestep", "stop.max_time", "logging.every")
+
+
+def _get(doc: Mapping[str, Any], path: str) -> Any:
+    node: Any = doc
+    for key in path.split("."):
+        node = node.get(key) if isinstance(node, Mapping) else None
+    return node
+
+
+def _positive(value: Any) -> bool:
+    return (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value > 0
+    )
+
+
+def _prepare(
+    raw: Mapping[str, Any], source: str, overrides: Sequence[str]
+) -> tuple[dict[str, Any], dict[str, list[Any]]]:
+    """The resolved document and the sweep (resolved paths -> values), overrides applied."""
     if not isinstance(raw, Mapping):
         raise SpecError(source, "", f"a spec must be a table, got {type(raw).__name__}")
     sweep = raw.get("sweep", {})
     if not isinstance(sweep, Mapping):
         raise SpecError(source, "sweep", f"must be a table, got {type(sweep).__name__}")
     doc = merge_defaults(raw, source)
-    sweep = {".".join(resolve_path(doc, key)): values for key, values in sweep.items()}
+    swept: dict[str, list[Any]] = {}
+    for key, values in sweep.items():
+        keys, _ = check_path(doc, str(key), f"{source}: sweep")
+        full = ".".join(keys)
+        if full in swept:
+            raise SpecError(source, f"sweep.{key}", f"sweeps {full} a second time")
+        swept[full] = values
     for text in overrides:
         key, value = parse_override(text)
-        full = ".".join(resolve_path(doc, key))
-        if full in sweep:
-            sweep[full] = value if isinstance(value, list) else [value]
+        keys, annotation = check_path(doc, key, "--set")
+        full = ".".join(keys)
+        if full in swept:  # one value, or a list of values to sweep
+            many = isinstance(value, list) and (
+                not is_list_valued(annotation) or all(isinstance(v, list) for v in value)
+            )
+            swept[full] = value if many else [value]
         else:
             set_path(doc, key, value, "--set")
-    return expand(doc, sweep, source)
+    return doc, swept
 
 
 def expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> list[RunSpec]:
     """One validated run per point of the sweep grid (one run when the sweep is empty)."""
     for key, values in sweep.items():
         if not isinstance(values, list) or not values:
-            raise SpecError(source, f"sweep.{key}", "must be a non-empty list of values")
+            raise SpecError(
+                source, f"sweep.{key}", f"must be a non-empty list of values, got {short(values)}"
+            )
+        seen = set()
+        for value in values:
+            frozen = _hashable(value)
+            if frozen in seen:
+                raise SpecError(source, f"sweep.{key}", f"lists {short(value)} twice")
+            seen.add(frozen)
     keys = list(sweep)
     runs = []
     size = math.prod(len(sweep[k]) for k in keys)
     for index, point in enumerate(itertools.product(*(sweep[k] for k in keys))):
         values = dict(zip(keys, point, strict=True))
-        run_doc = copy.deepcopy(dict(doc))
-        for key, value in values.items():
-            set_path(run_doc, key, value, f"{source}: sweep")
+        run_doc = _with_values(doc, values)
         runs.append(
             validate(run_doc, source=source, sweep_values=values, sweep_point=(index, size))
         )
     return runs
+
+
+def _with_values(doc: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:
+    """The document with one sweep point's values set (resolved paths, checked).
+
+    Only the tables on the paths of the swept values are copied: the runs of a sweep share
+    the rest of their (never changed) document, which keeps a large sweep small.
+    """
+    out = dict(doc)
+    for path, value in values.items():
+        keys = path.split(".")
+        node = out
+        for key in keys[:-1]:
+            node[key] = dict(node[key])
+            node = node[key]
+        node[keys[-1]] = plain_copy(value)
+    return out
+
+
+def _hashable(value: Any) -> Any:
+    """A value as a hashable key, equal for equal values (1 and 1.0 alike)."""
+    if isinstance(value, list | tuple):
+        return tuple(_hashable(v) for v in value)
+    if isinstance(value, Mapping):
+        return tuple(sorted((str(k), _hashable(v)) for k, v in value.items()))
+    return value

@@ -79,7 +79,10 @@ def record_group(
             out.append(found)
         else:
             todo.append(run)
-    return out + record_batches(todo, out_dir, threads=threads, stop_on_write_error=False)
+    reuse = (lambda run: reusable(out_dir, run)) if skip_complete else None
+    return out + record_batches(
+        todo, out_dir, threads=threads, stop_on_write_error=False, reuse=reuse
+    )
 
 
 def record_on(

@@ -1,0 +1,53 @@
+"""MuJoCo's warnings: kept out of the working folder, and named for the run that raised them.
+
+By default MuJoCo prints a warning and appends it to `MUJOCO_LOG.TXT` in the working folder.
+`quiet_mujoco` installs a handler (`mujoco.set_mju_user_warning`) that keeps the last messages
+in memory instead; the recorder puts the warning of each run into the run's outcome, which the
+log and the console show. `first_warning` steps a run alone to find which warning it raised.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+
+import mujoco
+import numpy as np
+
+MESSAGES: collections.deque[str] = collections.deque(maxlen=100)  # the last ones, any run
+_installed = threading.Lock()
+_done = False
+
+
+def _keep(message: str) -> None:
+    MESSAGES.append(" ".join(str(message).split()))
+
+
+def quiet_mujoco() -> None:
+    """Route MuJoCo's warnings to `MESSAGES` (once per process; no MUJOCO_LOG.TXT)."""
+    global _done
+    with _installed:
+        if not _done:
+            mujoco.set_mju_user_warning(_keep)
+            _done = True
+
+
+def first_warning(model: mujoco.MjModel, state: np.ndarray, nstep: int) -> tuple[int, str] | None:
+    """Step a run from `state` (full physics) for up to `nstep` steps; find its first warning.
+
+    Returns:
+        The step (0 for the first) that raised it, and its name with MuJoCo's own text, e.g.
+        "mjWARN_BADQVEL: Nan, Inf or huge value in QVEL at DOF 2. The simulation is
+        unstable."; None when no step raises one.
+    """
+    quiet_mujoco()
+    data = mujoco.MjData(model)
+    mujoco.mj_setState(model, data, state, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    for step in range(nstep):
+        mujoco.mj_step(model, data)
+        raised = [i for i, w in enumerate(data.warning) if w.number]
+        if raised:
+            kind = mujoco.mjtWarning(raised[0])
+            text = mujoco.mju_warningText(kind, int(data.warning[raised[0]].lastinfo))
+            return step, f"{kind.name}: {' '.join(text.split())}"
+    return None

@@ -1,0 +1,380 @@
+"""The experiment spec's schema: every field with its type, range, unit and default, declared once.
+
+A spec document (a TOML file's content, with overrides and one sweep point applied) is
+validated as a whole against `SpecDocument`; the validated sections are what the recorder
+builds its models from. Adding a field is one declaration here: its type and range
+(`Number`, `Vector`, ...), its default, and its unit (`unit(...)`, shown in errors and docs).
+Checks that relate fields (a stop rule that needs the plane, a body that starts below it)
+are validators of the section that holds both. `impactlab.record.spec` turns validation
+errors into one `SpecError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+CONDIMS = (1, 3, 4, 6)
+MIN_TIMESTEP_S = 1e-9  # log times are whole nanoseconds
+MAX_TIME_S = 1e9  # log times are int64 nanoseconds (2^63 ns is 292 years)
+MAX_LOG_EVERY = 1_000_000_000
+MAX_NAME_LENGTH = 64
+MAX_BODIES = 64
+MUJOCO_MINVAL = 1e-15  # mjMINVAL: MuJoCo refuses lighter moving bodies
+
+
+def problem(text: str, field: str = "") -> PydanticCustomError:
+    """A validation error with our own wording; `field` (dotted, from the section validated)
+    names the field it is about when that is not the value being validated."""
+    return PydanticCustomError("impactlab", "{text}", {"text": text, "field": field})
+
+
+def unit(symbol: str) -> Any:
+    """The unit of a field, kept in its schema (JSON schema key `unit`)."""
+    return Field(json_schema_extra={"unit": symbol})
+
+
+def _finite_number(value: Any) -> Any:
+    # bool is an int subclass: TOML's true is not a number here
+    if isinstance(value, bool):
+        raise problem(f"must be a number, got {value!r}")
+    return value
+
+
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False), BeforeValidator(_finite_number)]
+Positive = Annotated[Number, Field(gt=0)]
+NonNegative = Annotated[Number, Field(ge=0)]
+Fraction = Annotated[Number, Field(ge=0, le=1)]
+Integer = Annotated[int, Field(strict=True)]
+Flag = Annotated[bool, Field(strict=True)]
+
+
+def _name(value: str) -> str:
+    if not value or not value.replace("_", "a").isalnum() or len(value) > MAX_NAME_LENGTH:
+        raise problem(
+            f"must be a name of 1 to {MAX_NAME_LENGTH} letters, digits and _, got {short(value)}"
+        )
+    return value
+
+
+Name = Annotated[str, Field(strict=True), AfterValidator(_name)]
+
+
+def _vector(lengths: tuple[int, ...]):
+    want = " or ".join(str(n) for n in lengths)
+
+    def check(value: Any) -> Any:
+        if not isinstance(value, list | tuple) or len(value) not in lengths:
+            raise problem(f"must be a list of {want} numbers, got {short(value)}")
+        return value
+
+    return BeforeValidator(check)
+
+
+def Vector(*lengths: int, item: Any = Number) -> Any:
+    """A list of numbers of one of `lengths` (a TOML array), validated item by item."""
+    return Annotated[tuple[item, ...], _vector(lengths)]
+
+
+def short(value: Any, limit: int = 60) -> str:
+    """`repr(value)` cut to `limit` characters (a huge or deeply nested value stays readable)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class Section(BaseModel):
+    """A table of the spec: unknown keys are errors, values are checked strictly (no "1" for
+    1), and a validated section is frozen."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, hide_input_in_errors=True)
+
+
+class Options(Section):
+    """Simulation options."""
+
+    timestep: Annotated[Positive, unit("s")] = 0.002
+    integrator: Literal[INTEGRATORS] = "Euler"  # type: ignore[valid-type]
+    gravity: Annotated[Vector(3), unit("m/s^2")] = (0.0, 0.0, -9.81)
+
+    @model_validator(mode="after")
+    def _resolvable(self) -> Options:
+        if self.timestep < MIN_TIMESTEP_S:
+            raise problem(
+                f"must be >= {MIN_TIMESTEP_S:g} s (log times are whole nanoseconds), "
+                f"got {self.timestep!r}",
+                "timestep",
+            )
+        return self
+
+
+def _speed_range(value: tuple[float, ...]) -> tuple[float, ...]:
+    if not 0.0 < value[0] <= value[1]:
+        raise problem(f"need 0 < v_lo <= v_hi (m/s), got {list(value)}")
+    return value
+
+
+SpeedRange = Annotated[Vector(2), AfterValidator(_speed_range), unit("m/s")]
+
+
+class ContactTarget(Section):
+    """What a calibrated contact must deliver; None means: as the global contact, or default.
+
+    `restitution`: target e. `speed_range`: (lowest, highest) normal impact speed in m/s at
+    which e is promised (default: from the experiment, see `impactlab.record.contact_pairs`).
+    `duration` in s or `max_penetration` in m: the stiffness (both optional, not both).
+    """
+
+    restitution: Number | None = None
+    speed_range: SpeedRange | None = None
+    duration: Annotated[Positive | None, unit("s")] = None
+    max_penetration: Annotated[Positive | None, unit("m")] = None
+
+    @model_validator(mode="after")
+    def _one_stiffness(self) -> ContactTarget:
+        if self.duration is not None and self.max_penetration is not None:
+            raise problem("give duration or max_penetration, not both", "duration")
+        return self
+
+
+class PairContact(ContactTarget):
+    """One geom pair's table (`[contact.pairs."ball/plane"]`): any field of `ContactTarget`,
+    overriding the global contact's field by field."""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _not_empty(cls, value: Any) -> Any:
+        if isinstance(value, Mapping) and not value:
+            raise problem(f"must be a table with some of {', '.join(cls.model_fields)}")
+        return value
+
+
+def _pair_key(key: str) -> str:
+    names = key.split("/")
+    if len(names) != 2 or not all(names):
+        raise problem(f'pair keys are two geom names joined by /, e.g. "ball/plane", got {key!r}')
+    return key
+
+
+PairKey = Annotated[str, AfterValidator(_pair_key)]
+
+
+def _condim(value: int) -> int:
+    if value not in CONDIMS:
+        raise problem(f"must be 1, 3, 4 or 6, got {value!r}")
+    return value
+
+
+class Contact(ContactTarget):
+    """MuJoCo contact parameters applied to every geom (the handout's `<default><geom>`).
+
+    When `restitution` is set (for every pair, or per pair in `pairs`, keyed by the sorted
+    geom names "a/b" once validated), those pairs get calibrated parameters instead
+    (`impactlab.contact`): a target e over a range of impact speeds, with an optional contact
+    duration or max penetration (the fields of `ContactTarget`). A pair's table overrides
+    the global values field by field.
+    """
+
+    condim: Annotated[Integer, AfterValidator(_condim)] = 3
+    solref: Vector(2) = (0.02, 1.0)
+    solimp: Vector(3, 5) = (0.9, 0.95, 0.001, 0.5, 2.0)
+    friction: Vector(3, item=NonNegative) = (1.0, 0.005, 0.0001)
+    allow_coarse_timestep: Flag = False
+    pairs: dict[PairKey, PairContact] = Field(default_factory=dict)
+
+    @field_validator("pairs")
+    @classmethod
+    def _sorted_pairs(cls, pairs: dict[str, PairContact]) -> dict[str, PairContact]:
+        out: dict[str, PairContact] = {}
+        given: dict[str, str] = {}
+        for key, table in pairs.items():
+            same = "/".join(sorted(key.split("/")))
+            if same in out:
+                raise problem(f"names the same pair as {given[same]!r}", key)
+            out[same], given[same] = table, key
+        return out
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Contact:
+        if self.solref[0] > 0 and self.solref[1] <= 0:
+            raise problem("dampratio must be > 0 when timeconst > 0", "solref")
+        s = self.solimp
+        if not (0 < s[0] < 1 and 0 < s[1] < 1 and s[2] > 0):
+            raise problem(f"need 0 < dmin, dmax < 1 and width > 0, got {list(s)}", "solimp")
+        return self
+
+
+class Plane(Section):
+    """The ground plane at z = 0 (absent when `enabled` is false)."""
+
+    enabled: Flag = True
+    size: Annotated[Vector(3, item=NonNegative), unit("m")] = (5.0, 5.0, 0.1)
+    rgba: Vector(4, item=Fraction) = (0.8, 0.8, 0.8, 1.0)
+
+
+class BodySpec(Section):
+    """A free sphere as a spec declares it (`[bodies.NAME]`)."""
+
+    radius: Annotated[Positive, unit("m")]
+    mass: Annotated[Positive, unit("kg")]
+    pos: Annotated[Vector(3), unit("m")]
+    vel: Annotated[Vector(3), unit("m/s")] = (0.0, 0.0, 0.0)
+    angvel: Annotated[Vector(3), unit("rad/s")] = (0.0, 0.0, 0.0)
+    rgba: Vector(4, item=Fraction) | None = None  # None: a colour of the palette
+
+    @model_validator(mode="after")
+    def _massive(self) -> BodySpec:
+        inertia = 0.4 * self.mass * self.radius**2  # a solid sphere's, kg m^2
+        if min(self.mass, inertia) < MUJOCO_MINVAL:
+            raise problem(
+                f"with radius {self.radius:g} m its inertia is {inertia:.3g} kg m^2, below "
+                f"MuJoCo's minimum {MUJOCO_MINVAL:g} for mass and inertia",
+                "mass",
+            )
+        return self
+
+
+class Body(BodySpec):
+    """A free sphere of a run: its name and its colour resolved."""
+
+    name: str
+    rgba: tuple[float, ...]
+
+
+class Stop(Section):
+    """When a run ends.
+
+    `max_time` bounds every run. `bounces`: stop at the apex after the N-th bounce of every
+    body on the plane. `at_rest`: stop once every body is slower than `rest_speed` for
+    `rest_time`. `separation`: a collision; stop once the bodies have touched and their
+    surfaces are this far apart again (a run that ends without that contact is warned about).
+    A run is stopped as unstable when its state becomes non-finite, its mechanical energy
+    grows by more than `max_energy_gain` (fraction of its energy scale), a penetration
+    exceeds `max_penetration` (fraction of the smaller radius) or MuJoCo raises a warning.
+    """
+
+    max_time: Annotated[Positive, Field(le=MAX_TIME_S), unit("s")]
+    bounces: Annotated[Integer, Field(ge=1)] | None = None
+    at_rest: Flag = False
+    rest_speed: Annotated[Positive, unit("m/s")] = 1e-3
+    rest_time: Annotated[Positive, unit("s")] = 0.05
+    separation: Annotated[Positive | None, unit("m")] = None
+    max_energy_gain: Positive = 0.1
+    max_penetration: Positive = 1.0
+
+
+class Logging(Section):
+    """What is logged: every N-th step."""
+
+    every: Annotated[Integer, Field(ge=1, le=MAX_LOG_EVERY)] = 1
+
+
+class SpecDocument(Section):
+    """A whole spec (without its `[sweep]`): what one run is made from."""
+
+    name: Name
+    description: Annotated[str, Field(strict=True, max_length=10_000)] = ""
+    options: Options = Options()
+    contact: Contact = Contact()
+    plane: Plane = Plane()
+    bodies: Annotated[dict[Name, BodySpec], Field(min_length=1, max_length=MAX_BODIES)]
+    stop: Stop
+    logging: Logging = Logging()
+
+    @model_validator(mode="after")
+    def _stop_fits_the_model(self) -> SpecDocument:
+        stop, plane, opt = self.stop, self.plane, self.options
+        if stop.bounces is not None and stop.separation is not None:
+            raise problem("give either bounces (a drop) or separation (a collision)", "stop")
+        if stop.bounces is not None and not plane.enabled:
+            raise problem("counts bounces on the plane, but plane.enabled is false", "stop.bounces")
+        if stop.separation is not None and len(self.bodies) < 2:
+            raise problem("a collision needs at least two bodies", "stop.separation")
+        if stop.at_rest and stop.rest_time >= stop.max_time:
+            raise problem(
+                f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
+                "stop.rest_time",
+            )
+        if opt.timestep >= stop.max_time:
+            raise problem(
+                f"{opt.timestep} s is not shorter than stop.max_time = {stop.max_time} s",
+                "options.timestep",
+            )
+        for name, body in self.bodies.items():
+            if plane.enabled and body.pos[2] - body.radius < 0:
+                raise problem(
+                    f"starts below the plane (z - radius = {body.pos[2] - body.radius:g} m)",
+                    f"bodies.{name}.pos",
+                )
+        return self
+
+
+class MjcfRunOptions(Section):
+    """What an MJCF model's run takes from impactlab: how it stops and what it logs (the model
+    brings everything else)."""
+
+    stop: Stop
+    logging: Logging = Logging()
+
+
+SECTIONS: Mapping[str, type[Section]] = {
+    "options": Options,
+    "contact": Contact,
+    "plane": Plane,
+    "stop": Stop,
+    "logging": Logging,
+}
+
+
+def defaults(section: type[Section]) -> dict[str, Any]:
+    """A section's default values as a spec document holds them (lists, not tuples);
+    required fields are left out."""
+    out = {}
+    for name, info in section.model_fields.items():
+        if info.is_required():
+            continue
+        value = info.get_default(call_default_factory=True)
+        out[name] = list(value) if isinstance(value, tuple) else value
+    return out
+
+
+def field_info(path: list[str]) -> tuple[str, Any] | None:
+    """What the dotted path (resolved, e.g. ["bodies", "ball", "mass"]) names in the schema:
+    ("table", section class) for a table, ("value", annotation) for a value, None if nothing."""
+    if not path:
+        return None
+    node: Any = SpecDocument
+    i = 0
+    while i < len(path):
+        key = path[i]
+        if node is SpecDocument and key == "bodies":
+            if i + 1 == len(path):
+                return ("table", None)
+            node, i = BodySpec, i + 2  # bodies.NAME
+            if i == len(path):
+                return ("table", BodySpec)
+            continue
+        fields = node.model_fields
+        if key not in fields:
+            return None
+        annotation = fields[key].annotation
+        if isinstance(annotation, type) and issubclass(annotation, Section):
+            node, i = annotation, i + 1
+            if i == len(path):
+                return ("table", node)
+            continue
+        if i + 1 != len(path):
+            return None
+        return ("value", annotation)
+    return None

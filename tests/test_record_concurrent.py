@@ -1,0 +1,48 @@
+"""Two record jobs on the same sweep and folder at once: both succeed, and the folder holds
+one complete log per run (each process writes under its own temporary name; a run the other
+job finished first is reused, and when both finish a run, the same bytes replace each other)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from impactlab.logs.load import load_log
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SPEC = """
+name = "race"
+[options]
+timestep = 0.0001
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 1.0]
+[stop]
+max_time = 1.5
+[sweep]
+"ball.mass" = [1.0, 2.0, 3.0, 4.0]
+"""
+
+
+def test_two_jobs_on_one_sweep_and_folder(tmp_path):
+    spec = tmp_path / "race.toml"
+    spec.write_text(SPEC)
+    out = tmp_path / "logs"
+    cmd = [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out)]
+    jobs = [
+        subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
+    results = [(job.wait(timeout=120), *job.communicate()) for job in jobs]
+    for code, stdout, stderr in results:
+        assert code == 0 and stderr == "", (code, stdout, stderr)
+        assert "4 run(s)" in stdout, stdout
+    logs = sorted(out.iterdir())
+    assert len(logs) == 4 and all(p.suffix == ".mcap" for p in logs), logs  # no .partial left
+    for log in logs:
+        run = load_log(log)
+        assert not run.partial and run.problems == [] and run.outcome == "completed", log
+        assert run.energy.height == 15_001
