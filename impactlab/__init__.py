@@ -15,13 +15,9 @@ Nothing prints unless asked (`progress=` or `verbose=True`).
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-try:
-    __version__ = version("impactlab")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
+from impactlab.version import __version__
 
 __all__ = ["__version__", "analyze", "diff", "load", "plan", "record", "replay"]
 

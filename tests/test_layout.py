@@ -47,7 +47,15 @@ FORBIDDEN = {
     },
     "impactlab.calibrate": {"impactlab": {"replay", "cli", "lab"}, "third": {"rerun"}},
 }
-BASE = ("errors", "files", "progress", "packages", "physics", "plotting")  # below every stage
+BASE = (
+    "errors",
+    "files",
+    "progress",
+    "packages",
+    "physics",
+    "plotting",
+    "version",
+)  # below every stage
 FACES = {f"impactlab.{stage}" for stage in STAGES}  # what other stages may use of a stage
 
 
@@ -157,6 +165,19 @@ def _face_names(package: str) -> set[str]:
         if isinstance(node, ast.Dict):
             names |= {k.value for k in node.keys if isinstance(k, ast.Constant)}
     return {f"{package}.{n}" for n in names}
+
+
+def test_only_the_command_line_imports_the_top_package():
+    """`impactlab` (the API) stands above the stages: none of them imports it back."""
+    above = ("impactlab.cli", "impactlab.lab", "impactlab.__main__")
+    back = sorted(
+        name
+        for name, path in MODULES.items()
+        if name != "impactlab"
+        and not name.startswith(above)
+        and "impactlab" in _imports(name, path)
+    )
+    assert back == []
 
 
 def test_base_modules_import_no_stage():

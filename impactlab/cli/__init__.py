@@ -14,10 +14,10 @@ import sys
 import threading
 from collections.abc import Sequence
 
-from impactlab import __version__
 from impactlab.cli import analyze, calibrate, contact, diff, info, lab, record, replay
 from impactlab.cli.options import OneLineParser
 from impactlab.errors import ImpactlabError
+from impactlab.version import __version__
 
 COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in help order
 

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from impactlab import __version__
 from impactlab.logs import format as logformat
 from impactlab.logs.scene import GeomShape
+from impactlab.version import __version__
 
 
 @dataclass(frozen=True)

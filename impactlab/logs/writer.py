@@ -25,13 +25,13 @@ from google.protobuf.message import Message
 from mcap.writer import Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from impactlab import __version__
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.chunks import Block, ChunkWriter
 from impactlab.logs.content import LogHeader, LogRows, Outcome, PairMeta
 from impactlab.logs.scene import scene_update
 from impactlab.proto import impactlab_pb2 as pb
+from impactlab.version import __version__
 
 PARTIAL_SUFFIX = ".partial"
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
