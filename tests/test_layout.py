@@ -206,3 +206,23 @@ def test_help_and_info_import_no_heavy_library(tmp_path):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["info", "GOLDEN"]], ids=["help", "info"])
+def test_commands_that_need_no_heavy_library_import_none(argv):
+    """Running `impactlab --help` and `impactlab info LOG` imports no matplotlib, rerun or polars."""
+    golden = Path(__file__).parent / "golden" / "format1" / "drop_restitution.mcap"
+    argv = [str(golden) if a == "GOLDEN" else a for a in argv]
+    code = (
+        "import runpy, sys\n"
+        f"sys.argv = ['impactlab', *{argv!r}]\n"
+        "try:\n"
+        "    runpy.run_module('impactlab', run_name='__main__')\n"
+        "except SystemExit as exit:\n"
+        "    code = exit.code\n"
+        "heavy = ('polars', 'matplotlib', 'rerun')\n"
+        "print(code, sorted(m for m in sys.modules if m.split('.')[0] in heavy), file=sys.stderr)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip(), "the command printed nothing"
+    assert out.stderr.strip().splitlines()[-1] in ("0 []", "None []"), out.stderr
