@@ -145,3 +145,15 @@ def test_sweep_without_a_complete_bounce_still_reports(record_spec, tmp_path):
     report = (tmp_path / "out" / "report.md").read_text()
     assert "no rebound" in report
     assert result.runs["n_bounces_complete"].to_list() == [0, 0]
+
+
+def test_no_figures_writes_the_tables_and_no_figure(logs, tmp_path, capsys):
+    """`--no-figures` (what batch jobs use): the same tables, a report, no PNG, no image link."""
+    out = tmp_path / "tables-only"
+    assert (
+        main(["analyze", str(logs["drop"]), str(logs["hit"]), "-o", str(out), "--no-figures"]) == 0
+    )
+    assert pl.read_parquet(out / "runs.parquet").height == 2
+    assert pl.read_parquet(out / "bounces.parquet").height > 0
+    assert not list(out.rglob("*.png"))
+    assert "](" not in (out / "report.md").read_text()

@@ -27,19 +27,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "-o", "--out", type=path, default=Path("results"), help="output folder (results/)"
     )
+    p.add_argument(
+        "--no-figures",
+        dest="figures",
+        action="store_false",
+        help="tables only: no figures, report.md without them (what batch jobs need; fastest)",
+    )
     add_executor_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyze into the output folder with figures and report."""
+    """Analyze into the output folder: tables, report and (unless --no-figures) figures."""
     from impactlab.analyze.job import run_analysis
     from impactlab.progress import console_progress
 
     executor = make_executor(args)
     progress = console_progress()
     try:
-        result = run_analysis(args.logs, args.out, executor=executor, progress=progress)
+        result = run_analysis(
+            args.logs, args.out, figures=args.figures, executor=executor, progress=progress
+        )
     finally:
         progress.close()
         executor.close()
