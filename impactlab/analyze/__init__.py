@@ -53,7 +53,9 @@ def analyze(
         out: a folder to write the tables (Parquet, summary.json) into; None writes nothing.
         figures: also draw the figures into `out`/figures (needs `out`).
         report: also write `out`/report.md (needs `out`).
-        executor: "local" (default), "ray", or an `impactlab.executors` executor.
+        executor: "local" (default: in this process), "processes" (one worker process per
+            CPU, from 8 logs; needs the `if __name__ == "__main__":` guard in a script),
+            "ray", or an `impactlab.executors` executor.
         progress: called with each `impactlab.progress.ProgressEvent`; None: silent.
         verbose: report progress on the console (when `progress` is None).
 

@@ -104,7 +104,7 @@ def analyze_logs(
     out: list[AnalyzedLog | None] = [None] * len(paths)
     if executor is None or executor.name == "local":
         for i, item in enumerate(items):
-            out[i] = analyze_one(item, fig_dir)
+            out[i] = _task(item, fig_dir)  # slim at once: memory flat in the number of logs
             _count(tracker, out[i])
         return [r for r in out if r is not None]
     # tasks get absolute paths (a worker's working folder is not the driver's); the

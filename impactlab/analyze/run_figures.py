@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from impactlab.analyze import figures
 from impactlab.analyze.analysis import RunAnalysis
 
 
@@ -48,6 +47,8 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     made: list[tuple[str, Path]] = []
     if not draws_own_figures(*a.run.sweep_point):
         return made
+    from impactlab.analyze import figures  # matplotlib: only when figures are drawn
+
     contacts = a.phases.filter(pl.col("kind") == "contact")
     if a.ground is not None and a.ground.surfaces and a.energy.height:
         path = fig_dir / f"energy-{a.run.run_id}.png"

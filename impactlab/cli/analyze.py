@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         action="store_false",
         help="tables only: no figures, report.md without them (what batch jobs need; fastest)",
     )
-    add_executor_options(p)
+    add_executor_options(p, default="processes")
     p.set_defaults(func=run)
 
 

@@ -6,17 +6,19 @@ import argparse
 import math
 from pathlib import Path
 
+from impactlab.executors.base import PROCESS_MIN_ITEMS
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
 
 
-def add_executor_options(parser: argparse.ArgumentParser) -> None:
+def add_executor_options(parser: argparse.ArgumentParser, default: str = "local") -> None:
     """Add `--executor` and `--address` to a subcommand's parser."""
     parser.add_argument(
         "--executor",
         choices=EXECUTORS,
-        default="local",
-        help="where tasks run: this machine (local, the default) or a Ray cluster (ray; "
-        f"needs {RAY_INSTALL_HINT})",
+        default=default,
+        help="where tasks run: in this process (local), in one worker process per CPU of "
+        f"this machine (processes; from {PROCESS_MIN_ITEMS} items) or on a Ray cluster (ray; needs "
+        f"{RAY_INSTALL_HINT}); default: {default}",
     )
     parser.add_argument(
         "--address",

@@ -3,8 +3,10 @@
 An executor runs `fn(item)` for each item and yields one `TaskOutcome` per item as it
 finishes: its value, or the reason it failed (one item failing never stops the others).
 `LocalExecutor` runs the items one after the other in this process (the record-side
-functions are multi-threaded themselves); `impactlab.executors.ray.RayExecutor` runs them as
-Ray tasks on a cluster. `make_executor("local" | "ray", address)` picks one.
+functions are multi-threaded themselves); `impactlab.executors.processes.ProcessExecutor`
+spreads them over worker processes on this machine; `impactlab.executors.ray.RayExecutor`
+runs them as Ray tasks on a cluster. `make_executor("local" | "processes" | "ray", address)`
+picks one.
 
 Executors know nothing of recording or analysis: the record tasks live in
 `impactlab.record.tasks`, the analysis batch in `impactlab.analyze.batch`.
@@ -20,6 +22,8 @@ from typing import Any, Generic, Protocol, TypeVar
 from impactlab.errors import ImpactlabError
 
 R = TypeVar("R")
+
+PROCESS_MIN_ITEMS = 8  # the processes executor runs smaller batches here: workers cost more
 
 
 class ExecutorError(ImpactlabError):

@@ -1,4 +1,4 @@
-"""Pick an executor by name ("local" or "ray"), checked before any work starts."""
+"""Pick an executor by name ("local", "processes" or "ray"), checked before any work starts."""
 
 from __future__ import annotations
 
@@ -7,12 +7,12 @@ from collections.abc import Iterator
 
 from impactlab.executors.base import Executor, ExecutorError, LocalExecutor
 
-EXECUTORS = ("local", "ray")
+EXECUTORS = ("local", "processes", "ray")
 RAY_INSTALL_HINT = "pip install 'impactlab[ray]'"
 
 
 def make_executor(name: str = "local", address: str | None = None) -> Executor:
-    """The executor called `name` ("local" or "ray"; `address` is the Ray cluster's).
+    """The executor called `name` ("local", "processes" or "ray"; `address` is Ray's).
 
     Raises:
         ExecutorError: unknown name, an address for the local executor, or Ray is not
@@ -23,6 +23,10 @@ def make_executor(name: str = "local", address: str | None = None) -> Executor:
         from impactlab.executors.ray import RayExecutor
 
         return RayExecutor(address=address)
+    if name == "processes":
+        from impactlab.executors.processes import ProcessExecutor
+
+        return ProcessExecutor()
     return LocalExecutor()
 
 
@@ -30,7 +34,7 @@ def check_executor(name: str, address: str | None = None) -> None:
     """Raise `ExecutorError` now if `make_executor(name, address)` cannot work (starts nothing)."""
     if name not in EXECUTORS:
         raise ExecutorError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
-    if name == "local" and address:
+    if name != "ray" and address:
         raise ExecutorError("--address applies to --executor ray")
     if name == "ray":
         require_ray()
