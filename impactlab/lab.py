@@ -1,6 +1,7 @@
 """The whole lab end to end: record every experiment, analyze, replay, calibrate, report.
 
-Logs go to OUT/logs, tables, figures and the report to OUT/results, one Rerun recording per
+Logs go to OUT/logs, tables, figures and the report (report.md, and report.html with the
+figures embedded) to OUT/results, one Rerun recording per
 run to OUT/results/replays (linked from the report). Complete logs from an earlier run of
 the same specs are reused.
 """
@@ -51,7 +52,7 @@ def run_lab(
             calibration run here.
         progress: receives every stage's progress and lines; None: silent.
     """
-    from impactlab.analyze import analyze
+    from impactlab.analyze import analyze, write_report_html
     from impactlab.record import plan, record
 
     specs = sorted(experiments.glob("*.toml"))
@@ -90,6 +91,7 @@ def run_lab(
         calibrated = run_calibration(where, grid=calibration, echo=echo)
         sections.append(_calibration_section(report, calibrated))
     write_text(report, "".join(sections))
+    write_report_html(report)
     failed = bool(recorded.exit_code or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
 

@@ -3,10 +3,11 @@
 Owns: the quantities of one run (`ground`, `contacts`, `impacts` with `kinematics`,
 `flights`, `bounces`, `collisions`, `energy`, `analysis`, `summary`; see docs/analysis.md),
 the tables over many runs (`tables`, `studies`), the analysis job (`job`, `batch`) and what it
-writes (`write`, `figures`, `run_figures`, `report`, `answers`).
+writes (`write`, `figures`, `run_figures`, `report`, `answers`, `html`: the report as one
+self-contained page).
 
 May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
-polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
+polars, matplotlib, markdown-it. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
 `impactlab.replay`, `impactlab.calibrate`: the analysis reads only the logs.
 
 This package is also the function `impactlab.analyze(...)` (see `analyze` below).
@@ -32,6 +33,7 @@ __getattr__ = lazy_exports(
         "RunAnalysis": "impactlab.analyze.analysis",
         "analyze_run": "impactlab.analyze.analysis",
         "run_analysis": "impactlab.analyze.job",
+        "write_report_html": "impactlab.analyze.html",
     },
 )
 

@@ -9,6 +9,7 @@ import polars as pl
 
 from impactlab.analyze import answers
 from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.html import write_report_html
 from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN, decimate
 from impactlab.analyze.report import build_report
 from impactlab.analyze.run_figures import run_label
@@ -72,6 +73,7 @@ def write_all(
             energy_stride_note=stride_note,
         )
         files.append(write_text(out / "report.md", text))
+        files.append(write_report_html(out / "report.md"))
     summary = {
         "runs": result.runs.to_dicts(),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
