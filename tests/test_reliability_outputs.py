@@ -76,6 +76,8 @@ def assert_complete(path: Path) -> None:
         matplotlib.image.imread(path)
     elif path.suffix == ".md":
         assert path.read_text().endswith("\n"), path
+    elif path.suffix == ".html":
+        assert path.read_text().endswith("</html>\n"), path
     else:
         raise AssertionError(f"unexpected output {path}")
 
