@@ -4,6 +4,7 @@ and that the analysis stage never imports mujoco."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -48,6 +49,13 @@ def test_outputs_written(logs, tmp_path):
     report = (out / "report.md").read_text()
     for link in report.split("](")[1:]:
         target = link.split(")")[0]
+        if target.startswith("#"):  # an in-page link: a heading's GitHub-style slug
+            slugs = {
+                re.sub(r"[^\w\- ]", "", h.lower()).replace(" ", "-")
+                for h in re.findall(r"^#+ (.+)$", report, re.M)
+            }
+            assert target[1:] in slugs, target
+            continue
         assert (out / target).is_file(), target  # relative image links resolve
     assert "never happened" in report  # the run without a collision is reported, with reason
     pngs = sorted(p.name for p in (out / "figures").glob("*.png"))

@@ -19,6 +19,11 @@ def _f(x: float | None, fmt: str = ".3g") -> str:
     return "n/a" if x is None else format(x, fmt)
 
 
+def _who(row: dict) -> str:
+    """The run's readable label when the table has one (`labels.with_labels`), else its id."""
+    return str(row.get("run") or f"`{row['run_id']}`")
+
+
 def energy_answer(runs: pl.DataFrame) -> list[str]:
     """Is energy conserved in flight and lost at contacts?"""
     out = []
@@ -27,7 +32,7 @@ def energy_answer(runs: pl.DataFrame) -> list[str]:
             continue
         drift = r["flight_drift_max_rel"]
         out.append(
-            f"`{r['run_id']}`: flight phases keep the total energy to "
+            f"{_who(r)}: flight phases keep the total energy to "
             f"{_f(drift and drift * 100)} % "
             f"of the initial {r['energy_initial_J']:.4g} J (largest flight drift "
             f"{_f(r['flight_drift_max_J'])} J, the semi-implicit Euler drift m g^2 dt T / 2); the "
@@ -54,7 +59,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
         )
         es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls()
-        who = f"`{run_id}`, {body} on {surface}"
+        who = f"{_who(mine.row(0, named=True))}, {body} on {surface}"
         if es.len() >= 2:
             spread = float(es.max() - es.min())
             word = "constant" if spread < E_CONSTANT_SPREAD else "not constant"
@@ -113,10 +118,10 @@ def collision_answer(collisions: pl.DataFrame) -> list[str]:
     out = []
     for r in collisions.iter_rows(named=True):
         if not r["complete"]:
-            out.append(f"`{r['run_id']}` ({r['body1']}-{r['body2']}): {r['note']}.")
+            out.append(f"{_who(r)} ({r['body1']}-{r['body2']}): {r['note']}.")
             continue
         out.append(
-            f"`{r['run_id']}`: momentum changes by {r['momentum_rel_change']:.2g} (relative), i.e. "
+            f"{_who(r)}: momentum changes by {r['momentum_rel_change']:.2g} (relative), i.e. "
             f"it is conserved; the kinetic energy falls from {r['ke_before_J']:.4g} J to "
             f"{r['ke_after_J']:.4g} J ({r['ke_loss_frac'] * 100:.1f} % lost). Measured e = "
             f"{r['e_measured']:.3f}; the 1D formula predicts a loss of "

@@ -9,6 +9,8 @@ from typing import Any
 import polars as pl
 
 from impactlab.analyze import answers
+from impactlab.analyze.headline import headline
+from impactlab.analyze.labels import run_labels, with_labels
 
 METHOD = """\
 - **Ground and heights** come from the model: the static geoms a body can land on (planes,
@@ -97,6 +99,11 @@ def build_report(
         figures: keyed "energy", "decay", "restitution", "collision", "study".
         failed: (path, problem) of inputs that could not be analyzed.
     """
+    labels = run_labels(runs)
+    runs, bounces, collisions, phases = (
+        with_labels(f, labels) for f in (runs, bounces, collisions, phases)
+    )
+    studies = {name: with_labels(s, labels) for name, s in studies.items()}
     out = ["# Impact lab: analysis report\n"]
     out.append(
         f"{runs.height} run(s) analyzed from {runs['experiment'].n_unique()} experiment(s)"
@@ -112,14 +119,24 @@ def build_report(
         out.append("\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n")
         out += [f"- `{r}`: {why}" for r, why in partial.select("run_id", "problems").iter_rows()]
         out.append("")
+    out += headline(
+        out_dir=out_dir,
+        runs=runs,
+        bounces=bounces,
+        collisions=collisions,
+        studies=studies,
+        params=params,
+        figures=figures,
+    )
     out.append("\n## Runs\n")
+    out.append("Each run's label, and its run id (the log's name) for finding its files:\n")
     param_cols = sorted({p for ps in params.values() for p in ps})
     out.append(
         md_table(
             runs,
             [
+                "run",
                 "run_id",
-                "experiment",
                 *param_cols,
                 "outcome",
                 "partial",
@@ -140,7 +157,7 @@ def build_report(
             md_table(
                 gravity_runs,
                 [
-                    "run_id",
+                    "run",
                     "energy_initial_J",
                     "energy_final_J",
                     "energy_loss_frac",
@@ -156,7 +173,7 @@ def build_report(
         )
         if losses.height:
             out.append("\nEnergy lost at each contact (J):\n")
-            out.append(md_table(losses, ["run_id", "start_t_s", "end_t_s", "loss_J", "open"]))
+            out.append(md_table(losses, ["run", "start_t_s", "end_t_s", "loss_J", "open"]))
     out.append(
         "\n`mujoco_diff_max_J` is the largest |MuJoCo total (shifted by the reference) - our "
         "total| over the run: MuJoCo's own energy (its `e_kinetic` and `e_potential` sensors) "
@@ -175,7 +192,7 @@ def build_report(
             md_table(
                 bounces,
                 [
-                    "run_id",
+                    "run",
                     "body",
                     "surface",
                     "bounce",
@@ -206,7 +223,7 @@ def build_report(
             md_table(
                 collisions,
                 [
-                    "run_id",
+                    "run",
                     "v1n_before_mps",
                     "v2n_before_mps",
                     "v1n_after_mps",
@@ -230,7 +247,7 @@ def build_report(
     out += [f"- {s}" for s in answers.study_answer(studies, params)] or ["- No collision sweep."]
     for name, study in studies.items():
         out.append(f"\n`{name}` (swept: {', '.join(params.get(name, []))}):\n")
-        out.append(md_table(study.drop("partial", "note")))
+        out.append(md_table(study.drop("partial", "note", "run_id", strict=False)))
     out += [image(p, out_dir, "study") for p in figures.get("study", [])]
 
     out.append("\n## Method\n")

@@ -1,0 +1,134 @@
+"""The report a student hands in: answers first, a rubric table, readable run labels, every
+handout question answered with a number."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+
+from impactlab.analyze.job import run_analysis
+from impactlab.analyze.labels import parameter_words
+
+DROP = """
+name = "swept_drop"
+[options]
+timestep = 0.0005
+[contact]
+condim = 1
+solref = [-100000.0, -63.245553]
+solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 0.5]
+[stop]
+max_time = 2.0
+bounces = 3
+[sweep]
+"ball.pos" = [[0.0, 0.0, 0.4], [0.0, 0.0, 0.6]]
+"""
+COLLISION = """
+name = "swept_collision"
+[options]
+timestep = 0.00002
+gravity = [0.0, 0.0, 0.0]
+[contact]
+restitution = 0.5
+[plane]
+enabled = false
+[bodies.a]
+radius = 0.1
+mass = 1.0
+pos = [-0.3, 0.0, 0.0]
+vel = [2.0, 0.0, 0.0]
+[bodies.b]
+radius = 0.1
+mass = 1.0
+pos = [0.3, 0.0, 0.0]
+vel = [-1.0, 0.0, 0.0]
+[stop]
+max_time = 0.5
+separation = 0.05
+[sweep]
+"contact.restitution" = [0.5, 0.9]
+"""
+STEPS = ("step-1-energy", "step-2-restitution", "step-3-collision", "step-4-parameter-studies")
+NUMBER = re.compile(r"\d+\.\d+|\d+ %|\d+e-\d+")
+
+
+@pytest.fixture(scope="module")
+def report(record_spec, tmp_path_factory) -> str:
+    logs = record_spec("swept_drop", DROP) + record_spec("swept_collision", COLLISION)
+    out = tmp_path_factory.mktemp("report")
+    assert run_analysis(logs, out).exit_code == 0
+    return (out / "report.md").read_text()
+
+
+def _section(text: str, heading: str) -> str:
+    """The text under `heading` up to the next heading of the same or a higher level."""
+    level = heading.split(" ")[0]
+    start = text.index(heading + "\n")
+    rest = text[start + len(heading) + 1 :]
+    ends = [m.start() for m in re.finditer(rf"^#{{1,{len(level)}}} ", rest, re.M)]
+    return rest[: ends[0]] if ends else rest
+
+
+def test_rubric_then_answers_come_before_the_tables(report):
+    headings = re.findall(r"^## (.+)$", report, re.M)
+    assert headings[:3] == ["Rubric", "Answers", "Runs"]
+    rubric = _section(report, "## Rubric")
+    rows = re.findall(r"^\| ([A-Z][^|]+?) \| (\d+) \|", rubric, re.M)
+    assert rows == [
+        ("Energy analysis", "25"),
+        ("Restitution measurement", "25"),
+        ("Collision dynamics", "25"),
+        ("Parameter study", "15"),
+        ("Visualisation", "10"),
+    ]
+    for anchor in STEPS:  # each rubric item links its answer and its detail, and both exist
+        assert f"(#{anchor}-answer)" in rubric and f"(#{anchor})" in rubric
+    details = [h.lower().replace(":", "").replace(" ", "-") for h in headings]
+    assert all(anchor in details for anchor in STEPS)
+
+
+def test_every_step_is_answered_with_a_number_a_figure_and_a_link(report):
+    answers = _section(report, "## Answers")
+    subsections = re.findall(r"^### (Step \d: .+) answer$", answers, re.M)
+    assert len(subsections) == 4
+    for title, anchor in zip(subsections, STEPS, strict=True):
+        body = _section(answers, f"### {title} answer")
+        question = re.search(r"\*\*Question\.\*\* (.+\?)", body)
+        answer = re.search(r"\*\*Answer\.\*\* (.+)", body)
+        assert question and answer, title
+        assert "Not answered" not in answer.group(1), (title, answer.group(1))
+        assert NUMBER.search(answer.group(1)), (title, answer.group(1))
+        assert re.search(r"!\[[^\]]*\]\(figures/[^)]+\.png\)", body), title
+        assert f"(#{anchor})" in body
+
+
+def test_run_labels_are_words_and_units_and_hashes_stay_in_the_runs_table(report):
+    before_runs = re.sub(r"\]\([^)]*\)", "]", report[: report.index("## Runs")])  # not file names
+    assert not re.search(r"-[0-9a-f]{8}\b", before_runs)
+    assert "swept_drop: ball released at z = 0.4 m" in report
+    assert "swept_collision: restitution = 0.9" in report
+    runs = _section(report, "## Runs")
+    assert re.search(
+        r"\| swept_drop: ball released at z = 0\.6 m \| swept_drop-[^|]*-[0-9a-f]{8} \|", runs
+    )
+    after_runs = report[report.index("## Step 1: energy") :]
+    assert not re.search(r"`swept_\w+-[^`]*[0-9a-f]{8}`", after_runs)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "words"),
+    [
+        ("bodies.ball.pos[2]", 2.0, "ball released at z = 2 m"),
+        ("ball.vel[0]", -1.5, "ball vx = -1.5 m/s"),
+        ("bodies.b.mass", 2.0, "b mass = 2 kg"),
+        ("contact.solimp[0]", 0.9, "solimp[0] = 0.9"),
+        ("options.timestep", 0.001, "options.timestep = 0.001"),
+    ],
+)
+def test_parameter_words(key, value, words):
+    assert parameter_words(key, value) == words
