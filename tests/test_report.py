@@ -132,3 +132,37 @@ def test_run_labels_are_words_and_units_and_hashes_stay_in_the_runs_table(report
 )
 def test_parameter_words(key, value, words):
     assert parameter_words(key, value) == words
+
+
+UNIT = re.compile(r"\((m|s|m/s|J|N|kg m/s|m; 0: at rest)\)|coefficient of restitution|e$|number")
+
+
+def test_every_figure_has_labelled_axes_with_units(record_spec, tmp_path, monkeypatch):
+    """Axis labels read back from the figure objects as they are saved: each says what it
+    shows and in which unit (or that it is a ratio such as e); study-drop's x axis is the drop
+    height in m, not a spec path."""
+    import impactlab.analyze.figures as figures
+
+    seen: dict[str, list[tuple[str, str]]] = {}
+    save = figures.save_figure
+
+    def capture(fig, path, **kw):
+        seen[path.name] = [
+            (ax.get_xlabel(), ax.get_ylabel())
+            for ax in fig.axes
+            if ax.get_visible() and ax.has_data()
+        ]
+        return save(fig, path, **kw)
+
+    monkeypatch.setattr(figures, "save_figure", capture)
+    logs = record_spec("swept_drop", DROP) + record_spec("swept_collision", COLLISION)
+    assert run_analysis(logs, tmp_path / "out").exit_code == 0
+    assert "study-swept_drop.png" in seen and "restitution-vs-speed.png" in seen
+    assert sum(len(axes) for axes in seen.values()) >= 8  # energy, decay, collision, studies
+    for name, axes in seen.items():
+        for xlabel, ylabel in axes:
+            for label in (xlabel, ylabel):
+                if label:
+                    assert UNIT.search(label) or label.startswith("contact."), (name, label)
+    (drop_axes,) = seen["study-swept_drop.png"]
+    assert drop_axes[0].startswith("drop height") and drop_axes[0].endswith("(m)")

@@ -179,42 +179,29 @@ def collision_figure(
 
 
 def restitution_figure(
-    bounces: pl.DataFrame, collisions: pl.DataFrame, labels: dict[str, str], *, path: Path
+    bounces: pl.DataFrame,
+    collisions: pl.DataFrame,
+    labels: dict[str, str],
+    *,
+    path: Path,
+    experiments: dict[str, str] | None = None,
 ) -> Path:
-    """e against impact speed: bounces (from velocities and from apexes), one colour per run,
-    body and surface, and collisions."""
+    """e against impact speed: one colour per experiment (`experiments`: run_id -> name; else
+    per run), o from velocities, x from apexes; body-body collisions as black squares."""
     fig, ax = plt.subplots(figsize=(8, 5))
     b = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
-    keys = (
-        b.select("run_id", "body", "surface").unique(maintain_order=True).rows() if b.height else []
-    )
-    several = len({(body, s) for _, body, s in keys}) > 1
-    legend = len(keys) <= MAX_LEGEND_RUNS
-    colors = plt.cm.viridis(np.linspace(0, 1, max(len(keys), 1)))
-    for i, (run_id, body, surface) in enumerate(keys):
-        rows = b.filter(
-            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
-        )
-        color = f"C{i % 10}" if legend else colors[i]
-        label = labels[run_id] + (f", {body} on {surface}" if several else "")
-        ax.plot(
-            -rows["v_in_mps"],
-            rows["e_velocity"],
-            "o",
-            color=color,
-            label=f"{label} (velocities)" if legend else None,
-        )
+    group = experiments or labels
+    names = list(dict.fromkeys(group[r] for r in b["run_id"].to_list())) if b.height else []
+    for i, name in enumerate(names):
+        runs = [r for r in labels if group.get(r) == name]
+        rows = b.filter(pl.col("run_id").is_in(runs))
+        color = f"C{i % 10}"
+        ax.plot(-rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=name)
         apex = rows.filter(pl.col("e_apex").is_not_null())
-        ax.plot(
-            -apex["v_in_mps"],
-            apex["e_apex"],
-            "x",
-            ms=9,
-            color=color,
-            label=f"{label} (apexes)" if legend and apex.height else None,
-        )
-    if not legend:
-        ax.plot([], [], "o", color="0.4", label=f"{len(keys)} series: o velocities, x apexes")
+        ax.plot(-apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color)
+    if names:
+        ax.plot([], [], "o", color="0.4", label="o: e from velocities in and out")
+        ax.plot([], [], "x", color="0.4", label="x: e from apex heights")
     c = collisions.filter(pl.col("complete")) if collisions.height else collisions
     if c.height:
         ax.plot(
@@ -279,22 +266,47 @@ def collision_study_figure(
 
 
 def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Path) -> Path:
-    """First-bounce e and impact speed against the swept parameter (e.g. drop height)."""
+    """First-bounce e against the drop height (m) of the lowest point, or against the swept
+    parameter when the study has no drop height; runs without a rebound are marked at e = 0."""
     fig, ax = plt.subplots(figsize=(8, 5))
-    rows = study.sort(param)
-    ax.plot(rows[param], rows["e_velocity_first"], "o-", label="e of the first bounce (velocities)")
+    x_col = "drop_height_m" if "drop_height_m" in study.columns else param
+    rows = study.filter(pl.col(x_col).is_not_null()).sort(x_col)
+    x_label = (
+        "drop height of the ball's lowest point above the ground (m)"
+        if x_col == "drop_height_m"
+        else param
+    )
+    ax.plot(rows[x_col], rows["e_velocity_first"], "o-", label="e of the first bounce (velocities)")
     if "e_apex_mean" in rows.columns:
-        ax.plot(rows[param], rows["e_apex_mean"], "x--", ms=9, label="mean e from apexes")
-    for x, e in rows.select(param, "e_velocity_first").iter_rows():
-        if e is None:
-            ax.annotate(
-                "no rebound", (x, 0.0), textcoords="offset points", xytext=(0, 6), ha="center"
-            )
-            ax.plot([x], [0.0], "v", color="tab:red")
-    ax.set_xlabel(param)
+        ax.plot(rows[x_col], rows["e_apex_mean"], "x--", ms=9, label="mean e from apexes")
+    none = rows.filter(pl.col("e_velocity_first").is_null())
+    if none.height:
+        ax.plot(
+            none[x_col],
+            [0.0] * none.height,
+            "v",
+            ms=9,
+            color="tab:red",
+            clip_on=False,
+            label="no rebound (the ball stays on the ground)",
+        )
+    if "first_impact_speed_mps" in rows.columns and x_col == "drop_height_m":
+        for x, v in rows.select(x_col, "first_impact_speed_mps").iter_rows():
+            if v is not None:
+                ax.annotate(
+                    f"{v:.3g} m/s",
+                    (x, 0.0),
+                    textcoords="offset points",
+                    xytext=(0, 12),
+                    ha="center",
+                    fontsize=8,
+                    color="0.3",
+                )
+    ax.set_xlabel(x_label)
     ax.set_ylabel("coefficient of restitution e")
-    ax.set_ylim(0, max(0.2, float(rows["e_velocity_first"].max() or 0) * 1.5))
-    ax.set_title(title)
+    top = float(rows["e_velocity_first"].max() or 0)
+    ax.set_ylim(-0.03 * max(0.2, top * 1.5), max(0.2, top * 1.5))
+    ax.set_title(f"{title}\n(grey: impact speed at the first contact)")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return save_figure(fig, path)

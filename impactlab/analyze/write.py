@@ -141,6 +141,7 @@ def summary_figures(
                 result.collisions,
                 labels,
                 path=fig_dir / "restitution-vs-speed.png",
+                experiments={a.run.run_id: a.run.experiment for a in analyses},
             )
         ]
     for name, study in result.studies.items():
