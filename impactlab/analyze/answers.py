@@ -98,13 +98,13 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
         if es.height >= 2:
             lo, hi = es["e_velocity_first"][0], es["e_velocity_first"][-1]
             trend = (
-                "rises"
+                "rises with the impact speed"
                 if hi > lo + E_CONSTANT_SPREAD
-                else "falls"
+                else "falls with the impact speed"
                 if hi < lo - E_CONSTANT_SPREAD
-                else "stays"
+                else f"does not depend on the impact speed (within {E_CONSTANT_SPREAD})"
             )
-            verdict = f"e {trend} with the impact speed ({lo:.3f} -> {hi:.3f})"
+            verdict = f"e {trend} ({lo:.3f} -> {hi:.3f})"
         elif es.height == 1:
             verdict = "only one drop height rebounds at all, so e depends on the impact speed"
         else:
