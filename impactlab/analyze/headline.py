@@ -54,7 +54,32 @@ def energy_line(runs: pl.DataFrame) -> str:
         if lost.len()
         else "no run ends with a measurable loss"
     )
-    return f"Over {ground.height} run(s) with a ground, {drift_words}; {lost_words}."
+    return f"Over {ground.height} run(s) with a ground, {drift_words}; {lost_words}." + rest_line(
+        ground
+    )
+
+
+def rest_line(ground: pl.DataFrame) -> str:
+    """Why runs that end at rest end early and slightly below zero energy ("" if none do)."""
+    rest = ground.filter(pl.col("reason") == "bodies at rest")
+    if rest.is_empty():
+        return ""
+    named = rest.filter(pl.col("experiment") == "free_fall")
+    r = (named if named.height else rest).row(0, named=True)
+    who = r.get("run") or r["run_id"]
+    out = (
+        f' {rest.height} run(s) stop once every body is at rest (stop rule `at_rest`): "{who}" '
+        f"ends at {r['duration_s']:.3g} s (the handout runs 2 s; the rest would log a ball "
+        "lying still)."
+    )
+    final = r["energy_final_J"]
+    if final is not None and final < 0:
+        out += (
+            f" Its final energy is slightly negative ({final:.3g} J): the ball rests a fraction "
+            "of a millimetre into MuJoCo's soft contact, below the surface where potential "
+            "energy is zero."
+        )
+    return out
 
 
 def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -> str:

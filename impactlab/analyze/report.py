@@ -9,6 +9,7 @@ from typing import Any
 import polars as pl
 
 from impactlab.analyze import answers
+from impactlab.analyze.handout import as_written_section
 from impactlab.analyze.headline import headline
 from impactlab.analyze.labels import run_labels, with_labels
 
@@ -128,6 +129,7 @@ def build_report(
         params=params,
         figures=figures,
     )
+    out += as_written_section(runs, collisions)
     out.append("\n## Runs\n")
     out.append("Each run's label, and its run id (the log's name) for finding its files:\n")
     param_cols = sorted({p for ps in params.values() for p in ps})

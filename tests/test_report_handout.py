@@ -1,0 +1,64 @@
+"""The report's "handout as written" table and the Step 1 loose ends, from the tables."""
+
+from __future__ import annotations
+
+import polars as pl
+
+from impactlab.analyze.handout import as_written_section
+from impactlab.analyze.headline import rest_line
+
+RUNS = pl.DataFrame(
+    {
+        "run_id": ["d1", "d2", "r1", "w1", "c1"],
+        "experiment": ["drop", "drop", "drop_restitution", "collision_as_written", "collision"],
+        "e_velocity_first": [None, 0.044, 0.8, None, None],
+    }
+)
+COLLISIONS = pl.DataFrame(
+    {
+        "run_id": ["w1", "c1"],
+        "complete": [False, True],
+        "e_measured": [None, 0.136],
+        "note": ["the collision never happened", ""],
+        "v1n_after_mps": [2.0, 0.2],
+        "v2n_after_mps": [-1.0, 0.7],
+        "v1n_after_elastic_mps": [-1.0, -1.0],
+        "momentum_rel_change": [None, 1e-15],
+    }
+)
+
+
+def test_each_step_as_written_beside_its_correction_with_numbers_and_why():
+    text = "\n".join(as_written_section(RUNS, COLLISIONS))
+    assert "## The handout as written" in text
+    drops = next(line for line in text.splitlines() if line.startswith("| Steps 1-2"))
+    assert "e = 0.044 at the first impact (1 of 2 run(s) rebound)" in drops
+    assert "e = 0.800 at the first impact (1 of 1 run(s) rebound)" in drops
+    assert "0.1 m/s velocity threshold" in drops
+    step3 = next(line for line in text.splitlines() if line.startswith("| Step 3"))
+    assert "no collision: the collision never happened; v1' = 2 m/s" in step3
+    assert "e = 0.136 over 1 collision(s), momentum kept to 1e-15" in step3
+    assert "meet at 0.6 s" in step3
+    assert "Step 4" not in text  # neither sweep was analyzed: no row, no invented numbers
+
+
+def test_no_handout_experiments_no_section():
+    runs = RUNS.with_columns(pl.lit("mine").alias("experiment"))
+    assert as_written_section(runs, COLLISIONS) == []
+
+
+def test_runs_at_rest_say_why_they_end_early_and_below_zero():
+    ground = pl.DataFrame(
+        {
+            "run_id": ["free_fall-1", "drop-2"],
+            "experiment": ["free_fall", "drop"],
+            "reason": ["bodies at rest", "time limit 2 s"],
+            "duration_s": [1.1505, 2.0],
+            "energy_final_J": [-0.00357, 0.1],
+        }
+    )
+    line = rest_line(ground)
+    assert "1 run(s) stop once every body is at rest" in line
+    assert '"free_fall-1" ends at 1.15 s (the handout runs 2 s' in line
+    assert "(-0.00357 J)" in line and "soft contact" in line
+    assert rest_line(ground.filter(pl.col("reason") != "bodies at rest")) == ""
