@@ -62,3 +62,17 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
     assert '"free_fall-1" ends at 1.15 s (the handout runs 2 s' in line
     assert "(-0.00357 J)" in line and "soft contact" in line
     assert rest_line(ground.filter(pl.col("reason") != "bodies at rest")) == ""
+
+
+def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
+    from impactlab.analyze.run_figures import contact_words, sweep_words
+
+    assert contact_words({"restitution": 0.8, "solref": [0.02, 1.0]}) == "restitution = 0.8"
+    raw = {"restitution": None, "solref": [0.02, 1.0], "solimp": [0.9, 0.95, 0.001]}
+    assert contact_words(raw) == "solref [0.02, 1.0], solimp [0.9, 0.95, 0.001]"
+    pairs = {"pairs": {"a/plane": {"restitution": 0.42}, "b/plane": {"restitution": 0.0}}}
+    assert contact_words(pairs) == "restitution a/plane = 0.42, b/plane = 0"
+    assert contact_words({}) == ""
+    assert sweep_words({"bodies.ball.pos": [0.0, 0.0, 3.0]}) == "ball released at z = 3 m"
+    assert sweep_words({"contact.restitution": 0.9}) == "restitution = 0.9"
+    assert sweep_words({}) == ""

@@ -8,23 +8,51 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.labels import parameter_words
+
+
+def sweep_words(sweep: dict) -> str:
+    """A run's sweep point in words and units ("ball released at z = 3 m"); "" for none.
+
+    A swept vector shows its non-zero components (all of them when every one is zero).
+    """
+    words = []
+    for key, value in sweep.items():
+        if isinstance(value, list | tuple):
+            shown = [i for i, x in enumerate(value) if x] or list(range(len(value)))
+            words += [parameter_words(f"{key}[{i}]", value[i]) for i in shown]
+        else:
+            words.append(parameter_words(key, value))
+    return ", ".join(words)
+
+
+def contact_words(contact: dict) -> str:
+    """What the contact is: the restitution asked for, per pair, or the raw solref/solimp."""
+    pairs = contact.get("pairs") or {}
+    asked = {name: p.get("restitution") for name, p in pairs.items() if isinstance(p, dict)}
+    if contact.get("restitution") is not None:
+        text = f"restitution = {contact['restitution']:g}"
+        extra = [f"{n} {e:g}" for n, e in asked.items() if e is not None]
+        return text + (f" ({', '.join(extra)})" if extra else "")
+    if any(e is not None for e in asked.values()):
+        return "restitution " + ", ".join(f"{n} = {e:g}" for n, e in asked.items() if e is not None)
+    if contact.get("solref") is not None or contact.get("solimp") is not None:
+        return f"solref {contact.get('solref')}, solimp {contact.get('solimp')}"
+    return ""
 
 
 def run_title(a: RunAnalysis) -> str:
-    """A figure title: experiment, sweep point, contact parameters and timestep."""
-    sweep = ", ".join(f"{k.split('.')[-1]} = {v}" for k, v in a.run.sweep.items())
-    contact = a.run.spec.get("contact", {})
-    parts = [a.run.experiment + (f" ({sweep})" if sweep else "")]
-    if contact:
-        parts.append(f"solref {contact.get('solref')}, solimp {contact.get('solimp')}")
-    parts.append(f"dt = {a.run.timestep_s:g} s")
-    return "\n".join([parts[0], ", ".join(parts[1:])])
+    """A figure title: experiment and sweep point in words, the contact, the timestep."""
+    sweep = sweep_words(a.run.sweep)
+    first = a.run.experiment + (f": {sweep}" if sweep else "")
+    contact = contact_words(a.run.spec.get("contact") or {})
+    second = ", ".join([*([contact] if contact else []), f"dt = {a.run.timestep_s:g} s"])
+    return f"{first}\n{second}"
 
 
 def run_label(a: RunAnalysis) -> str:
-    """A short legend label: the sweep point, else the run id."""
-    sweep = ", ".join(f"{k.split('.')[-1]} = {v}" for k, v in a.run.sweep.items())
-    return sweep or a.run.run_id
+    """A short legend label: the sweep point in words, else the experiment."""
+    return sweep_words(a.run.sweep) or a.run.experiment
 
 
 FIGURE_RUNS_PER_SWEEP = 6  # per-run figures for at most this many points of a sweep
