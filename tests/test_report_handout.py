@@ -76,3 +76,44 @@ def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     assert sweep_words({"bodies.ball.pos": [0.0, 0.0, 3.0]}) == "ball released at z = 3 m"
     assert sweep_words({"contact.restitution": 0.9}) == "restitution = 0.9"
     assert sweep_words({}) == ""
+
+
+def test_restitution_figure_draws_each_experiments_target(monkeypatch, tmp_path):
+    from impactlab.analyze import figures
+
+    seen = []
+    monkeypatch.setattr(figures, "save_figure", lambda fig, path: seen.append(fig) or path)
+    bounces = pl.DataFrame(
+        {
+            "run_id": ["a", "a", "b"],
+            "complete": [True, True, True],
+            "v_in_mps": [-4.0, -3.2, -2.0],
+            "e_velocity": [0.80, 0.799, 0.05],
+            "e_apex": [0.801, None, None],
+        }
+    )
+    figures.restitution_figure(
+        bounces,
+        pl.DataFrame(),
+        {"a": "a", "b": "b"},
+        path=tmp_path / "r.png",
+        experiments={"a": "drop_restitution", "b": "drop"},
+        targets={"drop_restitution": [0.8]},
+    )
+    (ax,) = seen[0].axes
+    dashed = [line for line in ax.get_lines() if line.get_linestyle() == "--"]
+    assert [tuple(line.get_ydata()) for line in dashed] == [(0.8, 0.8)]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "drop_restitution: target" in legend and "drop" in legend
+    assert "(m/s)" in ax.get_xlabel()
+
+
+def test_a_bounce_decay_figure_needs_two_complete_bounces():
+    from impactlab.analyze.write import _has_decay
+
+    bounces = pl.DataFrame(
+        {"run_id": ["one", "two", "two"], "body": ["ball"] * 3, "complete": [True, True, True]}
+    )
+    assert not _has_decay(bounces, ["one"])  # one bounce: one height, no decay to show
+    assert _has_decay(bounces, ["one", "two"])
+    assert not _has_decay(bounces.clear(), ["two"])

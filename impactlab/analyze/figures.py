@@ -185,9 +185,12 @@ def restitution_figure(
     *,
     path: Path,
     experiments: dict[str, str] | None = None,
+    targets: dict[str, list[float]] | None = None,
 ) -> Path:
     """e against impact speed: one colour per experiment (`experiments`: run_id -> name; else
-    per run), o from velocities, x from apexes; body-body collisions as black squares."""
+    per run), o from velocities, x from apexes, the experiment's target e (`targets`:
+    name -> targets asked for) as a dashed line of its colour; body-body collisions as black
+    squares."""
     fig, ax = plt.subplots(figsize=(8, 5))
     b = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
     group = experiments or labels
@@ -199,6 +202,8 @@ def restitution_figure(
         ax.plot(-rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=name)
         apex = rows.filter(pl.col("e_apex").is_not_null())
         ax.plot(-apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color)
+        for j, target in enumerate((targets or {}).get(name, [])):
+            ax.axhline(target, ls="--", lw=1, color=color, label=None if j else f"{name}: target")
     if names:
         ax.plot([], [], "o", color="0.4", label="o: e from velocities in and out")
         ax.plot([], [], "x", color="0.4", label="x: e from apex heights")

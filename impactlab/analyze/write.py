@@ -118,7 +118,7 @@ def summary_figures(
         by_exp.setdefault(a.run.experiment, []).append(a)
     for exp, group in by_exp.items():
         grounded = [a for a in group if a.ground is not None and a.ground.surfaces]
-        if grounded and result.bounces.height:
+        if grounded and _has_decay(result.bounces, [a.run.run_id for a in grounded]):
             labels = {a.run.run_id: run_label(a) for a in grounded}
             figs.setdefault("decay", []).append(
                 figures.bounce_decay_figure(
@@ -142,6 +142,7 @@ def summary_figures(
                 labels,
                 path=fig_dir / "restitution-vs-speed.png",
                 experiments={a.run.run_id: a.run.experiment for a in analyses},
+                targets=_targets(analyses),
             )
         ]
     for name, study in result.studies.items():
@@ -169,3 +170,24 @@ def summary_figures(
                 )
             )
     return figs
+
+
+def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
+    """Whether any of the runs has two complete bounces: a decay needs two heights."""
+    if bounces.is_empty() or "complete" not in bounces.columns:
+        return False
+    done = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(run_ids))
+    return bool(done.height) and int(done.group_by("run_id", "body").len()["len"].max()) >= 2
+
+
+def _targets(analyses: Sequence[RunAnalysis]) -> dict[str, list[float]]:
+    """experiment -> the restitution targets its specs asked for (none: not calibrated)."""
+    out: dict[str, set[float]] = {}
+    for a in analyses:
+        contact = a.run.spec.get("contact") or {}
+        asked = [contact.get("restitution")]
+        asked += [p.get("restitution") for p in (contact.get("pairs") or {}).values()]
+        for e in asked:
+            if isinstance(e, int | float):
+                out.setdefault(a.run.experiment, set()).add(float(e))
+    return {name: sorted(es) for name, es in out.items()}
