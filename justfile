@@ -30,3 +30,8 @@ bench:
 # Refresh the lock file from pyproject.toml.
 lock:
     {{python}} -m piptools compile --quiet --strip-extras --all-extras --output-file requirements.lock pyproject.toml
+
+# Refresh the README's figure from the lab report (docs/report-restitution.png).
+readme-figure out="/tmp/impactlab-readme-lab":
+    {{python}} -m impactlab lab -o {{out}} --calibration none --no-replay
+    cp {{out}}/results/figures/restitution-vs-speed.png docs/report-restitution.png
