@@ -175,7 +175,8 @@ def test_a_ball_at_rest_on_the_plane_is_analyzed_with_figures(tmp_path, capsys):
     assert main(["analyze", str(logs), "-o", str(results)]) == 0
     err = capsys.readouterr().err
     assert "Traceback" not in err
-    assert list((results / "figures").glob("bounce-decay-*.png"))
+    assert list((results / "figures").glob("energy-*.png"))
+    assert not list((results / "figures").glob("bounce-decay-*.png"))  # no bounce, no decay
     assert "at rest, sliding or rolling on plane" in (results / "report.md").read_text()
 
 
