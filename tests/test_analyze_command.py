@@ -164,4 +164,6 @@ def test_no_figures_writes_the_tables_and_no_figure(logs, tmp_path, capsys):
     assert pl.read_parquet(out / "runs.parquet").height == 2
     assert pl.read_parquet(out / "bounces.parquet").height > 0
     assert not list(out.rglob("*.png"))
-    assert "![" not in (out / "report.md").read_text()  # no image link (in-page links stay)
+    report = (out / "report.md").read_text()
+    assert "![" not in report  # no image link (in-page links stay)
+    assert "| Visualisation | 10 | not answered: this analysis drew no figures" in report

@@ -172,9 +172,12 @@ def headline(
         lines.append(
             f"| {item} | {points} | [{step} answer](#{anchor}-answer), [detail](#{anchor}) |"
         )
+    drawn = any(figures.values())
     lines.append(
         "| Visualisation | 10 | one figure per answer below; every figure in the detail "
         "sections and `figures/` |"
+        if drawn
+        else "| Visualisation | 10 | not answered: this analysis drew no figures (`--no-figures`) |"
     )
     study_figs = [
         p
