@@ -249,3 +249,39 @@ def test_missing_analysis_folder_is_one_error(logs: dict[str, Path], tmp_path: P
     code = cli.main(["replay", str(logs["drop"]), "-o", str(tmp_path), "--analysis", "nope"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and err == ["impactlab: error: nope: analysis folder not found"]
+
+
+def test_momentum_plot_spans_the_bodies_momenta_not_rounding_noise(logs: dict[str, Path]) -> None:
+    """The collision's total momentum is conserved (to 1e-15): its plot's y axis is fixed at
+    +-1.1 x the largest |m v| of one body (2 kg m/s here), so it reads as a flat line instead
+    of auto-scaling to 1e-12 and showing rounding noise as a dip."""
+    from impactlab.replay.blueprint import replay_blueprint
+    from impactlab.replay.convert import log_run
+
+    rec = rr.RecordingStream("impactlab-test-momentum")
+    collision = log_run(rec, load_log(logs["collision"]), [])
+    drop = log_run(rec, load_log(logs["drop"]), [])
+    assert collision.momentum_scale == pytest.approx(2.0, rel=1e-9)  # 1 kg x 2 m/s, 2 kg x 1 m/s
+    views = [
+        v for v in _views(replay_blueprint([collision])) if str(v.name or "").startswith("momentum")
+    ]
+    assert len(views) == 1
+    (axis_range,) = views[0].properties["ScalarAxis"].range.as_arrow_array().to_pylist()
+    assert axis_range == pytest.approx([-2.2, 2.2])
+    assert not any(
+        str(v.name or "").startswith("momentum") for v in _views(replay_blueprint([drop]))
+    )
+
+
+def _views(blueprint) -> list:
+    """Every view of a blueprint, depth first."""
+    import rerun.blueprint as rrb
+
+    found, stack = [], [blueprint.root_container]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, rrb.View):
+            found.append(item)
+        else:
+            stack += list(item.contents)
+    return found

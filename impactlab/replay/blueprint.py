@@ -19,7 +19,7 @@ SERIES_TITLES = {
     "normal_velocity": "velocity (m/s): normal, per axis; impacts and releases",
     "velocity": None,  # shown with normal_velocity
     "energy": "energy (J)",
-    "momentum": "momentum, sum of m v (kg m/s)",
+    "momentum": "momentum, sum of m v (kg m/s; axis: +-the largest |m v| of one body)",
     "contact_force": "contact normal force (N)",
 }
 
@@ -79,5 +79,15 @@ def _series_views(runs: Sequence[LoggedRun]) -> list[rrb.TimeSeriesView]:
             continue
         families = ("normal_velocity", "velocity") if family == "normal_velocity" else (family,)
         contents = [f"+ {run.prefix}/series/{f}/**" for run in runs for f in families]
-        views.append(rrb.TimeSeriesView(name=title, origin="/runs", contents=contents))
+        axis = _momentum_axis(runs) if family == "momentum" else None
+        views.append(rrb.TimeSeriesView(name=title, origin="/runs", contents=contents, axis_y=axis))
     return views
+
+
+def _momentum_axis(runs: Sequence[LoggedRun]) -> rrb.ScalarAxis | None:
+    """A fixed y range of +-1.1 x the largest |m v| of one body: a conserved momentum then
+    reads as the flat line it is, not as rounding noise (1e-12) stretched over the plot."""
+    scale = max((run.momentum_scale for run in runs), default=0.0)
+    if not scale > 0:
+        return None
+    return rrb.ScalarAxis(range=(-1.1 * scale, 1.1 * scale), zoom_lock=False)

@@ -54,6 +54,7 @@ class LoggedRun:
     bodies: list[str]
     families: list[str] = field(default_factory=list)  # series families under P/series
     bounds: tuple[np.ndarray, np.ndarray] = (np.full(3, -0.5), np.full(3, 0.5))  # m, (3,) each
+    momentum_scale: float = 0.0  # kg m/s: the largest |m v| component of one body
 
 
 def run_prefix(run_id: str) -> str:
@@ -83,6 +84,7 @@ def log_run(
     _log_bodies(rec, run, prefix, t_ns)
     _log_contacts(rec, run, prefix, t_ns)
     logged.families = _log_series(rec, run, prefix, t_ns, events, label)
+    logged.momentum_scale = momentum_scale(run)
     _log_events(rec, run, prefix, events)
     return logged
 
@@ -101,6 +103,18 @@ def scene_bounds(run: RunLog) -> tuple[np.ndarray, np.ndarray]:
     if not np.all(np.isfinite(lo)):
         return np.full(3, -0.5), np.full(3, 0.5)
     return lo, hi
+
+
+def momentum_scale(run: RunLog) -> float:
+    """The largest |m v| component of any one body over the run (kg m/s; 0 when none)."""
+    info = run.body_info
+    scales = [
+        float(np.max(np.abs(frame.select("vx", "vy", "vz").to_numpy()))) * info[name].mass
+        for name, frame in run.bodies.items()
+        if name in info and frame.height
+    ]
+    finite = [x for x in scales if np.isfinite(x)]
+    return max(finite, default=0.0)
 
 
 def _times(t_ns: np.ndarray) -> rr.TimeColumn:
