@@ -208,7 +208,13 @@ def test_run_calibration_writes_everything(tmp_path):
     assert summary["results"]["ball"]["max_velocity_error_rel"] < 0.005
     assert len(list((tmp_path / "cal" / "logs").glob("*.mcap"))) == 4
     assert any(line.startswith("     0.9 |") for line in lines)
-    assert "## Low impact speeds" in (tmp_path / "cal" / "calibration.md").read_text()
+    text = (tmp_path / "cal" / "calibration.md").read_text()
+    assert "## Low impact speeds" in text
+    low = text.split("## Low impact speeds")[1].split("\n## ")[0]
+    # explained for a student: below the range, no promise there, columns in words
+    assert "below the contact's speed range" in low and "does not apply" in low
+    assert "| target | impact speed (m/s) | measured e | predicted at release |" in low
+    assert "restitution_with_gravity" not in low and "e_pred_" not in low
 
 
 def test_command_line_options():
