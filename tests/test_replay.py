@@ -285,3 +285,19 @@ def _views(blueprint) -> list:
         else:
             stack += list(item.contents)
     return found
+
+
+def test_replay_with_the_analysis_of_a_collision_that_never_happened(tmp_path: Path) -> None:
+    """Stopped before the balls meet (the handout's Step 3 as written): the analysis has a
+    collision row without an impact time; the replay shows no impact event, and no error."""
+    from impactlab.analyze.job import run_analysis
+
+    spec = tmp_path / "collision.toml"
+    spec.write_text(COLLISION)
+    (result,) = record_runs(plan([spec], overrides=["stop.max_time=0.05"]), tmp_path / "logs")
+    analysis = run_analysis([result.path], tmp_path / "results")
+    assert analysis.collisions.height == 1 and analysis.collisions["impact_t_s"][0] is None
+    (rrd,) = replay_logs([result.path], out=tmp_path / "r.rrd", analysis_dir=tmp_path / "results")
+    _verify(rrd)
+    texts = _texts(_read(rrd), f"{run_prefix(load_log(result.path).run_id)}/events/contacts")
+    assert not any(t.startswith("impact") for t in texts)

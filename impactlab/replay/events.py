@@ -195,6 +195,8 @@ def analysis_events(
     only = pairs(run)[0] if len(pairs(run)) == 1 else None
     events = []
     for table, row in rows:
+        if row.get("impact_t_s") is None:  # a row saying why nothing happened (no impact)
+            continue
         impact = _nearest_step(t_ns, row["impact_t_s"])
         iv = min(intervals, key=lambda i: abs(i.start - impact), default=None)
         iv = iv if iv is not None and abs(iv.start - impact) <= 2 else None
