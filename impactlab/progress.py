@@ -112,6 +112,9 @@ class ConsoleProgress:
             if event.total >= 2:
                 from tqdm import tqdm
 
+                # no monitor thread: a process with another thread cannot fork record workers
+                tqdm.monitor_interval = 0
+
                 unit = "log" if event.stage in ("analyze", "replay") else "run"
                 # disable=None: no bar when stderr is not a terminal (logs, CI)
                 bar = tqdm(total=event.total, unit=unit, leave=False, file=sys.stderr, disable=None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+from functools import cache
 from pathlib import Path
 from typing import IO
 
@@ -37,9 +38,10 @@ PARTIAL_SUFFIX = ".partial"
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
 
 
-def partial_path(path: Path) -> Path:
-    """The temporary name this process writes `path` under until it is complete."""
-    return path.with_name(f"{path.name}.{os.getpid()}{PARTIAL_SUFFIX}")
+def partial_path(path: Path, pid: int | None = None) -> Path:
+    """The temporary name this process (or process `pid`) writes `path` under until it is
+    complete."""
+    return path.with_name(f"{path.name}.{os.getpid() if pid is None else pid}{PARTIAL_SUFFIX}")
 
 
 class LogWriter:
@@ -146,14 +148,14 @@ class LogWriter:
             blocks.append(Block(self._scene, t[:1], self._scene_payload))
             self._scene_payload = None
         for i, channel_id in enumerate(self._bodies):
-            blocks.append(Block(channel_id, t, messages.body_state().encode(rows.bodies[:, i])))
+            blocks.append(Block(channel_id, t, rows.bodies[:, i], messages.body_state()))
         for (channel_id, layout), values in zip(self._clearance, rows.clearance, strict=True):
-            blocks.append(Block(channel_id, t, layout.encode(values)))
+            blocks.append(Block(channel_id, t, values, layout))
         for (channel_id, pair), (count, points) in zip(self._pairs, rows.contacts, strict=True):
             blocks += _contact_blocks(channel_id, pair, t, count, points)
-        blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
+        blocks.append(Block(self._energy, t, rows.energy, messages.energy()))
         poses = rows.bodies[:, :, :7].reshape(len(t), -1)
-        blocks.append(Block(self._tf, t, self._tf_layout.encode(poses)))
+        blocks.append(Block(self._tf, t, poses, self._tf_layout))
         self._out.write_chunk(blocks)
 
     def finish(self, outcome: Outcome) -> Path:
@@ -221,9 +223,8 @@ class _Channels:
     def add(self, topic: str, message_type: type[Message], metadata: dict[str, str] | None = None):
         name = message_type.DESCRIPTOR.full_name
         if name not in self.schemas:
-            fds = build_file_descriptor_set(message_type)
             self.schemas[name] = self.writer.register_schema(
-                name=name, encoding="protobuf", data=fds.SerializeToString()
+                name=name, encoding="protobuf", data=_schema_data(message_type)
             )
         return self.writer.register_channel(
             topic=topic,
@@ -231,6 +232,12 @@ class _Channels:
             schema_id=self.schemas[name],
             metadata=metadata or {},
         )
+
+
+@cache
+def _schema_data(message_type: type[Message]) -> bytes:
+    """The serialised FileDescriptorSet of a message type (built once per process)."""
+    return build_file_descriptor_set(message_type).SerializeToString()
 
 
 def _contact_blocks(
@@ -243,7 +250,7 @@ def _contact_blocks(
         if mine.any():
             layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, k)
             values = points[mine, :k].reshape(int(mine.sum()), -1)
-            blocks.append(Block(channel_id, t[mine], layout.encode(values)))
+            blocks.append(Block(channel_id, t[mine], values, layout))
     return blocks
 
 

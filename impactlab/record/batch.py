@@ -9,6 +9,7 @@ releases the GIL), so memory stays bounded by the chunks whatever the runs' leng
 from __future__ import annotations
 
 import contextlib
+import queue
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -26,6 +27,17 @@ BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs 
 
 Reuse = Callable[[PlannedRun], "RecordedRun | None"]
 Report = Callable[[RecordedRun], None]
+
+
+class LogWriteError(ImpactlabError):
+    """A log cannot be written (a full disk): nothing more of the job can be."""
+
+    def __init__(self, path: Path, problem: str, written: int) -> None:
+        self.path, self.problem = path, problem
+        super().__init__(
+            f"{path}: cannot write the log: {problem} "
+            f"({written} log(s) of this job written before it are complete)"
+        )
 
 
 def batches(
@@ -116,7 +128,7 @@ def record_batches(
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
     written fails its run, or, with `stop_on_write_error` (a full disk: nothing more can be
-    written), raises `ImpactlabError` saying how many logs of the job are complete.
+    written), raises `LogWriteError` saying how many logs of the job are complete.
     `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
     it meanwhile). `on_run` is called with each run as soon as its log is written. On any
     exit (an error, Ctrl-C) the logs being written are removed.
@@ -133,10 +145,25 @@ def record_batches(
     def fail(run: PlannedRun, reason: str) -> None:
         report(_failed(run, log_path(out_dir, run), reason))
 
-    groups = batches(runs, batch_size, reuse=reuse, report=report, fail=fail)
+    # runs are built on the simulation thread: what it finds (a reused log, a model that
+    # fails to build) is reported here, on this thread, with the next piece or at the end
+    found: queue.SimpleQueue[RecordedRun] = queue.SimpleQueue()
+
+    def report_found() -> None:
+        while not found.empty():
+            report(found.get())
+
+    groups = batches(
+        runs,
+        batch_size,
+        reuse=reuse,
+        report=found.put,
+        fail=lambda run, reason: found.put(_failed(run, log_path(out_dir, run), reason)),
+    )
     try:
         with contextlib.closing(simulate(groups, threads=threads)) as pieces:
             for piece in pieces:
+                report_found()
                 request, run = piece.request, piece.request.tag
                 path = log_path(out_dir, run)
                 if piece.error is not None:
@@ -155,16 +182,14 @@ def record_batches(
                         logs.pop(request).abort()
                     if stop_on_write_error and isinstance(exc, OSError):
                         written = sum(r.status == "recorded" for r in out)
-                        raise ImpactlabError(
-                            f"{path}: cannot write the log: {exc.strerror or exc} "
-                            f"({written} log(s) of this job written before it are complete)"
-                        ) from None
+                        raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)
                     fail(run, f"cannot write the log: {describe_error(exc)}")
                     continue
                 if done is not None:
                     del logs[request]
                     report(done)
+        report_found()
     finally:
         for log in logs.values():
             log.abort()

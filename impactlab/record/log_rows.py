@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
+from impactlab.logs.messages import POINT_FIELDS
 from impactlab.record.model import (
     BODY_STATE_SIZE,
     CONTACT_SLOT_SIZE,
@@ -108,15 +109,21 @@ def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) 
 
 
 def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A contact sensor's slots -> (points per row (n,), points (n, num, 13) as POINT_FIELDS)."""
+    """A contact sensor's slots -> (points per row (n,), points (n, num, 13) as POINT_FIELDS).
+
+    Rows without contact have zero points (the writer logs no message for them).
+    """
     slots = rows[:, pair.adr : pair.adr + pair.num * CONTACT_SLOT_SIZE]
     slots = slots.reshape(rows.shape[0], pair.num, CONTACT_SLOT_SIZE)
     count = np.minimum(slots[:, 0, 0], pair.num).astype(np.int64)
+    points = np.zeros((rows.shape[0], pair.num, len(POINT_FIELDS)))
+    touching = np.flatnonzero(count > 0)
+    slots = slots[touching]
     force, dist, pos = slots[..., 1:4], slots[..., 4], slots[..., 5:8]
     normal, t1 = slots[..., 8:11], slots[..., 11:14]
     t2 = np.cross(normal, t1)
     world = force[..., 0:1] * normal + force[..., 1:2] * t1 + force[..., 2:3] * t2
-    points = np.concatenate([pos, normal, -dist[..., None], force, world], axis=2)
+    points[touching] = np.concatenate([pos, normal, -dist[..., None], force, world], axis=2)
     return count, points
 
 

@@ -6,11 +6,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from impactlab.executors.base import Executor
+from impactlab.executors.processes import available_cpus
 from impactlab.files import check_writable
 from impactlab.logs.writer import remove_stale_partials
 from impactlab.progress import Progress, Tracker
 from impactlab.record.batch import BATCH_RUNS, record_batches
 from impactlab.record.folder import log_path, reusable
+from impactlab.record.forked import can_fork, record_forked
 from impactlab.record.job import PlannedRun
 from impactlab.record.results import RecordedRun, RecordResult
 from impactlab.record.tasks import count_run, record_on
@@ -33,12 +35,16 @@ def record_runs(
     Args:
         runs: from `impactlab.record.job.plan`.
         out_dir: the output folder (created); on a cluster, a path every machine sees.
-        executor: where the runs are simulated (default: here, batched rollouts on every
-            core, the next batch simulating while the last one's logs are written).
+        executor: where the runs are simulated (default: here, on every core: the runs are
+            shared among forked worker processes, one per core, each simulating batched
+            rollouts on one thread while it writes their logs; where forking is not safe,
+            in this process on rollout threads).
         overwrite: record again runs whose complete log exists.
         allow_large: record even when the logs to write are estimated larger than the
             free space in `out_dir`.
-        threads: rollout threads (default: one per core here, one per task on a cluster).
+        threads: cores to use here (worker processes, or rollout threads where forking is
+            not safe; default: every available core); rollout threads per task on a cluster
+            (default: one).
         batch_size: runs per rollout here.
         progress: receives the job's progress (see `impactlab.progress`); None: silent.
 
@@ -66,16 +72,27 @@ def record_runs(
     tracker = Tracker("record", len(todo), progress, reused=len(by_id))
     if by_id:
         tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
-    if executor is None or executor.name == "local":
+    reuse = None if overwrite else lambda run: reusable(out_dir, run)
+    workers = min(threads or available_cpus(), len(todo))
+    if executor is not None and executor.name != "local":
+        done = record_on(executor, todo, out_dir, tracker, overwrite=overwrite, threads=threads)
+    elif workers > 1 and can_fork():
+        done = record_forked(
+            todo,
+            out_dir,
+            workers=workers,
+            batch_size=batch_size,
+            reuse=reuse,
+            on_run=lambda run: count_run(tracker, run),
+        )
+    else:
         done = record_batches(
             todo,
             out_dir,
             batch_size=batch_size,
             threads=threads,
-            reuse=None if overwrite else lambda run: reusable(out_dir, run),
+            reuse=reuse,
             on_run=lambda run: count_run(tracker, run),
         )
-    else:
-        done = record_on(executor, todo, out_dir, tracker, overwrite=overwrite, threads=threads)
     by_id |= {r.run_id: r for r in done}
     return RecordResult([by_id[r.info.run_id] for r in runs if r.info.run_id in by_id])

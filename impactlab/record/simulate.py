@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
+import threading
 import time
 from collections.abc import Iterable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -258,69 +259,87 @@ def _ending(a: _Active, dt: float) -> Ending:
     return Ending(verdict, warnings, a.logged, a.last_t_ns)
 
 
-def simulate(batches: Iterable[list[RunRequest]], *, threads: int | None = None) -> Iterator[Piece]:
+def simulate(
+    batches: Iterable[list[RunRequest]], *, threads: int | None = None, ahead: int = 2
+) -> Iterator[Piece]:
     """Simulate batches of runs and yield their logged rows chunk by chunk, as they come.
 
     The runs of a batch must share MuJoCo's size signature (e.g. points of one sweep) and
     timestep. Every run advances in chunks of the same number of steps from step 0, and the
     solver's warm start restarts at each chunk, so a run's rows do not depend on the batch it
-    is in or on the number of threads. While the caller handles a chunk's pieces, the next
-    chunk (of this batch or the next) is simulated on another thread (MuJoCo releases the
-    GIL). Closing the generator waits for at most the chunk being simulated.
+    is in or on the number of threads. The simulation runs on its own thread (MuJoCo releases
+    the GIL while it steps), up to `ahead` chunks ahead of the caller: while the caller
+    handles a chunk's pieces, the next ones simulate and the next batch is built. Closing the
+    generator waits for at most the chunk being simulated.
 
     Args:
-        batches: lists of runs (consumed lazily, one batch ahead).
+        batches: lists of runs (consumed lazily on the simulation thread, one batch ahead).
         threads: rollout threads (default: one per core, at most one per run).
+        ahead: chunks the simulation may run ahead of the caller (bounds the memory).
 
     Yields:
         `Piece`s: each run's rows in time order, its last piece with its `ending`; a batch
         whose simulation fails ends each of its runs with a piece carrying `error`.
+
+    Raises:
+        Whatever iterating `batches` raises, on the caller's thread.
     """
     quiet_mujoco()
-    queue = iter(batches)
-    current: _Batch | None = None
-    pending: Future | None = None
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-sim") as pool:
+    out: queue.Queue[list[Piece] | BaseException | None] = queue.Queue(maxsize=max(1, ahead))
+    stop = threading.Event()
+
+    def put(item: list[Piece] | BaseException | None) -> bool:
+        while not stop.is_set():
+            with contextlib.suppress(queue.Full):
+                out.put(item, timeout=0.05)
+                return True
+        return False
+
+    def produce() -> None:
         try:
-            current, failed = _next_batch(queue, threads)
-            yield from failed
-            pending = pool.submit(current.rollout) if current else None
-            while current is not None and pending is not None:
-                try:
-                    pieces = current.take(*pending.result())
-                except Exception as exc:  # MuJoCo errors, e.g. a model it cannot step
-                    pieces = current.fail(f"{type(exc).__name__}: {exc}")
-                if current.running:
-                    pending = pool.submit(current.rollout)
-                else:  # the next batch's first chunk simulates while these pieces are handled
-                    current.close()
-                    current, pending = None, None
-                    current, failed = _next_batch(queue, threads)
-                    pieces += failed
-                    pending = pool.submit(current.rollout) if current else None
-                yield from pieces
-        finally:
-            if pending is not None:
-                pending.cancel()
-                with contextlib.suppress(Exception):
-                    pending.result()
-            if current is not None:
-                current.close()
+            with contextlib.closing(_chunks(batches, threads, stop)) as chunks:
+                for pieces in chunks:
+                    if not put(pieces):
+                        return
+            put(None)
+        except BaseException as exc:  # handed to the caller's thread
+            put(exc)
+
+    producer = threading.Thread(target=produce, name="impactlab-sim", daemon=True)
+    producer.start()
+    try:
+        while (item := out.get()) is not None:
+            if isinstance(item, BaseException):
+                raise item
+            yield from item
+    finally:
+        stop.set()
+        producer.join()
 
 
-def _next_batch(
-    queue: Iterator[list[RunRequest]], threads: int | None
-) -> tuple[_Batch | None, list[Piece]]:
-    """The next batch that can be set up, and pieces failing the runs of those that cannot."""
-    failed: list[Piece] = []
-    for requests in queue:
+def _chunks(
+    batches: Iterable[list[RunRequest]], threads: int | None, stop: threading.Event
+) -> Iterator[list[Piece]]:
+    """Each chunk's pieces of every batch in turn, until `stop` is set."""
+    for requests in batches:
         if not requests:
             continue
         try:
-            return _Batch(requests, threads), failed
+            batch = _Batch(requests, threads)
         except Exception as exc:
-            failed += [_failed(r, f"{type(exc).__name__}: {exc}") for r in requests]
-    return None, failed
+            yield [_failed(r, f"{type(exc).__name__}: {exc}") for r in requests]
+            continue
+        try:
+            while batch.running and not stop.is_set():
+                try:
+                    pieces = batch.take(*batch.rollout())
+                except Exception as exc:  # MuJoCo errors, e.g. a model it cannot step
+                    pieces = batch.fail(f"{type(exc).__name__}: {exc}")
+                yield pieces
+        finally:
+            batch.close()
+        if stop.is_set():
+            return
 
 
 def _failed(request: RunRequest, reason: str) -> Piece:

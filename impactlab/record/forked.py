@@ -1,0 +1,181 @@
+"""Record runs in forked worker processes, one per core, each simulating and writing its share.
+
+Within one process the log writing (numpy, protobuf layouts, MCAP records) holds Python's
+GIL most of the time, so a second rollout thread gains little: the writer is the bottleneck.
+Forked workers share no lock: each records a consecutive share of the runs (about equal
+steps) with its own simulation thread and writer, and sends back one `RecordedRun` per run
+as soon as its log is complete. Forking costs a few milliseconds and needs no import or
+pickling of the runs; it is used only where it is safe: on Linux, from a process with no
+other Python thread (`can_fork`).
+
+On any exit of the caller (an error, Ctrl-C, SIGTERM, even SIGKILL: the kernel then sends
+the workers SIGTERM) the workers are terminated; each removes the logs it was writing
+(SIGTERM unwinds a worker like Ctrl-C), so nothing half-written is left. A worker that dies
+(killed, out of memory) fails its unreported runs, and the caller removes the temporary file
+it left.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import traceback
+from collections.abc import Sequence
+from multiprocessing.connection import Connection, wait
+from pathlib import Path
+from typing import Any
+
+from impactlab.logs.writer import partial_path
+from impactlab.record.batch import LogWriteError, Report, Reuse, record_batches
+from impactlab.record.folder import log_path
+from impactlab.record.job import PlannedRun
+from impactlab.record.results import RecordedRun
+
+DIED = "its worker process died (killed or out of memory)"
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal a process gets when its parent dies
+
+
+def can_fork() -> bool:
+    """Whether worker processes may be forked here: Linux, and no other Python thread."""
+    return (
+        sys.platform.startswith("linux")
+        and "fork" in multiprocessing.get_all_start_methods()
+        and threading.active_count() == 1
+    )
+
+
+def shares(runs: Sequence[PlannedRun], parts: int) -> list[list[PlannedRun]]:
+    """Consecutive runs cut into at most `parts` shares of about equal work (steps).
+
+    Consecutive runs are mostly points of one sweep: kept together they share rollouts.
+    """
+    weights = [max(1.0, float(r.work.steps)) for r in runs]
+    total = sum(weights)
+    out: list[list[PlannedRun]] = [[]]
+    done = 0.0
+    for run, weight in zip(runs, weights, strict=True):
+        if out[-1] and done >= total * len(out) / parts and len(out) < parts:
+            out.append([])
+        out[-1].append(run)
+        done += weight
+    return out
+
+
+def record_forked(
+    runs: Sequence[PlannedRun],
+    out_dir: Path,
+    *,
+    workers: int,
+    batch_size: int,
+    reuse: Reuse | None = None,
+    on_run: Report = lambda _: None,
+) -> list[RecordedRun]:
+    """Record `runs` over `workers` forked processes; one `RecordedRun` per run, in order of
+    completion. `on_run` is called here as each run's log is complete.
+
+    Raises:
+        LogWriteError: a worker could not write a log (a full disk); the logs reported
+            before are complete.
+    """
+    context = multiprocessing.get_context("fork")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pending: dict[Connection, tuple[Any, list[PlannedRun]]] = {}
+    processes = []
+    out: list[RecordedRun] = []
+    try:
+        for share in shares(runs, workers):
+            receive, send = context.Pipe(duplex=False)
+            process = context.Process(
+                target=_work,
+                args=(share, out_dir, batch_size, reuse, send, os.getpid()),
+                name="impactlab-record",
+                daemon=True,
+            )
+            process.start()
+            send.close()
+            processes.append(process)
+            pending[receive] = (process, share)
+        reported: set[str] = set()
+        while pending:
+            for conn in wait(list(pending)):
+                process, share = pending[conn]
+                try:
+                    kind, value = conn.recv()  # type: ignore[union-attr]
+                except EOFError:  # the worker is gone without saying it is done
+                    del pending[conn]
+                    process.join()
+                    for run in share:
+                        partial_path(log_path(out_dir, run), process.pid).unlink(missing_ok=True)
+                        if run.info.run_id not in reported:
+                            failed = RecordedRun(
+                                run.info.run_id, log_path(out_dir, run), "failed", reason=DIED
+                            )
+                            out.append(failed)
+                            on_run(failed)
+                    continue
+                if kind == "run":
+                    reported.add(value.run_id)
+                    out.append(value)
+                    on_run(value)
+                elif kind == "error":
+                    written = sum(r.status == "recorded" for r in out)
+                    raise LogWriteError(*value, written)
+                elif kind == "bug":
+                    raise RuntimeError(f"a record worker failed:\n{value}")
+                else:  # "done"
+                    del pending[conn]
+    finally:
+        for process, _ in pending.values():
+            if process.is_alive():
+                process.terminate()  # the worker unwinds and removes its partial logs
+        for process in processes:
+            process.join()
+    return out
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _die_with(parent: int) -> None:
+    """Have the kernel send this process SIGTERM when its parent dies (even by SIGKILL)."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # it died before the request took effect
+        raise KeyboardInterrupt
+
+
+def _work(
+    runs: list[PlannedRun],
+    out_dir: Path,
+    batch_size: int,
+    reuse: Reuse | None,
+    send: Any,
+    parent: int,
+) -> None:
+    """A worker: record its share with one simulation thread, report each run."""
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        _die_with(parent)
+        record_batches(
+            runs,
+            out_dir,
+            batch_size=batch_size,
+            threads=1,
+            reuse=reuse,
+            on_run=lambda run: send.send(("run", run)),
+        )
+    except LogWriteError as exc:
+        send.send(("error", (exc.path, exc.problem)))
+        return
+    except KeyboardInterrupt:
+        return
+    except Exception:  # a bug: its traceback goes to the caller
+        send.send(("bug", traceback.format_exc()))
+        return
+    send.send(("done", None))
