@@ -1,5 +1,5 @@
 """`python -m impactlab` runs the command line."""
 
-from impactlab.cli import main
+from impactlab.cli import command
 
-raise SystemExit(main())
+raise SystemExit(command())

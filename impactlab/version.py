@@ -1,10 +1,9 @@
-"""The installed impactlab version, written into every log and printed by `impactlab --version`."""
+"""The impactlab version, written into every log and printed by `impactlab --version`.
+
+The one place it is set: `pyproject.toml` reads it from here (a constant, so that no command
+pays for `importlib.metadata` at start-up).
+"""
 
 from __future__ import annotations
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("impactlab")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+unknown"
+__version__ = "0.1.0"

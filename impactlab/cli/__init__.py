@@ -9,6 +9,7 @@ like Ctrl-C (exit 130).
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -53,3 +54,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("impactlab: interrupted", file=sys.stderr)
         return 130
+
+
+def command() -> int:
+    """The `impactlab` program (console script and `python -m impactlab`): `main` in a
+    process of its own. No command renders with MuJoCo (replays are Rerun recordings), so
+    MuJoCo's OpenGL back end is not loaded (`MUJOCO_GL=disable`, unless set): about 0.07 s
+    less start-up for every command that simulates."""
+    os.environ.setdefault("MUJOCO_GL", "disable")
+    return main()
