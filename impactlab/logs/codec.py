@@ -13,6 +13,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from google.protobuf.message import Message
@@ -60,7 +61,7 @@ class Template:
             fixed[at : at + 8] = False
         return cls(template, np.asarray(slots, dtype=np.int64), fixed)
 
-    @property
+    @cached_property
     def record_dtype(self) -> np.dtype:
         """A structured dtype viewing one payload: field v<j> is the j-th double."""
         return np.dtype(
@@ -81,13 +82,25 @@ class Template:
         return out
 
     def decode(self, payloads: np.ndarray) -> np.ndarray | None:
-        """Doubles from payloads: (n, size) uint8 -> (n, k) float64; None if any differs."""
+        """Doubles from payloads: (n, size) uint8 -> (n, k) float64; None if any differs.
+
+        The result is the transpose of a C-ordered (k, n) array: each value's column is
+        contiguous.
+        """
         if payloads.ndim != 2 or payloads.shape[1] != self.size:
             return None
-        fixed = np.flatnonzero(self.fixed)
+        payloads = np.ascontiguousarray(payloads)
+        fixed = self._fixed_at
         if not (payloads[:, fixed] == self.template[fixed]).all():
             return None
-        out = np.empty((payloads.shape[0], self.slots.size), dtype=np.float64)
-        for j, at in enumerate(self.slots.tolist()):
-            out[:, j] = np.ascontiguousarray(payloads[:, at : at + 8]).view("<f8").ravel()
-        return out
+        k, n = self.slots.size, payloads.shape[0]
+        out = np.empty((k, n), dtype=np.float64)
+        if n:
+            fields = payloads.view(self.record_dtype).reshape(n)
+            for j in range(k):
+                out[j] = fields[f"v{j}"]
+        return out.T
+
+    @cached_property
+    def _fixed_at(self) -> np.ndarray:
+        return np.flatnonzero(self.fixed)

@@ -90,16 +90,16 @@ def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
 def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
     n, k, _ = points.shape
     rows = n * k
-    t_rep = np.repeat(t, k)
-    columns: dict[str, Any] = {
-        "run_id": _constant(run_id, rows),
-        "t_ns": pl.Series(t_rep, dtype=pl.Int64),
-        "t_s": pl.Series(t_rep / 1e9, dtype=pl.Float64),
-    }
-    columns |= {key: _constant(v, rows) for key, v in names.items()}
-    columns["point"] = pl.Series(np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32)
+    t_rep = np.repeat(t, k) if k != 1 else t
+    columns = [
+        _constant(run_id, rows, "run_id"),
+        pl.Series("t_ns", t_rep, dtype=pl.Int64),
+        pl.Series("t_s", t_rep / 1e9, dtype=pl.Float64),
+    ]
+    columns += [_constant(v, rows, key) for key, v in names.items()]
+    columns.append(pl.Series("point", np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32))
     flat = points.reshape(rows, -1)
-    columns |= {f: flat[:, i] for i, f in enumerate(POINT_FIELDS)}
+    columns += [pl.Series(f, flat[:, i]) for i, f in enumerate(POINT_FIELDS)]
     return pl.DataFrame(columns)
 
 
@@ -156,15 +156,21 @@ def decode_clearance(run_id: str, channel: ChannelData) -> pl.DataFrame:
 
     t, values = decode_fixed(channel, messages.clearance(k), fallback)
     n = len(t)
+    t_rep = np.repeat(t, k) if k != 1 else t
+    if k == 1:
+        surface = _constant(surfaces[0], n, "surface")
+    else:
+        names = pl.Series("surface", surfaces, dtype=pl.String)
+        surface = names.gather(np.tile(np.arange(k), n)) if n else names.clear()
     return pl.DataFrame(
-        {
-            "run_id": _constant(run_id, n * k),
-            "t_ns": pl.Series(np.repeat(t, k), dtype=pl.Int64),
-            "t_s": pl.Series(np.repeat(t, k) / 1e9, dtype=pl.Float64),
-            "body": _constant(body, n * k),
-            "surface": pl.Series(surfaces * n, dtype=pl.String),
-            "clearance_m": values.reshape(-1) if n else np.empty(0),
-        }
+        [
+            _constant(run_id, n * k, "run_id"),
+            pl.Series("t_ns", t_rep, dtype=pl.Int64),
+            pl.Series("t_s", t_rep / 1e9, dtype=pl.Float64),
+            _constant(body, n * k, "body"),
+            surface,
+            pl.Series("clearance_m", values.reshape(-1) if n else np.empty(0), dtype=pl.Float64),
+        ]
     )
 
 
@@ -190,18 +196,18 @@ def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> p
     )
 
 
-def _constant(value: str, n: int) -> pl.Series:
+def _constant(value: str, n: int, name: str = "") -> pl.Series:
     """A string column of one value (eager: no query plan per column)."""
-    return pl.Series([value], dtype=pl.String).new_from_index(0, n)
+    return pl.Series(name, [value], dtype=pl.String).new_from_index(0, n)
 
 
 def fixed_frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
-    columns: dict[str, Any] = {
-        "run_id": _constant(run_id, len(t_ns)),
-        "t_ns": pl.Series(t_ns, dtype=pl.Int64),
-        "t_s": pl.Series(t_ns / 1e9, dtype=pl.Float64),
-    }
-    columns |= {name: values[:, i] for i, name in enumerate(names)}
+    columns = [
+        _constant(run_id, len(t_ns), "run_id"),
+        pl.Series("t_ns", t_ns, dtype=pl.Int64),
+        pl.Series("t_s", t_ns / 1e9, dtype=pl.Float64),
+    ]
+    columns += [pl.Series(name, values[:, i]) for i, name in enumerate(names)]
     return pl.DataFrame(columns)
 
 

@@ -346,11 +346,12 @@ def load_log(path: str | Path) -> RunLog:
                 events = decode_events(run_id, t, payloads)
         except (DecodeError, ValueError) as exc:  # e.g. another tool's encoding of the schema
             raise LogError(str(path), f"{topic}: undecodable message ({exc})") from None
-    contacts = (
-        pl.concat(contact_frames).sort("t_ns", maintain_order=True)
-        if contact_frames
-        else empty_contacts(run_id)
-    )
+    if len(contact_frames) == 1 and contact_frames[0]["t_ns"].is_sorted():
+        contacts = contact_frames[0]  # as sorting would leave it
+    elif contact_frames:
+        contacts = pl.concat(contact_frames).sort("t_ns", maintain_order=True)
+    else:
+        contacts = empty_contacts(run_id)
     times = {name: f["t_ns"].to_numpy() for name, f in bodies.items()}
     check_channels(checked, times, complete=not raw.problems)
     problems += checked.lines()

@@ -56,6 +56,8 @@ class ChannelData:
     schema: str
     metadata: dict[str, str]
     pieces: list[tuple[np.ndarray, np.ndarray | list[bytes]]] = field(default_factory=list)
+    # checked message indexes not yet gathered: (chunk, (n, 2) time/offset pairs, lengths)
+    indexed: list[tuple[bytes, np.ndarray, np.ndarray]] = field(default_factory=list, repr=False)
 
     @property
     def count(self) -> int:
@@ -161,6 +163,7 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
         problems.append(f"damaged: unreadable record ({type(exc).__name__}: {exc})")
         _salvage(pending, schemas, channels, loose)
         summary = False
+    _collect(channels)
     for channel_id, (times, datas) in loose.items():
         if channel_id in channels:
             channels[channel_id].pieces.append((np.asarray(times, dtype=np.uint64), datas))
@@ -260,7 +263,9 @@ def _gather(
     A chunk without indexes, or one that defines channels itself (as the official writer
     does), is walked record by record. So is a chunk whose indexes disagree with it: the
     indexes carry no CRC, the chunk does, and every record an index points at must be a
-    message of that channel at that time.
+    message of that channel at that time. The indexed messages are checked together, and
+    only noted here (chunk, offset, length); `_collect` gathers each channel's payloads
+    from all its chunks at once.
     """
     raw, indexes, chunk_at = pending
     if not indexes or any(c not in channels for c in indexes):
@@ -270,62 +275,102 @@ def _gather(
             )
         _walk_chunk(raw, schemas, channels, loose)
         return
-    arr = np.frombuffer(raw, dtype=np.uint8)
-    found = []
-    for channel_id, pairs in indexes.items():
-        if not len(pairs) or channels[channel_id].topic in skip_topics:
-            continue
-        times = pairs[:, 0]  # uint64 ns
-        offsets = pairs[:, 1].astype(np.int64)
-        lengths = _indexed_lengths(arr, channel_id, times, offsets)
-        if lengths is None:
-            problems.append(
-                f"damaged: message index of the chunk at byte {chunk_at}; read without it"
-            )
-            _walk_chunk(raw, schemas, channels, loose)
-            return
-        found.append((channel_id, times, offsets, lengths))
-    for channel_id, times, offsets, lengths in found:
-        for size in np.unique(lengths):
-            mine = lengths == size
-            channels[channel_id].pieces.append((times[mine], _payloads(arr, offsets[mine], size)))
+    wanted = [
+        (channel_id, pairs)
+        for channel_id, pairs in indexes.items()
+        if len(pairs) and channels[channel_id].topic not in skip_topics
+    ]
+    if not wanted:
+        return
+    pairs = np.concatenate([p for _, p in wanted]) if len(wanted) > 1 else wanted[0][1]
+    ids = np.repeat([c for c, _ in wanted], [len(p) for _, p in wanted])
+    lengths = _indexed_lengths(raw, ids, pairs[:, 0], pairs[:, 1].astype(np.int64))
+    if lengths is None:
+        problems.append(f"damaged: message index of the chunk at byte {chunk_at}; read without it")
+        _walk_chunk(raw, schemas, channels, loose)
+        return
+    at = 0
+    for channel_id, p in wanted:
+        n = len(p)
+        channels[channel_id].indexed.append((raw, p, lengths[at : at + n]))
+        at += n
 
 
-def _indexed_lengths(arr: np.ndarray, channel_id: int, times: np.ndarray, offsets: np.ndarray):
+_HEADER = np.dtype(
+    {
+        "names": ["op", "length", "channel", "log_time"],
+        "formats": ["u1", "<u8", "<u2", "<u8"],
+        "offsets": [0, 1, 9, 15],
+        "itemsize": MESSAGE_HEADER_SIZE,
+    }
+)
+
+
+def _records(raw: bytes, starts: np.ndarray, size: int, out: np.ndarray | None = None):
+    """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
+    bytes), (n, size) uint8, gathered in one step (into `out`, (n, size) uint8, if given)."""
+    if size == 0:
+        return np.empty((len(starts), 0), dtype=np.uint8) if out is None else out
+    row = np.dtype((np.void, size))
+    whole = np.ndarray((len(raw) - size + 1,), dtype=row, buffer=raw, strides=(1,))
+    if out is None:
+        return whole[starts].view(np.uint8).reshape(len(starts), size)
+    out.view(row).reshape(-1)[:] = whole[starts]
+    return out
+
+
+def _indexed_lengths(raw: bytes, ids: np.ndarray, times: np.ndarray, offsets: np.ndarray):
     """Payload lengths (n,) of the indexed records, or None unless every one is a whole
-    message of `channel_id` at its indexed time (`times`: uint64 ns)."""
-    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > arr.size:
+    message of its channel (`ids`) at its indexed time (`times`: uint64 ns)."""
+    size = len(raw)
+    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
         return None
-    lengths = _u64_at(arr, offsets + 1).astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
-    if (lengths < 0).any() or (lengths > arr.size).any():
+    header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
+    lengths = header["length"].astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
+    if (lengths < 0).any() or (lengths > size).any():
         return None
-    if (offsets + MESSAGE_HEADER_SIZE + lengths > arr.size).any():
+    if (offsets + MESSAGE_HEADER_SIZE + lengths > size).any():
         return None
-    channel = arr[offsets + 9].astype(np.int64) | (arr[offsets + 10].astype(np.int64) << 8)
     agrees = (
-        (arr[offsets] == OP_MESSAGE).all()
-        and (channel == channel_id).all()
-        and (_u64_at(arr, offsets + 15) == times).all()
+        (header["op"] == OP_MESSAGE).all()
+        and (header["channel"] == ids).all()
+        and (header["log_time"] == times).all()
     )
     return lengths if agrees else None
 
 
-def _payloads(arr: np.ndarray, offsets: np.ndarray, size: int) -> np.ndarray:
-    """Equal-length payloads at record offsets, (n, size) uint8 (a view when evenly spaced)."""
-    start = offsets + MESSAGE_HEADER_SIZE
-    if start.size > 1:
-        stride = int(start[1] - start[0])
-        if stride >= size and (np.diff(start) == stride).all():
-            base = arr[int(start[0]) :]
-            return np.lib.stride_tricks.as_strided(
-                base, shape=(start.size, int(size)), strides=(stride, 1), writeable=False
+def _collect(channels: dict[int, ChannelData]) -> None:
+    """Each channel's indexed messages as pieces of equal-length payloads, one per length,
+    gathered from all its chunks at once (chunks in file order, messages in index order)."""
+    for channel in channels.values():
+        parts, channel.indexed = channel.indexed, []
+        if not parts:
+            continue
+        lengths = parts[0][2] if len(parts) == 1 else np.concatenate([n for _, _, n in parts])
+        size = int(lengths[0])
+        if (lengths == size).all():
+            times = (
+                parts[0][1][:, 0]
+                if len(parts) == 1
+                else np.concatenate([p[:, 0] for _, p, _ in parts])
             )
-    return arr[start[:, None] + np.arange(size)]
-
-
-def _u64_at(arr: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    cols = offsets[:, None] + np.arange(8)
-    return np.ascontiguousarray(arr[cols]).view("<u8").ravel()
+            out = np.empty((len(lengths), size), dtype=np.uint8)
+            at = 0
+            for raw, pairs, _ in parts:
+                starts = pairs[:, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
+                _records(raw, starts, size, out[at : at + len(pairs)])
+                at += len(pairs)
+            channel.pieces.append((times, out))
+            continue
+        for size in np.unique(lengths).tolist():
+            pieces = []
+            for raw, pairs, n in parts:
+                mine = n == size
+                if mine.any():
+                    starts = pairs[mine, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
+                    pieces.append((pairs[mine, 0], _records(raw, starts, size)))
+            times = np.concatenate([t for t, _ in pieces])
+            channel.pieces.append((times, np.concatenate([d for _, d in pieces])))
 
 
 def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
