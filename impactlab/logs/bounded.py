@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import os
 import stat
-import zlib
 from pathlib import Path
 
 import lz4.frame
 import zstandard
+from isal.isal_zlib import crc32  # zlib's CRC-32, an order of magnitude faster
 
 
 class UnreadableFile(ValueError):
@@ -125,7 +125,7 @@ def decompress_chunk(body: memoryview, budget: list[int]) -> bytes:
             raise DamagedData(f"unknown chunk compression {compression!r}")
     except (zstandard.ZstdError, RuntimeError, OverflowError, MemoryError) as exc:
         raise DamagedData(f"chunk cannot be decompressed ({exc})") from None
-    if len(raw) != uncompressed_size or (crc and zlib.crc32(raw) != crc):
+    if len(raw) != uncompressed_size or (crc and crc32(raw) != crc):
         raise DamagedData("chunk CRC or size mismatch")
     return raw
 

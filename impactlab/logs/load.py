@@ -323,10 +323,8 @@ def load_log(path: str | Path) -> RunLog:
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
     clearance_frames: list[pl.DataFrame] = []
-    energy = empty_frame(ENERGY_FIELDS, run_id)
-    events = pl.DataFrame(
-        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String}
-    )
+    energy: pl.DataFrame | None = None
+    events: pl.DataFrame | None = None
     for channel in raw.channels.values():
         schema, topic = channel.schema, channel.topic
         try:
@@ -361,8 +359,8 @@ def load_log(path: str | Path) -> RunLog:
         meta=meta,
         bodies=dict(sorted(bodies.items())),
         contacts=contacts,
-        energy=energy,
-        events=events,
+        energy=empty_frame(ENERGY_FIELDS, run_id) if energy is None else energy,
+        events=decode_events(run_id, np.empty(0, np.int64), []) if events is None else events,
         partial=bool(problems),
         problems=problems,
         checked=checked,

@@ -19,13 +19,13 @@ from __future__ import annotations
 import contextlib
 import io
 import struct
-import zlib
 from collections import defaultdict
 from dataclasses import dataclass, field
 from itertools import compress
 from pathlib import Path
 
 import numpy as np
+from isal.isal_zlib import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.records import Channel, Header, Metadata, Schema
@@ -221,7 +221,7 @@ def read_attachments(path: Path) -> dict[str, bytes]:
             except (DamagedData, UnicodeDecodeError):
                 break
             crc = int.from_bytes(body[data_at + size : data_at + size + 4], "little")
-            if crc and zlib.crc32(body[: data_at + size]) != crc:
+            if crc and crc32(body[: data_at + size]) != crc:
                 break
             out[name] = bytes(body[data_at : data_at + size])
         pos = end
