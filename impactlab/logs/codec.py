@@ -89,17 +89,24 @@ class Template:
         """
         if payloads.ndim != 2 or payloads.shape[1] != self.size:
             return None
-        payloads = np.ascontiguousarray(payloads)
+        out = np.empty((self.slots.size, payloads.shape[0]), dtype=np.float64)
+        return out.T if self.decode_into(payloads, out) else None
+
+    def decode_into(self, payloads: np.ndarray, out: np.ndarray) -> bool:
+        """Decode payloads (n, size) uint8 (rows may be strided, as views into a chunk) into
+        `out`, (k, n) float64; False, `out` untouched, if any payload is of another layout."""
+        if payloads.ndim != 2 or payloads.shape[1] != self.size:
+            return False
+        if payloads.strides[1] != 1:
+            payloads = np.ascontiguousarray(payloads)
         fixed = self._fixed_at
         if not (payloads[:, fixed] == self.template[fixed]).all():
-            return None
-        k, n = self.slots.size, payloads.shape[0]
-        out = np.empty((k, n), dtype=np.float64)
-        if n:
-            fields = payloads.view(self.record_dtype).reshape(n)
-            for j in range(k):
+            return False
+        if payloads.shape[0]:
+            fields = payloads.view(self.record_dtype)[:, 0]
+            for j in range(self.slots.size):
                 out[j] = fields[f"v{j}"]
-        return out.T
+        return True
 
     @cached_property
     def _fixed_at(self) -> np.ndarray:

@@ -25,17 +25,20 @@ def decode_fixed(
     Pieces in the template's layout are decoded as arrays; anything else goes through the
     protobuf library (`fallback` turns one payload into its values).
     """
-    times, values = [], []
-    for t, data in channel.pieces:
-        decoded = layout.decode(data) if isinstance(data, np.ndarray) else None
-        if decoded is None:
+    pieces = channel.pieces
+    n = sum(len(t) for t, _ in pieces)
+    out = np.empty((layout.slots.size, n), dtype=np.float64)  # a column per value
+    at = 0
+    for t, data in pieces:
+        block = out[:, at : at + len(t)]
+        if not (isinstance(data, np.ndarray) and layout.decode_into(data, block)):
             rows = data if isinstance(data, list) else [bytes(r) for r in data]
-            decoded = np.asarray([fallback(r) for r in rows], dtype=np.float64)
-        times.append(t)
-        values.append(decoded.reshape(len(t), -1))
-    if not times:
-        return np.empty(0, np.int64), np.empty((0, len(layout.slots)))
-    t_all, v_all = np.concatenate(times), np.concatenate(values)
+            block[:] = (
+                np.asarray([fallback(r) for r in rows], dtype=np.float64).reshape(len(t), -1).T
+            )
+        at += len(t)
+    t_all = pieces[0][0] if len(pieces) == 1 else np.concatenate([t for t, _ in pieces] or [[]])
+    t_all, v_all = t_all.astype(np.int64, copy=False), out.T
     if (np.diff(t_all) >= 0).all():
         return t_all, v_all
     order = np.argsort(t_all, kind="stable")
@@ -63,32 +66,57 @@ def loose_payloads(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
 
 
 def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
-    """A Contact channel -> one row per contact point."""
+    """A Contact channel -> one row per contact point, sorted by time and point.
+
+    Pieces of one payload length hold messages with the same number of points: in the fixed
+    layout, they are decoded together into one array; anything else by the protobuf library.
+    """
     names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
-    per_point = len(POINT_FIELDS)
-    frames = []
+    groups: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
+    slow: list[tuple[np.ndarray, np.ndarray | list[bytes]]] = []
     for t, data in channel.pieces:
-        values = None
-        if isinstance(data, np.ndarray) and all(names.values()):
-            # a payload of k points is one point's bytes longer than one of k - 1
-            one = messages.contact(*names.values(), 1).size
-            two = messages.contact(*names.values(), 2).size
-            k, rest = divmod(data.shape[1] - one, two - one)
-            if rest == 0 and k >= 0:
-                values = messages.contact(*names.values(), k + 1).decode(data)
-        if values is not None:
-            points = values.reshape(len(t), -1, per_point)
-            frames.append(_contact_frame(run_id, t, names, points))
+        if isinstance(data, np.ndarray) and _points(names, data.shape[1]):
+            groups[data.shape[1]].append((t, data))
         else:
-            rows = data if isinstance(data, list) else [bytes(r) for r in data]
-            frames.append(_contact_frame_slow(run_id, t, rows))
+            slow.append((t, data))
+    frames = []
+    for size, pieces in groups.items():
+        layout = messages.contact(*names.values(), _points(names, size))
+        values = np.empty((layout.slots.size, sum(len(t) for t, _ in pieces)), dtype=np.float64)
+        times, at = [], 0
+        for t, data in pieces:
+            if layout.decode_into(data, values[:, at : at + len(t)]):
+                times.append(t)
+                at += len(t)
+            else:
+                slow.append((t, data))
+        if times:
+            t_all = times[0] if len(times) == 1 else np.concatenate(times)
+            frames.append(_contact_frame(run_id, t_all, names, values[:, :at]))
+    for t, data in slow:
+        rows = data if isinstance(data, list) else [bytes(r) for r in data]
+        frames.append(_contact_frame_slow(run_id, t, rows))
     if not frames:
         return empty_contacts(run_id)
-    return frames[0] if len(frames) == 1 else pl.concat(frames).sort(["t_ns", "point"])
+    if len(frames) == 1 and (np.diff(frames[0]["t_ns"].to_numpy()) > 0).all():
+        return frames[0]  # as sorting would leave it
+    return pl.concat(frames).sort(["t_ns", "point"])
 
 
-def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np.ndarray):
-    n, k, _ = points.shape
+def _points(names: dict[str, str], size: int) -> int:
+    """Contact points in a payload of `size` bytes in the fixed layout (0: not that layout)."""
+    if not all(names.values()):
+        return 0
+    one = messages.contact(*names.values(), 1).size
+    two = messages.contact(*names.values(), 2).size
+    k, rest = divmod(size - one, two - one)
+    return k + 1 if rest == 0 and k >= 0 else 0
+
+
+def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], values: np.ndarray):
+    """Frame of contacts with k points each: `values` (k * fields, n), a row per value."""
+    per_point = len(POINT_FIELDS)
+    k, n = values.shape[0] // per_point, len(t)
     rows = n * k
     t_rep = np.repeat(t, k) if k != 1 else t
     columns = [
@@ -98,8 +126,9 @@ def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], points: np
     ]
     columns += [_constant(v, rows, key) for key, v in names.items()]
     columns.append(pl.Series("point", np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32))
-    flat = points.reshape(rows, -1)
-    columns += [pl.Series(f, flat[:, i]) for i, f in enumerate(POINT_FIELDS)]
+    for i, f in enumerate(POINT_FIELDS):
+        column = values[i] if k == 1 else values[i::per_point].T.reshape(-1)
+        columns.append(pl.Series(f, column, dtype=pl.Float64))
     return pl.DataFrame(columns)
 
 

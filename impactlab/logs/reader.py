@@ -56,8 +56,6 @@ class ChannelData:
     schema: str
     metadata: dict[str, str]
     pieces: list[tuple[np.ndarray, np.ndarray | list[bytes]]] = field(default_factory=list)
-    # checked message indexes not yet gathered: (chunk, (n, 2) time/offset pairs, lengths)
-    indexed: list[tuple[bytes, np.ndarray, np.ndarray]] = field(default_factory=list, repr=False)
 
     @property
     def count(self) -> int:
@@ -163,7 +161,6 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
         problems.append(f"damaged: unreadable record ({type(exc).__name__}: {exc})")
         _salvage(pending, schemas, channels, loose)
         summary = False
-    _collect(channels)
     for channel_id, (times, datas) in loose.items():
         if channel_id in channels:
             channels[channel_id].pieces.append((np.asarray(times, dtype=np.uint64), datas))
@@ -263,9 +260,8 @@ def _gather(
     A chunk without indexes, or one that defines channels itself (as the official writer
     does), is walked record by record. So is a chunk whose indexes disagree with it: the
     indexes carry no CRC, the chunk does, and every record an index points at must be a
-    message of that channel at that time. The indexed messages are checked together, and
-    only noted here (chunk, offset, length); `_collect` gathers each channel's payloads
-    from all its chunks at once.
+    message of that channel at that time. The indexed messages are checked together; each
+    channel's payloads are added as views into the chunk where they are evenly spaced.
     """
     raw, indexes, chunk_at = pending
     if not indexes or any(c not in channels for c in indexes):
@@ -292,7 +288,7 @@ def _gather(
     at = 0
     for channel_id, p in wanted:
         n = len(p)
-        channels[channel_id].indexed.append((raw, p, lengths[at : at + n]))
+        _add_pieces(channels[channel_id], raw, p, lengths[at : at + n])
         at += n
 
 
@@ -339,38 +335,28 @@ def _indexed_lengths(raw: bytes, ids: np.ndarray, times: np.ndarray, offsets: np
     return lengths if agrees else None
 
 
-def _collect(channels: dict[int, ChannelData]) -> None:
-    """Each channel's indexed messages as pieces of equal-length payloads, one per length,
-    gathered from all its chunks at once (chunks in file order, messages in index order)."""
-    for channel in channels.values():
-        parts, channel.indexed = channel.indexed, []
-        if not parts:
-            continue
-        lengths = parts[0][2] if len(parts) == 1 else np.concatenate([n for _, _, n in parts])
-        size = int(lengths[0])
-        if (lengths == size).all():
-            times = (
-                parts[0][1][:, 0]
-                if len(parts) == 1
-                else np.concatenate([p[:, 0] for _, p, _ in parts])
-            )
-            out = np.empty((len(lengths), size), dtype=np.uint8)
-            at = 0
-            for raw, pairs, _ in parts:
-                starts = pairs[:, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
-                _records(raw, starts, size, out[at : at + len(pairs)])
-                at += len(pairs)
-            channel.pieces.append((times, out))
-            continue
-        for size in np.unique(lengths).tolist():
-            pieces = []
-            for raw, pairs, n in parts:
-                mine = n == size
-                if mine.any():
-                    starts = pairs[mine, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
-                    pieces.append((pairs[mine, 0], _records(raw, starts, size)))
-            times = np.concatenate([t for t, _ in pieces])
-            channel.pieces.append((times, np.concatenate([d for _, d in pieces])))
+def _add_pieces(channel: ChannelData, raw: bytes, pairs: np.ndarray, lengths: np.ndarray):
+    """A chunk's messages of one channel, one piece per payload length (in index order)."""
+    times = pairs[:, 0]
+    starts = pairs[:, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
+    size = int(lengths[0])
+    if (lengths == size).all():
+        channel.pieces.append((times, _payload_rows(raw, starts, size)))
+        return
+    for size in np.unique(lengths).tolist():
+        mine = lengths == size
+        channel.pieces.append((times[mine], _payload_rows(raw, starts[mine], size)))
+
+
+def _payload_rows(raw: bytes, starts: np.ndarray, size: int) -> np.ndarray:
+    """Equal-length payloads at `starts` in a chunk, (n, size) uint8: a read-only view into
+    the chunk when they are evenly spaced (as a recorder writes them), else gathered."""
+    n = len(starts)
+    step = int(starts[1] - starts[0]) if n > 1 else size
+    if n and step >= size and (n == 1 or (np.diff(starts) == step).all()):
+        offset = int(starts[0])
+        return np.ndarray((n, size), np.uint8, buffer=raw, offset=offset, strides=(step, 1))
+    return _records(raw, starts, size)
 
 
 def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
