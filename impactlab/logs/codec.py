@@ -99,13 +99,15 @@ class Template:
             return False
         if payloads.strides[1] != 1:
             payloads = np.ascontiguousarray(payloads)
+        n = payloads.shape[0]
+        if not n:
+            return True
         fixed = self._fixed_at
         if not (payloads[:, fixed] == self.template[fixed]).all():
             return False
-        if payloads.shape[0]:
-            fields = payloads.view(self.record_dtype)[:, 0]
-            for j in range(self.slots.size):
-                out[j] = fields[f"v{j}"]
+        fields = payloads.view(self.record_dtype)[:, 0]
+        for j in range(self.slots.size):
+            out[j] = fields[f"v{j}"]
         return True
 
     @cached_property

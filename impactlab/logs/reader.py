@@ -271,25 +271,20 @@ def _gather(
             )
         _walk_chunk(raw, schemas, channels, loose)
         return
-    wanted = [
-        (channel_id, pairs)
-        for channel_id, pairs in indexes.items()
-        if len(pairs) and channels[channel_id].topic not in skip_topics
-    ]
-    if not wanted:
-        return
-    pairs = np.concatenate([p for _, p in wanted]) if len(wanted) > 1 else wanted[0][1]
-    ids = np.repeat([c for c, _ in wanted], [len(p) for _, p in wanted])
-    lengths = _indexed_lengths(raw, ids, pairs[:, 0], pairs[:, 1].astype(np.int64))
-    if lengths is None:
-        problems.append(f"damaged: message index of the chunk at byte {chunk_at}; read without it")
-        _walk_chunk(raw, schemas, channels, loose)
-        return
-    at = 0
-    for channel_id, p in wanted:
-        n = len(p)
-        _add_pieces(channels[channel_id], raw, p, lengths[at : at + n])
-        at += n
+    found = []
+    for channel_id, pairs in indexes.items():
+        if not len(pairs) or channels[channel_id].topic in skip_topics:
+            continue
+        checked = _checked_index(raw, channel_id, pairs)
+        if checked is None:
+            problems.append(
+                f"damaged: message index of the chunk at byte {chunk_at}; read without it"
+            )
+            _walk_chunk(raw, schemas, channels, loose)
+            return
+        found.append((channels[channel_id], pairs[:, 0], *checked))
+    for channel, times, offsets, lengths, step in found:
+        _add_pieces(channel, raw, times, offsets + MESSAGE_HEADER_SIZE, lengths, step)
 
 
 _HEADER = np.dtype(
@@ -315,48 +310,52 @@ def _records(raw: bytes, starts: np.ndarray, size: int, out: np.ndarray | None =
     return out
 
 
-def _indexed_lengths(raw: bytes, ids: np.ndarray, times: np.ndarray, offsets: np.ndarray):
-    """Payload lengths (n,) of the indexed records, or None unless every one is a whole
-    message of its channel (`ids`) at its indexed time (`times`: uint64 ns)."""
+def _checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
+    """(offsets, payload lengths, step) of one channel's indexed records in a chunk, or None
+    unless every one is a whole message of `channel_id` at its indexed time.
+
+    `pairs`: the index's (log_time, offset) rows, uint64. `step`: the constant distance
+    between the records (0 when they are not evenly spaced); evenly spaced records are read
+    through a strided view, others gathered.
+    """
     size = len(raw)
-    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
-        return None
-    header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
+    offsets = pairs[:, 1].astype(np.int64)
+    n, first = len(offsets), int(offsets[0])
+    step = int(offsets[1]) - first if n > 1 else MESSAGE_HEADER_SIZE
+    if step >= MESSAGE_HEADER_SIZE and (n == 1 or (np.diff(offsets) == step).all()):
+        if first < 0 or first + step * (n - 1) + MESSAGE_HEADER_SIZE > size:
+            return None
+        header = np.ndarray((n,), _HEADER, buffer=raw, offset=first, strides=(step,))
+    else:
+        step = 0
+        if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
+            return None
+        header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
     lengths = header["length"].astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
-    if (lengths < 0).any() or (lengths > size).any():
-        return None
-    if (offsets + MESSAGE_HEADER_SIZE + lengths > size).any():
+    # a length >= 2^63 reads as negative; otherwise every payload must end inside the chunk
+    if lengths.min() < 0 or (offsets + lengths).max() + MESSAGE_HEADER_SIZE > size:
         return None
     agrees = (
         (header["op"] == OP_MESSAGE).all()
-        and (header["channel"] == ids).all()
-        and (header["log_time"] == times).all()
+        and (header["channel"] == channel_id).all()
+        and (header["log_time"] == pairs[:, 0]).all()
     )
-    return lengths if agrees else None
+    return (offsets, lengths, step) if agrees else None
 
 
-def _add_pieces(channel: ChannelData, raw: bytes, pairs: np.ndarray, lengths: np.ndarray):
-    """A chunk's messages of one channel, one piece per payload length (in index order)."""
-    times = pairs[:, 0]
-    starts = pairs[:, 1].astype(np.int64) + MESSAGE_HEADER_SIZE
+def _add_pieces(channel, raw: bytes, times, starts, lengths, step: int) -> None:
+    """A chunk's messages of one channel, one piece per payload length (in index order):
+    read-only views into the chunk when evenly spaced (`step` > 0), else gathered."""
     size = int(lengths[0])
-    if (lengths == size).all():
-        channel.pieces.append((times, _payload_rows(raw, starts, size)))
+    if step and (lengths == size).all():
+        rows = np.ndarray(
+            (len(starts), size), np.uint8, buffer=raw, offset=int(starts[0]), strides=(step, 1)
+        )
+        channel.pieces.append((times, rows))
         return
     for size in np.unique(lengths).tolist():
         mine = lengths == size
-        channel.pieces.append((times[mine], _payload_rows(raw, starts[mine], size)))
-
-
-def _payload_rows(raw: bytes, starts: np.ndarray, size: int) -> np.ndarray:
-    """Equal-length payloads at `starts` in a chunk, (n, size) uint8: a read-only view into
-    the chunk when they are evenly spaced (as a recorder writes them), else gathered."""
-    n = len(starts)
-    step = int(starts[1] - starts[0]) if n > 1 else size
-    if n and step >= size and (n == 1 or (np.diff(starts) == step).all()):
-        offset = int(starts[0])
-        return np.ndarray((n, size), np.uint8, buffer=raw, offset=offset, strides=(step, 1))
-    return _records(raw, starts, size)
+        channel.pieces.append((times[mine], _records(raw, starts[mine], size)))
 
 
 def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
