@@ -297,6 +297,11 @@ _HEADER = np.dtype(
 )
 
 
+_SAME = np.dtype(  # op, length and channel (bytes 0-10 of a message record), in two words
+    {"names": ["start", "end"], "formats": ["<u8", "<u4"], "offsets": [0, 7], "itemsize": 11}
+)
+
+
 def _records(raw: bytes, starts: np.ndarray, size: int, out: np.ndarray | None = None):
     """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
     bytes), (n, size) uint8, gathered in one step (into `out`, (n, size) uint8, if given)."""
@@ -315,22 +320,39 @@ def _checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
     unless every one is a whole message of `channel_id` at its indexed time.
 
     `pairs`: the index's (log_time, offset) rows, uint64. `step`: the constant distance
-    between the records (0 when they are not evenly spaced); evenly spaced records are read
-    through a strided view, others gathered.
+    between the records when they are evenly spaced and of one length (as a recorder writes
+    them; they are then checked through strided views), else 0 (checked after a gather).
     """
-    size = len(raw)
+    size, n = len(raw), len(pairs)
+    first = int(pairs[0, 1])
+    step = int(pairs[1, 1]) - first if n > 1 else MESSAGE_HEADER_SIZE
+    even = (
+        step >= MESSAGE_HEADER_SIZE
+        and first + step * (n - 1) + MESSAGE_HEADER_SIZE <= size
+        and (n == 1 or bool((np.diff(pairs[:, 1]) == step).all()))
+    )
+    if even:
+        same = np.ndarray((n,), _SAME, buffer=raw, offset=first, strides=(step,))
+        if (same["start"] == same["start"][0]).all() and (same["end"] == same["end"][0]).all():
+            # op, length and channel as in the first record, which is checked alone
+            header = np.ndarray((n,), _HEADER, buffer=raw, offset=first, strides=(step,))
+            op, length, channel, _ = header[0].item()
+            last_end = first + step * (n - 1) + 9 + length
+            if (
+                op != OP_MESSAGE
+                or channel != channel_id
+                or length < MESSAGE_HEADER_SIZE - 9
+                or last_end > size
+            ):
+                return None
+            if not (header["log_time"] == pairs[:, 0]).all():
+                return None
+            lengths = np.full(n, length - (MESSAGE_HEADER_SIZE - 9), dtype=np.int64)
+            return pairs[:, 1].astype(np.int64), lengths, step
     offsets = pairs[:, 1].astype(np.int64)
-    n, first = len(offsets), int(offsets[0])
-    step = int(offsets[1]) - first if n > 1 else MESSAGE_HEADER_SIZE
-    if step >= MESSAGE_HEADER_SIZE and (n == 1 or (np.diff(offsets) == step).all()):
-        if first < 0 or first + step * (n - 1) + MESSAGE_HEADER_SIZE > size:
-            return None
-        header = np.ndarray((n,), _HEADER, buffer=raw, offset=first, strides=(step,))
-    else:
-        step = 0
-        if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
-            return None
-        header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
+    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
+        return None
+    header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
     lengths = header["length"].astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
     # a length >= 2^63 reads as negative; otherwise every payload must end inside the chunk
     if lengths.min() < 0 or (offsets + lengths).max() + MESSAGE_HEADER_SIZE > size:
@@ -340,18 +362,20 @@ def _checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
         and (header["channel"] == channel_id).all()
         and (header["log_time"] == pairs[:, 0]).all()
     )
-    return (offsets, lengths, step) if agrees else None
+    return (offsets, lengths, 0) if agrees else None
 
 
 def _add_pieces(channel, raw: bytes, times, starts, lengths, step: int) -> None:
     """A chunk's messages of one channel, one piece per payload length (in index order):
     read-only views into the chunk when evenly spaced (`step` > 0), else gathered."""
     size = int(lengths[0])
-    if step and (lengths == size).all():
-        rows = np.ndarray(
-            (len(starts), size), np.uint8, buffer=raw, offset=int(starts[0]), strides=(step, 1)
-        )
+    if step:
+        shape, offset = (len(starts), size), int(starts[0])
+        rows = np.ndarray(shape, np.uint8, buffer=raw, offset=offset, strides=(step, 1))
         channel.pieces.append((times, rows))
+        return
+    if (lengths == size).all():
+        channel.pieces.append((times, _records(raw, starts, size)))
         return
     for size in np.unique(lengths).tolist():
         mine = lengths == size
