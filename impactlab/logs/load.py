@@ -297,7 +297,7 @@ def load_log(path: str | Path) -> RunLog:
     """
     path = Path(path)
     try:
-        raw = read_mcap(path, skip_topics=UNREAD_TOPICS)
+        raw = read_mcap(path, skip_topics=UNREAD_TOPICS, reuse_memory=True)
     except FileNotFoundError:
         raise LogError(str(path), "file not found") from None
     except IsADirectoryError:

@@ -31,6 +31,7 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Header, Metadata, Schema
 
 from impactlab.logs.bounded import (
+    Arena,
     DamagedData,
     UnreadableFile,
     decompress_chunk,
@@ -78,10 +79,15 @@ class McapContent:
 _Damage = DamagedData
 
 
-def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapContent:
+def read_mcap(
+    path: Path, *, skip_topics: frozenset[str] = frozenset(), reuse_memory: bool = False
+) -> McapContent:
     """Gather every complete message and metadata record of an MCAP file.
 
-    Messages on `skip_topics` are not gathered (their channels are still listed).
+    Messages on `skip_topics` are not gathered (their channels are still listed). With
+    `reuse_memory`, chunks are decompressed into this thread's `Arena`, memory the previous
+    such read used when nothing refers to it any more (for a caller that decodes the
+    content and drops it before reading the next file).
 
     Raises:
         UnreadableFile: not a regular file, larger than the limit, or not MCAP (bad magic).
@@ -92,6 +98,7 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
     if bytes(buf[:8]) != MAGIC:
         raise UnreadableFile("not an MCAP file (bad magic bytes)")
     budget = [limit - len(buf)]  # bytes the decompressed chunks may still take
+    arena = Arena() if reuse_memory else None
     schemas: dict[int, str] = {}
     channels: dict[int, ChannelData] = {}
     metadata: dict[str, dict[str, str]] = {}
@@ -127,7 +134,7 @@ def read_mcap(path: Path, *, skip_topics: frozenset[str] = frozenset()) -> McapC
                 name, _, size = _attachment_header(body)
                 attachments[name] = size
             elif op == OP_CHUNK:
-                pending = (decompress_chunk(body, budget), {}, pos)
+                pending = (decompress_chunk(body, budget, arena), {}, pos)
             elif op == OP_MESSAGE_INDEX and pending is not None:
                 channel_id = int.from_bytes(body[0:2], "little")
                 size = int.from_bytes(body[2:6], "little")
