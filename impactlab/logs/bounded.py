@@ -123,7 +123,7 @@ def decompress_chunk(
     try:
         if compression == "zstd":
             room = arena.take(uncompressed_size + 1) if arena is not None else None
-            raw = _zstd(data, uncompressed_size) if room is None else _zstd_into(data, room)
+            raw = _zstd(data, uncompressed_size) if room is None else arena.zstd(data, room)
         elif compression == "lz4":
             decompressor = lz4.frame.LZ4FrameDecompressor()
             raw = decompressor.decompress(bytes(data), max_length=uncompressed_size + 1)
@@ -155,16 +155,6 @@ def _zstd(data: memoryview, declared: int) -> bytes:
     return reader.read(declared + 1) if declared else b""
 
 
-def _zstd_into(data: memoryview, room: memoryview) -> memoryview:
-    """The zstd frames of a chunk decompressed into `room` (its declared size + 1 bytes: one
-    more tells a chunk that lies), a read-only view of what they hold."""
-    reader = zstandard.ZstdDecompressor().stream_reader(data, read_across_frames=True)
-    got = 0
-    while got < len(room) and (n := reader.readinto(room[got:])):
-        got += n
-    return room[:got].toreadonly()
-
-
 MAX_ARENA_BYTES = 64 << 20
 """Largest arena kept for the next file (a sweep's logs take a few MiB each)."""
 
@@ -187,6 +177,19 @@ class Arena:
         free = getattr(kept, "buffer", None) is not None and _refs(kept.buffer) == kept.refs
         self.fresh = not free  # the next take starts a new buffer
         self.used = 0
+
+    def zstd(self, data: memoryview, room: memoryview) -> memoryview:
+        """The zstd frames of a chunk decompressed into `room` (its declared size + 1 bytes:
+        one more tells a chunk that lies), a read-only view of what they hold. The thread's
+        decompressor is reused: its context and window are memory written before too."""
+        kept = self._kept
+        if getattr(kept, "decompressor", None) is None:
+            kept.decompressor = zstandard.ZstdDecompressor()
+        reader = kept.decompressor.stream_reader(data, read_across_frames=True)
+        got = 0
+        while got < len(room) and (n := reader.readinto(room[got:])):
+            got += n
+        return room[:got].toreadonly()
 
     def take(self, size: int) -> memoryview | None:
         """`size` bytes of the arena not handed out yet, or None (no room within the cap)."""
