@@ -220,8 +220,12 @@ def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> p
         levels.append(Log.Level.Name(m.level))
         messages.append(m.message)
     return pl.DataFrame(
-        {"run_id": [run_id] * len(levels), "t_ns": t_ns, "level": levels, "message": messages},
-        schema={"run_id": pl.String, "t_ns": pl.Int64, "level": pl.String, "message": pl.String},
+        [
+            _constant(run_id, len(levels), "run_id"),
+            pl.Series("t_ns", t_ns, dtype=pl.Int64),
+            pl.Series("level", levels, dtype=pl.String),
+            pl.Series("message", messages, dtype=pl.String),
+        ]
     )
 
 
