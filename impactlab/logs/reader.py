@@ -336,7 +336,7 @@ def _checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
     even = (
         step >= MESSAGE_HEADER_SIZE
         and first + step * (n - 1) + MESSAGE_HEADER_SIZE <= size
-        and (n == 1 or bool((np.diff(pairs[:, 1]) == step).all()))
+        and bool((pairs[:, 1] == np.arange(first, first + step * n, step, dtype=np.uint64)).all())
     )
     if even:
         same = np.ndarray((n,), _SAME, buffer=raw, offset=first, strides=(step,))
