@@ -2,8 +2,9 @@
 
 Top-level records are read one by one (a handful per file: header, schemas, channels,
 metadata, chunks and their message indexes). Inside a chunk, the message indexes that
-follow it give every message's offset, so a channel's messages are gathered with numpy
-fancy indexing instead of one Python step per message; a chunk without indexes, or whose
+follow it give every message's offset, so a channel's messages are checked and taken as
+whole arrays (`chunk_index`: views into the chunk where they are evenly spaced) instead of
+one Python step per message; a chunk without indexes, or whose
 indexes disagree with it (they carry no CRC), is walked record by record. Damage (truncation,
 a bad CRC, an undecompressable chunk, an unreadable record) stops the walk: everything
 complete before it is returned, with the problem.
@@ -38,13 +39,13 @@ from impactlab.logs.bounded import (
     max_log_bytes,
     read_file,
 )
+from impactlab.logs.chunk_index import MESSAGE_HEADER_SIZE, OP_MESSAGE, add_pieces, checked_index
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER = 0x01
-OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_CHUNK, OP_MESSAGE_INDEX = 0x03, 0x04, 0x05, 0x06, 0x07
+OP_SCHEMA, OP_CHANNEL, OP_CHUNK, OP_MESSAGE_INDEX = 0x03, 0x04, 0x06, 0x07
 OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x09, 0x0C, 0x0F
 CHUNK_OPS = frozenset({OP_SCHEMA, OP_CHANNEL, OP_MESSAGE})  # what a chunk may hold
-MESSAGE_HEADER_SIZE = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel, sequence, two times
 FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, summary offset start, CRC
 MAX_TIME_NS = (1 << 63) - 1  # the largest log_time the frames' signed nanoseconds hold
 
@@ -282,7 +283,7 @@ def _gather(
     for channel_id, pairs in indexes.items():
         if not len(pairs) or channels[channel_id].topic in skip_topics:
             continue
-        checked = _checked_index(raw, channel_id, pairs)
+        checked = checked_index(raw, channel_id, pairs)
         if checked is None:
             problems.append(
                 f"damaged: message index of the chunk at byte {chunk_at}; read without it"
@@ -291,102 +292,7 @@ def _gather(
             return
         found.append((channels[channel_id], pairs[:, 0], *checked))
     for channel, times, offsets, lengths, step in found:
-        _add_pieces(channel, raw, times, offsets + MESSAGE_HEADER_SIZE, lengths, step)
-
-
-_HEADER = np.dtype(
-    {
-        "names": ["op", "length", "channel", "log_time"],
-        "formats": ["u1", "<u8", "<u2", "<u8"],
-        "offsets": [0, 1, 9, 15],
-        "itemsize": MESSAGE_HEADER_SIZE,
-    }
-)
-
-
-_SAME = np.dtype(  # op, length and channel (bytes 0-10 of a message record), in two words
-    {"names": ["start", "end"], "formats": ["<u8", "<u4"], "offsets": [0, 7], "itemsize": 11}
-)
-
-
-def _records(raw: bytes, starts: np.ndarray, size: int, out: np.ndarray | None = None):
-    """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
-    bytes), (n, size) uint8, gathered in one step (into `out`, (n, size) uint8, if given)."""
-    if size == 0:
-        return np.empty((len(starts), 0), dtype=np.uint8) if out is None else out
-    row = np.dtype((np.void, size))
-    whole = np.ndarray((len(raw) - size + 1,), dtype=row, buffer=raw, strides=(1,))
-    if out is None:
-        return whole[starts].view(np.uint8).reshape(len(starts), size)
-    out.view(row).reshape(-1)[:] = whole[starts]
-    return out
-
-
-def _checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
-    """(offsets, payload lengths, step) of one channel's indexed records in a chunk, or None
-    unless every one is a whole message of `channel_id` at its indexed time.
-
-    `pairs`: the index's (log_time, offset) rows, uint64. `step`: the constant distance
-    between the records when they are evenly spaced and of one length (as a recorder writes
-    them; they are then checked through strided views), else 0 (checked after a gather).
-    """
-    size, n = len(raw), len(pairs)
-    first = int(pairs[0, 1])
-    step = int(pairs[1, 1]) - first if n > 1 else MESSAGE_HEADER_SIZE
-    even = (
-        step >= MESSAGE_HEADER_SIZE
-        and first + step * (n - 1) + MESSAGE_HEADER_SIZE <= size
-        and bool((pairs[:, 1] == np.arange(first, first + step * n, step, dtype=np.uint64)).all())
-    )
-    if even:
-        same = np.ndarray((n,), _SAME, buffer=raw, offset=first, strides=(step,))
-        if (same["start"] == same["start"][0]).all() and (same["end"] == same["end"][0]).all():
-            # op, length and channel as in the first record, which is checked alone
-            header = np.ndarray((n,), _HEADER, buffer=raw, offset=first, strides=(step,))
-            op, length, channel, _ = header[0].item()
-            last_end = first + step * (n - 1) + 9 + length
-            if (
-                op != OP_MESSAGE
-                or channel != channel_id
-                or length < MESSAGE_HEADER_SIZE - 9
-                or last_end > size
-            ):
-                return None
-            if not (header["log_time"] == pairs[:, 0]).all():
-                return None
-            lengths = np.full(n, length - (MESSAGE_HEADER_SIZE - 9), dtype=np.int64)
-            return pairs[:, 1].astype(np.int64), lengths, step
-    offsets = pairs[:, 1].astype(np.int64)
-    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
-        return None
-    header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
-    lengths = header["length"].astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
-    # a length >= 2^63 reads as negative; otherwise every payload must end inside the chunk
-    if lengths.min() < 0 or (offsets + lengths).max() + MESSAGE_HEADER_SIZE > size:
-        return None
-    agrees = (
-        (header["op"] == OP_MESSAGE).all()
-        and (header["channel"] == channel_id).all()
-        and (header["log_time"] == pairs[:, 0]).all()
-    )
-    return (offsets, lengths, 0) if agrees else None
-
-
-def _add_pieces(channel, raw: bytes, times, starts, lengths, step: int) -> None:
-    """A chunk's messages of one channel, one piece per payload length (in index order):
-    read-only views into the chunk when evenly spaced (`step` > 0), else gathered."""
-    size = int(lengths[0])
-    if step:
-        shape, offset = (len(starts), size), int(starts[0])
-        rows = np.ndarray(shape, np.uint8, buffer=raw, offset=offset, strides=(step, 1))
-        channel.pieces.append((times, rows))
-        return
-    if (lengths == size).all():
-        channel.pieces.append((times, _records(raw, starts, size)))
-        return
-    for size in np.unique(lengths).tolist():
-        mine = lengths == size
-        channel.pieces.append((times[mine], _records(raw, starts[mine], size)))
+        add_pieces(channel.pieces, raw, times, offsets + MESSAGE_HEADER_SIZE, lengths, step)
 
 
 def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:

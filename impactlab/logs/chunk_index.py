@@ -1,0 +1,106 @@
+"""A chunk's message indexes checked against the chunk, and each channel's payloads in it.
+
+Message indexes carry no CRC, the chunk does: every record an index points at must be a
+message of that channel at that time, with a payload inside the chunk. A recorder writes
+each channel's messages evenly spaced in a chunk (one per step, all of one length): those
+are checked through strided views of their headers and their payloads handed on as views
+into the chunk; any other layout is checked and copied after one gather.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+OP_MESSAGE = 0x05
+MESSAGE_HEADER_SIZE = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel, sequence, two times
+
+_HEADER = np.dtype(
+    {
+        "names": ["op", "length", "channel", "log_time"],
+        "formats": ["u1", "<u8", "<u2", "<u8"],
+        "offsets": [0, 1, 9, 15],
+        "itemsize": MESSAGE_HEADER_SIZE,
+    }
+)
+
+
+_SAME = np.dtype(  # op, length and channel (bytes 0-10 of a message record), in two words
+    {"names": ["start", "end"], "formats": ["<u8", "<u4"], "offsets": [0, 7], "itemsize": 11}
+)
+
+
+def _records(raw: bytes, starts: np.ndarray, size: int) -> np.ndarray:
+    """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
+    bytes), (n, size) uint8, gathered in one step."""
+    if size == 0:
+        return np.empty((len(starts), 0), dtype=np.uint8)
+    row = np.dtype((np.void, size))
+    whole = np.ndarray((len(raw) - size + 1,), dtype=row, buffer=raw, strides=(1,))
+    return whole[starts].view(np.uint8).reshape(len(starts), size)
+
+
+def checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
+    """(offsets, payload lengths, step) of one channel's indexed records in a chunk, or None
+    unless every one is a whole message of `channel_id` at its indexed time.
+
+    `pairs`: the index's (log_time, offset) rows, uint64. `step`: the constant distance
+    between the records when they are evenly spaced and of one length (as a recorder writes
+    them; they are then checked through strided views), else 0 (checked after a gather).
+    """
+    size, n = len(raw), len(pairs)
+    first = int(pairs[0, 1])
+    step = int(pairs[1, 1]) - first if n > 1 else MESSAGE_HEADER_SIZE
+    even = (
+        step >= MESSAGE_HEADER_SIZE
+        and first + step * (n - 1) + MESSAGE_HEADER_SIZE <= size
+        and bool((pairs[:, 1] == np.arange(first, first + step * n, step, dtype=np.uint64)).all())
+    )
+    if even:
+        same = np.ndarray((n,), _SAME, buffer=raw, offset=first, strides=(step,))
+        if (same["start"] == same["start"][0]).all() and (same["end"] == same["end"][0]).all():
+            # op, length and channel as in the first record, which is checked alone
+            header = np.ndarray((n,), _HEADER, buffer=raw, offset=first, strides=(step,))
+            op, length, channel, _ = header[0].item()
+            last_end = first + step * (n - 1) + 9 + length
+            if (
+                op != OP_MESSAGE
+                or channel != channel_id
+                or length < MESSAGE_HEADER_SIZE - 9
+                or last_end > size
+            ):
+                return None
+            if not (header["log_time"] == pairs[:, 0]).all():
+                return None
+            lengths = np.full(n, length - (MESSAGE_HEADER_SIZE - 9), dtype=np.int64)
+            return pairs[:, 1].astype(np.int64), lengths, step
+    offsets = pairs[:, 1].astype(np.int64)
+    if (offsets < 0).any() or offsets.max() + MESSAGE_HEADER_SIZE > size:
+        return None
+    header = _records(raw, offsets, MESSAGE_HEADER_SIZE).view(_HEADER).reshape(-1)
+    lengths = header["length"].astype(np.int64) - (MESSAGE_HEADER_SIZE - 9)
+    # a length >= 2^63 reads as negative; otherwise every payload must end inside the chunk
+    if lengths.min() < 0 or (offsets + lengths).max() + MESSAGE_HEADER_SIZE > size:
+        return None
+    agrees = (
+        (header["op"] == OP_MESSAGE).all()
+        and (header["channel"] == channel_id).all()
+        and (header["log_time"] == pairs[:, 0]).all()
+    )
+    return (offsets, lengths, 0) if agrees else None
+
+
+def add_pieces(pieces: list, raw: bytes, times, starts, lengths, step: int) -> None:
+    """A chunk's messages of one channel, one piece per payload length (in index order):
+    read-only views into the chunk when evenly spaced (`step` > 0), else gathered."""
+    size = int(lengths[0])
+    if step:
+        shape, offset = (len(starts), size), int(starts[0])
+        rows = np.ndarray(shape, np.uint8, buffer=raw, offset=offset, strides=(step, 1))
+        pieces.append((times, rows))
+        return
+    if (lengths == size).all():
+        pieces.append((times, _records(raw, starts, size)))
+        return
+    for size in np.unique(lengths).tolist():
+        mine = lengths == size
+        pieces.append((times[mine], _records(raw, starts[mine], size)))
