@@ -103,7 +103,7 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     fl = flights(
         states,
         on_ground,
-        ground.clearance,
+        ground,
         gravity=run.gravity,
         integrator=run.integrator,
         timestep_s=run.timestep_s,
