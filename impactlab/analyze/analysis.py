@@ -82,7 +82,7 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     raw = approach_and_release(
         raw,
         states,
-        ground.clearance,
+        ground,
         spheres=[n for n, info in run.body_info.items() if info.radius is not None],
         gravity=run.gravity,
         integrator=run.integrator,
