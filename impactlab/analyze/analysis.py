@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
@@ -140,15 +141,17 @@ def analyze_run(run: RunLog) -> RunAnalysis:
 
 
 def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
-    """t_ns of every logged row inside any contact (chatter merged)."""
-    if contacts.is_empty():
+    """t_ns of every logged row inside any contact (chatter merged), sorted."""
+    if contacts.is_empty() or rows.is_empty():
         return pl.Series("t_ns", [], dtype=pl.Int64)
-    inside = (
-        contacts.select(pl.int_ranges(pl.col("first_row"), pl.col("last_row") + 1).alias("row"))
-        .explode("row")
-        .unique()
-    )
-    return inside.join(rows, on="row").get_column("t_ns").sort()
+    row, t_ns = rows["row"].to_numpy(), rows["t_ns"].to_numpy()
+    first, last = contacts["first_row"].to_numpy(), contacts["last_row"].to_numpy()
+    size = int(max(row.max(), last.max())) + 2
+    cover = np.zeros(size, dtype=np.int64)  # +1 where a contact starts, -1 after it ends
+    np.add.at(cover, first, 1)
+    np.add.at(cover, last + 1, -1)
+    inside = np.cumsum(cover)[row] > 0
+    return pl.Series("t_ns", np.sort(t_ns[inside]), dtype=pl.Int64)
 
 
 def duration_s(states: pl.DataFrame) -> float:

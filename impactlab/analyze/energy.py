@@ -243,7 +243,8 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
     """
 
     phases = (
-        total.select("run_id", "t_ns", "t_s", "total_J")
+        total.lazy()
+        .select("run_id", "t_ns", "t_s", "total_J")
         .with_columns(pl.col("t_ns").is_in(contact_times.implode()).alias("in_contact"))
         .with_columns(pl.col("in_contact").rle_id().alias("phase"))
         .group_by("run_id", "phase", maintain_order=True)
@@ -256,7 +257,6 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
             (pl.col("total_J") - pl.col("total_J").first()).abs().max().alias("max_dev_J"),
         )
     )
-    n = phases.height
     return phases.select(
         "run_id",
         "phase",
@@ -278,5 +278,5 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
             - pl.col("e_start_J").shift(-1).fill_null(pl.col("e_end_J"))
         )
         .alias("loss_J"),
-        (pl.col("in_contact") & (pl.col("phase") == n - 1)).alias("open"),
-    )
+        (pl.col("in_contact") & (pl.col("phase") == pl.len() - 1)).alias("open"),
+    ).collect()
