@@ -30,20 +30,21 @@ def states_long(run: RunLog) -> pl.DataFrame:
     `row` numbers the run's logged steps from 0.
     """
     frames = [
-        frame.with_columns(pl.lit(name).alias("body")).select(
-            "run_id", "body", pl.exclude("run_id", "body")
-        )
+        frame.lazy()
+        .with_columns(pl.lit(name).alias("body"))
+        .select("run_id", "body", pl.exclude("run_id", "body"))
         for name, frame in run.bodies.items()
     ]
     if not frames:
         schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
         schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
         return pl.DataFrame(schema=schema)
-    states = pl.concat(frames).with_columns(
-        (pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row")
-    )
-    return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")).sort(
-        "body", "t_ns"
+    return (
+        pl.concat(frames)
+        .with_columns((pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row"))
+        .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
+        .sort("body", "t_ns")
+        .collect()
     )
 
 
@@ -62,7 +63,7 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
     """
     bodies = list(run.bodies)
     surfaces = list(ground.surfaces)
-    c = run.contacts
+    c = run.contacts.lazy()
     on_ground_2 = pl.col("geom1").is_in(surfaces) & pl.col("body2").is_in(bodies)
     on_ground_1 = pl.col("geom2").is_in(surfaces) & pl.col("body1").is_in(bodies)
     two_bodies = pl.col("body1").is_in(bodies) & pl.col("body2").is_in(bodies)
@@ -103,8 +104,9 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
             pl.col("ny").first(),
             pl.col("nz").first(),
         )
-        .join(rows, on="t_ns", how="inner")
+        .join(rows.lazy(), on="t_ns", how="inner")
         .sort(*PAIR, "row")
+        .collect()
     )
 
 
@@ -126,7 +128,8 @@ def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> p
     pair = list(PAIR)
     point = ("px", "py", "pz", "nx", "ny", "nz", "pen")
     return (
-        steps.sort(*pair, "row")
+        steps.lazy()
+        .sort(*pair, "row")
         .with_columns(
             pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
         )
@@ -148,6 +151,7 @@ def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> p
             pl.col("interval").cast(pl.Int64),
         )
         .sort("start_t_ns", *pair)
+        .collect()
     )
 
 

@@ -227,11 +227,12 @@ def approach_and_release(
     on_ground = (raw["kind"] == "ground").fill_null(False).to_numpy().astype(bool)
     bodies = raw["body"].to_list()
     others = [o if not g else None for o, g in zip(raw["other"].to_list(), on_ground, strict=True)]
-    cols = {
-        c: raw[c].cast(pl.Float64).to_numpy()
+    points = raw.select(
+        pl.col(c).cast(pl.Float64)
         for c in raw.columns
         if c.endswith(("_in", "_out")) and c[:1] in "pn"
-    }
+    )
+    cols = {c: points[c].to_numpy() for c in points.columns}
     table = StateTable(states)
     at_row = {
         (side, row): table.at(names, rows[row])
@@ -314,7 +315,8 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
     last += [f"{c}_out" for c in ("px", "py", "pz", "nx", "ny", "nz")]
     last += ["v_min_mps", "visible", "open"]
     return (
-        intervals.sort(*pair, "first_row")
+        intervals.lazy()
+        .sort(*pair, "first_row")
         .with_columns(
             pl.col("visible")
             .shift(1)
@@ -336,4 +338,5 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
         )
         .rename({"merged": "interval"})
         .sort("start_t_ns", *pair)
+        .collect()
     )
