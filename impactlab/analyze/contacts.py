@@ -50,7 +50,7 @@ def states_long(run: RunLog) -> pl.DataFrame:
 
 def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
     """(t_ns, row) of the run's logged rows, from `states_long`."""
-    return states.select("t_ns", "row").unique("row").sort("row")
+    return states.lazy().select("t_ns", "row").unique("row").sort("row").collect()
 
 
 def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:

@@ -191,8 +191,9 @@ def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float)
         sums = {c: first[c].to_numpy() for c in ENERGY_COLUMNS}
         for f in bodies[1:]:
             sums = {c: sums[c] + f[c].to_numpy() for c in ENERGY_COLUMNS}
-        total = first.select("run_id", "t_ns", "t_s").with_columns(
-            pl.Series(c, v, dtype=pl.Float64) for c, v in sums.items()
+        total = pl.DataFrame(
+            [first["run_id"], first["t_ns"], first["t_s"]]
+            + [pl.Series(c, v, dtype=pl.Float64) for c, v in sums.items()]
         )
     t = total["t_ns"].to_numpy()
     logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
