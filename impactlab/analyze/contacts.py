@@ -128,8 +128,7 @@ def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> p
     pair = list(PAIR)
     point = ("px", "py", "pz", "nx", "ny", "nz", "pen")
     return (
-        steps.lazy()
-        .sort(*pair, "row")
+        steps.sort(*pair, "row")
         .with_columns(
             pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
         )
@@ -151,7 +150,6 @@ def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> p
             pl.col("interval").cast(pl.Int64),
         )
         .sort("start_t_ns", *pair)
-        .collect()
     )
 
 

@@ -315,8 +315,7 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
     last += [f"{c}_out" for c in ("px", "py", "pz", "nx", "ny", "nz")]
     last += ["v_min_mps", "visible", "open"]
     return (
-        intervals.lazy()
-        .sort(*pair, "first_row")
+        intervals.sort(*pair, "first_row")
         .with_columns(
             pl.col("visible")
             .shift(1)
@@ -338,5 +337,4 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
         )
         .rename({"merged": "interval"})
         .sort("start_t_ns", *pair)
-        .collect()
     )
