@@ -92,18 +92,16 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     )
     contacts = merge_chatter(raw).with_columns(pl.lit(interval_s).alias("interval_s"))
     on_ground = (
-        contacts.lazy()
-        .filter(pl.col("kind") == "ground")
+        contacts.filter(pl.col("kind") == "ground")
         .sort("body", "first_row")
         .with_columns(pl.int_range(pl.len()).over("body").alias("contact"))
-        .collect()
     )
     first: dict[str, str] = {}  # each body's first ground contact: the surface
     for body, other in zip(on_ground["body"].to_list(), on_ground["other"].to_list(), strict=True):
         first.setdefault(body, other)
     refs = references(run, ground, states, first)
     energy = run_energy(run, states, ground, refs)
-    total = energy.lazy().filter(pl.col("body") == "total").sort("t_ns").collect()
+    total = energy.filter(pl.col("body") == "total").sort("t_ns")
     phases = energy_phases(total, contact_times(contacts, rows))
     fl = flights(
         states,

@@ -30,9 +30,9 @@ def states_long(run: RunLog) -> pl.DataFrame:
     `row` numbers the run's logged steps from 0.
     """
     frames = [
-        frame.lazy()
-        .with_columns(pl.lit(name).alias("body"))
-        .select("run_id", "body", pl.exclude("run_id", "body"))
+        frame.with_columns(pl.lit(name).alias("body")).select(
+            "run_id", "body", pl.exclude("run_id", "body")
+        )
         for name, frame in run.bodies.items()
     ]
     if not frames:
@@ -44,13 +44,12 @@ def states_long(run: RunLog) -> pl.DataFrame:
         .with_columns((pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row"))
         .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
         .sort("body", "t_ns")
-        .collect()
     )
 
 
 def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
     """(t_ns, row) of the run's logged rows, from `states_long`."""
-    return states.lazy().select("t_ns", "row").unique("row").sort("row").collect()
+    return states.select("t_ns", "row").unique("row").sort("row")
 
 
 def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:
@@ -63,7 +62,7 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
     """
     bodies = list(run.bodies)
     surfaces = list(ground.surfaces)
-    c = run.contacts.lazy()
+    c = run.contacts
     on_ground_2 = pl.col("geom1").is_in(surfaces) & pl.col("body2").is_in(bodies)
     on_ground_1 = pl.col("geom2").is_in(surfaces) & pl.col("body1").is_in(bodies)
     two_bodies = pl.col("body1").is_in(bodies) & pl.col("body2").is_in(bodies)
@@ -104,9 +103,8 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
             pl.col("ny").first(),
             pl.col("nz").first(),
         )
-        .join(rows.lazy(), on="t_ns", how="inner")
+        .join(rows, on="t_ns", how="inner")
         .sort(*PAIR, "row")
-        .collect()
     )
 
 

@@ -100,8 +100,7 @@ def body_energy(
     gx, gy, gz = (float(c) for c in gravity)
     dx, dy, dz = pl.col("x") - ref[0], pl.col("y") - ref[1], pl.col("z") - ref[2]
     return (
-        states.lazy()
-        .with_columns(body_frame_omega())
+        states.with_columns(body_frame_omega())
         .select(
             "run_id",
             pl.lit(info.name).alias("body"),
@@ -117,7 +116,6 @@ def body_energy(
             (-m * (gx * dx + gy * dy + gz * dz)).alias("pe_J"),
         )
         .with_columns((pl.col("ke_trans_J") + pl.col("ke_rot_J") + pl.col("pe_J")).alias("total_J"))
-        .collect()
     )
 
 
@@ -244,8 +242,7 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
     """
 
     phases = (
-        total.lazy()
-        .select("run_id", "t_ns", "t_s", "total_J")
+        total.select("run_id", "t_ns", "t_s", "total_J")
         .with_columns(pl.col("t_ns").is_in(contact_times.implode()).alias("in_contact"))
         .with_columns(pl.col("in_contact").rle_id().alias("phase"))
         .group_by("run_id", "phase", maintain_order=True)
@@ -280,4 +277,4 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
         )
         .alias("loss_J"),
         (pl.col("in_contact") & (pl.col("phase") == pl.len() - 1)).alias("open"),
-    ).collect()
+    )

@@ -112,13 +112,12 @@ def flights(
         )
         .select(list(FLIGHT_SCHEMA))
         .cast(FLIGHT_SCHEMA)
-        .collect()
     )
 
 
 def flight_rows(
     states: pl.DataFrame, contacts: pl.DataFrame, ground: Ground, *, up: np.ndarray, w_shift: float
-) -> pl.LazyFrame | None:
+) -> pl.DataFrame | None:
     """The logged rows of each body outside its ground contacts, by body and row: (body,
     flight, row, t_s, z_up (centre height along `up`), w (velocity along `up` minus
     `w_shift`), surface_before, surface_after, c_before, c_after (clearances to them));
@@ -164,4 +163,4 @@ def flight_rows(
             frame[f"c_{side}"] = pl.Series(c).scatter(np.flatnonzero(~found), None)
         parts.append(pl.DataFrame(frame))
     rows = pl.concat(parts) if parts else None
-    return None if rows is None or rows.is_empty() else rows.lazy()
+    return None if rows is None or rows.is_empty() else rows

@@ -111,9 +111,7 @@ def run_ground(run: RunLog) -> Ground:
     up = up_vector(run.gravity)
     surfaces = run.surfaces
     if surfaces is not None:
-        clearance = (
-            run.clearance.lazy().select(list(CLEARANCE_SCHEMA)).cast(CLEARANCE_SCHEMA).collect()
-        )
+        clearance = run.clearance.select(list(CLEARANCE_SCHEMA)).cast(CLEARANCE_SCHEMA)
         return Ground({s.name: s for s in surfaces}, clearance, up, recorded=True)
     if run.plane_z is None:
         return Ground({}, pl.DataFrame(schema=CLEARANCE_SCHEMA), up, recorded=False)

@@ -33,8 +33,7 @@ def summary_row(
     """
     flight, contact = pl.col("kind") == "flight", pl.col("kind") == "contact"
     e = (
-        energy.lazy()
-        .filter(pl.col("body") == "total")
+        energy.filter(pl.col("body") == "total")
         .sort("t_ns")
         .select(
             pl.col("total_J").first().alias("e0"),
@@ -42,7 +41,7 @@ def summary_row(
             pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
         )
     )
-    p = phases.lazy().select(
+    p = phases.select(
         flight.sum().alias("n_flights"),
         pl.col("drift_J").filter(flight).abs().max().alias("drift_max"),
         pl.col("max_dev_J").filter(flight).max().alias("dev_max"),
@@ -52,7 +51,7 @@ def summary_row(
     bounced = pl.col("bounce").is_not_null()
     good = bounced & pl.col("complete")
     first = bounced & (pl.col("bounce") == 1)
-    b = bounces.lazy().select(
+    b = bounces.select(
         bounced.sum().alias("n_bounces"),
         pl.struct("body", "surface").filter(bounced).n_unique().alias("n_pairs"),
         good.sum().alias("n_good"),
@@ -61,7 +60,7 @@ def summary_row(
         pl.col("e_apex").filter(good).mean().alias("e_apex_mean"),
         pl.col("note").filter(~bounced).implode().alias("notes"),
     )
-    en, ph, bo = (f.row(0, named=True) for f in pl.collect_all([e, p, b]))
+    en, ph, bo = (f.row(0, named=True) for f in (e, p, b))
     e0, e1 = en["e0"], en["e1"]
     single = bo["n_pairs"] == 1
     col = collisions.row(0, named=True) if collisions.height else None
