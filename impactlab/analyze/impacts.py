@@ -156,8 +156,8 @@ def contact_point(
         nearer = np.abs(c_mat - clearance) <= np.abs(c_geo - clearance)
         turns = ~sphere & (np.isnan(clearance) | nearer)
     r = np.where(turns[:, None], r_mat, r_geo)
-    acc = np.where(turns[:, None], np.cross(at.w, np.cross(at.w, r)), 0.0)
-    return Point(r, turns, at.v + np.cross(at.w, r), acc), np.where(turns, c_mat, c_geo)
+    acc = np.where(turns[:, None], k.cross(at.w, k.cross(at.w, r)), 0.0)
+    return Point(r, turns, at.v + k.cross(at.w, r), acc), np.where(turns, c_mat, c_geo)
 
 
 def reach_surface(
@@ -187,7 +187,7 @@ def reach_surface(
         r_s = np.where(point.turns[:, None], k.turn(point.r, at.w, s), point.r)
         v_n = k.dot(n, at.v)
         rise = (v_n + g_n * h) * s + g_n * s * s / 2 + k.dot(n, r_s - point.r)
-        return height + rise, v_n + g_n * (h + s) + k.dot(n, np.cross(at.w, r_s))
+        return height + rise, v_n + g_n * (h + s) + k.dot(n, k.cross(at.w, r_s))
 
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(NEWTON_STEPS):
@@ -266,7 +266,7 @@ def approach_and_release(
             for i, c in enumerate((c1, c2), start=1):
                 r = vectors(cols, "p", "_in") - c.x
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    lever = np.linalg.norm(np.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
+                    lever = np.linalg.norm(k.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
                 out[f"lever{i}"] = lever
     n_in = vectors(cols, "n", "_in")
     for i in (0, 1):  # each body's point velocity along the impact normal, at rows b and a
