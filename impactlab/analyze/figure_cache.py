@@ -13,6 +13,7 @@ import functools
 import hashlib
 import io
 from collections.abc import Callable
+from importlib.metadata import version
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any
@@ -30,11 +31,10 @@ CODE = ("impactlab.analyze.figures", "impactlab.analyze.run_figures", "impactlab
 @functools.cache
 def code_version() -> str:
     """A hash of the figure code and the versions of the libraries that draw it."""
-    import matplotlib
-
     from impactlab.version import __version__
 
-    digest = hashlib.sha256(f"{__version__} {matplotlib.__version__} {pl.__version__}".encode())
+    versions = f"{__version__} {version('matplotlib')} {pl.__version__}"
+    digest = hashlib.sha256(versions.encode())
     for name in CODE:
         spec = find_spec(name)
         if spec is not None and spec.origin is not None:
@@ -71,8 +71,6 @@ def png_key(data: bytes) -> str | None:
 def drawn(path: Path, key: str, previous: Path | None, draw: Callable[[], Path]) -> Path:
     """The figure at `path`: copied from `previous` (the folder of the last analysis' figures)
     when the figure of that name there has the same key, else drawn by `draw` with the key."""
-    from impactlab.plotting import png_text
-
     old = previous / path.name if previous is not None else None
     if old is not None and old.is_file():
         data = old.read_bytes()  # read once: a concurrent publish may replace the file
@@ -81,5 +79,7 @@ def drawn(path: Path, key: str, previous: Path | None, draw: Callable[[], Path])
             with atomic_path(path) as tmp:
                 tmp.write_bytes(data)
             return path
+    from impactlab.plotting import png_text  # matplotlib: only when a figure is drawn
+
     with png_text({KEY: key}):
         return draw()

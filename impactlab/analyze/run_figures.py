@@ -80,7 +80,6 @@ def run_figures(
     made: list[tuple[str, Path]] = []
     if not draws_own_figures(*a.run.sweep_point):
         return made
-    from impactlab.analyze import figures  # matplotlib: only when figures are drawn
     from impactlab.analyze.figure_cache import drawn, figure_key
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
@@ -96,7 +95,7 @@ def run_figures(
                     key,
                     previous,
                     functools.partial(
-                        figures.energy_figure, a.energy, contacts, title=title, path=path
+                        _draw, "energy_figure", a.energy, contacts, title=title, path=path
                     ),
                 ),
             )
@@ -112,9 +111,17 @@ def run_figures(
                     key,
                     previous,
                     functools.partial(
-                        figures.collision_figure, a.states, row, contacts, title=title, path=path
+                        _draw, "collision_figure", a.states, row, contacts, title=title, path=path
                     ),
                 ),
             )
         )
     return made
+
+
+def _draw(name: str, *args, **kwargs) -> Path:
+    """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
+    copied unchanged from the last analysis needs none)."""
+    from impactlab.analyze import figures
+
+    return getattr(figures, name)(*args, **kwargs)
