@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 
 import matplotlib
@@ -12,6 +15,17 @@ import matplotlib.pyplot as plt
 from impactlab.files import atomic_path
 
 DPI = 110
+_PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
+
+
+@contextmanager
+def png_text(text: dict[str, str]) -> Iterator[None]:
+    """Within the block, every figure `save_figure` writes carries these PNG text entries."""
+    token = _PNG_TEXT.set(text)
+    try:
+        yield
+    finally:
+        _PNG_TEXT.reset(token)
 
 
 def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
@@ -25,7 +39,13 @@ def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) ->
         fig.tight_layout()
     try:
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight" if tight_bbox else None)
+            fig.savefig(
+                tmp,
+                dpi=dpi,
+                format="png",
+                bbox_inches="tight" if tight_bbox else None,
+                metadata=_PNG_TEXT.get(),
+            )
     finally:
         plt.close(fig)
     return path

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
@@ -82,7 +83,7 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     raw = approach_and_release(
         raw,
         states,
-        ground.clearance,
+        ground,
         spheres=[n for n, info in run.body_info.items() if info.radius is not None],
         gravity=run.gravity,
         integrator=run.integrator,
@@ -95,15 +96,17 @@ def analyze_run(run: RunLog) -> RunAnalysis:
         .sort("body", "first_row")
         .with_columns(pl.int_range(pl.len()).over("body").alias("contact"))
     )
-    first = on_ground.filter(pl.col("contact") == 0).select("body", "other").rows()
-    refs = references(run, ground, states, dict(first))
+    first: dict[str, str] = {}  # each body's first ground contact: the surface
+    for body, other in zip(on_ground["body"].to_list(), on_ground["other"].to_list(), strict=True):
+        first.setdefault(body, other)
+    refs = references(run, ground, states, first)
     energy = run_energy(run, states, ground, refs)
     total = energy.filter(pl.col("body") == "total").sort("t_ns")
     phases = energy_phases(total, contact_times(contacts, rows))
     fl = flights(
         states,
         on_ground,
-        ground.clearance,
+        ground,
         gravity=run.gravity,
         integrator=run.integrator,
         timestep_s=run.timestep_s,
@@ -140,15 +143,17 @@ def analyze_run(run: RunLog) -> RunAnalysis:
 
 
 def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
-    """t_ns of every logged row inside any contact (chatter merged)."""
-    if contacts.is_empty():
+    """t_ns of every logged row inside any contact (chatter merged), sorted."""
+    if contacts.is_empty() or rows.is_empty():
         return pl.Series("t_ns", [], dtype=pl.Int64)
-    inside = (
-        contacts.select(pl.int_ranges(pl.col("first_row"), pl.col("last_row") + 1).alias("row"))
-        .explode("row")
-        .unique()
-    )
-    return inside.join(rows, on="row").get_column("t_ns").sort()
+    row, t_ns = rows["row"].to_numpy(), rows["t_ns"].to_numpy()
+    first, last = contacts["first_row"].to_numpy(), contacts["last_row"].to_numpy()
+    size = int(max(row.max(), last.max())) + 2
+    cover = np.zeros(size, dtype=np.int64)  # +1 where a contact starts, -1 after it ends
+    np.add.at(cover, first, 1)
+    np.add.at(cover, last + 1, -1)
+    inside = np.cumsum(cover)[row] > 0
+    return pl.Series("t_ns", np.sort(t_ns[inside]), dtype=pl.Int64)
 
 
 def duration_s(states: pl.DataFrame) -> float:

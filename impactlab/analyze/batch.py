@@ -39,11 +39,14 @@ class AnalyzedLog:
     error: tuple[str, str] | None = None
 
 
-def analyze_one(item: tuple[Path, Path], fig_dir: Path | None) -> AnalyzedLog:
+def analyze_one(
+    item: tuple[Path, Path], fig_dir: Path | None, previous: Path | None = None
+) -> AnalyzedLog:
     """Analyze one log and draw its own figures into `fig_dir` (None: no figures).
 
     `item` is the log's path to read and its path as the user gave it (what the tables
-    and messages show).
+    and messages show); `previous` holds the figures of the last analysis into the same
+    folder (unchanged ones are copied from there, not drawn again).
     """
     where, shown = item
     try:
@@ -56,7 +59,7 @@ def analyze_one(item: tuple[Path, Path], fig_dir: Path | None) -> AnalyzedLog:
     figures = []
     if fig_dir is not None:
         fig_dir.mkdir(parents=True, exist_ok=True)
-        figures = run_figures(a, fig_dir)
+        figures = run_figures(a, fig_dir, previous)
     return AnalyzedLog(a, figures)
 
 
@@ -79,9 +82,11 @@ def slim(a: RunAnalysis) -> RunAnalysis:
     )
 
 
-def _task(item: tuple[Path, Path], fig_dir: Path | None) -> AnalyzedLog:
+def _task(
+    item: tuple[Path, Path], fig_dir: Path | None, previous: Path | None = None
+) -> AnalyzedLog:
     """The body of one executor task: as `analyze_one`, returning small tables only."""
-    result = analyze_one(item, fig_dir)
+    result = analyze_one(item, fig_dir, previous)
     if result.analysis is None:
         return result
     return dataclasses.replace(result, analysis=slim(result.analysis))
@@ -91,10 +96,13 @@ def analyze_logs(
     paths: Sequence[Path],
     *,
     fig_dir: Path | None,
+    previous: Path | None = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> list[AnalyzedLog]:
     """Analyze each log (and draw its own figures when `fig_dir` is given), in order of `paths`.
+
+    `previous`: the figures of the last analysis into the same folder (see `analyze_one`).
 
     A task that fails (not an unreadable log: that is an `AnalyzedLog.error`) gives an
     error entry with the task's reason.
@@ -104,12 +112,18 @@ def analyze_logs(
     out: list[AnalyzedLog | None] = [None] * len(paths)
     if executor is None or executor.name == "local":
         for i, item in enumerate(items):
-            out[i] = _task(item, fig_dir)  # slim at once: memory flat in the number of logs
+            out[i] = _task(
+                item, fig_dir, previous
+            )  # slim at once: memory flat in the number of logs
             _count(tracker, out[i])
         return [r for r in out if r is not None]
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
-    task = functools.partial(_task, fig_dir=None if fig_dir is None else fig_dir.absolute())
+    task = functools.partial(
+        _task,
+        fig_dir=None if fig_dir is None else fig_dir.absolute(),
+        previous=None if previous is None else previous.absolute(),
+    )
     absolute = [(p.absolute(), shown) for p, shown in items]
     for outcome in executor.map(task, absolute):
         if outcome.ok and outcome.value is not None:

@@ -14,6 +14,7 @@ Raw intervals separated by no visible flight are merged into one contact
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.ground import Ground
@@ -39,17 +40,21 @@ def states_long(run: RunLog) -> pl.DataFrame:
         schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
         schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
         return pl.DataFrame(schema=schema)
-    states = pl.concat(frames).with_columns(
-        (pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row")
-    )
-    return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")).sort(
-        "body", "t_ns"
+    return (
+        pl.concat(frames)
+        .with_columns((pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row"))
+        .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
+        .sort("body", "t_ns")
     )
 
 
 def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
-    """(t_ns, row) of the run's logged rows, from `states_long`."""
-    return states.select("t_ns", "row").unique("row").sort("row")
+    """(t_ns, row) of the run's logged rows, from `states_long` (whose `row` numbers the
+    distinct logged times in order)."""
+    t_ns = np.unique(states["t_ns"].to_numpy())
+    return pl.DataFrame(
+        {"t_ns": pl.Series(t_ns, dtype=pl.Int64), "row": np.arange(t_ns.size, dtype=np.int64)}
+    )
 
 
 def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:
@@ -89,23 +94,24 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
         .alias("other"),
         *[(sign * pl.col(f"n{a}")).alias(f"n{a}") for a in "xyz"],
     )
-    return (
-        tagged.group_by("run_id", *PAIR, "t_ns")
-        .agg(
-            pl.len().alias("n_points"),
-            pl.col("normal_force").sum().alias("normal_force_N"),
-            pl.col("penetration").max().alias("penetration_m"),
-            pl.col("penetration").mean().alias("pen"),
-            pl.col("x").mean().alias("px"),
-            pl.col("y").mean().alias("py"),
-            pl.col("z").mean().alias("pz"),
-            pl.col("nx").first(),
-            pl.col("ny").first(),
-            pl.col("nz").first(),
-        )
-        .join(rows, on="t_ns", how="inner")
-        .sort(*PAIR, "row")
+    steps = tagged.group_by("run_id", *PAIR, "t_ns").agg(
+        pl.len().alias("n_points"),
+        pl.col("normal_force").sum().alias("normal_force_N"),
+        pl.col("penetration").max().alias("penetration_m"),
+        pl.col("penetration").mean().alias("pen"),
+        pl.col("x").mean().alias("px"),
+        pl.col("y").mean().alias("py"),
+        pl.col("z").mean().alias("pz"),
+        pl.col("nx").first(),
+        pl.col("ny").first(),
+        pl.col("nz").first(),
     )
+    # each step's row number (an inner join on t_ns with `rows`, sorted by time)
+    t_ns, logged = steps["t_ns"].to_numpy(), rows["t_ns"].to_numpy()
+    spot = np.clip(np.searchsorted(logged, t_ns), 0, max(logged.size - 1, 0))
+    found = logged[spot] == t_ns if logged.size else np.zeros(t_ns.size, dtype=bool)
+    row = pl.Series("row", rows["row"].to_numpy()[spot] if logged.size else spot, dtype=pl.Int64)
+    return steps.with_columns(row).filter(pl.Series(found)).sort(*PAIR, "row")
 
 
 def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> pl.DataFrame:

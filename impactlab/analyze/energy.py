@@ -51,9 +51,7 @@ def references(
         surface = ground.reference(name, first_surface.get(name), info.rest_height_m)
         if surface is not None and info.rest_height_m is not None:
             level = ground.surfaces[surface].level_m + info.rest_height_m
-            measured = ground.clearance.filter(
-                (pl.col("body") == name) & (pl.col("surface") == surface)
-            ).height
+            measured = ground.has_clearance(name, surface)
             refs[name] = Reference(level * ground.up, surface if measured else None)
             continue
         mine = states.filter(pl.col("body") == name)
@@ -97,6 +95,9 @@ def body_energy(
     ix, iy, iz = info.inertia
     g = float(np.linalg.norm(gravity))
     up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+    # Python floats: a numpy scalar times an expression would run as a slow ufunc callback
+    ux, uy, uz = (float(u) for u in up)
+    gx, gy, gz = (float(c) for c in gravity)
     dx, dy, dz = pl.col("x") - ref[0], pl.col("y") - ref[1], pl.col("z") - ref[2]
     return (
         states.with_columns(body_frame_omega())
@@ -105,14 +106,14 @@ def body_energy(
             pl.lit(info.name).alias("body"),
             "t_ns",
             "t_s",
-            (up[0] * dx + up[1] * dy + up[2] * dz).alias("height_m"),
+            (ux * dx + uy * dy + uz * dz).alias("height_m"),
             (0.5 * m * (pl.col("vx") ** 2 + pl.col("vy") ** 2 + pl.col("vz") ** 2)).alias(
                 "ke_trans_J"
             ),
             (
                 0.5 * (ix * pl.col("wbx") ** 2 + iy * pl.col("wby") ** 2 + iz * pl.col("wbz") ** 2)
             ).alias("ke_rot_J"),
-            (-m * (gravity[0] * dx + gravity[1] * dy + gravity[2] * dz)).alias("pe_J"),
+            (-m * (gx * dx + gy * dy + gz * dz)).alias("pe_J"),
         )
         .with_columns((pl.col("ke_trans_J") + pl.col("ke_rot_J") + pl.col("pe_J")).alias("total_J"))
     )
@@ -129,45 +130,89 @@ def run_energy(
 
     Returns:
         (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
-        mujoco_total_J, mujoco_diff_J); the MuJoCo columns are set on the "total" rows only:
-        MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
+        mujoco_total_J, mujoco_diff_J), by body and time; the MuJoCo columns are set on the
+        "total" rows only: MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
     """
     infos = run.body_info
-    per_body = []
+    by_body = {str(k[0]): f for k, f in states.partition_by("body", as_dict=True).items()}
+    per_body = {}
     for name, ref in refs.items():
         if name not in run.bodies:
             continue
-        frame = body_energy(
-            states.filter(pl.col("body") == name), infos[name], gravity=run.gravity, ref=ref.point
-        )
+        mine = by_body.get(name, states.clear())
+        frame = body_energy(mine, infos[name], gravity=run.gravity, ref=ref.point)
         if ref.surface is not None:  # heights: the lowest point above the reference surface
-            above = ground.clearance.filter(
-                (pl.col("body") == name) & (pl.col("surface") == ref.surface)
-            ).select("t_ns", pl.col("clearance_m").alias("height_m"))
-            frame = frame.drop("height_m").join(above, on="t_ns", how="left")
-        per_body.append(frame.select(ENERGY_FRAME_COLUMNS))
+            c, found = ground.clearance_at(name, ref.surface, frame["t_ns"].to_numpy())
+            frame = frame.with_columns(with_nulls("height_m", c, found))
+        per_body[name] = frame.select(ENERGY_FRAME_COLUMNS)
     if not per_body:
         return empty_energy()
-    bodies = pl.concat(per_body)
     shift = float(sum(-infos[n].mass * run.gravity @ refs[n].point for n in refs))
     shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
-    total = (
-        bodies.group_by("run_id", "t_ns", "t_s", maintain_order=True)
-        .agg(
-            pl.lit(None, dtype=pl.Float64).alias("height_m"),
-            *[pl.col(c).sum() for c in ENERGY_COLUMNS],
-        )
-        .with_columns(pl.lit("total").alias("body"))
-        .join(
-            run.energy.select("t_ns", (pl.col("total") - shift).alias("mujoco_total_J")),
-            on="t_ns",
-            how="left",
-        )
-        .with_columns((pl.col("mujoco_total_J") - pl.col("total_J")).alias("mujoco_diff_J"))
+    total = total_energy(list(per_body.values()), run.energy, shift)
+    frames = per_body | {"total": total}
+    if len(frames) == len(per_body):  # a body named "total": order by time as well
+        return pl.concat(list(frames.values()), how="diagonal").sort("body", "t_ns")
+    # each frame is by time (states_long is): ordering the bodies by name sorts by (body, t_ns)
+    return pl.concat([frames[n] for n in sorted(frames)], how="diagonal")
+
+
+def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
+    """`values` as a Float64 column, null where not `found`."""
+    column = pl.Series(name, values, dtype=pl.Float64)
+    return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
+
+
+def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float) -> pl.DataFrame:
+    """The run's "total" rows: the bodies' energies summed at each logged time, and MuJoCo's
+    total (`mujoco`: t_ns, total) minus `shift` where it was logged at that time.
+
+    When every body is logged at the same times (always, except in a damaged log), the sums
+    are taken over the arrays in the bodies' order, as a group-by sums them.
+    """
+    first = bodies[0]
+    same = all(
+        f.height == first.height
+        and f["t_ns"].equals(first["t_ns"])
+        and f["t_s"].equals(first["t_s"])
+        and f["run_id"].equals(first["run_id"])
+        and not any(f[c].null_count() for c in ENERGY_COLUMNS)
+        for f in bodies
     )
-    extra = ["mujoco_total_J", "mujoco_diff_J"]
-    return pl.concat([bodies, total.select(bodies.columns + extra)], how="diagonal").sort(
-        "body", "t_ns"
+    if not same:
+        total = (
+            pl.concat(bodies)
+            .group_by("run_id", "t_ns", "t_s", maintain_order=True)
+            .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
+        )
+    else:
+        sums = {c: first[c].to_numpy() for c in ENERGY_COLUMNS}
+        for f in bodies[1:]:
+            sums = {c: sums[c] + f[c].to_numpy() for c in ENERGY_COLUMNS}
+        total = pl.DataFrame(
+            [first["run_id"], first["t_ns"], first["t_s"]]
+            + [pl.Series(c, v, dtype=pl.Float64) for c, v in sums.items()]
+        )
+    t = total["t_ns"].to_numpy()
+    logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
+    order = np.argsort(logged, kind="stable")
+    logged, values = logged[order], values[order]
+    found = np.zeros(t.size, dtype=bool)
+    theirs = np.full(t.size, np.nan)
+    if logged.size:
+        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
+        found = (logged[spot] == t) & mujoco["total"].is_not_null().to_numpy()[order][spot]
+        theirs[found] = values[spot[found]] - shift
+    mujoco_total = with_nulls("mujoco_total_J", theirs, found)
+    return total.select(
+        "run_id",
+        pl.lit("total").alias("body"),
+        "t_ns",
+        "t_s",
+        pl.lit(None, dtype=pl.Float64).alias("height_m"),
+        *ENERGY_COLUMNS,
+        mujoco_total,
+        (mujoco_total - total["total_J"]).alias("mujoco_diff_J"),
     )
 
 
@@ -210,7 +255,6 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
             (pl.col("total_J") - pl.col("total_J").first()).abs().max().alias("max_dev_J"),
         )
     )
-    n = phases.height
     return phases.select(
         "run_id",
         "phase",
@@ -232,5 +276,5 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
             - pl.col("e_start_J").shift(-1).fill_null(pl.col("e_end_J"))
         )
         .alias("loss_J"),
-        (pl.col("in_contact") & (pl.col("phase") == n - 1)).alias("open"),
+        (pl.col("in_contact") & (pl.col("phase") == pl.len() - 1)).alias("open"),
     )

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.ground import Ground
 from impactlab.analyze.impacts import RK4
 
 APEX_TURN_FRACTION = 1e-3
@@ -44,7 +45,7 @@ FLIGHT_SCHEMA = {
 def flights(
     states: pl.DataFrame,
     contacts: pl.DataFrame,
-    clearance: pl.DataFrame,
+    ground: Ground,
     *,
     gravity: np.ndarray,
     integrator: str,
@@ -53,9 +54,9 @@ def flights(
     """One row per flight of each body, with its apex above the surfaces around it.
 
     Args:
-        states: `states_long` of the run.
+        states: `states_long` of the run (sorted by body and row).
         contacts: the merged ground contacts of the run (body, other, first_row, last_row).
-        clearance: the ground's clearance frame (body, surface, t_ns, clearance_m).
+        ground: the run's ground (its clearances).
 
     Returns:
         (body, flight, n_rows, surface_before (left), surface_after (landed on next),
@@ -65,43 +66,9 @@ def flights(
     g = float(np.linalg.norm(gravity))
     up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
     h = 0.0 if integrator == RK4 else timestep_s / 2
-    touch = (
-        contacts.sort("body", "first_row")
-        .with_columns(pl.int_range(pl.len()).over("body").alias("contact"))
-        .select("body", "contact", "first_row", "last_row", pl.col("other").alias("surface"))
-    )
-    z_up = up[0] * pl.col("x") + up[1] * pl.col("y") + up[2] * pl.col("z")
-    v_up = up[0] * pl.col("vx") + up[1] * pl.col("vy") + up[2] * pl.col("vz")
-    rows = (
-        states.select("body", "row", "t_ns", "t_s", z_up.alias("z_up"), (v_up - g * h).alias("w"))
-        .sort("row")
-        .join_asof(
-            touch.sort("first_row"),
-            left_on="row",
-            right_on="first_row",
-            by="body",
-            strategy="backward",
-            check_sortedness=False,
-        )
-        .filter(pl.col("last_row").is_null() | (pl.col("row") > pl.col("last_row")))
-        .with_columns((pl.col("contact").fill_null(-1) + 1).cast(pl.Int64).alias("flight"))
-        .drop("first_row", "last_row", "contact")
-        .rename({"surface": "surface_before"})
-    )
-    if rows.is_empty():
+    rows = flight_rows(states, contacts, ground, up=up, w_shift=g * h)
+    if rows is None:
         return pl.DataFrame(schema=FLIGHT_SCHEMA)
-    nxt = touch.select(
-        "body", pl.col("contact").alias("flight"), pl.col("surface").alias("surface_after")
-    )
-    rows = rows.join(nxt, on=["body", "flight"], how="left")
-    for side in ("before", "after"):
-        right = clearance.select(
-            "body",
-            pl.col("surface").alias(f"surface_{side}"),
-            "t_ns",
-            pl.col("clearance_m").alias(f"c_{side}"),
-        )
-        rows = rows.join(right, on=["body", f"surface_{side}", "t_ns"], how="left")
     apex = pl.col("z_up").arg_max()
     w_apex = pl.col("w").gather(apex)
     # the apex is inside the flight unless the flight starts descending (a release at rest)
@@ -119,20 +86,16 @@ def flights(
         offset = pl.col("z_up") - pl.col(f"c_{side}")
         return (offset.max() - offset.min()).alias(f"offset_range_{side}")
 
-    per = (
-        rows.sort("body", "row")
-        .group_by("body", "flight", maintain_order=True)
-        .agg(
-            pl.len().alias("n_rows"),
-            pl.col("surface_before").first(),
-            pl.col("surface_after").first(),
-            pl.col("t_s").gather(apex).first().alias("apex_t_s"),
-            height("before").alias("apex_after_m"),  # above the surface left
-            height("after").alias("apex_before_m"),  # above the surface landed on next
-            (pl.col("w").last() <= 0).alias("reached"),
-            turn("before"),
-            turn("after"),
-        )
+    per = rows.group_by("body", "flight", maintain_order=True).agg(
+        pl.len().alias("n_rows"),
+        pl.col("surface_before").first(),
+        pl.col("surface_after").first(),
+        pl.col("t_s").gather(apex).first().alias("apex_t_s"),
+        height("before").alias("apex_after_m"),  # above the surface left
+        height("after").alias("apex_before_m"),  # above the surface landed on next
+        (pl.col("w").last() <= 0).alias("reached"),
+        turn("before"),
+        turn("after"),
     )
     if g <= 0:
         per = per.with_columns(pl.lit(False).alias("reached"))
@@ -150,3 +113,54 @@ def flights(
         .select(list(FLIGHT_SCHEMA))
         .cast(FLIGHT_SCHEMA)
     )
+
+
+def flight_rows(
+    states: pl.DataFrame, contacts: pl.DataFrame, ground: Ground, *, up: np.ndarray, w_shift: float
+) -> pl.DataFrame | None:
+    """The logged rows of each body outside its ground contacts, by body and row: (body,
+    flight, row, t_s, z_up (centre height along `up`), w (velocity along `up` minus
+    `w_shift`), surface_before, surface_after, c_before, c_after (clearances to them));
+    None when there are none.
+
+    A row belongs to the latest contact that begins at or before it (the body's contacts by
+    first row) unless it lies after that contact's last row: then it is in flight `contact
+    + 1` (0 before the first), between the surface of that contact and the next one's.
+    """
+    ux, uy, uz = (float(u) for u in up)  # numpy scalars times an expression run as a ufunc
+    z_up = ux * pl.col("x") + uy * pl.col("y") + uz * pl.col("z")
+    v_up = ux * pl.col("vx") + uy * pl.col("vy") + uz * pl.col("vz")
+    cols = states.select(
+        "body", "row", "t_ns", "t_s", z_up.alias("z_up"), (v_up - w_shift).alias("w")
+    )
+    touch = contacts.sort("body", "first_row").select("body", "first_row", "last_row", "other")
+    by_body = {str(b): f for (b,), f in touch.partition_by("body", as_dict=True).items()}
+    parts = []
+    for (body,), mine in cols.partition_by("body", as_dict=True, maintain_order=True).items():
+        row = mine["row"].to_numpy()
+        t_ns = mine["t_ns"].to_numpy()
+        hit = by_body.get(str(body))
+        first = hit["first_row"].to_numpy() if hit is not None else np.zeros(0, dtype=np.int64)
+        last = hit["last_row"].to_numpy() if hit is not None else first
+        surfaces = hit["other"].to_list() if hit is not None else []
+        contact = np.searchsorted(first, row, side="right") - 1
+        keep = np.ones(row.size, dtype=bool)
+        if first.size:
+            keep = (contact < 0) | (row > last[np.maximum(contact, 0)])
+        flight = contact[keep] + 1
+        t_kept = t_ns[keep]
+        frame = {"body": pl.Series([str(body)] * flight.size, dtype=pl.String), "flight": flight}
+        frame |= {c: mine[c].to_numpy()[keep] for c in ("row", "t_s", "z_up", "w")}
+        # flight j lies between contact j - 1 (the surface left) and contact j (landed on)
+        for side, names in (("before", [None, *surfaces]), ("after", [*surfaces, None])):
+            frame[f"surface_{side}"] = pl.Series(names, dtype=pl.String)[flight]
+            c = np.full(flight.size, np.nan)
+            found = np.zeros(flight.size, dtype=bool)
+            for i, name in enumerate(names):
+                spot = flight == i
+                if name is not None and spot.any():
+                    c[spot], found[spot] = ground.clearance_at(str(body), name, t_kept[spot])
+            frame[f"c_{side}"] = pl.Series(c).scatter(np.flatnonzero(~found), None)
+        parts.append(pl.DataFrame(frame))
+    rows = pl.concat(parts) if parts else None
+    return None if rows is None or rows.is_empty() else rows

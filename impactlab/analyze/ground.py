@@ -18,6 +18,7 @@ MuJoCo's distance reports for a sphere on a plane.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import polars as pl
@@ -60,6 +61,43 @@ class Ground:
             first = mine.filter(pl.col("t_ns") == mine["t_ns"].min())
             return str(first.sort("clearance_m")["surface"][0])
         return next(iter(self.surfaces)) if len(self.surfaces) == 1 else None
+
+    @cached_property
+    def _by_pair(self) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per (body, surface): its logged times (sorted), clearances and whether each is set."""
+        out = {}
+        for (body, surface), frame in self.clearance.partition_by(
+            "body", "surface", as_dict=True
+        ).items():
+            t = frame["t_ns"].to_numpy()
+            order = np.argsort(t, kind="stable")
+            c = frame["clearance_m"]
+            set_ = c.is_not_null().to_numpy()[order]
+            out[(str(body), str(surface))] = (t[order], c.to_numpy()[order], set_)
+        return out
+
+    def has_clearance(self, body: str, surface: str) -> bool:
+        """Whether the log has any clearance row of the body to the surface."""
+        return (body, surface) in self._by_pair
+
+    def clearance_at(
+        self, body: str, surface: str | None, t_ns: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The body's clearance to the surface at each time (t_ns, int64), and whether the log
+        has it there (False: no such pair or time, or a null clearance; the value is then NaN).
+        As a left join on (body, surface, t_ns) with one clearance per logged time."""
+        values = np.full(len(t_ns), np.nan)
+        found = np.zeros(len(t_ns), dtype=bool)
+        pair = self._by_pair.get((body, surface)) if surface is not None else None
+        if pair is None or not len(t_ns):
+            return values, found
+        t, c, set_ = pair
+        if not t.size:
+            return values, found
+        spot = np.clip(np.searchsorted(t, t_ns), 0, t.size - 1)
+        found = (t[spot] == t_ns) & set_[spot]
+        values[found] = c[spot[found]]
+        return values, found
 
 
 def up_vector(gravity: np.ndarray) -> np.ndarray:

@@ -41,6 +41,7 @@ import polars as pl
 
 from impactlab.analyze import kinematics as k
 from impactlab.analyze.contacts import PAIR
+from impactlab.analyze.ground import Ground
 
 RK4 = "RK4"
 MIN_FLIGHT_ROWS = 10
@@ -96,21 +97,16 @@ class StateTable:
 
 
 def clearance_at(
-    clearance: pl.DataFrame, bodies: list[str], surfaces: list[str | None], t_ns: np.ndarray
+    ground: Ground, bodies: list[str], surfaces: list[str | None], t_ns: np.ndarray
 ) -> np.ndarray:
     """Each body's clearance to each surface at each time (NaN where the log has none)."""
-    want = pl.DataFrame(
-        {
-            "idx": np.arange(len(bodies)),
-            "body": bodies,
-            "surface": surfaces,
-            "t_ns": pl.Series(t_ns, nan_to_null=True).cast(pl.Int64),
-        },
-        schema_overrides={"body": pl.String, "surface": pl.String},
-    ).drop_nulls()
-    found = want.join(clearance, on=["body", "surface", "t_ns"], how="inner")
     out = np.full(len(bodies), np.nan)
-    out[found["idx"].to_numpy()] = found["clearance_m"].to_numpy()
+    rows: dict[tuple[str, str], list[int]] = {}
+    for i, (body, surface) in enumerate(zip(bodies, surfaces, strict=True)):
+        if surface is not None and np.isfinite(t_ns[i]):
+            rows.setdefault((body, surface), []).append(i)
+    for (body, surface), mine in rows.items():
+        out[mine] = ground.clearance_at(body, surface, t_ns[mine].astype(np.int64))[0]
     return out
 
 
@@ -160,8 +156,8 @@ def contact_point(
         nearer = np.abs(c_mat - clearance) <= np.abs(c_geo - clearance)
         turns = ~sphere & (np.isnan(clearance) | nearer)
     r = np.where(turns[:, None], r_mat, r_geo)
-    acc = np.where(turns[:, None], np.cross(at.w, np.cross(at.w, r)), 0.0)
-    return Point(r, turns, at.v + np.cross(at.w, r), acc), np.where(turns, c_mat, c_geo)
+    acc = np.where(turns[:, None], k.cross(at.w, k.cross(at.w, r)), 0.0)
+    return Point(r, turns, at.v + k.cross(at.w, r), acc), np.where(turns, c_mat, c_geo)
 
 
 def reach_surface(
@@ -191,7 +187,7 @@ def reach_surface(
         r_s = np.where(point.turns[:, None], k.turn(point.r, at.w, s), point.r)
         v_n = k.dot(n, at.v)
         rise = (v_n + g_n * h) * s + g_n * s * s / 2 + k.dot(n, r_s - point.r)
-        return height + rise, v_n + g_n * (h + s) + k.dot(n, np.cross(at.w, r_s))
+        return height + rise, v_n + g_n * (h + s) + k.dot(n, k.cross(at.w, r_s))
 
     with np.errstate(divide="ignore", invalid="ignore"):
         for _ in range(NEWTON_STEPS):
@@ -203,7 +199,7 @@ def reach_surface(
 def approach_and_release(
     raw: pl.DataFrame,
     states: pl.DataFrame,
-    clearance: pl.DataFrame,
+    ground: Ground,
     *,
     spheres: list[str],
     gravity: np.ndarray,
@@ -228,14 +224,15 @@ def approach_and_release(
         "last_row": last.astype(float),
         "row_a": np.where(open_, np.nan, last + 1.0),
     }
-    ground = (raw["kind"] == "ground").fill_null(False).to_numpy().astype(bool)
+    on_ground = (raw["kind"] == "ground").fill_null(False).to_numpy().astype(bool)
     bodies = raw["body"].to_list()
-    others = [o if not g else None for o, g in zip(raw["other"].to_list(), ground, strict=True)]
-    cols = {
-        c: raw[c].cast(pl.Float64).to_numpy()
+    others = [o if not g else None for o, g in zip(raw["other"].to_list(), on_ground, strict=True)]
+    points = raw.select(
+        pl.col(c).cast(pl.Float64)
         for c in raw.columns
         if c.endswith(("_in", "_out")) and c[:1] in "pn"
-    }
+    )
+    cols = {c: points[c].to_numpy() for c in points.columns}
     table = StateTable(states)
     at_row = {
         (side, row): table.at(names, rows[row])
@@ -243,7 +240,9 @@ def approach_and_release(
         for row in rows
     }
     t_b, t_a = (np.round(at_row[("1", r)].t * 1e9) for r in ("row_b", "row_a"))
-    surfaces = [None if not g else o for o, g in zip(raw["other"].to_list(), ground, strict=True)]
+    surfaces = [
+        None if not g else o for o, g in zip(raw["other"].to_list(), on_ground, strict=True)
+    ]
     sphere = [np.array([b in spheres for b in names], dtype=bool) for names in (bodies, others)]
     out: dict[str, np.ndarray] = {}
     speeds = {}
@@ -254,20 +253,20 @@ def approach_and_release(
         n = vectors(cols, "n", f"_{tag}")
         s1, c1 = at_row[("1", at)], at_row[("1", contact)]
         s2, c2 = at_row[("2", at)], at_row[("2", contact)]
-        clr = clearance_at(clearance, bodies, surfaces, t_row)
+        clr = clearance_at(ground, bodies, surfaces, t_row)
         p1, height = contact_point(cols, tag, s1, c1, turns=None, sphere=sphere[0], clearance=clr)
         p2, _ = contact_point(cols, tag, s2, c2, turns=~sphere[1], sphere=sphere[1])
         s, rate = reach_surface(n, p1, s1, height, c1.t - s1.t, gravity=gravity, h=h, sign=sign)
-        found = ground & np.isfinite(s)
+        found = on_ground & np.isfinite(s)
         relative = k.dot(n, p2.v - p1.v)
-        out[f"v_{tag}_mps"] = np.where(ground, np.where(found, rate, k.dot(n, p1.v)), relative)
+        out[f"v_{tag}_mps"] = np.where(on_ground, np.where(found, rate, k.dot(n, p1.v)), relative)
         out["meet_t_s" if tag == "in" else "release_t_s"] = np.where(found, s1.t + s, np.nan)
         speeds[tag] = (p1, p2)
         if tag == "in":  # the lever of the impact normal about each centre of mass
             for i, c in enumerate((c1, c2), start=1):
                 r = vectors(cols, "p", "_in") - c.x
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    lever = np.linalg.norm(np.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
+                    lever = np.linalg.norm(k.cross(r, n), axis=1) / np.linalg.norm(r, axis=1)
                 out[f"lever{i}"] = lever
     n_in = vectors(cols, "n", "_in")
     for i in (0, 1):  # each body's point velocity along the impact normal, at rows b and a

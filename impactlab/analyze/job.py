@@ -72,7 +72,11 @@ def _analysis(
     """Analyze; with `out`, write every file into `stage` and then publish them into `out`."""
     draw = stage is not None and figures
     fig_dir = stage / "figures" if draw and stage is not None else None
-    done = analyze_logs(paths, fig_dir=fig_dir, executor=executor, progress=progress)
+    # the figures the last analysis published there: unchanged ones are copied, not drawn
+    previous = out / "figures" if draw and out is not None else None
+    done = analyze_logs(
+        paths, fig_dir=fig_dir, previous=previous, executor=executor, progress=progress
+    )
     analyses = [slim(d.analysis) for d in done if d.analysis is not None]
     run_figs = [d.figures for d in done if d.analysis is not None]
     failed = [d.error for d in done if d.error is not None]
@@ -90,7 +94,9 @@ def _analysis(
             )
     result = tables(analyses, out, failed)
     if analyses and out is not None and stage is not None:
-        written = write_all(result, analyses, run_figs, out=stage, figures=draw, report=report)
+        written = write_all(
+            result, analyses, run_figs, out=stage, figures=draw, report=report, previous=previous
+        )
         result.files = publish(stage, out, written)
         where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
         say(progress, "analyze", f"{len(analyses)} run(s) analyzed, {len(failed)} failed; {where}")

@@ -16,14 +16,22 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", a, b)
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise a x b, (n, 3): np.cross's formula for 3-vectors without its per-call overhead
+    (which dominates on the few rows of one run's contacts)."""
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=1)
+
+
 def rotate(q: np.ndarray, v: np.ndarray, *, inverse: bool = False) -> np.ndarray:
     """v rotated by q (body to world; world to body when `inverse`), (n, 3).
 
     t = 2 u x v, v' = v + qw t + u x t with u the quaternion's vector part (negated to invert).
     """
     u = -q[:, 1:] if inverse else q[:, 1:]
-    t = 2 * np.cross(u, v)
-    return v + q[:, :1] * t + np.cross(u, t)
+    t = 2 * cross(u, v)
+    return v + q[:, :1] * t + cross(u, t)
 
 
 def turn(r: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -32,9 +40,7 @@ def turn(r: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
     axis = np.divide(w, size[:, None], out=np.zeros_like(w), where=size[:, None] > 0)
     angle = (size * s)[:, None]
     along = dot(axis, r)[:, None]
-    return (
-        r * np.cos(angle) + np.cross(axis, r) * np.sin(angle) + axis * along * (1 - np.cos(angle))
-    )
+    return r * np.cos(angle) + cross(axis, r) * np.sin(angle) + axis * along * (1 - np.cos(angle))
 
 
 def first_root(c: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:

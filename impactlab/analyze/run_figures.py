@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -66,29 +67,61 @@ def draws_own_figures(sweep_index: int, sweep_size: int) -> bool:
     return sweep_index in set(chosen.tolist())
 
 
-def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
+def run_figures(
+    a: RunAnalysis, fig_dir: Path, previous: Path | None = None
+) -> list[tuple[str, Path]]:
     """Draw one run's own figures (energy, first collision); returns (kind, path) in order.
 
     In a sweep of many runs only `FIGURE_RUNS_PER_SWEEP` evenly spread points get them;
-    the sweep's summary figures cover every run.
+    the sweep's summary figures cover every run. A figure whose inputs did not change since
+    the analysis that left its figures in `previous` is copied from there
+    (`figure_cache.drawn`).
     """
     made: list[tuple[str, Path]] = []
     if not draws_own_figures(*a.run.sweep_point):
         return made
-    from impactlab.analyze import figures  # matplotlib: only when figures are drawn
+    from impactlab.analyze.figure_cache import drawn, figure_key
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
+    title = run_title(a)
     if a.ground is not None and a.ground.surfaces and a.energy.height:
         path = fig_dir / f"energy-{a.run.run_id}.png"
+        key = figure_key("energy", a.energy, contacts, title)
         made.append(
-            ("energy", figures.energy_figure(a.energy, contacts, title=run_title(a), path=path))
+            (
+                "energy",
+                drawn(
+                    path,
+                    key,
+                    previous,
+                    functools.partial(
+                        _draw, "energy_figure", a.energy, contacts, title=title, path=path
+                    ),
+                ),
+            )
         )
     for row in a.collisions.head(1).iter_rows(named=True):
         path = fig_dir / f"collision-{a.run.run_id}.png"
+        key = figure_key("collision", a.states, row, contacts, title)
         made.append(
             (
                 "collision",
-                figures.collision_figure(a.states, row, contacts, title=run_title(a), path=path),
+                drawn(
+                    path,
+                    key,
+                    previous,
+                    functools.partial(
+                        _draw, "collision_figure", a.states, row, contacts, title=title, path=path
+                    ),
+                ),
             )
         )
     return made
+
+
+def _draw(name: str, *args, **kwargs) -> Path:
+    """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
+    copied unchanged from the last analysis needs none)."""
+    from impactlab.analyze import figures
+
+    return getattr(figures, name)(*args, **kwargs)

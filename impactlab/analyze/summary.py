@@ -31,31 +31,53 @@ def summary_row(
         run: the decoded log; the other frames are its analysis (`RunAnalysis`).
         ground: whether the run has ground surfaces.
     """
-    total = energy.filter(pl.col("body") == "total").sort("t_ns")
-    e0 = total["total_J"][0] if total.height else None
-    e1 = total["total_J"][-1] if total.height else None
-    flights = phases.filter(pl.col("kind") == "flight")
-    contacts = phases.filter(pl.col("kind") == "contact")
-    bounced = bounces.filter(pl.col("bounce").is_not_null())
-    pairs = bounced.select("body", "surface").unique()
-    single = pairs.height == 1
-    good = bounced.filter(pl.col("complete"))
-    first = bounced.filter(pl.col("bounce") == 1) if single else bounced.clear()
-    col = collisions.head(1)
-    notes = [n for n in bounces.filter(pl.col("bounce").is_null())["note"].to_list() if n]
-    if pairs.height > 1:
-        notes.append(
-            f"bounces of {pairs.height} body-surface pairs: e per pair in the bounces table"
+    flight, contact = pl.col("kind") == "flight", pl.col("kind") == "contact"
+    e = (
+        energy.filter(pl.col("body") == "total")
+        .sort("t_ns")
+        .select(
+            pl.col("total_J").first().alias("e0"),
+            pl.col("total_J").last().alias("e1"),
+            pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
         )
-    if col.height and not col["complete"][0] and col["note"][0]:
-        notes.append(col["note"][0])
+    )
+    p = phases.select(
+        flight.sum().alias("n_flights"),
+        pl.col("drift_J").filter(flight).abs().max().alias("drift_max"),
+        pl.col("max_dev_J").filter(flight).max().alias("dev_max"),
+        contact.sum().alias("n_contacts"),
+        pl.col("loss_J").filter(contact).sum().alias("loss_sum"),
+    )
+    bounced = pl.col("bounce").is_not_null()
+    good = bounced & pl.col("complete")
+    first = bounced & (pl.col("bounce") == 1)
+    b = bounces.select(
+        bounced.sum().alias("n_bounces"),
+        pl.struct("body", "surface").filter(bounced).n_unique().alias("n_pairs"),
+        good.sum().alias("n_good"),
+        *[pl.col(c).filter(first).first() for c in ("apex_before_m", "v_in_mps", "e_velocity")],
+        pl.col("e_velocity").filter(good).mean().alias("e_velocity_mean"),
+        pl.col("e_apex").filter(good).mean().alias("e_apex_mean"),
+        pl.col("note").filter(~bounced).implode().alias("notes"),
+    )
+    en, ph, bo = (f.row(0, named=True) for f in (e, p, b))
+    e0, e1 = en["e0"], en["e1"]
+    single = bo["n_pairs"] == 1
+    col = collisions.row(0, named=True) if collisions.height else None
+    notes = [n for n in bo["notes"] if n]
+    if bo["n_pairs"] > 1:
+        notes.append(
+            f"bounces of {bo['n_pairs']} body-surface pairs: e per pair in the bounces table"
+        )
+    if col is not None and not col["complete"] and col["note"]:
+        notes.append(col["note"])
     scale = abs(e0) if e0 else None
 
     def c(name: str) -> Any:
-        return col[name][0] if col.height else None
+        return col[name] if col is not None else None
 
     def f(name: str) -> Any:
-        return first[name][0] if first.height else None
+        return bo[name] if single else None
 
     return {
         "run_id": run.run_id,
@@ -76,20 +98,18 @@ def summary_row(
         "energy_initial_J": e0,
         "energy_final_J": e1,
         "energy_loss_frac": (e0 - e1) / e0 if e0 else None,
-        "flight_drift_max_J": flights["drift_J"].abs().max() if flights.height else None,
-        "flight_drift_max_rel": (flights["max_dev_J"].max() / scale)
-        if flights.height and scale
-        else None,
-        "contact_loss_sum_J": contacts["loss_J"].sum() if contacts.height else 0.0,
-        "mujoco_diff_max_J": total["mujoco_diff_J"].abs().max() if total.height else None,
+        "flight_drift_max_J": ph["drift_max"] if ph["n_flights"] else None,
+        "flight_drift_max_rel": (ph["dev_max"] / scale) if ph["n_flights"] and scale else None,
+        "contact_loss_sum_J": ph["loss_sum"] if ph["n_contacts"] else 0.0,
+        "mujoco_diff_max_J": en["mujoco_diff_max"],
         "drop_height_m": f("apex_before_m"),
-        "n_bounces": bounced.height,
-        "n_bounces_complete": good.height,
+        "n_bounces": bo["n_bounces"],
+        "n_bounces_complete": bo["n_good"],
         "first_impact_speed_mps": -f("v_in_mps") if f("v_in_mps") is not None else None,
         "e_velocity_first": f("e_velocity"),
-        "e_velocity_mean": good["e_velocity"].mean() if single and good.height else None,
-        "e_apex_mean": good["e_apex"].mean() if single and good.height else None,
-        "n_collisions": int(collisions["collision"].count()),
+        "e_velocity_mean": bo["e_velocity_mean"] if single and bo["n_good"] else None,
+        "e_apex_mean": bo["e_apex_mean"] if single and bo["n_good"] else None,
+        "n_collisions": collisions.height - collisions["collision"].null_count(),
         "e_collision": c("e_measured"),
         "v1n_before_mps": c("v1n_before_mps"),
         "v2n_before_mps": c("v2n_before_mps"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,6 +29,7 @@ def write_all(
     out: Path,
     figures: bool = True,
     report: bool = True,
+    previous: Path | None = None,
 ) -> list[Path]:
     """Write the tables, summary.json and (when asked) the summary figures and report.md.
 
@@ -38,6 +40,8 @@ def write_all(
         out: the output folder.
         figures: draw the summary figures (the runs' own are in `run_figs`).
         report: write report.md.
+        previous: the figures of the last analysis into the same folder: those whose inputs
+            did not change are copied from there, not drawn again (`figure_cache`).
 
     Returns:
         Every file written: tables, figures, report.md, summary.json.
@@ -56,7 +60,9 @@ def write_all(
         for kind, path in made:
             figs.setdefault(kind, []).append(path)
     if figures:
-        for kind, paths in summary_figures(result, analyses, params, out / "figures").items():
+        for kind, paths in summary_figures(
+            result, analyses, params, out / "figures", previous
+        ).items():
             figs.setdefault(kind, []).extend(paths)
     files += [p for ps in figs.values() for p in ps]
     if report:
@@ -107,9 +113,12 @@ def summary_figures(
     analyses: Sequence[RunAnalysis],
     params: dict[str, list[str]],
     fig_dir: Path,
+    previous: Path | None = None,
 ) -> dict[str, list[Path]]:
-    """Draw the figures over many runs (bounce decay, restitution, studies), by kind."""
+    """Draw the figures over many runs (bounce decay, restitution, studies), by kind; those
+    whose inputs did not change are copied from `previous` (`figure_cache.drawn`)."""
     from impactlab.analyze import figures
+    from impactlab.analyze.figure_cache import drawn, figure_key
 
     fig_dir.mkdir(parents=True, exist_ok=True)
     figs: dict[str, list[Path]] = {}
@@ -120,12 +129,17 @@ def summary_figures(
         grounded = [a for a in group if a.ground is not None and a.ground.surfaces]
         if grounded and _has_decay(result.bounces, [a.run.run_id for a in grounded]):
             labels = {a.run.run_id: run_label(a) for a in grounded}
+            path = fig_dir / f"bounce-decay-{exp}.png"
+            title = f"Bounce height decay: {exp}"
+            key = figure_key("decay", result.bounces, labels, title)
             figs.setdefault("decay", []).append(
-                figures.bounce_decay_figure(
-                    result.bounces,
-                    labels,
-                    title=f"Bounce height decay: {exp}",
-                    path=fig_dir / f"bounce-decay-{exp}.png",
+                drawn(
+                    path,
+                    key,
+                    previous,
+                    functools.partial(
+                        figures.bounce_decay_figure, result.bounces, labels, title=title, path=path
+                    ),
                 )
             )
     has_e = (result.bounces.height and result.bounces["e_velocity"].drop_nulls().len()) or (
@@ -133,16 +147,29 @@ def summary_figures(
     )
     if has_e:
         labels = {a.run.run_id: run_label(a) for a in analyses}
+        bounces = (
+            result.bounces
+            if result.bounces.height
+            else pl.DataFrame(schema={"complete": pl.Boolean})
+        )
+        experiments = {a.run.run_id: a.run.experiment for a in analyses}
+        targets = _targets(analyses)
+        path = fig_dir / "restitution-vs-speed.png"
+        key = figure_key("restitution", bounces, result.collisions, labels, experiments, targets)
         figs["restitution"] = [
-            figures.restitution_figure(
-                result.bounces
-                if result.bounces.height
-                else pl.DataFrame(schema={"complete": pl.Boolean}),
-                result.collisions,
-                labels,
-                path=fig_dir / "restitution-vs-speed.png",
-                experiments={a.run.run_id: a.run.experiment for a in analyses},
-                targets=_targets(analyses),
+            drawn(
+                path,
+                key,
+                previous,
+                functools.partial(
+                    figures.restitution_figure,
+                    bounces,
+                    result.collisions,
+                    labels,
+                    path=path,
+                    experiments=experiments,
+                    targets=targets,
+                ),
             )
         ]
     for name, study in result.studies.items():
@@ -150,25 +177,21 @@ def summary_figures(
         group = by_exp[name]
         if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
             infos = list(group[0].run.body_info.values())
-            figs.setdefault("study", []).append(
-                figures.collision_study_figure(
-                    study,
-                    param,
-                    title=f"Parameter study: {name}",
-                    m1=infos[0].mass,
-                    m2=infos[1].mass,
-                    path=fig_dir / f"study-{name}.png",
-                )
+            path, title = fig_dir / f"study-{name}.png", f"Parameter study: {name}"
+            m1, m2 = infos[0].mass, infos[1].mass
+            key = figure_key("collision-study", study, param, title, m1, m2)
+            draw = functools.partial(
+                figures.collision_study_figure, study, param, title=title, m1=m1, m2=m2, path=path
             )
+            figs.setdefault("study", []).append(drawn(path, key, previous, draw))
         elif "e_velocity_first" in study.columns:
-            figs.setdefault("study", []).append(
-                figures.bounce_study_figure(
-                    study,
-                    param,
-                    title=f"Parameter study: {name}: e of the first bounce",
-                    path=fig_dir / f"study-{name}.png",
-                )
+            path = fig_dir / f"study-{name}.png"
+            title = f"Parameter study: {name}: e of the first bounce"
+            key = figure_key("bounce-study", study, param, title)
+            draw = functools.partial(
+                figures.bounce_study_figure, study, param, title=title, path=path
             )
+            figs.setdefault("study", []).append(drawn(path, key, previous, draw))
     return figs
 
 

@@ -1,0 +1,85 @@
+"""Figures drawn again only when what they show changed.
+
+A figure's key hashes its inputs (frames by their schema and row hashes, other values by
+their repr) with the code that draws it (the source of the figure modules and the versions
+of impactlab, matplotlib and polars), and is written into the PNG as a text entry. An
+analysis into a folder that already holds a figure of the same name with the same key copies
+that file instead of drawing it again; any other figure is drawn.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import io
+from collections.abc import Callable
+from importlib.metadata import version
+from importlib.util import find_spec
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from impactlab.files import atomic_path
+
+KEY = "impactlab-figure-key"
+"""The PNG text entry holding the figure's key."""
+CODE = ("impactlab.analyze.figures", "impactlab.analyze.run_figures", "impactlab.plotting")
+"""The modules whose source draws the figures (part of every key)."""
+
+
+@functools.cache
+def code_version() -> str:
+    """A hash of the figure code and the versions of the libraries that draw it."""
+    from impactlab.version import __version__
+
+    versions = f"{__version__} {version('matplotlib')} {pl.__version__}"
+    digest = hashlib.sha256(versions.encode())
+    for name in CODE:
+        spec = find_spec(name)
+        if spec is not None and spec.origin is not None:
+            digest.update(Path(spec.origin).read_bytes())
+    return digest.hexdigest()
+
+
+def figure_key(kind: str, *inputs: Any) -> str:
+    """The key of a figure of `kind` drawn from `inputs` (see the module docstring)."""
+    digest = hashlib.sha256(f"{code_version()} {kind}".encode())
+    for value in inputs:
+        if isinstance(value, pl.Series):
+            value = value.to_frame()
+        if isinstance(value, pl.DataFrame):
+            digest.update(f"frame {value.height} {value.schema!r}".encode())
+            if value.height and value.width:
+                digest.update(value.hash_rows(seed=0).to_numpy().tobytes())
+        else:
+            digest.update(f"value {value!r}".encode())
+    return digest.hexdigest()
+
+
+def png_key(data: bytes) -> str | None:
+    """The figure key a PNG carries (None: none, or not a readable PNG)."""
+    from PIL import Image  # matplotlib's own PNG library
+
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            return image.info.get(KEY)
+    except (OSError, ValueError, SyntaxError):
+        return None
+
+
+def drawn(path: Path, key: str, previous: Path | None, draw: Callable[[], Path]) -> Path:
+    """The figure at `path`: copied from `previous` (the folder of the last analysis' figures)
+    when the figure of that name there has the same key, else drawn by `draw` with the key."""
+    old = previous / path.name if previous is not None else None
+    if old is not None and old.is_file():
+        data = old.read_bytes()  # read once: a concurrent publish may replace the file
+        if png_key(data) == key:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as tmp:
+                tmp.write_bytes(data)
+            return path
+    from impactlab.plotting import png_text  # matplotlib: only when a figure is drawn
+
+    with png_text({KEY: key}):
+        return draw()
