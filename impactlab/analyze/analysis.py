@@ -36,6 +36,8 @@ class RunAnalysis:
             expected and none happened).
         summary: the run's row of the runs table.
         ground: the run's ground surfaces and clearances.
+        energy_logged: rows of `energy` at full resolution and the most of one body, kept
+            when `energy` is decimated (`impactlab.analyze.batch.slim`).
     """
 
     run: RunLog
@@ -47,6 +49,7 @@ class RunAnalysis:
     collisions: pl.DataFrame
     summary: dict[str, Any]
     ground: Ground | None = None
+    energy_logged: tuple[int, int] = (0, 0)
 
 
 def logged_interval_s(run: RunLog) -> float:

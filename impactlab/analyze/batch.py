@@ -17,7 +17,9 @@ from pathlib import Path
 import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis, analyze_run
+from impactlab.analyze.outputs import with_decimated_energy
 from impactlab.analyze.run_figures import run_figures
+from impactlab.analyze.tables import TableReducer
 from impactlab.errors import LogError
 from impactlab.executors.base import Executor
 from impactlab.logs.load import load_log
@@ -66,8 +68,10 @@ def analyze_one(
 def slim(a: RunAnalysis) -> RunAnalysis:
     """The analysis without what only the run's own figures need (decoded channels, states).
 
-    The tables (energy, phases, bounces, collisions, summary) and the run's metadata stay.
+    The tables (phases, bounces, collisions, summary; energy decimated as it is written,
+    `outputs.decimate`) and the run's metadata stay.
     """
+    a = with_decimated_energy(a)
     run = dataclasses.replace(
         a.run,
         bodies={},
@@ -99,10 +103,13 @@ def analyze_logs(
     previous: Path | None = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
+    reducer: TableReducer | None = None,
 ) -> list[AnalyzedLog]:
     """Analyze each log (and draw its own figures when `fig_dir` is given), in order of `paths`.
 
     `previous`: the figures of the last analysis into the same folder (see `analyze_one`).
+    `reducer`: takes each run's tables, in order of `paths`, as soon as it can (the
+    analyses returned then keep only the run's metadata): memory flat in the number of logs.
 
     A task that fails (not an unreadable log: that is an `AnalyzedLog.error`) gives an
     error entry with the task's reason.
@@ -110,12 +117,20 @@ def analyze_logs(
     tracker = Tracker("analyze", len(paths), progress)
     items = [(Path(p), Path(p)) for p in paths]
     out: list[AnalyzedLog | None] = [None] * len(paths)
+    ready = 0  # out[:ready] has gone through the reducer
+
+    def done(i: int, result: AnalyzedLog) -> None:
+        nonlocal ready
+        out[i] = result
+        _count(tracker, result)
+        while ready < len(out) and (r := out[ready]) is not None:
+            if reducer is not None and r.analysis is not None:
+                out[ready] = dataclasses.replace(r, analysis=reducer.take(r.analysis))
+            ready += 1
+
     if executor is None or executor.name == "local":
         for i, item in enumerate(items):
-            out[i] = _task(
-                item, fig_dir, previous
-            )  # slim at once: memory flat in the number of logs
-            _count(tracker, out[i])
+            done(i, _task(item, fig_dir, previous))  # slim at once
         return [r for r in out if r is not None]
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
@@ -132,8 +147,7 @@ def analyze_logs(
             result = dataclasses.replace(value, figures=figs)
         else:
             result = AnalyzedLog(None, [], (str(paths[outcome.index]), outcome.error or ""))
-        out[outcome.index] = result
-        _count(tracker, result)
+        done(outcome.index, result)
     return [r for r in out if r is not None]
 
 

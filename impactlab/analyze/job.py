@@ -11,9 +11,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from impactlab.analyze.batch import analyze_logs, slim
+from impactlab.analyze.batch import analyze_logs
 from impactlab.analyze.publish import publish, staged
-from impactlab.analyze.tables import AnalysisResult, tables
+from impactlab.analyze.tables import AnalysisResult, TableReducer
 from impactlab.analyze.write import write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
@@ -74,10 +74,16 @@ def _analysis(
     fig_dir = stage / "figures" if draw and stage is not None else None
     # the figures the last analysis published there: unchanged ones are copied, not drawn
     previous = out / "figures" if draw and out is not None else None
+    reducer = TableReducer()
     done = analyze_logs(
-        paths, fig_dir=fig_dir, previous=previous, executor=executor, progress=progress
+        paths,
+        fig_dir=fig_dir,
+        previous=previous,
+        executor=executor,
+        progress=progress,
+        reducer=reducer,
     )
-    analyses = [slim(d.analysis) for d in done if d.analysis is not None]
+    analyses = [d.analysis for d in done if d.analysis is not None]
     run_figs = [d.figures for d in done if d.analysis is not None]
     failed = [d.error for d in done if d.error is not None]
     for where, why in empty:
@@ -92,7 +98,7 @@ def _analysis(
                 f"impactlab: warning: {a.run.path}: partial log ({problems})",
                 "warning",
             )
-    result = tables(analyses, out, failed)
+    result = reducer.result(out, failed)
     if analyses and out is not None and stage is not None:
         written = write_all(
             result, analyses, run_figs, out=stage, figures=draw, report=report, previous=previous

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.outputs import with_decimated_energy
 from impactlab.analyze.studies import studies, with_parameters
 
 
@@ -19,10 +20,13 @@ class AnalysisResult:
     Attributes:
         out_dir: the output folder (None: nothing was written).
         runs: the runs table (one row per analyzed run, with sweep parameters and results).
-        bounces, collisions, energy, phases: the other tables (energy decimated).
+        bounces, collisions, energy, phases: the other tables (energy decimated as written,
+            `outputs.decimate`).
         studies: per swept experiment, its study table.
         failed: (path, problem) of each input that could not be analyzed.
         files: every file written.
+        energy_logged: rows of the energy table at full resolution, and the most of one body
+            in one run (the table keeps every k-th of them, `outputs.decimate`).
     """
 
     out_dir: Path | None
@@ -34,6 +38,7 @@ class AnalysisResult:
     studies: dict[str, pl.DataFrame]
     failed: list[tuple[str, str]] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
+    energy_logged: tuple[int, int] = (0, 0)
 
     @property
     def exit_code(self) -> int:
@@ -41,24 +46,76 @@ class AnalysisResult:
         return 1 if self.failed else 0
 
 
+REDUCE_EVERY = 64
+"""Runs whose frames are gathered before they are concatenated into the tables."""
+
+_TABLES = ("bounces", "collisions", "energy", "phases")
+
+
+class TableReducer:
+    """The output tables, folded in run by run (`take`), then finished (`result`).
+
+    Every REDUCE_EVERY runs the frames taken are concatenated, so memory holds about the
+    tables' data rather than thousands of small frames: flat in the number of runs. The
+    tables are those one concatenation of every run's frames, in order, would give.
+    """
+
+    def __init__(self) -> None:
+        self._pending: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
+        self._parts: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
+        self._summaries: list[dict] = []
+        self._rows = self._longest = 0
+
+    def take(self, a: RunAnalysis) -> RunAnalysis:
+        """Take a run's tables; the analysis without them (its metadata stays)."""
+        a = with_decimated_energy(a)
+        for name in _TABLES:
+            frame = getattr(a, name)
+            if frame.width:
+                self._pending[name].append(frame)
+        self._summaries.append(a.summary)
+        rows, longest = a.energy_logged
+        self._rows += rows
+        self._longest = max(self._longest, longest)
+        if len(self._summaries) % REDUCE_EVERY == 0:
+            self._reduce()
+        empty = pl.DataFrame()
+        return replace(a, energy=empty, phases=empty, bounces=empty, collisions=empty)
+
+    def _reduce(self) -> None:
+        for name, frames in self._pending.items():
+            if frames:
+                self._parts[name].append(_cat(frames))
+                frames.clear()
+
+    def result(self, out_dir: Path | None, failed: Sequence[tuple[str, str]]) -> AnalysisResult:
+        """The output tables of every run taken, with the sweep studies."""
+        self._reduce()
+        runs = pl.DataFrame(self._summaries, infer_schema_length=None)
+        runs = with_parameters(runs) if runs.height else runs
+        return AnalysisResult(
+            out_dir=out_dir,
+            runs=runs,
+            bounces=_cat(self._parts["bounces"]),
+            collisions=_cat(self._parts["collisions"]),
+            energy=_cat(self._parts["energy"]),
+            phases=_cat(self._parts["phases"]),
+            studies=studies(runs) if runs.height else {},
+            failed=list(failed),
+            energy_logged=(self._rows, self._longest),
+        )
+
+
 def tables(
     analyses: Sequence[RunAnalysis], out_dir: Path | None, failed: Sequence[tuple[str, str]]
 ) -> AnalysisResult:
     """Concatenate the per-run frames into the output tables."""
+    reducer = TableReducer()
+    for a in analyses:
+        reducer.take(a)
+    return reducer.result(out_dir, failed)
 
-    def cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
-        frames = [f for f in frames if f.width]
-        return pl.concat(frames, how="diagonal_relaxed") if frames else pl.DataFrame()
 
-    runs = pl.DataFrame([a.summary for a in analyses], infer_schema_length=None)
-    runs = with_parameters(runs) if runs.height else runs
-    return AnalysisResult(
-        out_dir=out_dir,
-        runs=runs,
-        bounces=cat([a.bounces for a in analyses]),
-        collisions=cat([a.collisions for a in analyses]),
-        energy=cat([a.energy for a in analyses]),
-        phases=cat([a.phases for a in analyses]),
-        studies=studies(runs) if runs.height else {},
-        failed=list(failed),
-    )
+def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
+    frames = [f for f in frames if f.width]
+    return pl.concat(frames, how="diagonal_relaxed") if frames else pl.DataFrame()

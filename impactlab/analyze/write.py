@@ -11,7 +11,7 @@ import polars as pl
 from impactlab.analyze import answers
 from impactlab.analyze.analysis import RunAnalysis
 from impactlab.analyze.html import write_report_html
-from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN, decimate
+from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.report import build_report
 from impactlab.analyze.run_figures import run_label
 from impactlab.analyze.studies import study_parameters
@@ -46,15 +46,10 @@ def write_all(
     Returns:
         Every file written: tables, figures, report.md, summary.json.
     """
-    energy_small = decimate(result.energy)
-    files = [
-        write_parquet(
-            energy_small if name == "energy" else getattr(result, name), out / f"{name}.parquet"
-        )
-        for name in TABLES
-    ]
+    # the energy table is decimated already (`outputs.with_decimated_energy`)
+    files = [write_parquet(getattr(result, name), out / f"{name}.parquet") for name in TABLES]
     params = {name: study_parameters(result.runs, name) for name in result.studies}
-    stride_note = _stride_note(result.energy, energy_small)
+    stride_note = _stride_note(result)
     figs: dict[str, list[Path]] = {}
     for made in run_figs:
         for kind, path in made:
@@ -98,12 +93,12 @@ def write_all(
     return files
 
 
-def _stride_note(energy: pl.DataFrame, kept: pl.DataFrame) -> str:
-    n_max = energy.group_by("run_id", "body").len()["len"].max() if energy.height else 0
+def _stride_note(result: AnalysisResult) -> str:
+    rows, n_max = result.energy_logged
     return (
         f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
         f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
-        f"{kept.height} of {energy.height} rows kept); figures and all quantities use every "
+        f"{result.energy.height} of {rows} rows kept); figures and all quantities use every "
         "logged step."
     )
 
