@@ -288,7 +288,7 @@ def _startup(folder: Path) -> None:
 
 
 def _scale(folder: Path) -> None:
-    print("\nscale: record (2 threads) in fresh processes; peak RSS per case")
+    print("\nscale: record (every core) in fresh processes; peak RSS per case (workers included)")
     print(
         f"  {'runs':>5} {'max_time s':>10} {'steps':>9} {'seconds':>8} {'us/step':>8} {'peak MB':>8}"
     )
