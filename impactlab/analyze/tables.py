@@ -106,16 +106,6 @@ class TableReducer:
         )
 
 
-def tables(
-    analyses: Sequence[RunAnalysis], out_dir: Path | None, failed: Sequence[tuple[str, str]]
-) -> AnalysisResult:
-    """Concatenate the per-run frames into the output tables."""
-    reducer = TableReducer()
-    for a in analyses:
-        reducer.take(a)
-    return reducer.result(out_dir, failed)
-
-
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
     frames = [f for f in frames if f.width]
     return pl.concat(frames, how="diagonal_relaxed") if frames else pl.DataFrame()
