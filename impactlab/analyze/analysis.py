@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -9,13 +10,13 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
-from impactlab.analyze.collisions import collisions, no_collision_rows
+from impactlab.analyze.collisions import COLLISION_SCHEMA, collisions, no_collision_rows
 from impactlab.analyze.contacts import contact_rows, raw_intervals, row_numbers, states_long
 from impactlab.analyze.energy import energy_phases, references, run_energy
-from impactlab.analyze.flights import flights
+from impactlab.analyze.flights import flight_rows, flights
 from impactlab.analyze.ground import Ground, run_ground
 from impactlab.analyze.impacts import approach_and_release, merge_chatter
-from impactlab.analyze.summary import summary_row
+from impactlab.analyze.summary import headlines, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 
@@ -71,6 +72,25 @@ def analyze_run(run: RunLog) -> RunAnalysis:
             logging stride, integrator) is missing, damaged or contradicts the channels; the
             message names the key.
     """
+    (result,) = analyze_runs([run])
+    if isinstance(result, LogError):
+        raise result
+    return result
+
+
+@dataclass(frozen=True)
+class _Contacts:
+    """One run's states and raw contact intervals with their impact and release speeds."""
+
+    run: RunLog
+    ground: Ground
+    states: pl.DataFrame
+    rows: pl.DataFrame
+    raw: pl.DataFrame
+
+
+def _contacts(run: RunLog) -> _Contacts:
+    """The per-run part of the analysis: states, rows and raw contacts (see `analyze_runs`)."""
     reason = run.unanalyzable()
     if reason is not None:
         raise LogError(str(run.path), reason)
@@ -93,56 +113,156 @@ def analyze_run(run: RunLog) -> RunAnalysis:
         timestep_s=run.timestep_s,
         interval_s=interval_s,
     )
-    contacts = merge_chatter(raw).with_columns(pl.lit(interval_s).alias("interval_s"))
+    return _Contacts(run, ground, states, rows, raw)
+
+
+def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """A frame of several runs split by run_id (each run's rows in their order)."""
+    return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
+
+
+def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr:
+    """A per-run number as an expression over the `run_id` column."""
+    mapping = {run.run_id: float(value(run)) for run in runs}
+    return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
+
+
+def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
+    """Analyze several decoded logs at once: `analyze_run` of each, in order.
+
+    What is computed over a run's rows (states, contacts, energy) is computed run by run;
+    the small tables (contacts merged across chatter, flights, bounces, phases, the summary
+    aggregates) are computed for all runs in one set of frame operations, keyed by run_id,
+    so that many short runs do not pay polars' fixed cost per operation each. The run ids
+    must be distinct (`distinct_batches`). A log the analysis cannot read gives its
+    `LogError` in its place.
+    """
+    if len({run.run_id for run in runs}) != len(runs):
+        raise ValueError("analyze_runs needs distinct run ids (see distinct_batches)")
+    out: list[RunAnalysis | LogError | None] = [None] * len(runs)
+    ready: list[tuple[int, _Contacts]] = []
+    for i, run in enumerate(runs):
+        try:
+            ready.append((i, _contacts(run)))
+        except LogError as exc:
+            out[i] = exc
+    if ready:
+        for (i, _), a in zip(ready, _batch_or_each([c for _, c in ready]), strict=True):
+            out[i] = a
+    return [r for r in out if r is not None]
+
+
+def _batch_or_each(parts: list[_Contacts]) -> list[RunAnalysis | LogError]:
+    """The runs analyzed together; if one's metadata fails on the way, each on its own, so
+    that the error is that run's alone."""
+    try:
+        return list(_analyze_contacts(parts))
+    except LogError as exc:
+        if len(parts) == 1:
+            return [exc]
+        return [r for p in parts for r in _batch_or_each([p])]
+
+
+def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
+    """The analyses of runs whose per-run part is done (see `analyze_runs`)."""
+    runs = [p.run for p in parts]
+    contacts = merge_chatter(pl.concat([p.raw for p in parts])).with_columns(
+        per_run(runs, logged_interval_s).alias("interval_s")
+    )
     on_ground = (
         contacts.filter(pl.col("kind") == "ground")
-        .sort("body", "first_row")
-        .with_columns(pl.int_range(pl.len()).over("body").alias("contact"))
+        .sort("run_id", "body", "first_row")
+        .with_columns(pl.int_range(pl.len()).over("run_id", "body").alias("contact"))
     )
-    first: dict[str, str] = {}  # each body's first ground contact: the surface
-    for body, other in zip(on_ground["body"].to_list(), on_ground["other"].to_list(), strict=True):
-        first.setdefault(body, other)
-    refs = references(run, ground, states, first)
-    energy = run_energy(run, states, ground, refs)
-    total = energy.filter(pl.col("body") == "total").sort("t_ns")
-    phases = energy_phases(total, contact_times(contacts, rows))
-    fl = flights(
-        states,
-        on_ground,
-        ground,
-        gravity=run.gravity,
-        integrator=run.integrator,
-        timestep_s=run.timestep_s,
-    )
-    g = [float(x) for x in run.gravity]
+    first: dict[tuple[str, str], str] = {}  # each body's first ground contact: the surface
+    for key in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
+        first.setdefault(key[:2], key[2])
+    contacts_of, ground_of = by_run(contacts), by_run(on_ground)
+    empty_contacts, empty_ground = contacts.clear(), on_ground.clear()
+    energies, totals, in_contact, flight_parts = {}, [], [], []
+    for p in parts:
+        run, rid = p.run, p.run.run_id
+        mine = {b: s for (r, b), s in first.items() if r == rid}
+        refs = references(run, p.ground, p.states, mine)
+        energy = run_energy(run, p.states, p.ground, refs)
+        energies[rid] = energy
+        total = energy.filter(pl.col("body") == "total").sort("t_ns")
+        totals.append(total)
+        times = contact_times(contacts_of.get(rid, empty_contacts), p.rows)
+        in_contact.append(np.isin(total["t_ns"].to_numpy(), times.to_numpy()))
+        rows = flight_rows(
+            rid,
+            p.states,
+            ground_of.get(rid, empty_ground),
+            p.ground,
+            gravity=run.gravity,
+            integrator=run.integrator,
+            timestep_s=run.timestep_s,
+        )
+        if rows is not None:
+            flight_parts.append(rows)
+    total_all = pl.concat(totals)
+    phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
+    fl = flights(pl.concat(flight_parts) if flight_parts else None)
+    g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
     g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
     bnc = bounces(on_ground, fl, gravity_n=g_n)
-    names = [n for n in run.body_info if n in run.bodies]
-    if ground.surfaces:
-        missing = [n for n in names if n not in set(bnc["body"].to_list())]
-        reasons = {n: no_bounce_reason(n, on_ground, states) for n in missing}
-        if reasons:
-            bnc = pl.concat([bnc, no_bounce_rows(run.run_id, reasons)])
-    infos = {n: run.body_info[n] for n in names}
-    col = collisions(contacts.filter(pl.col("kind") == "body"), states, infos)
-    if col.is_empty() and len(names) >= 2 and expects_collision(run):
-        col = no_collision_rows(
-            run.run_id,
-            states,
-            infos,
-            f"no contact between the bodies in the {duration_s(states):.4g} s logged: the "
-            "collision never happened, so 'after' (last logged state) equals 'before'",
+    bounces_of, phases_of = by_run(bnc), by_run(phases)
+    body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
+    for p in parts:
+        rid = p.run.run_id
+        mine = bounces_of.get(rid, bnc.clear())
+        if p.ground.surfaces:
+            mine = _with_no_bounce_rows(p, mine, ground_of.get(rid, empty_ground))
+            bounces_of[rid] = mine
+    bnc = pl.concat([bounces_of.get(p.run.run_id, bnc.clear()) for p in parts])
+    heads = headlines(total_all, phases, bnc)
+    out = []
+    for p in parts:
+        run, rid = p.run, p.run.run_id
+        names = [n for n in run.body_info if n in run.bodies]
+        infos = {n: run.body_info[n] for n in names}
+        col = pl.DataFrame(schema=COLLISION_SCHEMA)
+        if rid in body_contacts:
+            col = collisions(body_contacts[rid], p.states, infos)
+        if col.is_empty() and len(names) >= 2 and expects_collision(run):
+            col = no_collision_rows(
+                rid,
+                p.states,
+                infos,
+                f"no contact between the bodies in the {duration_s(p.states):.4g} s logged: "
+                "the collision never happened, so 'after' (last logged state) equals 'before'",
+            )
+        mine_bounces = bounces_of.get(rid, bnc.clear())
+        summary = summary_row(
+            run,
+            headlines=heads,
+            states=p.states,
+            collisions=col,
+            ground=bool(p.ground.surfaces),
         )
-    summary = summary_row(
-        run,
-        states=states,
-        energy=energy,
-        phases=phases,
-        bounces=bnc,
-        collisions=col,
-        ground=bool(ground.surfaces),
-    )
-    return RunAnalysis(run, states, contacts, energy, phases, bnc, col, summary, ground)
+        out.append(
+            RunAnalysis(
+                run,
+                p.states,
+                contacts_of.get(rid, empty_contacts),
+                energies[rid],
+                phases_of.get(rid, phases.clear()),
+                mine_bounces,
+                col,
+                summary,
+                p.ground,
+            )
+        )
+    return out
+
+
+def _with_no_bounce_rows(p: _Contacts, bnc: pl.DataFrame, on_ground: pl.DataFrame) -> pl.DataFrame:
+    """The run's bounces with a row for each body without any, saying why."""
+    names = [n for n in p.run.body_info if n in p.run.bodies]
+    have = set(bnc["body"].to_list())
+    reasons = {n: no_bounce_reason(n, on_ground, p.states) for n in names if n not in have}
+    return pl.concat([bnc, no_bounce_rows(p.run.run_id, reasons)]) if reasons else bnc
 
 
 def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:

@@ -1,7 +1,9 @@
-"""Analyze many logs: one after the other here, or one task per log on an executor.
+"""Analyze many logs: in batches here, or one task per batch of logs on an executor.
 
-Each log gives its `RunAnalysis` (tables and metadata; on an executor without the bulky
-frames, see `slim`) or the reason it could not be read. The driver reduces the results
+The logs of a batch are analyzed together (`analysis.analyze_runs`: the small tables of
+all its runs in one set of frame operations). Each log gives its `RunAnalysis` (tables and
+metadata; on an executor without the bulky frames, see `slim`) or the reason it could not
+be read. The driver reduces the results
 into the output tables either way, so the results do not depend on where the logs were
 analyzed.
 """
@@ -16,13 +18,13 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis, analyze_run
+from impactlab.analyze.analysis import RunAnalysis, analyze_runs
 from impactlab.analyze.outputs import with_decimated_energy
 from impactlab.analyze.run_figures import run_figures
 from impactlab.analyze.tables import TableReducer
 from impactlab.errors import LogError
 from impactlab.executors.base import Executor
-from impactlab.logs.load import load_log
+from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 
 
@@ -41,28 +43,81 @@ class AnalyzedLog:
     error: tuple[str, str] | None = None
 
 
-def analyze_one(
-    item: tuple[Path, Path], fig_dir: Path | None, previous: Path | None = None
-) -> AnalyzedLog:
-    """Analyze one log and draw its own figures into `fig_dir` (None: no figures).
+BATCH_LOGS = 64
+"""At most this many logs are analyzed together (`analysis.analyze_runs`)."""
+BATCH_BYTES = 32 << 20
+"""...and at most this many bytes of log files (more only for one larger log)."""
 
-    `item` is the log's path to read and its path as the user gave it (what the tables
+
+def batches(items: Sequence[tuple[Path, Path]], parts: int = 1) -> list[list[int]]:
+    """Consecutive groups of `items` (by index) to analyze together: at most BATCH_LOGS
+    logs and BATCH_BYTES of files each, and at least `parts` groups when there are enough
+    logs (so that an executor's workers all get some)."""
+    most = max(1, min(BATCH_LOGS, -(-len(items) // max(parts, 1))))
+    out: list[list[int]] = []
+    size = 0
+    for i, (where, _) in enumerate(items):
+        try:
+            n = where.stat().st_size
+        except OSError:
+            n = 0
+        if out and len(out[-1]) < most and size + n <= BATCH_BYTES:
+            out[-1].append(i)
+            size += n
+        else:
+            out.append([i])
+            size = n
+    return out
+
+
+def analyze_some(
+    items: Sequence[tuple[Path, Path]], fig_dir: Path | None, previous: Path | None = None
+) -> list[AnalyzedLog]:
+    """Analyze some logs together and draw each run's own figures into `fig_dir` (None: no
+    figures); one result per log, in order.
+
+    Each item is the log's path to read and its path as the user gave it (what the tables
     and messages show); `previous` holds the figures of the last analysis into the same
     folder (unchanged ones are copied from there, not drawn again).
     """
-    where, shown = item
-    try:
-        run = load_log(where)
+    out: list[AnalyzedLog | None] = [None] * len(items)
+    loaded: list[tuple[int, RunLog]] = []
+    for i, (where, shown) in enumerate(items):
+        try:
+            run = load_log(where)
+        except LogError as exc:
+            path = str(shown) if exc.path == str(where) else exc.path
+            out[i] = AnalyzedLog(None, [], (path, exc.problem))
+            continue
         run.path = shown
-        a = analyze_run(run)
-    except LogError as exc:
-        path = str(shown) if exc.path == str(where) else exc.path
-        return AnalyzedLog(None, [], (path, exc.problem))
-    figures = []
-    if fig_dir is not None:
-        fig_dir.mkdir(parents=True, exist_ok=True)
-        figures = run_figures(a, fig_dir, previous)
-    return AnalyzedLog(a, figures)
+        loaded.append((i, run))
+    for group in distinct_batches(loaded):
+        for (i, run), a in zip(group, analyze_runs([r for _, r in group]), strict=True):
+            if isinstance(a, LogError):
+                out[i] = AnalyzedLog(None, [], (str(run.path), a.problem))
+                continue
+            figures = []
+            if fig_dir is not None:
+                fig_dir.mkdir(parents=True, exist_ok=True)
+                figures = run_figures(a, fig_dir, previous)
+            out[i] = AnalyzedLog(a, figures)
+    return [r for r in out if r is not None]
+
+
+def distinct_batches(loaded: list[tuple[int, RunLog]]) -> list[list[tuple[int, RunLog]]]:
+    """`loaded` in groups without a repeated run id (the same log given twice, re-runs of one
+    spec in different folders), each in order; one group when the ids are distinct."""
+    groups: list[list[tuple[int, RunLog]]] = []
+    seen: list[set[str]] = []
+    for entry in loaded:
+        rid = entry[1].run_id
+        k = next((k for k, ids in enumerate(seen) if rid not in ids), len(groups))
+        if k == len(groups):
+            groups.append([])
+            seen.append(set())
+        groups[k].append(entry)
+        seen[k].add(rid)
+    return groups
 
 
 def slim(a: RunAnalysis) -> RunAnalysis:
@@ -87,13 +142,13 @@ def slim(a: RunAnalysis) -> RunAnalysis:
 
 
 def _task(
-    item: tuple[Path, Path], fig_dir: Path | None, previous: Path | None = None
-) -> AnalyzedLog:
-    """The body of one executor task: as `analyze_one`, returning small tables only."""
-    result = analyze_one(item, fig_dir, previous)
-    if result.analysis is None:
-        return result
-    return dataclasses.replace(result, analysis=slim(result.analysis))
+    items: list[tuple[Path, Path]], fig_dir: Path | None, previous: Path | None = None
+) -> list[AnalyzedLog]:
+    """The body of one executor task: as `analyze_some`, returning small tables only."""
+    return [
+        r if r.analysis is None else dataclasses.replace(r, analysis=slim(r.analysis))
+        for r in analyze_some(items, fig_dir, previous)
+    ]
 
 
 def analyze_logs(
@@ -129,8 +184,11 @@ def analyze_logs(
             ready += 1
 
     if executor is None or executor.name == "local":
-        for i, item in enumerate(items):
-            done(i, _task(item, fig_dir, previous))  # slim at once
+        for group in batches(items):
+            for i, result in zip(
+                group, _task([items[i] for i in group], fig_dir, previous), strict=True
+            ):
+                done(i, result)  # slim at once
         return [r for r in out if r is not None]
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
@@ -139,15 +197,17 @@ def analyze_logs(
         fig_dir=None if fig_dir is None else fig_dir.absolute(),
         previous=None if previous is None else previous.absolute(),
     )
-    absolute = [(p.absolute(), shown) for p, shown in items]
+    groups = batches(items, parts=4 * executor.slots)
+    absolute = [[(items[i][0].absolute(), items[i][1]) for i in group] for group in groups]
     for outcome in executor.map(task, absolute):
-        if outcome.ok and outcome.value is not None:
-            value = outcome.value
-            figs = [(kind, Path(fig_dir) / path.name) for kind, path in value.figures]
-            result = dataclasses.replace(value, figures=figs)
+        group = groups[outcome.index]
+        if outcome.ok and outcome.value is not None and len(outcome.value) == len(group):
+            for i, value in zip(group, outcome.value, strict=True):
+                figs = [(kind, Path(fig_dir) / path.name) for kind, path in value.figures]
+                done(i, dataclasses.replace(value, figures=figs))
         else:
-            result = AnalyzedLog(None, [], (str(paths[outcome.index]), outcome.error or ""))
-        done(outcome.index, result)
+            for i in group:
+                done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
     return [r for r in out if r is not None]
 
 

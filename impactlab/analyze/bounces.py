@@ -66,10 +66,11 @@ def bounces(contacts: pl.DataFrame, flights: pl.DataFrame, *, gravity_n: pl.Expr
     """
     if contacts.is_empty():
         return pl.DataFrame(schema=BOUNCE_SCHEMA)
-    rows = contacts.filter(is_bounce()).sort("body", "other", "start_t_ns")
+    rows = contacts.filter(is_bounce()).sort("run_id", "body", "other", "start_t_ns")
     if rows.is_empty():
         return pl.DataFrame(schema=BOUNCE_SCHEMA)
     before = flights.select(
+        "run_id",
         "body",
         pl.col("flight").alias("contact"),
         "apex_before_m",
@@ -77,6 +78,7 @@ def bounces(contacts: pl.DataFrame, flights: pl.DataFrame, *, gravity_n: pl.Expr
         pl.col("turning_before"),
     )
     after = flights.select(
+        "run_id",
         "body",
         (pl.col("flight") - 1).alias("contact"),
         "apex_after_m",
@@ -84,10 +86,10 @@ def bounces(contacts: pl.DataFrame, flights: pl.DataFrame, *, gravity_n: pl.Expr
         pl.col("turning_after"),
     )
     rows = (
-        rows.join(before, on=["body", "contact"], how="left")
-        .join(after, on=["body", "contact"], how="left")
+        rows.join(before, on=["run_id", "body", "contact"], how="left", maintain_order="left")
+        .join(after, on=["run_id", "body", "contact"], how="left", maintain_order="left")
         .with_columns(
-            (pl.int_range(pl.len()).over("body", "other") + 1).alias("bounce"),
+            (pl.int_range(pl.len()).over("run_id", "body", "other") + 1).alias("bounce"),
             gravity_n.alias("g_n"),
         )
     )
@@ -135,7 +137,7 @@ def bounces(contacts: pl.DataFrame, flights: pl.DataFrame, *, gravity_n: pl.Expr
             note().alias("note"),
         )
         .cast(BOUNCE_SCHEMA)
-        .sort("body", "surface", "bounce")
+        .sort("run_id", "body", "surface", "bounce")
     )
 
 

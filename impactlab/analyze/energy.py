@@ -227,24 +227,25 @@ def empty_energy() -> pl.DataFrame:
     return pl.DataFrame(schema=schema)
 
 
-def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame:
-    """Flight and contact phases of a run with their energy change.
+def energy_phases(total: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
+    """Flight and contact phases of one or more runs with their energy change.
 
     Args:
-        total: the run's "total" energy rows (t_ns, total_J), sorted by time.
-        contact_times: t_ns of every logged row inside a contact (chatter merged).
+        total: the runs' "total" energy rows (run_id, t_ns, t_s, total_J), each run's rows
+            together and sorted by time.
+        in_contact: per row of `total`, whether it lies inside a contact (chatter merged).
 
     Returns:
         One row per phase: (run_id, phase, kind = "flight" | "contact", start_t_s, end_t_s,
         e_start_J, e_end_J, drift_J (flight: E(end) - E(start)), max_dev_J (flight: max
         |E - E(start)|), loss_J (contact: E(last row before) - E(first row after); up to the
-        last logged row when the contact is still open), open).
+        last logged row when the contact is still open), open); phases numbered from 0 in
+        each run.
     """
-
     phases = (
         total.select("run_id", "t_ns", "t_s", "total_J")
-        .with_columns(pl.col("t_ns").is_in(contact_times.implode()).alias("in_contact"))
-        .with_columns(pl.col("in_contact").rle_id().alias("phase"))
+        .with_columns(in_contact.alias("in_contact"))
+        .with_columns(pl.col("in_contact").rle_id().over("run_id").alias("phase"))
         .group_by("run_id", "phase", maintain_order=True)
         .agg(
             pl.col("in_contact").first(),
@@ -272,9 +273,11 @@ def energy_phases(total: pl.DataFrame, contact_times: pl.Series) -> pl.DataFrame
         pl.when(~pl.col("in_contact")).then(pl.col("max_dev_J")).alias("max_dev_J"),
         pl.when(pl.col("in_contact"))
         .then(
-            pl.col("e_end_J").shift(1).fill_null(pl.col("e_start_J"))
-            - pl.col("e_start_J").shift(-1).fill_null(pl.col("e_end_J"))
+            pl.col("e_end_J").shift(1).over("run_id").fill_null(pl.col("e_start_J"))
+            - pl.col("e_start_J").shift(-1).over("run_id").fill_null(pl.col("e_end_J"))
         )
         .alias("loss_J"),
-        (pl.col("in_contact") & (pl.col("phase") == pl.len() - 1)).alias("open"),
+        (pl.col("in_contact") & (pl.col("phase") == pl.col("phase").max().over("run_id"))).alias(
+            "open"
+        ),
     )

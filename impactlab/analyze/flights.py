@@ -28,6 +28,7 @@ fraction of the apex height turns too much for its apex to measure e (0.05 % of 
 APEX_TURN_FLOOR_M = 1e-9
 """Offset changes below this (rounding) never count as turning."""
 FLIGHT_SCHEMA = {
+    "run_id": pl.String,
     "body": pl.String,
     "flight": pl.Int64,
     "n_rows": pl.UInt32,
@@ -42,42 +43,25 @@ FLIGHT_SCHEMA = {
 }
 
 
-def flights(
-    states: pl.DataFrame,
-    contacts: pl.DataFrame,
-    ground: Ground,
-    *,
-    gravity: np.ndarray,
-    integrator: str,
-    timestep_s: float,
-) -> pl.DataFrame:
-    """One row per flight of each body, with its apex above the surfaces around it.
+def flights(rows: pl.DataFrame | None) -> pl.DataFrame:
+    """One row per flight of each body of each run, with its apex above the surfaces around it.
 
     Args:
-        states: `states_long` of the run (sorted by body and row).
-        contacts: the merged ground contacts of the run (body, other, first_row, last_row).
-        ground: the run's ground (its clearances).
+        rows: `flight_rows` of one or more runs (concatenated); None: no rows.
 
     Returns:
-        (body, flight, n_rows, surface_before (left), surface_after (landed on next),
-        apex_t_s, apex_after_m, apex_before_m (above those surfaces at the apex), reached
-        (the apex lies within the logged flight), turning_after, turning_before).
+        (run_id, body, flight, n_rows, surface_before (left), surface_after (landed on
+        next), apex_t_s, apex_after_m, apex_before_m (above those surfaces at the apex),
+        reached (the apex lies within the logged flight), turning_after, turning_before).
     """
-    g = float(np.linalg.norm(gravity))
-    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    h = 0.0 if integrator == RK4 else timestep_s / 2
-    rows = flight_rows(states, contacts, ground, up=up, w_shift=g * h)
-    if rows is None:
+    if rows is None or rows.is_empty():
         return pl.DataFrame(schema=FLIGHT_SCHEMA)
+    g = pl.col("g").first()
     apex = pl.col("z_up").arg_max()
     w_apex = pl.col("w").gather(apex)
     # the apex is inside the flight unless the flight starts descending (a release at rest)
     inside = (apex > 0) | (w_apex > 0)
-    rise = (
-        pl.when(inside).then(w_apex**2 / (2 * g)).otherwise(0.0)
-        if g > 0
-        else pl.lit(None, dtype=pl.Float64)
-    )
+    rise = pl.when(g > 0).then(pl.when(inside).then(w_apex**2 / (2 * g)).otherwise(0.0))
 
     def height(side: str) -> pl.Expr:
         return (pl.col(f"c_{side}").gather(apex) + rise).first()
@@ -86,19 +70,17 @@ def flights(
         offset = pl.col("z_up") - pl.col(f"c_{side}")
         return (offset.max() - offset.min()).alias(f"offset_range_{side}")
 
-    per = rows.group_by("body", "flight", maintain_order=True).agg(
+    per = rows.group_by("run_id", "body", "flight", maintain_order=True).agg(
         pl.len().alias("n_rows"),
         pl.col("surface_before").first(),
         pl.col("surface_after").first(),
         pl.col("t_s").gather(apex).first().alias("apex_t_s"),
         height("before").alias("apex_after_m"),  # above the surface left
         height("after").alias("apex_before_m"),  # above the surface landed on next
-        (pl.col("w").last() <= 0).alias("reached"),
+        ((pl.col("w").last() <= 0) & (g > 0)).alias("reached"),
         turn("before"),
         turn("after"),
     )
-    if g <= 0:
-        per = per.with_columns(pl.lit(False).alias("reached"))
     return (
         per.with_columns(
             (
@@ -116,17 +98,32 @@ def flights(
 
 
 def flight_rows(
-    states: pl.DataFrame, contacts: pl.DataFrame, ground: Ground, *, up: np.ndarray, w_shift: float
+    run_id: str,
+    states: pl.DataFrame,
+    contacts: pl.DataFrame,
+    ground: Ground,
+    *,
+    gravity: np.ndarray,
+    integrator: str,
+    timestep_s: float,
 ) -> pl.DataFrame | None:
-    """The logged rows of each body outside its ground contacts, by body and row: (body,
-    flight, row, t_s, z_up (centre height along `up`), w (velocity along `up` minus
-    `w_shift`), surface_before, surface_after, c_before, c_after (clearances to them));
-    None when there are none.
+    """The logged rows of each body of one run outside its ground contacts, by body and row:
+    (run_id, body, flight, row, t_s, z_up (centre height along -gravity), w (velocity along
+    -gravity minus g h, h as in `impactlab.analyze.impacts`), surface_before, surface_after,
+    c_before, c_after (clearances to them), g (|gravity|)); None when there are none.
+
+    Args:
+        states: `states_long` of the run (sorted by body and row).
+        contacts: the merged ground contacts of the run (body, other, first_row, last_row).
+        ground: the run's ground (its clearances).
 
     A row belongs to the latest contact that begins at or before it (the body's contacts by
     first row) unless it lies after that contact's last row: then it is in flight `contact
     + 1` (0 before the first), between the surface of that contact and the next one's.
     """
+    g = float(np.linalg.norm(gravity))
+    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+    w_shift = g * (0.0 if integrator == RK4 else timestep_s / 2)
     ux, uy, uz = (float(u) for u in up)  # numpy scalars times an expression run as a ufunc
     z_up = ux * pl.col("x") + uy * pl.col("y") + uz * pl.col("z")
     v_up = ux * pl.col("vx") + uy * pl.col("vy") + uz * pl.col("vz")
@@ -149,7 +146,11 @@ def flight_rows(
             keep = (contact < 0) | (row > last[np.maximum(contact, 0)])
         flight = contact[keep] + 1
         t_kept = t_ns[keep]
-        frame = {"body": pl.Series([str(body)] * flight.size, dtype=pl.String), "flight": flight}
+        frame = {
+            "run_id": pl.Series([run_id] * flight.size, dtype=pl.String),
+            "body": pl.Series([str(body)] * flight.size, dtype=pl.String),
+            "flight": flight,
+        }
         frame |= {c: mine[c].to_numpy()[keep] for c in ("row", "t_s", "z_up", "w")}
         # flight j lies between contact j - 1 (the surface left) and contact j (landed on)
         for side, names in (("before", [None, *surfaces]), ("after", [*surfaces, None])):
@@ -161,6 +162,7 @@ def flight_rows(
                 if name is not None and spot.any():
                     c[spot], found[spot] = ground.clearance_at(str(body), name, t_kept[spot])
             frame[f"c_{side}"] = pl.Series(c).scatter(np.flatnonzero(~found), None)
+        frame["g"] = np.full(flight.size, g)
         parts.append(pl.DataFrame(frame))
     rows = pl.concat(parts) if parts else None
     return None if rows is None or rows.is_empty() else rows

@@ -299,6 +299,9 @@ def approach_and_release(
 def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
     """Merge raw intervals not followed by a visible flight with the next one of their pair.
 
+    `intervals` may hold several runs (distinct `run_id`s): each run's contacts are merged
+    on their own, and the result is by run, then by time.
+
     Returns:
         One row per contact, with the first raw interval's impact (first_row, start_t_ns,
         row_b, t_b_ns, v_in_mps, meet_t_s, the `_in` point and normal) and the last one's
@@ -315,14 +318,14 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
     last += [f"{c}_out" for c in ("px", "py", "pz", "nx", "ny", "nz")]
     last += ["v_min_mps", "visible", "open"]
     return (
-        intervals.sort(*pair, "first_row")
+        intervals.sort("run_id", *pair, "first_row")
         .with_columns(
             pl.col("visible")
             .shift(1)
             .fill_null(False)
             .cast(pl.Int64)
             .cum_sum()
-            .over(pair)
+            .over("run_id", *pair)
             .alias("merged")
         )
         .group_by("run_id", *pair, "merged", maintain_order=True)
@@ -336,5 +339,5 @@ def merge_chatter(intervals: pl.DataFrame) -> pl.DataFrame:
             pl.len().alias("n_raw"),
         )
         .rename({"merged": "interval"})
-        .sort("start_t_ns", *pair)
+        .sort("run_id", "start_t_ns", *pair)
     )

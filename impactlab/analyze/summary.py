@@ -8,40 +8,65 @@ never averaged together.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import polars as pl
 
 from impactlab.logs.load import RunLog
 
+EMPTY_ENERGY = {"e0": None, "e1": None, "mujoco_diff_max": None}
+EMPTY_PHASES = {
+    "n_flights": 0,
+    "drift_max": None,
+    "dev_max": None,
+    "n_contacts": 0,
+    "loss_sum": 0.0,
+}
+EMPTY_BOUNCES = {
+    "n_bounces": 0,
+    "n_pairs": 0,
+    "n_good": 0,
+    "apex_before_m": None,
+    "v_in_mps": None,
+    "e_velocity": None,
+    "e_velocity_mean": None,
+    "e_apex_mean": None,
+    "notes": [],
+}
 
-def summary_row(
-    run: RunLog,
-    *,
-    states: pl.DataFrame,
-    energy: pl.DataFrame,
-    phases: pl.DataFrame,
-    bounces: pl.DataFrame,
-    collisions: pl.DataFrame,
-    ground: bool,
-) -> dict[str, Any]:
-    """The run's row of the runs table (see the module docstring).
+
+@dataclass(frozen=True)
+class Headlines:
+    """Per run (by run_id), the aggregates of its frames that its summary row needs."""
+
+    energy: dict[str, dict[str, Any]]
+    phases: dict[str, dict[str, Any]]
+    bounces: dict[str, dict[str, Any]]
+
+    def of(self, run_id: str) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
+        """The run's energy, phase and bounce aggregates (those of no rows where it has none)."""
+        return (
+            self.energy.get(run_id, EMPTY_ENERGY),
+            self.phases.get(run_id, EMPTY_PHASES),
+            self.bounces.get(run_id, EMPTY_BOUNCES),
+        )
+
+
+def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) -> Headlines:
+    """The aggregates of every run in the frames, in one group-by each.
 
     Args:
-        run: the decoded log; the other frames are its analysis (`RunAnalysis`).
-        ground: whether the run has ground surfaces.
+        total: the runs' "total" energy rows, each run's by time.
+        phases: the runs' energy phases; bounces: their bounce tables.
     """
     flight, contact = pl.col("kind") == "flight", pl.col("kind") == "contact"
-    e = (
-        energy.filter(pl.col("body") == "total")
-        .sort("t_ns")
-        .select(
-            pl.col("total_J").first().alias("e0"),
-            pl.col("total_J").last().alias("e1"),
-            pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
-        )
+    e = total.group_by("run_id", maintain_order=True).agg(
+        pl.col("total_J").first().alias("e0"),
+        pl.col("total_J").last().alias("e1"),
+        pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
     )
-    p = phases.select(
+    p = phases.group_by("run_id", maintain_order=True).agg(
         flight.sum().alias("n_flights"),
         pl.col("drift_J").filter(flight).abs().max().alias("drift_max"),
         pl.col("max_dev_J").filter(flight).max().alias("dev_max"),
@@ -51,16 +76,34 @@ def summary_row(
     bounced = pl.col("bounce").is_not_null()
     good = bounced & pl.col("complete")
     first = bounced & (pl.col("bounce") == 1)
-    b = bounces.select(
+    b = bounces.group_by("run_id", maintain_order=True).agg(
         bounced.sum().alias("n_bounces"),
         pl.struct("body", "surface").filter(bounced).n_unique().alias("n_pairs"),
         good.sum().alias("n_good"),
         *[pl.col(c).filter(first).first() for c in ("apex_before_m", "v_in_mps", "e_velocity")],
         pl.col("e_velocity").filter(good).mean().alias("e_velocity_mean"),
         pl.col("e_apex").filter(good).mean().alias("e_apex_mean"),
-        pl.col("note").filter(~bounced).implode().alias("notes"),
+        pl.col("note").filter(~bounced).alias("notes"),
     )
-    en, ph, bo = (f.row(0, named=True) for f in (e, p, b))
+    return Headlines(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
+
+
+def summary_row(
+    run: RunLog,
+    *,
+    headlines: Headlines,
+    states: pl.DataFrame,
+    collisions: pl.DataFrame,
+    ground: bool,
+) -> dict[str, Any]:
+    """The run's row of the runs table (see the module docstring).
+
+    Args:
+        run: the decoded log; `states` and `collisions` are its analysis (`RunAnalysis`).
+        headlines: the aggregates of the run's energy, phases and bounces (`headlines`).
+        ground: whether the run has ground surfaces.
+    """
+    en, ph, bo = headlines.of(run.run_id)
     e0, e1 = en["e0"], en["e1"]
     single = bo["n_pairs"] == 1
     col = collisions.row(0, named=True) if collisions.height else None

@@ -1,0 +1,177 @@
+"""Runs analyzed together (`analyze_runs`) give each run the analysis it gets alone.
+
+The small tables of a batch are computed in one set of frame operations keyed by run_id;
+the results must not depend on which runs share a batch. Group aggregates may sum in
+another order, so floats are compared to 1e-12 relative.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import pytest
+from polars.testing import assert_frame_equal
+
+from impactlab.analyze import batch as batch_module
+from impactlab.analyze.analysis import RunAnalysis, analyze_run, analyze_runs
+from impactlab.analyze.batch import analyze_some, batches, distinct_batches
+from impactlab.errors import LogError
+from impactlab.logs.load import load_log
+
+GOLDEN = Path(__file__).resolve().parent / "golden"
+LOGS = sorted((GOLDEN / "logs").glob("*.mcap"))
+FRAMES = ("states", "intervals", "energy", "phases", "bounces", "collisions")
+
+
+def same(a: RunAnalysis, b: RunAnalysis) -> None:
+    for name in FRAMES:
+        assert_frame_equal(getattr(a, name), getattr(b, name), rel_tol=1e-12, abs_tol=1e-15)
+    assert a.summary.keys() == b.summary.keys()
+    for key, value in a.summary.items():
+        other = b.summary[key]
+        if isinstance(value, float) and isinstance(other, float):
+            assert math.isclose(value, other, rel_tol=1e-12, abs_tol=1e-15), key
+        else:
+            assert value == other, key
+
+
+@pytest.fixture(scope="module")
+def alone():
+    assert len(LOGS) >= 5  # drops, a box on its edge, collisions
+    return [analyze_run(load_log(p)) for p in LOGS]
+
+
+def test_a_batch_equals_each_run_alone(alone):
+    together = analyze_runs([load_log(p) for p in LOGS])
+    assert [a.run.run_id for a in together] == [a.run.run_id for a in alone]
+    for a, b in zip(together, alone, strict=True):
+        same(a, b)
+    # the batch has bounces and collisions of several runs: each run keeps its own
+    assert sum(a.bounces.height for a in together) > max(a.bounces.height for a in together)
+    assert sum(a.collisions.height > 0 for a in together) >= 2
+
+
+def test_batch_order_does_not_matter(alone):
+    together = analyze_runs([load_log(p) for p in reversed(LOGS)])
+    for a, b in zip(reversed(together), alone, strict=True):
+        same(a, b)
+
+
+def test_an_unreadable_run_fails_alone(alone):
+    runs = [load_log(p) for p in LOGS]
+    runs[1] = dataclasses.replace(runs[1], meta={})
+    out = analyze_runs(runs)
+    assert isinstance(out[1], LogError)
+    assert "no impactlab.run metadata" in out[1].problem
+    for i, (a, b) in enumerate(zip(out, alone, strict=True)):
+        if i != 1:
+            same(a, b)
+
+
+def test_repeated_run_ids_go_to_separate_batches(tmp_path):
+    run = load_log(LOGS[0])
+    with pytest.raises(ValueError, match="distinct run ids"):
+        analyze_runs([run, load_log(LOGS[0])])
+    twice = [(0, run), (1, load_log(LOGS[1])), (2, load_log(LOGS[0])), (3, load_log(LOGS[0]))]
+    groups = distinct_batches(twice)
+    assert [[i for i, _ in g] for g in groups] == [[0, 1], [2], [3]]
+    copy = tmp_path / "copy.mcap"
+    copy.write_bytes(LOGS[0].read_bytes())
+    items = [(LOGS[0], LOGS[0]), (copy, copy)]
+    results = analyze_some(items, None)
+    assert [r.error for r in results] == [None, None]
+    a, b = (r.analysis for r in results)
+    assert a is not None and b is not None
+    assert_frame_equal(a.bounces, b.bounces)
+    assert str(b.run.path) == str(copy)
+
+
+def test_batches_are_bounded_and_consecutive(tmp_path, monkeypatch):
+    files = []
+    for i in range(10):
+        f = tmp_path / f"{i}.mcap"
+        f.write_bytes(b"x" * (100 if i != 4 else 1000))
+        files.append((f, f))
+    monkeypatch.setattr(batch_module, "BATCH_LOGS", 3)
+    monkeypatch.setattr(batch_module, "BATCH_BYTES", 500)
+    assert batches(files) == [[0, 1, 2], [3], [4], [5, 6, 7], [8, 9]]
+    # an executor's workers all get work: at least `parts` batches when there are logs enough
+    assert len(batches(files[:6], parts=6)) == 6
+    assert batches([]) == []
+
+
+def test_a_missing_file_in_a_batch_is_its_own_error(tmp_path):
+    gone = tmp_path / "gone.mcap"
+    items = [(LOGS[0], LOGS[0]), (gone, gone), (LOGS[1], LOGS[1])]
+    results = analyze_some(items, None)
+    assert results[0].analysis is not None and results[2].analysis is not None
+    assert results[1].analysis is None and results[1].error is not None
+    assert results[1].error[0] == str(gone)
+
+
+FALL = """
+name = "batch_fall"
+[options]
+timestep = 0.001
+gravity = [0.0, 0.0, -9.81]
+[plane]
+enabled = false
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 1.0]
+[stop]
+max_time = 0.2
+"""
+REST = """
+name = "batch_rest"
+[options]
+timestep = 0.001
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 0.1]
+[stop]
+max_time = 0.2
+"""
+MISS = """
+name = "batch_miss"
+[options]
+timestep = 0.001
+gravity = [0.0, 0.0, 0.0]
+[plane]
+enabled = false
+[bodies.ball1]
+radius = 0.1
+mass = 1.0
+pos = [-1.0, 0.0, 1.0]
+vel = [1.0, 0.0, 0.0]
+[bodies.ball2]
+radius = 0.1
+mass = 1.0
+pos = [1.0, 0.0, 1.0]
+[stop]
+max_time = 0.1
+separation = 0.01
+"""
+
+
+def test_runs_of_every_kind_together(record_spec):
+    """No ground and no contact, a ball resting from the start (no bounce, with the reason),
+    a collision that never happens (its reason row), with bounces and collisions."""
+    paths = [
+        *record_spec("batch_fall", FALL),
+        *record_spec("batch_rest", REST),
+        *record_spec("batch_miss", MISS),
+        *LOGS,
+    ]
+    alone = [analyze_run(load_log(p)) for p in paths]
+    together = analyze_runs([load_log(p) for p in paths])
+    for a, b in zip(together, alone, strict=True):
+        same(a, b)
+    fall, rest, miss = together[:3]
+    assert fall.intervals.is_empty() and fall.bounces.is_empty() and fall.phases.height == 1
+    assert rest.bounces.height == 1 and "at rest" in rest.bounces["note"][0]
+    assert miss.collisions.height == 1 and "never happened" in miss.collisions["note"][0]
