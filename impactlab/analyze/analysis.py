@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -11,7 +11,14 @@ import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
 from impactlab.analyze.collisions import COLLISION_SCHEMA, collisions, no_collision_rows
-from impactlab.analyze.contacts import contact_rows, raw_intervals, row_numbers, states_long
+from impactlab.analyze.contacts import (
+    contact_rows,
+    logged_interval_s,
+    per_run,
+    raw_intervals,
+    row_numbers,
+    states_long,
+)
 from impactlab.analyze.energy import energy_phases, references, run_energy
 from impactlab.analyze.flights import flight_rows, flights
 from impactlab.analyze.ground import Ground, run_ground
@@ -53,11 +60,6 @@ class RunAnalysis:
     energy_logged: tuple[int, int] = (0, 0)
 
 
-def logged_interval_s(run: RunLog) -> float:
-    """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
-    return run.timestep_s * run.log_every
-
-
 def expects_collision(run: RunLog) -> bool:
     """Whether the run was meant to bring two bodies together (a `stop.separation` rule)."""
     stop = run.spec.get("stop")
@@ -89,42 +91,42 @@ class _Contacts:
     raw: pl.DataFrame
 
 
-def _contacts(run: RunLog) -> _Contacts:
-    """The per-run part of the analysis: states, rows and raw contacts (see `analyze_runs`)."""
+def _check(run: RunLog) -> Ground:
+    """The run's ground, once its metadata is known to be usable (else LogError)."""
     reason = run.unanalyzable()
     if reason is not None:
         raise LogError(str(run.path), reason)
-    ground = run_ground(run)
-    states = states_long(run)
+    return run_ground(run)
+
+
+def _contacts(runs: list[RunLog], grounds: dict[str, Ground]) -> list[_Contacts]:
+    """The row-level part of the analysis of runs with usable metadata: states, rows and raw
+    contacts with their impact and release speeds, each run's split out of the batch's."""
+    states = states_long(runs)
     rows = row_numbers(states)
-    interval_s = logged_interval_s(run)
-    raw = raw_intervals(
-        contact_rows(run, ground, rows),
-        last_row=int(rows["row"].max() or 0) if rows.height else 0,
-        interval_s=interval_s,
+    kinds: dict[tuple[tuple[str, ...], tuple[str, ...]], list[RunLog]] = {}
+    for run in runs:  # runs with the same bodies and surfaces: their contacts tagged at once
+        kinds.setdefault((tuple(run.bodies), tuple(grounds[run.run_id].surfaces)), []).append(run)
+    steps = pl.concat(
+        [contact_rows(group, surfaces, rows) for (_, surfaces), group in kinds.items()]
     )
-    raw = approach_and_release(
-        raw,
-        states,
-        ground,
-        spheres=[n for n, info in run.body_info.items() if info.radius is not None],
-        gravity=run.gravity,
-        integrator=run.integrator,
-        timestep_s=run.timestep_s,
-        interval_s=interval_s,
-    )
-    return _Contacts(run, ground, states, rows, raw)
+    raw = approach_and_release(raw_intervals(steps, runs, rows), states, runs, grounds)
+    states_of, rows_of, raw_of = by_run(states), by_run(rows), by_run(raw)
+    return [
+        _Contacts(
+            run,
+            grounds[run.run_id],
+            states_of.get(run.run_id, states.clear()),
+            rows_of.get(run.run_id, rows.clear()),
+            raw_of.get(run.run_id, raw.clear()),
+        )
+        for run in runs
+    ]
 
 
 def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
     """A frame of several runs split by run_id (each run's rows in their order)."""
     return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
-
-
-def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr:
-    """A per-run number as an expression over the `run_id` column."""
-    mapping = {run.run_id: float(value(run)) for run in runs}
-    return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
 
 
 def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
@@ -140,27 +142,30 @@ def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
     if len({run.run_id for run in runs}) != len(runs):
         raise ValueError("analyze_runs needs distinct run ids (see distinct_batches)")
     out: list[RunAnalysis | LogError | None] = [None] * len(runs)
-    ready: list[tuple[int, _Contacts]] = []
+    ready: list[int] = []
+    grounds: dict[str, Ground] = {}
     for i, run in enumerate(runs):
         try:
-            ready.append((i, _contacts(run)))
+            grounds[run.run_id] = _check(run)
+            ready.append(i)
         except LogError as exc:
             out[i] = exc
     if ready:
-        for (i, _), a in zip(ready, _batch_or_each([c for _, c in ready]), strict=True):
+        good = [runs[i] for i in ready]
+        for i, a in zip(ready, _batch_or_each(good, grounds), strict=True):
             out[i] = a
     return [r for r in out if r is not None]
 
 
-def _batch_or_each(parts: list[_Contacts]) -> list[RunAnalysis | LogError]:
+def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis | LogError]:
     """The runs analyzed together; if one's metadata fails on the way, each on its own, so
     that the error is that run's alone."""
     try:
-        return list(_analyze_contacts(parts))
+        return list(_analyze_contacts(_contacts(runs, grounds)))
     except LogError as exc:
-        if len(parts) == 1:
+        if len(runs) == 1:
             return [exc]
-        return [r for p in parts for r in _batch_or_each([p])]
+        return [r for run in runs for r in _batch_or_each([run], grounds)]
 
 
 def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:

@@ -14,10 +14,11 @@ Raw intervals separated by no visible flight are merged into one contact
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.ground import Ground
 from impactlab.logs.load import RunLog
 from impactlab.logs.messages import BODY_FIELDS
 
@@ -25,49 +26,62 @@ PAIR = ("kind", "body", "other")
 """An interval's pair: kind "ground" (body on the surface `other`) or "body" (two bodies)."""
 
 
-def states_long(run: RunLog) -> pl.DataFrame:
-    """Every body's state in one frame: (run_id, body, row, t_ns, t_s, x .. wz), by body, time.
+def logged_interval_s(run: RunLog) -> float:
+    """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
+    return run.timestep_s * run.log_every
 
-    `row` numbers the run's logged steps from 0.
+
+def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr:
+    """A per-run number as an expression over the `run_id` column (run ids distinct)."""
+    mapping = {run.run_id: float(value(run)) for run in runs}
+    return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
+
+
+def states_long(runs: Sequence[RunLog]) -> pl.DataFrame:
+    """Every body's state of every run in one frame: (run_id, body, row, t_ns, t_s, x .. wz),
+    by run, body and time.
+
+    `row` numbers each run's logged steps from 0.
     """
-    frames = [
-        frame.with_columns(pl.lit(name).alias("body")).select(
-            "run_id", "body", pl.exclude("run_id", "body")
-        )
-        for name, frame in run.bodies.items()
-    ]
+    frames = [(name, frame) for run in runs for name, frame in run.bodies.items()]
     if not frames:
         schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
         schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
         return pl.DataFrame(schema=schema)
+    names = pl.Series("body", [name for name, _ in frames], dtype=pl.String)
+    which = np.repeat(np.arange(len(frames)), [frame.height for _, frame in frames])
     return (
-        pl.concat(frames)
-        .with_columns((pl.col("t_ns").rank("dense") - 1).cast(pl.Int64).alias("row"))
+        pl.concat([frame for _, frame in frames])
+        .hstack([names.gather(which)])
+        .with_columns((pl.col("t_ns").rank("dense").over("run_id") - 1).cast(pl.Int64).alias("row"))
         .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
-        .sort("body", "t_ns")
+        .sort("run_id", "body", "t_ns")
     )
 
 
 def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
-    """(t_ns, row) of the run's logged rows, from `states_long` (whose `row` numbers the
-    distinct logged times in order)."""
-    t_ns = np.unique(states["t_ns"].to_numpy())
-    return pl.DataFrame(
-        {"t_ns": pl.Series(t_ns, dtype=pl.Int64), "row": np.arange(t_ns.size, dtype=np.int64)}
-    )
+    """(run_id, t_ns, row) of each run's logged rows, by run and row, from `states_long`
+    (whose `row` numbers each run's distinct logged times in order)."""
+    return states.select("run_id", "t_ns", "row").unique().sort("run_id", "row")
 
 
-def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFrame:
-    """One row per pair (kind, body, other) and logged row in contact.
+def contact_rows(
+    runs: Sequence[RunLog], surfaces: Sequence[str], rows: pl.DataFrame
+) -> pl.DataFrame:
+    """One row per run, pair (kind, body, other) and logged row in contact.
+
+    Args:
+        runs: runs whose bodies and ground `surfaces` are the same (their names).
+        rows: `row_numbers` of the runs.
 
     Returns:
         (run_id, kind, body, other, row, t_ns, n_points, normal_force_N (sum over the
         points), penetration_m (max), pen (mean), px, py, pz (mean point), nx, ny, nz
-        (oriented, see the module docstring)).
+        (oriented, see the module docstring)), by run, pair and row.
     """
-    bodies = list(run.bodies)
-    surfaces = list(ground.surfaces)
-    c = run.contacts
+    bodies = list(runs[0].bodies) if runs else []
+    surfaces = list(surfaces)
+    c = pl.concat([run.contacts for run in runs]) if len(runs) > 1 else runs[0].contacts
     on_ground_2 = pl.col("geom1").is_in(surfaces) & pl.col("body2").is_in(bodies)
     on_ground_1 = pl.col("geom2").is_in(surfaces) & pl.col("body1").is_in(bodies)
     two_bodies = pl.col("body1").is_in(bodies) & pl.col("body2").is_in(bodies)
@@ -106,37 +120,35 @@ def contact_rows(run: RunLog, ground: Ground, rows: pl.DataFrame) -> pl.DataFram
         pl.col("ny").first(),
         pl.col("nz").first(),
     )
-    # each step's row number (an inner join on t_ns with `rows`, sorted by time)
-    t_ns, logged = steps["t_ns"].to_numpy(), rows["t_ns"].to_numpy()
-    spot = np.clip(np.searchsorted(logged, t_ns), 0, max(logged.size - 1, 0))
-    found = logged[spot] == t_ns if logged.size else np.zeros(t_ns.size, dtype=bool)
-    row = pl.Series("row", rows["row"].to_numpy()[spot] if logged.size else spot, dtype=pl.Int64)
-    return steps.with_columns(row).filter(pl.Series(found)).sort(*PAIR, "row")
+    # each step's row number: an inner join on (run_id, t_ns) with `rows`
+    return steps.join(rows, on=["run_id", "t_ns"], how="inner").sort("run_id", *PAIR, "row")
 
 
-def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> pl.DataFrame:
-    """Group consecutive contact rows of each pair into raw intervals.
+def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
+    """Group consecutive contact rows of each run's pairs into raw intervals.
 
     Args:
-        steps: `contact_rows` output.
-        last_row: the run's last logged row.
-        interval_s: the nominal time between logged rows (for the impulse), s.
+        steps: `contact_rows` of the runs.
+        runs: the runs (the nominal time between their logged rows gives the impulse).
+        rows: `row_numbers` of the runs (the last logged row of each).
 
     Returns:
         One row per interval: the pair, `interval` (0-based per pair), first_row, last_row,
         start_t_ns, end_t_ns, n_steps, peak_force_N, impulse_Ns (sum of normal force x
         interval_s), max_penetration_m, the point, normal and mean penetration at the first
         row (px_in .. nz_in, pen_in) and at the last row (px_out .. pen_out), and `open`
-        (reaches the last row).
+        (reaches the run's last row); by run, then time.
     """
-    pair = list(PAIR)
+    pair = ["run_id", *PAIR]
     point = ("px", "py", "pz", "nx", "ny", "nz", "pen")
+    last = rows.group_by("run_id").agg(pl.col("row").max().alias("last_logged"))
+    interval_s = per_run(runs, logged_interval_s)
     return (
         steps.sort(*pair, "row")
         .with_columns(
             pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
         )
-        .group_by("run_id", *pair, "interval", maintain_order=True)
+        .group_by(*pair, "interval", maintain_order=True)
         .agg(
             pl.col("row").first().alias("first_row"),
             pl.col("row").last().alias("last_row"),
@@ -144,16 +156,18 @@ def raw_intervals(steps: pl.DataFrame, *, last_row: int, interval_s: float) -> p
             pl.col("t_ns").last().alias("end_t_ns"),
             pl.len().alias("n_steps"),
             pl.col("normal_force_N").max().alias("peak_force_N"),
-            (pl.col("normal_force_N").sum() * interval_s).alias("impulse_Ns"),
+            (pl.col("normal_force_N").sum() * interval_s.first()).alias("impulse_Ns"),
             pl.col("penetration_m").max().alias("max_penetration_m"),
             *[pl.col(c).first().alias(f"{c}_in") for c in point],
             *[pl.col(c).last().alias(f"{c}_out") for c in point],
         )
+        .join(last, on="run_id", how="left", maintain_order="left")
         .with_columns(
-            (pl.col("last_row") >= last_row).alias("open"),
+            (pl.col("last_row") >= pl.col("last_logged").fill_null(0)).alias("open"),
             pl.col("interval").cast(pl.Int64),
         )
-        .sort("start_t_ns", *pair)
+        .drop("last_logged")
+        .sort("run_id", "start_t_ns", *PAIR)
     )
 
 

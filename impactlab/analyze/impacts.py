@@ -34,14 +34,16 @@ is no impact. Without gravity v_min is 0: every separation is a flight.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
 from impactlab.analyze import kinematics as k
-from impactlab.analyze.contacts import PAIR
+from impactlab.analyze.contacts import PAIR, logged_interval_s
 from impactlab.analyze.ground import Ground
+from impactlab.logs.load import RunLog
 
 RK4 = "RK4"
 MIN_FLIGHT_ROWS = 10
@@ -66,27 +68,40 @@ class States:
 
 
 class StateTable:
-    """The bodies' logged states, looked up by (body, row) for many contacts at once."""
+    """The bodies' logged states of one or more runs, looked up by (run, body, row) for many
+    contacts at once."""
 
     def __init__(self, states: pl.DataFrame) -> None:
-        names = sorted(set(states["body"].unique().to_list()))
-        self.codes = {name: float(i) for i, name in enumerate(names)}
+        coded = states.select(
+            "run_id", "body", (pl.struct("run_id", "body").rank("dense") - 1).alias("code")
+        )
+        pairs = coded.unique("code")
+        self.codes = {
+            (r, b): float(c)
+            for r, b, c in zip(pairs["run_id"], pairs["body"], pairs["code"], strict=True)
+        }
         self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
-        code = states["body"].replace_strict(self.codes, return_dtype=pl.Float64).to_numpy()
+        code = coded["code"].cast(pl.Float64).to_numpy()
         keys = code * self.stride + states["row"].to_numpy().astype(float)
         order = np.argsort(keys, kind="stable")
         self.keys = keys[order]
         values = states.select([pl.col(c).cast(pl.Float64) for c in STATE]).to_numpy()
         self.values = values[order]
 
-    def keys_of(self, bodies: list[str | None], rows: np.ndarray) -> np.ndarray:
-        """One number per (body, row); NaN where either is missing or the body is unknown."""
-        code = np.array([self.codes.get(b, np.nan) if b else np.nan for b in bodies])
+    def keys_of(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> np.ndarray:
+        """One number per (run, body, row); NaN where the body or row is missing or the body
+        is unknown."""
+        code = np.array(
+            [
+                self.codes.get((r, b), np.nan) if b else np.nan
+                for r, b in zip(runs, bodies, strict=True)
+            ]
+        )
         return code * self.stride + rows.astype(float)
 
-    def at(self, bodies: list[str | None], rows: np.ndarray) -> States:
+    def at(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> States:
         """The state of each body at each row (NaN where the log has none)."""
-        key = self.keys_of(bodies, rows)
+        key = self.keys_of(runs, bodies, rows)
         out = np.full((key.size, len(STATE)), np.nan)
         if self.keys.size:
             spot = np.searchsorted(self.keys, np.nan_to_num(key, nan=-1.0))
@@ -97,16 +112,20 @@ class StateTable:
 
 
 def clearance_at(
-    ground: Ground, bodies: list[str], surfaces: list[str | None], t_ns: np.ndarray
+    grounds: Mapping[str, Ground],
+    runs: list[str],
+    bodies: list[str],
+    surfaces: list[str | None],
+    t_ns: np.ndarray,
 ) -> np.ndarray:
     """Each body's clearance to each surface at each time (NaN where the log has none)."""
     out = np.full(len(bodies), np.nan)
-    rows: dict[tuple[str, str], list[int]] = {}
-    for i, (body, surface) in enumerate(zip(bodies, surfaces, strict=True)):
+    rows: dict[tuple[str, str, str], list[int]] = {}
+    for i, (run, body, surface) in enumerate(zip(runs, bodies, surfaces, strict=True)):
         if surface is not None and np.isfinite(t_ns[i]):
-            rows.setdefault((body, surface), []).append(i)
-    for (body, surface), mine in rows.items():
-        out[mine] = ground.clearance_at(body, surface, t_ns[mine].astype(np.int64))[0]
+            rows.setdefault((run, body, surface), []).append(i)
+    for (run, body, surface), mine in rows.items():
+        out[mine] = grounds[run].clearance_at(body, surface, t_ns[mine].astype(np.int64))[0]
     return out
 
 
@@ -168,7 +187,7 @@ def reach_surface(
     gap: np.ndarray,
     *,
     gravity: np.ndarray,
-    h: float,
+    h: np.ndarray,
     sign: float,
 ) -> tuple[np.ndarray, np.ndarray]:
     """When the point reaches the surface's tangent plane from the row `at` (s, signed: after
@@ -178,7 +197,7 @@ def reach_surface(
     angular velocity; the parabola's root is refined by Newton steps. NaN when it never does.
     """
     lo, hi = np.minimum(gap, 0.0), np.maximum(gap, 0.0)
-    g_n = n @ gravity
+    g_n = k.dot(n, gravity)
     u = k.dot(n, point.v)
     a = g_n + k.dot(n, point.a)
     s = np.clip(sign * k.first_root(height, sign * (u + a * h), a), lo, hi)
@@ -199,23 +218,34 @@ def reach_surface(
 def approach_and_release(
     raw: pl.DataFrame,
     states: pl.DataFrame,
-    ground: Ground,
-    *,
-    spheres: list[str],
-    gravity: np.ndarray,
-    integrator: str,
-    timestep_s: float,
-    interval_s: float,
+    runs: Sequence[RunLog],
+    grounds: Mapping[str, Ground],
 ) -> pl.DataFrame:
-    """Add to raw intervals: row_b, row_a, t_b_ns, t_a_ns, v_in_mps, v_out_mps, meet_t_s
-    and release_t_s (the moments the surfaces meet and part; null for two bodies), v_min_mps
-    and `visible` (a visible flight follows; see the module docstring), each body's
-    contact-point velocity along the impact normal at rows b and a (u1_b, u2_b, u1_a, u2_a;
-    1 is `body`, 2 `other` when it is a body) and the lever of the impact normal about each
-    centre of mass relative to the point's distance from it (lever1, lever2: 0 for a central
-    impact)."""
-    h = 0.0 if integrator == RK4 else timestep_s / 2
+    """Add to raw intervals of one or more runs: row_b, row_a, t_b_ns, t_a_ns, v_in_mps,
+    v_out_mps, meet_t_s and release_t_s (the moments the surfaces meet and part; null for
+    two bodies), v_min_mps and `visible` (a visible flight follows; see the module
+    docstring), each body's contact-point velocity along the impact normal at rows b and a
+    (u1_b, u2_b, u1_a, u2_a; 1 is `body`, 2 `other` when it is a body) and the lever of the
+    impact normal about each centre of mass relative to the point's distance from it
+    (lever1, lever2: 0 for a central impact).
+
+    Args:
+        raw: `contacts.raw_intervals` of the runs; states: their `contacts.states_long`.
+        runs: the runs (gravity, integrator, timestep, logging stride, spheres), ids distinct.
+        grounds: each run's ground, by run id.
+    """
     n_rows = raw.height
+    by_id = {run.run_id: run for run in runs}
+    ids = raw["run_id"].to_list()
+    mine = [by_id[r] for r in ids]
+    gravity = np.array([run.gravity for run in mine], dtype=float).reshape(n_rows, 3)
+    h = np.array([0.0 if run.integrator == RK4 else run.timestep_s / 2 for run in mine])
+    v_min = np.array(
+        [
+            MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(run.gravity)) * logged_interval_s(run)
+            for run in mine
+        ]
+    )
     first, last = raw["first_row"].to_numpy(), raw["last_row"].to_numpy()
     open_ = raw["open"].fill_null(True).to_numpy().astype(bool)
     rows = {
@@ -235,7 +265,7 @@ def approach_and_release(
     cols = {c: points[c].to_numpy() for c in points.columns}
     table = StateTable(states)
     at_row = {
-        (side, row): table.at(names, rows[row])
+        (side, row): table.at(ids, names, rows[row])
         for side, names in (("1", bodies), ("2", others))
         for row in rows
     }
@@ -243,7 +273,16 @@ def approach_and_release(
     surfaces = [
         None if not g else o for o, g in zip(raw["other"].to_list(), on_ground, strict=True)
     ]
-    sphere = [np.array([b in spheres for b in names], dtype=bool) for names in (bodies, others)]
+    spheres = {
+        (run.run_id, n)
+        for run in runs
+        for n, info in run.body_info.items()
+        if info.radius is not None
+    }
+    sphere = [
+        np.array([(r, b) in spheres for r, b in zip(ids, names, strict=True)], dtype=bool)
+        for names in (bodies, others)
+    ]
     out: dict[str, np.ndarray] = {}
     speeds = {}
     for tag, at, contact, sign, t_row in (
@@ -253,7 +292,7 @@ def approach_and_release(
         n = vectors(cols, "n", f"_{tag}")
         s1, c1 = at_row[("1", at)], at_row[("1", contact)]
         s2, c2 = at_row[("2", at)], at_row[("2", contact)]
-        clr = clearance_at(ground, bodies, surfaces, t_row)
+        clr = clearance_at(grounds, ids, bodies, surfaces, t_row)
         p1, height = contact_point(cols, tag, s1, c1, turns=None, sphere=sphere[0], clearance=clr)
         p2, _ = contact_point(cols, tag, s2, c2, turns=~sphere[1], sphere=sphere[1])
         s, rate = reach_surface(n, p1, s1, height, c1.t - s1.t, gravity=gravity, h=h, sign=sign)
@@ -272,7 +311,6 @@ def approach_and_release(
     for i in (0, 1):  # each body's point velocity along the impact normal, at rows b and a
         out[f"u{i + 1}_b"] = k.dot(n_in, speeds["in"][i].v)
         out[f"u{i + 1}_a"] = k.dot(n_in, speeds["out"][i].v)
-    v_min = MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(gravity)) * interval_s
     visible = ~open_ & np.isfinite(out["v_out_mps"]) & (out["v_out_mps"] > v_min)
 
     def series(name: str, values: np.ndarray, dtype: pl.DataType = pl.Float64) -> pl.Series:
@@ -287,7 +325,7 @@ def approach_and_release(
             series("t_a_ns", t_a, pl.Int64),
             *[series(name, out[name]) for name in ("v_in_mps", "v_out_mps", "meet_t_s")],
             series("release_t_s", out["release_t_s"]),
-            pl.Series("v_min_mps", np.full(n_rows, v_min)),
+            pl.Series("v_min_mps", v_min, dtype=pl.Float64),
             pl.Series("visible", visible),
             *[series(name, out[name]) for name in ("u1_b", "u2_b", "u1_a", "u2_a")],
             *[series(name, out[name]) for name in ("lever1", "lever2")],
