@@ -16,7 +16,6 @@ from impactlab.analyze.contacts import (
     logged_interval_s,
     per_run,
     raw_intervals,
-    row_numbers,
     states_long,
 )
 from impactlab.analyze.energy import energy_phases, references, run_energy
@@ -102,8 +101,7 @@ def _check(run: RunLog) -> Ground:
 def _contacts(runs: list[RunLog], grounds: dict[str, Ground]) -> list[_Contacts]:
     """The row-level part of the analysis of runs with usable metadata: states, rows and raw
     contacts with their impact and release speeds, each run's split out of the batch's."""
-    states = states_long(runs)
-    rows = row_numbers(states)
+    states, rows = states_long(runs)
     kinds: dict[tuple[tuple[str, ...], tuple[str, ...]], list[RunLog]] = {}
     for run in runs:  # runs with the same bodies and surfaces: their contacts tagged at once
         kinds.setdefault((tuple(run.bodies), tuple(grounds[run.run_id].surfaces)), []).append(run)

@@ -37,32 +37,58 @@ def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr
     return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
 
 
-def states_long(runs: Sequence[RunLog]) -> pl.DataFrame:
-    """Every body's state of every run in one frame: (run_id, body, row, t_ns, t_s, x .. wz),
-    by run, body and time.
+def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
+    """Every body's state of every run in one frame, and each run's logged rows.
 
-    `row` numbers each run's logged steps from 0.
+    Returns:
+        states: (run_id, body, row, t_ns, t_s, x .. wz), each run's rows together (in the
+            order of `runs`), by body and time; `row` numbers the run's distinct logged
+            times from 0.
+        rows: (run_id, t_ns, row) of each run's logged times.
     """
-    frames = [(name, frame) for run in runs for name, frame in run.bodies.items()]
+    frames, bodies, numbers, ids, times = [], [], [], [], []
+    for run in runs:
+        mine = [(name, _by_time(run.bodies[name])) for name in sorted(run.bodies)]
+        ts = [frame["t_ns"].to_numpy() for _, frame in mine]
+        logged = ts[0] if ts else np.zeros(0, dtype=np.int64)
+        if not all(_strictly_increasing(t) and np.array_equal(t, logged) for t in ts):
+            logged = np.unique(np.concatenate(ts))
+        for (name, frame), t in zip(mine, ts, strict=True):
+            frames.append(frame)
+            bodies.append(name)
+            numbers.append(np.searchsorted(logged, t).astype(np.int64))
+        ids.append(run.run_id)
+        times.append(logged.astype(np.int64))
+    run_ids = pl.Series("run_id", ids, dtype=pl.String)
+    sizes = [t.size for t in times]
+    rows = pl.DataFrame(
+        [
+            run_ids.gather(np.repeat(np.arange(len(ids)), sizes)),
+            pl.Series("t_ns", np.concatenate(times) if times else [], dtype=pl.Int64),
+            pl.Series(
+                "row", np.concatenate([np.arange(t.size) for t in times] or [[]]), dtype=pl.Int64
+            ),
+        ]
+    )
     if not frames:
         schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
         schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
-        return pl.DataFrame(schema=schema)
-    names = pl.Series("body", [name for name, _ in frames], dtype=pl.String)
-    which = np.repeat(np.arange(len(frames)), [frame.height for _, frame in frames])
-    return (
-        pl.concat([frame for _, frame in frames])
-        .hstack([names.gather(which)])
-        .with_columns((pl.col("t_ns").rank("dense").over("run_id") - 1).cast(pl.Int64).alias("row"))
-        .select("run_id", "body", "row", pl.exclude("run_id", "body", "row"))
-        .sort("run_id", "body", "t_ns")
+        return pl.DataFrame(schema=schema), rows
+    names = pl.Series("body", bodies, dtype=pl.String)
+    which = np.repeat(np.arange(len(frames)), [frame.height for frame in frames])
+    states = pl.concat(frames).hstack(
+        [names.gather(which), pl.Series("row", np.concatenate(numbers), dtype=pl.Int64)]
     )
+    return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")), rows
 
 
-def row_numbers(states: pl.DataFrame) -> pl.DataFrame:
-    """(run_id, t_ns, row) of each run's logged rows, by run and row, from `states_long`
-    (whose `row` numbers each run's distinct logged times in order)."""
-    return states.select("run_id", "t_ns", "row").unique().sort("run_id", "row")
+def _by_time(frame: pl.DataFrame) -> pl.DataFrame:
+    """A body's frame by time (as logged, unless a foreign log wrote it otherwise)."""
+    return frame if frame["t_ns"].is_sorted() else frame.sort("t_ns")
+
+
+def _strictly_increasing(t: np.ndarray) -> bool:
+    return bool(t.size < 2 or (t[1:] > t[:-1]).all())
 
 
 def contact_rows(
@@ -72,7 +98,7 @@ def contact_rows(
 
     Args:
         runs: runs whose bodies and ground `surfaces` are the same (their names).
-        rows: `row_numbers` of the runs.
+        rows: the runs' logged rows (`states_long`).
 
     Returns:
         (run_id, kind, body, other, row, t_ns, n_points, normal_force_N (sum over the
@@ -130,7 +156,7 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
     Args:
         steps: `contact_rows` of the runs.
         runs: the runs (the nominal time between their logged rows gives the impulse).
-        rows: `row_numbers` of the runs (the last logged row of each).
+        rows: the runs' logged rows (`states_long`; the last logged row of each).
 
     Returns:
         One row per interval: the pair, `interval` (0-based per pair), first_row, last_row,
