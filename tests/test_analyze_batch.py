@@ -15,6 +15,7 @@ import pytest
 from polars.testing import assert_frame_equal
 
 from impactlab.analyze import batch as batch_module
+from impactlab.analyze import outputs
 from impactlab.analyze.analysis import RunAnalysis, analyze_run, analyze_runs
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
 from impactlab.errors import LogError
@@ -175,3 +176,18 @@ def test_runs_of_every_kind_together(record_spec):
     assert fall.intervals.is_empty() and fall.bounces.is_empty() and fall.phases.height == 1
     assert rest.bounces.height == 1 and "at rest" in rest.bounces["note"][0]
     assert miss.collisions.height == 1 and "never happened" in miss.collisions["note"][0]
+
+
+def test_energy_decimated_for_a_batch_as_for_each_run(monkeypatch):
+    """The energy tables of a task's runs are decimated together, each as on its own, also
+    when one log comes twice (one run id, two analyses)."""
+    monkeypatch.setattr(outputs, "ENERGY_ROWS_PER_RUN", 50)
+    runs = [load_log(LOGS[0]), load_log(LOGS[1])]
+    analyses = analyze_runs(runs) + analyze_runs([load_log(LOGS[0])])
+    together = outputs.with_decimated_energies(analyses)
+    for a, b in zip(together, analyses, strict=True):
+        alone = outputs.with_decimated_energy(b)
+        assert a.energy_logged == alone.energy_logged
+        assert a.energy_logged[1] > 50  # decimated
+        assert_frame_equal(a.energy, alone.energy)
+        assert a.energy.height < b.energy.height

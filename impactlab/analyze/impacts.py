@@ -72,13 +72,20 @@ class StateTable:
     contacts at once."""
 
     def __init__(self, states: pl.DataFrame) -> None:
-        coded = states.select(
-            "run_id", "body", (pl.struct("run_id", "body").rank("dense") - 1).alias("code")
-        )
-        pairs = coded.unique("code")
+        # each (run, body) is one block of rows in `states_long`: its code is the block's
+        # number, so the keys come sorted (the general rank when the blocks are not so)
+        coded = states.select("run_id", "body", pl.struct("run_id", "body").rle_id().alias("code"))
+        pairs = coded.unique("code", keep="first", maintain_order=True)
+        if pairs.select("run_id", "body").is_duplicated().any():
+            coded = states.select(
+                "run_id", "body", (pl.struct("run_id", "body").rank("dense") - 1).alias("code")
+            )
+            pairs = coded.unique("code", keep="first", maintain_order=True)
         self.codes = {
             (r, b): float(c)
-            for r, b, c in zip(pairs["run_id"], pairs["body"], pairs["code"], strict=True)
+            for r, b, c in zip(
+                *(pairs[k].to_list() for k in ("run_id", "body", "code")), strict=True
+            )
         }
         self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
         code = coded["code"].cast(pl.Float64).to_numpy()
