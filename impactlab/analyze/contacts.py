@@ -134,20 +134,49 @@ def contact_rows(
         .alias("other"),
         *[(sign * pl.col(f"n{a}")).alias(f"n{a}") for a in "xyz"],
     )
-    steps = tagged.group_by("run_id", *PAIR, "t_ns").agg(
-        pl.len().alias("n_points"),
-        pl.col("normal_force").sum().alias("normal_force_N"),
-        pl.col("penetration").max().alias("penetration_m"),
-        pl.col("penetration").mean().alias("pen"),
-        pl.col("x").mean().alias("px"),
-        pl.col("y").mean().alias("py"),
-        pl.col("z").mean().alias("pz"),
-        pl.col("nx").first(),
-        pl.col("ny").first(),
-        pl.col("nz").first(),
-    )
-    # each step's row number: an inner join on (run_id, t_ns) with `rows`
-    return steps.join(rows, on=["run_id", "t_ns"], how="inner").sort("run_id", *PAIR, "row")
+    keys = ["run_id", *PAIR, "t_ns"]
+    tagged = tagged.sort(keys)
+    if _one_point_per_step(tagged):  # the group-by below would keep every row as it is
+        steps = tagged.select(
+            *keys,
+            pl.lit(1, dtype=pl.UInt32).alias("n_points"),
+            pl.col("normal_force").alias("normal_force_N"),
+            pl.col("penetration").alias("penetration_m"),
+            pl.col("penetration").alias("pen"),
+            pl.col("x").alias("px"),
+            pl.col("y").alias("py"),
+            pl.col("z").alias("pz"),
+            "nx",
+            "ny",
+            "nz",
+        )
+    else:
+        steps = tagged.group_by(keys, maintain_order=True).agg(
+            pl.len().alias("n_points"),
+            pl.col("normal_force").sum().alias("normal_force_N"),
+            pl.col("penetration").max().alias("penetration_m"),
+            pl.col("penetration").mean().alias("pen"),
+            pl.col("x").mean().alias("px"),
+            pl.col("y").mean().alias("py"),
+            pl.col("z").mean().alias("pz"),
+            pl.col("nx").first(),
+            pl.col("ny").first(),
+            pl.col("nz").first(),
+        )
+    # each step's row number: an inner join on (run_id, t_ns) with `rows`, in the steps' order
+    return steps.join(rows, on=["run_id", "t_ns"], how="inner", maintain_order="left")
+
+
+def _one_point_per_step(tagged: pl.DataFrame) -> bool:
+    """Whether each (run, pair, t_ns) of `tagged` (sorted by them) has one contact point whose
+    values are all set (then each step's sums and means are that point's values)."""
+    if not tagged.height:
+        return True
+    values = ("normal_force", "penetration", "x", "y", "z", "nx", "ny", "nz")
+    if any(tagged[c].null_count() for c in values):
+        return False
+    same = [pl.col(c) == pl.col(c).shift() for c in ("run_id", *PAIR, "t_ns")]
+    return not tagged.select(pl.all_horizontal(same).any()).item()
 
 
 def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
