@@ -11,6 +11,7 @@ import dataclasses
 import math
 from pathlib import Path
 
+import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
 
@@ -18,6 +19,7 @@ from impactlab.analyze import batch as batch_module
 from impactlab.analyze import outputs
 from impactlab.analyze.analysis import RunAnalysis, analyze_run, analyze_runs
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
+from impactlab.analyze.contacts import with_rows
 from impactlab.errors import LogError
 from impactlab.logs.load import load_log
 
@@ -191,3 +193,17 @@ def test_energy_decimated_for_a_batch_as_for_each_run(monkeypatch):
         assert a.energy_logged[1] > 50  # decimated
         assert_frame_equal(a.energy, alone.energy)
         assert a.energy.height < b.energy.height
+
+
+def test_step_rows_are_an_inner_join_on_run_and_time():
+    """A contact logged at a time its run has no state for is left out, as a join would."""
+    rows = pl.DataFrame(
+        {"run_id": ["b", "b", "b", "a", "a"], "t_ns": [0, 10, 20, 5, 15], "row": [0, 1, 2, 0, 1]}
+    )
+    steps = pl.DataFrame(
+        {"run_id": ["a", "a", "a", "b", "b", "c"], "t_ns": [5, 7, 15, 20, 0, 0], "v": range(6)}
+    )
+    expected = steps.join(rows, on=["run_id", "t_ns"], how="inner", maintain_order="left")
+    assert_frame_equal(with_rows(steps, rows), expected)
+    assert with_rows(steps, rows)["v"].to_list() == [0, 2, 3, 4]
+    assert with_rows(steps.clear(), rows).columns == [*steps.columns, "row"]

@@ -163,8 +163,32 @@ def contact_rows(
             pl.col("ny").first(),
             pl.col("nz").first(),
         )
-    # each step's row number: an inner join on (run_id, t_ns) with `rows`, in the steps' order
-    return steps.join(rows, on=["run_id", "t_ns"], how="inner", maintain_order="left")
+    return with_rows(steps, rows)
+
+
+def with_rows(steps: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
+    """`steps` (each run's rows together) with the row number of each step's t_ns, those at
+    a time the run did not log left out: an inner join on (run_id, t_ns) with `rows`."""
+    if not steps.height:
+        return steps.with_columns(pl.lit(None, dtype=pl.Int64).alias("row")).clear()
+    logged = {
+        str(k[0]): f["t_ns"].to_numpy()
+        for k, f in rows.partition_by("run_id", as_dict=True).items()
+    }
+    runs = steps["run_id"].rle()
+    t_ns = steps["t_ns"].to_numpy()
+    row = np.full(t_ns.size, -1, dtype=np.int64)
+    start = 0
+    for run, length in zip(runs.struct.field("value"), runs.struct.field("len"), strict=True):
+        times, stop = logged.get(run), start + length
+        if times is not None and times.size:
+            mine = t_ns[start:stop]
+            spot = np.clip(np.searchsorted(times, mine), 0, times.size - 1)
+            row[start:stop] = np.where(times[spot] == mine, spot, -1)
+        start = stop
+    found = row >= 0
+    out = steps.hstack([pl.Series("row", row, dtype=pl.Int64)])
+    return out if found.all() else out.filter(pl.Series(found))
 
 
 def _one_point_per_step(tagged: pl.DataFrame) -> bool:
