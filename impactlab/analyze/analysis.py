@@ -209,16 +209,9 @@ def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
     fl = flights(pl.concat(flight_parts) if flight_parts else None)
     g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
     g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
-    bnc = bounces(on_ground, fl, gravity_n=g_n)
+    bnc = _with_no_bounce_rows(parts, bounces(on_ground, fl, gravity_n=g_n), on_ground)
     bounces_of, phases_of = by_run(bnc), by_run(phases)
     body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
-    for p in parts:
-        rid = p.run.run_id
-        mine = bounces_of.get(rid, bnc.clear())
-        if p.ground.surfaces:
-            mine = _with_no_bounce_rows(p, mine, ground_of.get(rid, empty_ground))
-            bounces_of[rid] = mine
-    bnc = pl.concat([bounces_of.get(p.run.run_id, bnc.clear()) for p in parts])
     heads = headlines(total_all, phases, bnc)
     out = []
     for p in parts:
@@ -260,12 +253,30 @@ def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
     return out
 
 
-def _with_no_bounce_rows(p: _Contacts, bnc: pl.DataFrame, on_ground: pl.DataFrame) -> pl.DataFrame:
-    """The run's bounces with a row for each body without any, saying why."""
-    names = [n for n in p.run.body_info if n in p.run.bodies]
-    have = set(bnc["body"].to_list())
-    reasons = {n: no_bounce_reason(n, on_ground, p.states) for n in names if n not in have}
-    return pl.concat([bnc, no_bounce_rows(p.run.run_id, reasons)]) if reasons else bnc
+def _with_no_bounce_rows(
+    parts: list[_Contacts], bnc: pl.DataFrame, on_ground: pl.DataFrame
+) -> pl.DataFrame:
+    """The runs' bounces, with a row for each body of a run with a ground that has none,
+    saying why (after the run's bounces)."""
+    have = set(zip(bnc["run_id"].to_list(), bnc["body"].to_list(), strict=True))
+    missing = [
+        (p, name)
+        for p in parts
+        if p.ground.surfaces
+        for name in p.run.body_info
+        if name in p.run.bodies and (p.run.run_id, name) not in have
+    ]
+    if not missing:
+        return bnc
+    firsts = on_ground.group_by("run_id", "body", maintain_order=True).agg(
+        pl.col("other", "row_b", "v_min_mps").first()
+    )
+    first = {(r["run_id"], r["body"]): r for r in firsts.to_dicts()}
+    reasons = [
+        (p.run.run_id, name, no_bounce_reason(first.get((p.run.run_id, name)), p.states))
+        for p, name in missing
+    ]
+    return pl.concat([bnc, no_bounce_rows(reasons)]).sort("run_id", maintain_order=True)
 
 
 def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
@@ -287,12 +298,11 @@ def duration_s(states: pl.DataFrame) -> float:
     return float(states["t_s"].max() or 0.0) if states.height else 0.0
 
 
-def no_bounce_reason(body: str, on_ground: pl.DataFrame, states: pl.DataFrame) -> str:
-    """Why a body on a run with a ground has no bounce."""
-    mine = on_ground.filter(pl.col("body") == body).sort("first_row")
-    if mine.is_empty():
+def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:
+    """Why a body on a run with a ground has no bounce, from its first ground contact (other,
+    row_b, v_min_mps; None: it has none) and the run's states."""
+    if first is None:
         return f"no contact with the ground in the {duration_s(states):.4g} s logged"
-    first = mine.row(0, named=True)
     if first["row_b"] is None:
         return (
             f"at rest, sliding or rolling on {first['other']} from the first logged step: "

@@ -174,11 +174,12 @@ def note() -> pl.Expr:
     )
 
 
-def no_bounce_rows(run_id: str, reasons: dict[str, str]) -> pl.DataFrame:
-    """Rows for bodies without any bounce: body and the reason only."""
+def no_bounce_rows(reasons: list[tuple[str, str, str]]) -> pl.DataFrame:
+    """Rows for bodies without any bounce, from (run_id, body, reason): body and the reason
+    only."""
     rows = [
         {k: None for k in BOUNCE_SCHEMA}
         | {"run_id": run_id, "body": body, "complete": False, "note": why}
-        for body, why in reasons.items()
+        for run_id, body, why in reasons
     ]
     return pl.DataFrame(rows, schema=BOUNCE_SCHEMA)

@@ -66,14 +66,21 @@ class Ground:
     def _by_pair(self) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per (body, surface): its logged times (sorted), clearances and whether each is set."""
         out = {}
-        for (body, surface), frame in self.clearance.partition_by(
-            "body", "surface", as_dict=True
-        ).items():
+        c = self.clearance
+        if not c.height:
+            return out
+        one = c["body"].n_unique() == 1 and c["surface"].n_unique() == 1  # the common case
+        parts = (
+            {(c["body"][0], c["surface"][0]): c}
+            if one
+            else c.partition_by("body", "surface", as_dict=True)
+        )
+        for (body, surface), frame in parts.items():
             t = frame["t_ns"].to_numpy()
             order = np.argsort(t, kind="stable")
-            c = frame["clearance_m"]
-            set_ = c.is_not_null().to_numpy()[order]
-            out[(str(body), str(surface))] = (t[order], c.to_numpy()[order], set_)
+            values = frame["clearance_m"]
+            set_ = values.is_not_null().to_numpy()[order]
+            out[(str(body), str(surface))] = (t[order], values.to_numpy()[order], set_)
         return out
 
     def has_clearance(self, body: str, surface: str) -> bool:
