@@ -100,8 +100,10 @@ def test_batches_are_bounded_and_consecutive(tmp_path, monkeypatch):
     monkeypatch.setattr(batch_module, "BATCH_LOGS", 3)
     monkeypatch.setattr(batch_module, "BATCH_BYTES", 500)
     assert batches(files) == [[0, 1, 2], [3], [4], [5, 6, 7], [8, 9]]
-    # an executor's workers all get work: at least `parts` batches when there are logs enough
-    assert len(batches(files[:6], parts=6)) == 6
+    # an executor's workers all get work: `parts` batches when there are logs enough
+    assert batches(files[:6], parts=6) == [[i] for i in range(6)]
+    assert batches(files[5:], parts=2) == [[0, 1], [2, 3, 4]]
+    assert len(batches(files, parts=20)) == 10
     assert batches([]) == []
 
 

@@ -23,7 +23,7 @@ from impactlab.analyze.outputs import with_decimated_energies, with_decimated_en
 from impactlab.analyze.run_figures import run_figures
 from impactlab.analyze.tables import TableReducer
 from impactlab.errors import LogError
-from impactlab.executors.base import Executor
+from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 
@@ -50,23 +50,26 @@ BATCH_BYTES = 32 << 20
 
 
 def batches(items: Sequence[tuple[Path, Path]], parts: int = 1) -> list[list[int]]:
-    """Consecutive groups of `items` (by index) to analyze together: at most BATCH_LOGS
-    logs and BATCH_BYTES of files each, and at least `parts` groups when there are enough
-    logs (so that an executor's workers all get some)."""
-    most = max(1, min(BATCH_LOGS, -(-len(items) // max(parts, 1))))
+    """Consecutive groups of `items` (by index) to analyze together: `parts` groups of
+    nearly equal size (fewer only when there are fewer logs), each cut further to at most
+    BATCH_LOGS logs and BATCH_BYTES of files (more only for one larger log)."""
+    n = len(items)
+    k = min(max(parts, 1), n)
     out: list[list[int]] = []
-    size = 0
-    for i, (where, _) in enumerate(items):
-        try:
-            n = where.stat().st_size
-        except OSError:
-            n = 0
-        if out and len(out[-1]) < most and size + n <= BATCH_BYTES:
-            out[-1].append(i)
-            size += n
-        else:
-            out.append([i])
-            size = n
+    for g in range(k):
+        size = 0
+        first = len(out)
+        for i in range(g * n // k, (g + 1) * n // k):
+            try:
+                nbytes = items[i][0].stat().st_size
+            except OSError:
+                nbytes = 0
+            if len(out) > first and len(out[-1]) < BATCH_LOGS and size + nbytes <= BATCH_BYTES:
+                out[-1].append(i)
+                size += nbytes
+            else:
+                out.append([i])
+                size = nbytes
     return out
 
 
@@ -199,7 +202,10 @@ def analyze_logs(
         fig_dir=None if fig_dir is None else fig_dir.absolute(),
         previous=None if previous is None else previous.absolute(),
     )
-    groups = batches(items, parts=4 * executor.slots)
+    parts = max(4 * executor.slots, PROCESS_MIN_ITEMS)
+    if fig_dir is not None:  # a run's own figures cost more than its analysis: finer tasks
+        parts = max(parts, 8 * executor.slots)
+    groups = batches(items, parts=parts)
     absolute = [[(items[i][0].absolute(), items[i][1]) for i in group] for group in groups]
     for outcome in executor.map(task, absolute):
         group = groups[outcome.index]
