@@ -91,3 +91,45 @@ def test_key_follows_the_data():
     assert key != figure_cache.figure_key("energy", frame, "another title")
     assert key != figure_cache.figure_key("decay", frame, "title")
     assert key != figure_cache.figure_key("energy", frame.head(1), "title")
+
+
+def test_summary_figures_drawn_by_workers_equal_those_drawn_here(tmp_path):
+    """With worker processes up, the summary figures are drawn there: the same figures (and
+    keys) as drawn in this process."""
+    from impactlab.executors.processes import ProcessExecutor
+
+    logs = sorted(GOLDEN.glob("*.mcap"))
+    here, there = tmp_path / "here", tmp_path / "there"
+    assert run_analysis(logs, here).exit_code == 0
+    executor = ProcessExecutor(workers=2, min_items=1)
+    try:
+        assert run_analysis(logs, there, executor=executor).exit_code == 0
+        assert executor._pool is not None  # the workers were up for the summary figures
+    finally:
+        executor.close()
+    a, b = pngs(here), pngs(there)
+    assert a.keys() == b.keys() and {"restitution-vs-speed.png"} <= a.keys()
+    for name in a:
+        assert figure_cache.png_key(a[name]) == figure_cache.png_key(b[name]), name
+    assert (here / "report.md").read_text().replace(str(here), "") == (
+        there / "report.md"
+    ).read_text().replace(str(there), "")
+
+
+def test_a_figure_failing_in_a_worker_fails_here_with_its_error(tmp_path):
+    from impactlab.executors.base import TaskOutcome
+
+    class Failing:
+        name = "fake"
+        slots = 2
+
+        def map(self, fn, items):
+            for i, _ in enumerate(items):
+                yield TaskOutcome(i, error="worker said no")
+
+    def broken() -> Path:
+        raise ValueError("cannot draw this")
+
+    jobs = [(tmp_path / f"{i}.png", "key", broken) for i in range(2)]
+    with pytest.raises(ValueError, match="cannot draw this"):
+        figure_cache.draw_all(jobs, None, Failing())

@@ -12,7 +12,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import io
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from importlib.metadata import version
 from importlib.util import find_spec
 from pathlib import Path
@@ -20,6 +20,7 @@ from typing import Any
 
 import polars as pl
 
+from impactlab.executors.base import Executor
 from impactlab.files import atomic_path
 
 KEY = "impactlab-figure-key"
@@ -71,15 +72,46 @@ def png_key(data: bytes) -> str | None:
 def drawn(path: Path, key: str, previous: Path | None, draw: Callable[[], Path]) -> Path:
     """The figure at `path`: copied from `previous` (the folder of the last analysis' figures)
     when the figure of that name there has the same key, else drawn by `draw` with the key."""
+    return path if copied(path, key, previous) else draw_with_key((key, draw))
+
+
+def copied(path: Path, key: str, previous: Path | None) -> bool:
+    """Copy the figure of `path`'s name from `previous` to `path` if it has the same key;
+    whether it did."""
     old = previous / path.name if previous is not None else None
-    if old is not None and old.is_file():
-        data = old.read_bytes()  # read once: a concurrent publish may replace the file
-        if png_key(data) == key:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with atomic_path(path) as tmp:
-                tmp.write_bytes(data)
-            return path
+    if old is None or not old.is_file():
+        return False
+    data = old.read_bytes()  # read once: a concurrent publish may replace the file
+    if png_key(data) != key:
+        return False
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return True
+
+
+def draw_with_key(job: tuple[str, Callable[[], Path]]) -> Path:
+    """Draw a figure (`job`: its key and its drawing) with the key in the PNG."""
     from impactlab.plotting import png_text  # matplotlib: only when a figure is drawn
 
+    key, draw = job
     with png_text({KEY: key}):
         return draw()
+
+
+def draw_all(
+    jobs: Sequence[tuple[Path, str, Callable[[], Path]]],
+    previous: Path | None,
+    executor: Executor | None = None,
+) -> list[Path]:
+    """`drawn` of each (path, key, draw), in order; the figures to draw go to the executor's
+    workers when it has some (each draws at its own path, which must be one they see)."""
+    todo = [(path, key, draw) for path, key, draw in jobs if not copied(path, key, previous)]
+    if executor is None or executor.name == "local" or len(todo) < 2:
+        for _, key, draw in todo:
+            draw_with_key((key, draw))
+        return [path for path, _, _ in jobs]
+    for outcome in executor.map(draw_with_key, [(key, draw) for _, key, draw in todo]):
+        if not outcome.ok:  # drawn here again: its error is then raised as it would be
+            draw_with_key(todo[outcome.index][1:])
+    return [path for path, _, _ in jobs]

@@ -101,7 +101,14 @@ def _analysis(
     result = reducer.result(out, failed)
     if analyses and out is not None and stage is not None:
         written = write_all(
-            result, analyses, run_figs, out=stage, figures=draw, report=report, previous=previous
+            result,
+            analyses,
+            run_figs,
+            out=stage,
+            figures=draw,
+            report=report,
+            previous=previous,
+            executor=executor,
         )
         result.files = publish(stage, out, written)
         where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import polars as pl
@@ -16,6 +16,7 @@ from impactlab.analyze.report import build_report
 from impactlab.analyze.run_figures import run_label
 from impactlab.analyze.studies import study_parameters
 from impactlab.analyze.tables import AnalysisResult
+from impactlab.executors.base import Executor
 from impactlab.files import write_json, write_parquet, write_text
 
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")
@@ -30,6 +31,7 @@ def write_all(
     figures: bool = True,
     report: bool = True,
     previous: Path | None = None,
+    executor: Executor | None = None,
 ) -> list[Path]:
     """Write the tables, summary.json and (when asked) the summary figures and report.md.
 
@@ -42,6 +44,8 @@ def write_all(
         report: write report.md.
         previous: the figures of the last analysis into the same folder: those whose inputs
             did not change are copied from there, not drawn again (`figure_cache`).
+        executor: where the summary figures are drawn when its workers are up (default:
+            here).
 
     Returns:
         Every file written: tables, figures, report.md, summary.json.
@@ -56,7 +60,7 @@ def write_all(
             figs.setdefault(kind, []).append(path)
     if figures:
         for kind, paths in summary_figures(
-            result, analyses, params, out / "figures", previous
+            result, analyses, params, out / "figures", previous, executor
         ).items():
             figs.setdefault(kind, []).extend(paths)
     files += [p for ps in figs.values() for p in ps]
@@ -109,14 +113,17 @@ def summary_figures(
     params: dict[str, list[str]],
     fig_dir: Path,
     previous: Path | None = None,
+    executor: Executor | None = None,
 ) -> dict[str, list[Path]]:
     """Draw the figures over many runs (bounce decay, restitution, studies), by kind; those
-    whose inputs did not change are copied from `previous` (`figure_cache.drawn`)."""
+    whose inputs did not change are copied from `previous`, the others drawn in the
+    executor's workers when it has some (`figure_cache.draw_all`)."""
     from impactlab.analyze import figures
-    from impactlab.analyze.figure_cache import drawn, figure_key
+    from impactlab.analyze.figure_cache import draw_all, figure_key
+
+    jobs: list[tuple[str, Path, str, Callable[[], Path]]] = []  # kind, path, key, draw
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    figs: dict[str, list[Path]] = {}
     by_exp: dict[str, list[RunAnalysis]] = {}
     for a in analyses:
         by_exp.setdefault(a.run.experiment, []).append(a)
@@ -127,16 +134,14 @@ def summary_figures(
             path = fig_dir / f"bounce-decay-{exp}.png"
             title = f"Bounce height decay: {exp}"
             key = figure_key("decay", result.bounces, labels, title)
-            figs.setdefault("decay", []).append(
-                drawn(
-                    path,
-                    key,
-                    previous,
-                    functools.partial(
-                        figures.bounce_decay_figure, result.bounces, labels, title=title, path=path
-                    ),
-                )
+            draw = functools.partial(
+                figures.bounce_decay_figure,
+                result.bounces,
+                labels,
+                title=title,
+                path=path.absolute(),
             )
+            jobs.append(("decay", path, key, draw))
     has_e = (result.bounces.height and result.bounces["e_velocity"].drop_nulls().len()) or (
         result.collisions.height and result.collisions["e_measured"].drop_nulls().len()
     )
@@ -151,22 +156,16 @@ def summary_figures(
         targets = _targets(analyses)
         path = fig_dir / "restitution-vs-speed.png"
         key = figure_key("restitution", bounces, result.collisions, labels, experiments, targets)
-        figs["restitution"] = [
-            drawn(
-                path,
-                key,
-                previous,
-                functools.partial(
-                    figures.restitution_figure,
-                    bounces,
-                    result.collisions,
-                    labels,
-                    path=path,
-                    experiments=experiments,
-                    targets=targets,
-                ),
-            )
-        ]
+        draw = functools.partial(
+            figures.restitution_figure,
+            bounces,
+            result.collisions,
+            labels,
+            path=path.absolute(),
+            experiments=experiments,
+            targets=targets,
+        )
+        jobs.append(("restitution", path, key, draw))
     for name, study in result.studies.items():
         param = params[name][0]
         group = by_exp[name]
@@ -176,17 +175,27 @@ def summary_figures(
             m1, m2 = infos[0].mass, infos[1].mass
             key = figure_key("collision-study", study, param, title, m1, m2)
             draw = functools.partial(
-                figures.collision_study_figure, study, param, title=title, m1=m1, m2=m2, path=path
+                figures.collision_study_figure,
+                study,
+                param,
+                title=title,
+                m1=m1,
+                m2=m2,
+                path=path.absolute(),
             )
-            figs.setdefault("study", []).append(drawn(path, key, previous, draw))
+            jobs.append(("study", path, key, draw))
         elif "e_velocity_first" in study.columns:
             path = fig_dir / f"study-{name}.png"
             title = f"Parameter study: {name}: e of the first bounce"
             key = figure_key("bounce-study", study, param, title)
             draw = functools.partial(
-                figures.bounce_study_figure, study, param, title=title, path=path
+                figures.bounce_study_figure, study, param, title=title, path=path.absolute()
             )
-            figs.setdefault("study", []).append(drawn(path, key, previous, draw))
+            jobs.append(("study", path, key, draw))
+    paths = draw_all([job[1:] for job in jobs], previous, executor)
+    figs: dict[str, list[Path]] = {}
+    for (kind, *_), path in zip(jobs, paths, strict=True):
+        figs.setdefault(kind, []).append(path)
     return figs
 
 

@@ -3,8 +3,8 @@
 Workers are spawned (not forked: polars and MuJoCo run thread pools, which a fork would copy
 in whatever state they are), so each pays the import of what its function needs once (about
 half a second); a batch smaller than `min_items` therefore runs here, one item after the
-other, as the local executor would. Functions and items must be picklable (module-level
-functions, plain data), as for Ray.
+other, as the local executor would, unless the workers are up already. Functions and items
+must be picklable (module-level functions, plain data), as for Ray.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ class ProcessExecutor:
 
     def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
         """Yield one outcome per item as it finishes (here, in order, for a small batch)."""
-        if self.workers < 2 or len(items) < self.min_items:
+        if self.workers < 2 or (len(items) < self.min_items and self._pool is None):
             yield from LocalExecutor().map(fn, items)
             return
         pool = self._start(min(self.workers, len(items)))
