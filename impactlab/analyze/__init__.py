@@ -32,6 +32,7 @@ __getattr__ = lazy_exports(
         "AnalysisResult": "impactlab.analyze.tables",
         "RunAnalysis": "impactlab.analyze.analysis",
         "analyze_run": "impactlab.analyze.analysis",
+        "analyze_runs": "impactlab.analyze.analysis",
         "run_analysis": "impactlab.analyze.job",
         "write_report_html": "impactlab.analyze.html",
     },
