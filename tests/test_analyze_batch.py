@@ -15,6 +15,7 @@ import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
 
+from impactlab.analyze import analysis as analysis_module
 from impactlab.analyze import batch as batch_module
 from impactlab.analyze import outputs
 from impactlab.analyze.analysis import RunAnalysis, analyze_run, analyze_runs
@@ -209,3 +210,20 @@ def test_step_rows_are_an_inner_join_on_run_and_time():
     assert_frame_equal(with_rows(steps, rows), expected)
     assert with_rows(steps, rows)["v"].to_list() == [0, 2, 3, 4]
     assert with_rows(steps.clear(), rows).columns == [*steps.columns, "row"]
+
+
+def test_runs_whose_frames_do_not_stack_are_analyzed_each_alone(alone):
+    """A log whose contact channel has another column type (a foreign producer) cannot be
+    stacked with the others: the batch falls back to one run at a time, same results."""
+    runs = [load_log(p) for p in LOGS]
+    drops = [i for i, p in enumerate(LOGS) if p.stem.startswith("drop_")]
+    assert len(drops) == 2  # two runs of one kind (a ball on the plane): stacked together
+    odd = runs[drops[0]]
+    runs[drops[0]] = dataclasses.replace(
+        odd, contacts=odd.contacts.with_columns(pl.col("point").cast(pl.Int64))
+    )
+    grounds = {r.run_id: analysis_module._check(r) for r in runs}
+    with pytest.raises(pl.exceptions.SchemaError):
+        analysis_module._contacts([runs[i] for i in drops], grounds)
+    for a, b in zip(analyze_runs(runs), alone, strict=True):
+        same(a, b)

@@ -130,12 +130,13 @@ def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
 def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
     """Analyze several decoded logs at once: `analyze_run` of each, in order.
 
-    What is computed over a run's rows (states, contacts, energy) is computed run by run;
-    the small tables (contacts merged across chatter, flights, bounces, phases, the summary
-    aggregates) are computed for all runs in one set of frame operations, keyed by run_id,
-    so that many short runs do not pay polars' fixed cost per operation each. The run ids
-    must be distinct (`distinct_batches`). A log the analysis cannot read gives its
-    `LogError` in its place.
+    The frames of all runs are stacked and each step (states, contact rows, contact
+    intervals and their speeds, chatter merged, flights, bounces, energy phases, summary
+    aggregates) is one set of frame operations keyed by run_id, so that many short runs do
+    not each pay polars' fixed cost per operation; the results are those of each run alone
+    (to 1e-12 relative where a group's sum is taken in another order). The run ids must be
+    distinct (`impactlab.analyze.batch.distinct_batches`). A log the analysis cannot read
+    gives its `LogError` in its place.
     """
     if len({run.run_id for run in runs}) != len(runs):
         raise ValueError("analyze_runs needs distinct run ids (see distinct_batches)")
@@ -156,14 +157,17 @@ def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
 
 
 def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis | LogError]:
-    """The runs analyzed together; if one's metadata fails on the way, each on its own, so
-    that the error is that run's alone."""
+    """The runs analyzed together; if that fails (one's metadata fails on the way, or runs
+    whose frames cannot be stacked), each on its own, so that an error is that run's alone."""
     try:
         return list(_analyze_contacts(_contacts(runs, grounds)))
     except LogError as exc:
         if len(runs) == 1:
             return [exc]
-        return [r for run in runs for r in _batch_or_each([run], grounds)]
+    except Exception:  # a run alone raises it again, if it is one run's
+        if len(runs) == 1:
+            raise
+    return [r for run in runs for r in _batch_or_each([run], grounds)]
 
 
 def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
