@@ -16,12 +16,14 @@ from impactlab.analyze.contacts import (
     logged_interval_s,
     per_run,
     raw_intervals,
+    state_blocks,
     states_long,
 )
-from impactlab.analyze.energy import energy_phases, references, run_energy
+from impactlab.analyze.energy import references, run_energies
 from impactlab.analyze.flights import flight_rows, flights
 from impactlab.analyze.ground import Ground, run_ground
 from impactlab.analyze.impacts import approach_and_release, merge_chatter
+from impactlab.analyze.phases import energy_phases
 from impactlab.analyze.summary import headlines, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
@@ -98,9 +100,12 @@ def _check(run: RunLog) -> Ground:
     return run_ground(run)
 
 
-def _contacts(runs: list[RunLog], grounds: dict[str, Ground]) -> list[_Contacts]:
+def _contacts(
+    runs: list[RunLog], grounds: dict[str, Ground]
+) -> tuple[list[_Contacts], pl.DataFrame]:
     """The row-level part of the analysis of runs with usable metadata: states, rows and raw
-    contacts with their impact and release speeds, each run's split out of the batch's."""
+    contacts with their impact and release speeds, each run's split out of the batch's; and
+    the batch's states."""
     states, rows = states_long(runs)
     kinds: dict[tuple[tuple[str, ...], tuple[str, ...]], list[RunLog]] = {}
     for run in runs:  # runs with the same bodies and surfaces: their contacts tagged at once
@@ -110,7 +115,7 @@ def _contacts(runs: list[RunLog], grounds: dict[str, Ground]) -> list[_Contacts]
     )
     raw = approach_and_release(raw_intervals(steps, runs, rows), states, runs, grounds)
     states_of, rows_of, raw_of = by_run(states), by_run(rows), by_run(raw)
-    return [
+    parts = [
         _Contacts(
             run,
             grounds[run.run_id],
@@ -120,6 +125,7 @@ def _contacts(runs: list[RunLog], grounds: dict[str, Ground]) -> list[_Contacts]
         )
         for run in runs
     ]
+    return parts, states
 
 
 def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
@@ -160,7 +166,7 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
     """The runs analyzed together; if that fails (one's metadata fails on the way, or runs
     whose frames cannot be stacked), each on its own, so that an error is that run's alone."""
     try:
-        return list(_analyze_contacts(_contacts(runs, grounds)))
+        return list(_analyze_contacts(*_contacts(runs, grounds)))
     except LogError as exc:
         if len(runs) == 1:
             return [exc]
@@ -170,7 +176,7 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
     return [r for run in runs for r in _batch_or_each([run], grounds)]
 
 
-def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
+def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunAnalysis]:
     """The analyses of runs whose per-run part is done (see `analyze_runs`)."""
     runs = [p.run for p in parts]
     contacts = merge_chatter(pl.concat([p.raw for p in parts])).with_columns(
@@ -186,14 +192,21 @@ def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
         first.setdefault(key[:2], key[2])
     contacts_of, ground_of = by_run(contacts), by_run(on_ground)
     empty_contacts, empty_ground = contacts.clear(), on_ground.clear()
-    energies, totals, in_contact, flight_parts = {}, [], [], []
+    start = _first_positions(states)
+    refs = {
+        p.run.run_id: references(
+            p.run,
+            p.ground,
+            {b: s for (r, b), s in first.items() if r == p.run.run_id},
+            start.get(p.run.run_id, {}),
+        )
+        for p in parts
+    }
+    energies, total_of = run_energies(states, runs, {p.run.run_id: p.ground for p in parts}, refs)
+    totals, in_contact, flight_parts = [], [], []
     for p in parts:
         run, rid = p.run, p.run.run_id
-        mine = {b: s for (r, b), s in first.items() if r == rid}
-        refs = references(run, p.ground, p.states, mine)
-        energy = run_energy(run, p.states, p.ground, refs)
-        energies[rid] = energy
-        total = energy.filter(pl.col("body") == "total").sort("t_ns")
+        total = total_of[rid]
         totals.append(total)
         times = contact_times(contacts_of.get(rid, empty_contacts), p.rows)
         in_contact.append(np.isin(total["t_ns"].to_numpy(), times.to_numpy()))
@@ -254,6 +267,17 @@ def _analyze_contacts(parts: list[_Contacts]) -> list[RunAnalysis]:
                 p.ground,
             )
         )
+    return out
+
+
+def _first_positions(states: pl.DataFrame) -> dict[str, dict[str, tuple[float, float, float]]]:
+    """Per run and body, its first logged position (x, y, z)."""
+    blocks = state_blocks(states)
+    at = np.array([first for _, _, first, _ in blocks], dtype=np.int64)
+    xyz = [states[c].to_numpy()[at] for c in ("x", "y", "z")] if at.size else [[], [], []]
+    out: dict[str, dict[str, tuple[float, float, float]]] = {}
+    for i, (r, b, _, _) in enumerate(blocks):
+        out.setdefault(r, {})[b] = (float(xyz[0][i]), float(xyz[1][i]), float(xyz[2][i]))
     return out
 
 

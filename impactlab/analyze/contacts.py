@@ -82,6 +82,25 @@ def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
     return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")), rows
 
 
+def state_blocks(states: pl.DataFrame) -> list[tuple[str, str, int, int]]:
+    """The (run_id, body, first row, end row) of each body's block of `states_long`."""
+    if not states.height:
+        return []
+    runs = states.select(pl.struct("run_id", "body").rle()).to_series().struct.unnest()
+    ends = np.cumsum(runs["len"].to_numpy())
+    keys = runs["value"].struct.unnest()
+    return [
+        (r, b, int(e - n), int(e))
+        for r, b, n, e in zip(
+            keys["run_id"].to_list(),
+            keys["body"].to_list(),
+            runs["len"].to_list(),
+            ends,
+            strict=True,
+        )
+    ]
+
+
 def _by_time(frame: pl.DataFrame) -> pl.DataFrame:
     """A body's frame by time (as logged, unless a foreign log wrote it otherwise)."""
     return frame if frame["t_ns"].is_sorted() else frame.sort("t_ns")

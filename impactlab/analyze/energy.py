@@ -18,11 +18,13 @@ after it, so that E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.contacts import state_blocks
 from impactlab.analyze.ground import Ground
 from impactlab.logs.load import BodyInfo, RunLog
 
@@ -39,12 +41,16 @@ class Reference:
 
 
 def references(
-    run: RunLog, ground: Ground, states: pl.DataFrame, first_surface: dict[str, str]
+    run: RunLog,
+    ground: Ground,
+    first_surface: dict[str, str],
+    start: dict[str, tuple[float, float, float]],
 ) -> dict[str, Reference]:
     """Per body, its energy reference (see the module docstring).
 
     Args:
         first_surface: per body, the surface of its first ground contact (if any).
+        start: per body, its first logged position (the reference without a ground).
     """
     refs = {}
     for name, info in run.body_info.items():
@@ -54,9 +60,7 @@ def references(
             measured = ground.has_clearance(name, surface)
             refs[name] = Reference(level * ground.up, surface if measured else None)
             continue
-        mine = states.filter(pl.col("body") == name)
-        start = mine.select("x", "y", "z").row(0) if mine.height else (0.0, 0.0, 0.0)
-        refs[name] = Reference(np.asarray(start, dtype=float), None)
+        refs[name] = Reference(np.asarray(start.get(name, (0.0, 0.0, 0.0)), dtype=float), None)
     return refs
 
 
@@ -76,85 +80,180 @@ def body_frame_omega() -> list[pl.Expr]:
     ]
 
 
+CONSTANTS = (
+    "half_m",
+    "neg_m",
+    "ix",
+    "iy",
+    "iz",
+    "gx",
+    "gy",
+    "gz",
+    "ux",
+    "uy",
+    "uz",
+    "rx",
+    "ry",
+    "rz",
+)
+"""Per-row constants of `energy_rows`: m / 2, -m, principal inertia, gravity, the unit
+vector against it and the reference point."""
+
+
+def constants(info: BodyInfo, gravity: np.ndarray, ref: np.ndarray) -> tuple[float, ...]:
+    """The values of `CONSTANTS` for one body."""
+    g = float(np.linalg.norm(gravity))
+    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+    m = info.mass
+    return (0.5 * m, -m, *info.inertia, *(float(c) for c in gravity), *up, *ref)
+
+
+def energy_rows(frame: pl.DataFrame) -> pl.DataFrame:
+    """Energy of each state row of `frame` (run_id, body, t_ns, t_s, x .. wz and the
+    `CONSTANTS` columns): (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J,
+    total_J); height_m is the centre's height above the reference point along -gravity."""
+    c = {name: pl.col(name) for name in CONSTANTS}
+    dx, dy, dz = pl.col("x") - c["rx"], pl.col("y") - c["ry"], pl.col("z") - c["rz"]
+    return (
+        frame.with_columns(body_frame_omega())
+        .select(
+            "run_id",
+            "body",
+            "t_ns",
+            "t_s",
+            (c["ux"] * dx + c["uy"] * dy + c["uz"] * dz).alias("height_m"),
+            (c["half_m"] * (pl.col("vx") ** 2 + pl.col("vy") ** 2 + pl.col("vz") ** 2)).alias(
+                "ke_trans_J"
+            ),
+            (
+                0.5
+                * (
+                    c["ix"] * pl.col("wbx") ** 2
+                    + c["iy"] * pl.col("wby") ** 2
+                    + c["iz"] * pl.col("wbz") ** 2
+                )
+            ).alias("ke_rot_J"),
+            (c["neg_m"] * (c["gx"] * dx + c["gy"] * dy + c["gz"] * dz)).alias("pe_J"),
+        )
+        .with_columns((pl.col("ke_trans_J") + pl.col("ke_rot_J") + pl.col("pe_J")).alias("total_J"))
+    )
+
+
 def body_energy(
     states: pl.DataFrame, info: BodyInfo, *, gravity: np.ndarray, ref: np.ndarray
 ) -> pl.DataFrame:
-    """Energy of one body at each logged step.
+    """Energy of one body at each logged step (`energy_rows`).
 
     Args:
         states: the body's states (run_id, t_ns, t_s, x .. wz), world frame.
         info: mass (kg) and principal inertia (kg m^2, body frame).
         gravity: (3,) m/s^2.
         ref: (3,) position of zero potential energy, m.
+    """
+    values = constants(info, gravity, ref)
+    n = states.height
+    extra = [pl.Series("body", [info.name] * n, dtype=pl.String)]
+    extra += [pl.Series(k, np.full(n, v)) for k, v in zip(CONSTANTS, values, strict=True)]
+    return energy_rows(states.drop("body", strict=False).hstack(extra))
+
+
+def run_energies(
+    states: pl.DataFrame,
+    runs: Sequence[RunLog],
+    grounds: Mapping[str, Ground],
+    refs: Mapping[str, dict[str, Reference]],
+) -> tuple[dict[str, pl.DataFrame], dict[str, pl.DataFrame]]:
+    """Each run's energy per body and in all (body = "total"), with MuJoCo's total compared,
+    and its "total" rows by time.
+
+    Args:
+        states: `states_long` of the runs (ids distinct).
+        grounds, refs: each run's ground and its bodies' `references`, by run id.
 
     Returns:
-        (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J); height_m is
-        the centre's height above `ref` along -gravity.
+        Per run id: (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
+        mujoco_total_J, mujoco_diff_J), by body and time; the MuJoCo columns are set on the
+        "total" rows only: MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
+        Then per run id its "total" rows, by time. Every body's rows are computed in one set
+        of frame operations for all runs.
     """
-    m = info.mass
-    ix, iy, iz = info.inertia
-    g = float(np.linalg.norm(gravity))
-    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    # Python floats: a numpy scalar times an expression would run as a slow ufunc callback
-    ux, uy, uz = (float(u) for u in up)
-    gx, gy, gz = (float(c) for c in gravity)
-    dx, dy, dz = pl.col("x") - ref[0], pl.col("y") - ref[1], pl.col("z") - ref[2]
+    by_id = {run.run_id: run for run in runs}
+    kept = [(r, b, first, end) for r, b, first, end in state_blocks(states) if b in refs[r]]
+    if not kept:
+        empty = empty_energy()
+        return {run.run_id: empty for run in runs}, {run.run_id: empty for run in runs}
+    lengths = np.array([end - first for _, _, first, end in kept])
+    frame = states
+    if sum(lengths) != states.height:
+        frame = states[np.concatenate([np.arange(first, end) for _, _, first, end in kept])]
+    values = np.array(
+        [
+            constants(by_id[r].body_info[b], by_id[r].gravity, refs[r][b].point)
+            for r, b, _, _ in kept
+        ]
+    )
+    extra = [pl.Series(k, np.repeat(values[:, i], lengths)) for i, k in enumerate(CONSTANTS)]
+    bodies = energy_rows(frame.hstack(extra))
+    starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+    bodies = _with_heights(bodies, kept, starts, grounds, refs)
+    sums = {c: bodies[c].to_numpy() for c in ("t_ns", "t_s", *ENERGY_COLUMNS)}
+    exact = not any(bodies[c].null_count() for c in ENERGY_COLUMNS)
+    spans: dict[str, dict[str, tuple[int, int]]] = {}
+    for (r, b, _, _), at, n in zip(kept, starts, lengths, strict=True):
+        spans.setdefault(r, {})[b] = (int(at), int(at + n))
+    totals = []
+    for r, mine in spans.items():
+        run = by_id[r]
+        order = [b for b in refs[r] if b in mine]  # the bodies in the order of the metadata
+        shift = float(sum(-run.body_info[n].mass * run.gravity @ refs[r][n].point for n in refs[r]))
+        shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
+        parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
+        arrays = (sums, [mine[b] for b in order]) if exact else None
+        totals.append(total_energy(parts, run.energy, shift, arrays))
+    combined = pl.concat([bodies, *totals], how="diagonal")
+    where = {(r, b): span for r, mine in spans.items() for b, span in mine.items()}
+    at = bodies.height
+    for (r, _), total in zip(spans.items(), totals, strict=True):
+        where[(r, "total")] = (at, at + total.height)
+        at += total.height
+    pieces = []  # each run's bodies by name, "total" the sum's rows (a body of that name too)
+    for r, mine in spans.items():
+        for b in sorted({*mine, "total"}):
+            first, end = where[(r, b)]
+            pieces.append(np.arange(first, end))
+    ordered = combined[np.concatenate(pieces)]
+    out = {str(k[0]): f for k, f in ordered.partition_by("run_id", as_dict=True).items()}
+    by_time = {
+        r: t if t["t_ns"].is_sorted() else t.sort("t_ns")
+        for r, t in zip(spans, totals, strict=True)
+    }
+    empty = empty_energy()
     return (
-        states.with_columns(body_frame_omega())
-        .select(
-            "run_id",
-            pl.lit(info.name).alias("body"),
-            "t_ns",
-            "t_s",
-            (ux * dx + uy * dy + uz * dz).alias("height_m"),
-            (0.5 * m * (pl.col("vx") ** 2 + pl.col("vy") ** 2 + pl.col("vz") ** 2)).alias(
-                "ke_trans_J"
-            ),
-            (
-                0.5 * (ix * pl.col("wbx") ** 2 + iy * pl.col("wby") ** 2 + iz * pl.col("wbz") ** 2)
-            ).alias("ke_rot_J"),
-            (-m * (gx * dx + gy * dy + gz * dz)).alias("pe_J"),
-        )
-        .with_columns((pl.col("ke_trans_J") + pl.col("ke_rot_J") + pl.col("pe_J")).alias("total_J"))
+        {run.run_id: out.get(run.run_id, empty) for run in runs},
+        {run.run_id: by_time.get(run.run_id, empty) for run in runs},
     )
 
 
-def run_energy(
-    run: RunLog, states: pl.DataFrame, ground: Ground, refs: dict[str, Reference]
+def _with_heights(
+    bodies: pl.DataFrame,
+    kept: list[tuple[str, str, int, int]],
+    starts: np.ndarray,
+    grounds: Mapping[str, Ground],
+    refs: Mapping[str, dict[str, Reference]],
 ) -> pl.DataFrame:
-    """Energy per body and for the whole run (body = "total"), with MuJoCo's total compared.
-
-    Args:
-        states: `states_long` of the run.
-        refs: `references` of the run.
-
-    Returns:
-        (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
-        mujoco_total_J, mujoco_diff_J), by body and time; the MuJoCo columns are set on the
-        "total" rows only: MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
-    """
-    infos = run.body_info
-    by_body = {str(k[0]): f for k, f in states.partition_by("body", as_dict=True).items()}
-    per_body = {}
-    for name, ref in refs.items():
-        if name not in run.bodies:
-            continue
-        mine = by_body.get(name, states.clear())
-        frame = body_energy(mine, infos[name], gravity=run.gravity, ref=ref.point)
-        if ref.surface is not None:  # heights: the lowest point above the reference surface
-            c, found = ground.clearance_at(name, ref.surface, frame["t_ns"].to_numpy())
-            frame = frame.with_columns(with_nulls("height_m", c, found))
-        per_body[name] = frame.select(ENERGY_FRAME_COLUMNS)
-    if not per_body:
-        return empty_energy()
-    shift = float(sum(-infos[n].mass * run.gravity @ refs[n].point for n in refs))
-    shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
-    total = total_energy(list(per_body.values()), run.energy, shift)
-    frames = per_body | {"total": total}
-    if len(frames) == len(per_body):  # a body named "total": order by time as well
-        return pl.concat(list(frames.values()), how="diagonal").sort("body", "t_ns")
-    # each frame is by time (states_long is): ordering the bodies by name sorts by (body, t_ns)
-    return pl.concat([frames[n] for n in sorted(frames)], how="diagonal")
+    """Heights above the reference surface where the body has one: its clearance (null where
+    the log has none)."""
+    measured = [(i, r, b) for i, (r, b, _, _) in enumerate(kept) if refs[r][b].surface is not None]
+    if not measured:
+        return bodies
+    height = bodies["height_m"].to_numpy().copy()
+    found = np.ones(height.size, dtype=bool)
+    t_ns = bodies["t_ns"].to_numpy()
+    for i, r, b in measured:
+        first, end = int(starts[i]), int(starts[i]) + kept[i][3] - kept[i][2]
+        surface = refs[r][b].surface
+        height[first:end], found[first:end] = grounds[r].clearance_at(b, surface, t_ns[first:end])
+    return bodies.with_columns(with_nulls("height_m", height, found))
 
 
 def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
@@ -163,22 +262,39 @@ def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
     return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
 
 
-def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float) -> pl.DataFrame:
+def total_energy(
+    bodies: list[pl.DataFrame],
+    mujoco: pl.DataFrame,
+    shift: float,
+    arrays: tuple[dict[str, np.ndarray], list[tuple[int, int]]] | None = None,
+) -> pl.DataFrame:
     """The run's "total" rows: the bodies' energies summed at each logged time, and MuJoCo's
     total (`mujoco`: t_ns, total) minus `shift` where it was logged at that time.
 
     When every body is logged at the same times (always, except in a damaged log), the sums
-    are taken over the arrays in the bodies' order, as a group-by sums them.
+    are taken over the arrays in the bodies' order, as a group-by sums them. `arrays`: the
+    bodies' columns as arrays (t_ns, t_s and the energies, without nulls) and each body's
+    span in them, when the caller has them.
     """
     first = bodies[0]
-    same = all(
-        f.height == first.height
-        and f["t_ns"].equals(first["t_ns"])
-        and f["t_s"].equals(first["t_s"])
-        and f["run_id"].equals(first["run_id"])
-        and not any(f[c].null_count() for c in ENERGY_COLUMNS)
-        for f in bodies
-    )
+    if arrays is not None:
+        columns, span = arrays
+        cols = [{c: v[a:z] for c, v in columns.items()} for a, z in span]
+        same = all(
+            f["t_ns"].size == cols[0]["t_ns"].size
+            and np.array_equal(f["t_ns"], cols[0]["t_ns"])
+            and np.array_equal(f["t_s"], cols[0]["t_s"])
+            for f in cols
+        )
+    else:
+        same = all(
+            f.height == first.height
+            and f["t_ns"].equals(first["t_ns"])
+            and f["t_s"].equals(first["t_s"])
+            and f["run_id"].equals(first["run_id"])
+            and not any(f[c].null_count() for c in ENERGY_COLUMNS)
+            for f in bodies
+        )
     if not same:
         total = (
             pl.concat(bodies)
@@ -186,9 +302,14 @@ def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float)
             .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
         )
     else:
-        sums = {c: first[c].to_numpy() for c in ENERGY_COLUMNS}
-        for f in bodies[1:]:
-            sums = {c: sums[c] + f[c].to_numpy() for c in ENERGY_COLUMNS}
+        own = (
+            cols
+            if arrays is not None
+            else [{c: f[c].to_numpy() for c in ENERGY_COLUMNS} for f in bodies]
+        )
+        sums = {c: own[0][c] for c in ENERGY_COLUMNS}
+        for f in own[1:]:
+            sums = {c: sums[c] + f[c] for c in ENERGY_COLUMNS}
         total = pl.DataFrame(
             [first["run_id"], first["t_ns"], first["t_s"]]
             + [pl.Series(c, v, dtype=pl.Float64) for c, v in sums.items()]
@@ -225,59 +346,3 @@ def empty_energy() -> pl.DataFrame:
     schema |= {c: pl.Float64 for c in ("height_m", *ENERGY_COLUMNS)}
     schema |= {c: pl.Float64 for c in ("mujoco_total_J", "mujoco_diff_J")}
     return pl.DataFrame(schema=schema)
-
-
-def energy_phases(total: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
-    """Flight and contact phases of one or more runs with their energy change.
-
-    Args:
-        total: the runs' "total" energy rows (run_id, t_ns, t_s, total_J), each run's rows
-            together and sorted by time.
-        in_contact: per row of `total`, whether it lies inside a contact (chatter merged).
-
-    Returns:
-        One row per phase: (run_id, phase, kind = "flight" | "contact", start_t_s, end_t_s,
-        e_start_J, e_end_J, drift_J (flight: E(end) - E(start)), max_dev_J (flight: max
-        |E - E(start)|), loss_J (contact: E(last row before) - E(first row after); up to the
-        last logged row when the contact is still open), open); phases numbered from 0 in
-        each run.
-    """
-    phases = (
-        total.select("run_id", "t_ns", "t_s", "total_J")
-        .with_columns(in_contact.alias("in_contact"))
-        .with_columns(pl.col("in_contact").rle_id().over("run_id").alias("phase"))
-        .group_by("run_id", "phase", maintain_order=True)
-        .agg(
-            pl.col("in_contact").first(),
-            pl.col("t_s").first().alias("start_t_s"),
-            pl.col("t_s").last().alias("end_t_s"),
-            pl.col("total_J").first().alias("e_start_J"),
-            pl.col("total_J").last().alias("e_end_J"),
-            (pl.col("total_J") - pl.col("total_J").first()).abs().max().alias("max_dev_J"),
-        )
-    )
-    return phases.select(
-        "run_id",
-        "phase",
-        pl.when(pl.col("in_contact"))
-        .then(pl.lit("contact"))
-        .otherwise(pl.lit("flight"))
-        .alias("kind"),
-        "start_t_s",
-        "end_t_s",
-        "e_start_J",
-        "e_end_J",
-        pl.when(~pl.col("in_contact"))
-        .then(pl.col("e_end_J") - pl.col("e_start_J"))
-        .alias("drift_J"),
-        pl.when(~pl.col("in_contact")).then(pl.col("max_dev_J")).alias("max_dev_J"),
-        pl.when(pl.col("in_contact"))
-        .then(
-            pl.col("e_end_J").shift(1).over("run_id").fill_null(pl.col("e_start_J"))
-            - pl.col("e_start_J").shift(-1).over("run_id").fill_null(pl.col("e_end_J"))
-        )
-        .alias("loss_J"),
-        (pl.col("in_contact") & (pl.col("phase") == pl.col("phase").max().over("run_id"))).alias(
-            "open"
-        ),
-    )

@@ -56,10 +56,12 @@ class Ground:
             return None
         if first_surface in self.surfaces:
             return first_surface
-        mine = self.clearance.filter(pl.col("body") == body)
-        if mine.height:
-            first = mine.filter(pl.col("t_ns") == mine["t_ns"].min())
-            return str(first.sort("clearance_m")["surface"][0])
+        mine = [(s, pair) for (b, s), pair in self._by_pair.items() if b == body]
+        if mine:  # the nearest surface at the first logged time (one without a value first)
+            t0 = min(int(t[0]) for _, (t, _, _) in mine)
+            at = [(s, c[0] if ok[0] else None) for s, (t, c, ok) in mine if t[0] == t0]
+            unknown = [s for s, c in at if c is None]
+            return unknown[0] if unknown else min(at, key=lambda sc: sc[1])[0]
         return next(iter(self.surfaces)) if len(self.surfaces) == 1 else None
 
     @cached_property
