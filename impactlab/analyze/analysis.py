@@ -190,8 +190,7 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     first: dict[tuple[str, str], str] = {}  # each body's first ground contact: the surface
     for key in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
         first.setdefault(key[:2], key[2])
-    contacts_of, ground_of = by_run(contacts), by_run(on_ground)
-    empty_contacts, empty_ground = contacts.clear(), on_ground.clear()
+    contacts_of, empty_contacts = by_run(contacts), contacts.clear()
     start = _first_positions(states)
     refs = {
         p.run.run_id: references(
@@ -203,27 +202,15 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         for p in parts
     }
     energies, total_of = run_energies(states, runs, {p.run.run_id: p.ground for p in parts}, refs)
-    totals, in_contact, flight_parts = [], [], []
+    totals, in_contact = [], []
     for p in parts:
-        run, rid = p.run, p.run.run_id
-        total = total_of[rid]
+        total = total_of[p.run.run_id]
         totals.append(total)
-        times = contact_times(contacts_of.get(rid, empty_contacts), p.rows)
+        times = contact_times(contacts_of.get(p.run.run_id, empty_contacts), p.rows)
         in_contact.append(np.isin(total["t_ns"].to_numpy(), times.to_numpy()))
-        rows = flight_rows(
-            rid,
-            p.states,
-            ground_of.get(rid, empty_ground),
-            p.ground,
-            gravity=run.gravity,
-            integrator=run.integrator,
-            timestep_s=run.timestep_s,
-        )
-        if rows is not None:
-            flight_parts.append(rows)
     total_all = pl.concat(totals)
     phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
-    fl = flights(pl.concat(flight_parts) if flight_parts else None)
+    fl = flights(flight_rows(states, on_ground, runs, {p.run.run_id: p.ground for p in parts}))
     g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
     g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
     bnc = _with_no_bounce_rows(parts, bounces(on_ground, fl, gravity_n=g_n), on_ground)

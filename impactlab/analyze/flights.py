@@ -16,11 +16,15 @@ height over the flight; such apexes are left empty by the bounce table, with the
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.contacts import state_blocks
 from impactlab.analyze.ground import Ground
 from impactlab.analyze.impacts import RK4
+from impactlab.logs.load import RunLog
 
 APEX_TURN_FRACTION = 1e-3
 """A flight whose lowest point moves relative to the centre of mass by more than this
@@ -98,71 +102,122 @@ def flights(rows: pl.DataFrame | None) -> pl.DataFrame:
 
 
 def flight_rows(
-    run_id: str,
     states: pl.DataFrame,
     contacts: pl.DataFrame,
-    ground: Ground,
-    *,
-    gravity: np.ndarray,
-    integrator: str,
-    timestep_s: float,
+    runs: Sequence[RunLog],
+    grounds: Mapping[str, Ground],
 ) -> pl.DataFrame | None:
-    """The logged rows of each body of one run outside its ground contacts, by body and row:
-    (run_id, body, flight, row, t_s, z_up (centre height along -gravity), w (velocity along
-    -gravity minus g h, h as in `impactlab.analyze.impacts`), surface_before, surface_after,
-    c_before, c_after (clearances to them), g (|gravity|)); None when there are none.
+    """The logged rows of each body of each run outside its ground contacts, by run, body
+    and row: (run_id, body, flight, row, t_s, z_up (centre height along -gravity), w
+    (velocity along -gravity minus g h, h as in `impactlab.analyze.impacts`),
+    surface_before, c_before, surface_after, c_after (the surfaces around the flight and the
+    clearances to them), g (|gravity|)); None when there are none.
 
     Args:
-        states: `states_long` of the run (sorted by body and row).
-        contacts: the merged ground contacts of the run (body, other, first_row, last_row).
-        ground: the run's ground (its clearances).
+        states: `states_long` of the runs (ids distinct).
+        contacts: their merged ground contacts (run_id, body, other, first_row, last_row).
+        runs: the runs (gravity, integrator, timestep); grounds: their grounds, by run id.
 
     A row belongs to the latest contact that begins at or before it (the body's contacts by
     first row) unless it lies after that contact's last row: then it is in flight `contact
     + 1` (0 before the first), between the surface of that contact and the next one's.
     """
-    g = float(np.linalg.norm(gravity))
-    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    w_shift = g * (0.0 if integrator == RK4 else timestep_s / 2)
-    ux, uy, uz = (float(u) for u in up)  # numpy scalars times an expression run as a ufunc
+    blocks = state_blocks(states)
+    if not blocks:
+        return None
+    by_id = {run.run_id: run for run in runs}
+    per_run = {r: _vertical(by_id[r]) for r in {b[0] for b in blocks}}
+    lengths = np.array([end - first for _, _, first, end in blocks])
+    values = np.array([per_run[r] for r, _, _, _ in blocks])  # ux, uy, uz, w_shift, g
+    extra = [
+        pl.Series(k, np.repeat(values[:, i], lengths))
+        for i, k in enumerate(("ux", "uy", "uz", "w_shift", "g"))
+    ]
+    ux, uy, uz = pl.col("ux"), pl.col("uy"), pl.col("uz")
     z_up = ux * pl.col("x") + uy * pl.col("y") + uz * pl.col("z")
     v_up = ux * pl.col("vx") + uy * pl.col("vy") + uz * pl.col("vz")
-    cols = states.select(
-        "body", "row", "t_ns", "t_s", z_up.alias("z_up"), (v_up - w_shift).alias("w")
+    cols = states.hstack(extra).select(
+        "row", "t_ns", "t_s", z_up.alias("z_up"), (v_up - pl.col("w_shift")).alias("w"), "g"
     )
-    touch = contacts.sort("body", "first_row").select("body", "first_row", "last_row", "other")
-    by_body = {str(b): f for (b,), f in touch.partition_by("body", as_dict=True).items()}
-    parts = []
-    for (body,), mine in cols.partition_by("body", as_dict=True, maintain_order=True).items():
-        row = mine["row"].to_numpy()
-        t_ns = mine["t_ns"].to_numpy()
-        hit = by_body.get(str(body))
-        first = hit["first_row"].to_numpy() if hit is not None else np.zeros(0, dtype=np.int64)
-        last = hit["last_row"].to_numpy() if hit is not None else first
-        surfaces = hit["other"].to_list() if hit is not None else []
+    arrays = {c: cols[c].to_numpy() for c in cols.columns}
+    touch = contacts.sort("run_id", "body", "first_row")
+    hits: dict[tuple[str, str], list[tuple[int, int, str]]] = {}
+    for r, b, first, last, other in zip(
+        *(touch[c].to_list() for c in ("run_id", "body", "first_row", "last_row", "other")),
+        strict=True,
+    ):
+        hits.setdefault((r, b), []).append((first, last, other))
+    names: list[str | None] = [None]  # the surfaces' names
+    picks, flights_, surfaces_before, surfaces_after, c_before, c_after = [], [], [], [], [], []
+    for r, b, start, end in blocks:
+        mine = hits.get((r, b), [])
+        row, t_ns = arrays["row"][start:end], arrays["t_ns"][start:end]
+        first = np.array([h[0] for h in mine], dtype=np.int64)
+        last = np.array([h[1] for h in mine], dtype=np.int64)
         contact = np.searchsorted(first, row, side="right") - 1
         keep = np.ones(row.size, dtype=bool)
         if first.size:
             keep = (contact < 0) | (row > last[np.maximum(contact, 0)])
         flight = contact[keep] + 1
         t_kept = t_ns[keep]
-        frame = {
-            "run_id": pl.Series([run_id] * flight.size, dtype=pl.String),
-            "body": pl.Series([str(body)] * flight.size, dtype=pl.String),
-            "flight": flight,
-        }
-        frame |= {c: mine[c].to_numpy()[keep] for c in ("row", "t_s", "z_up", "w")}
+        picks.append(np.flatnonzero(keep) + start)
+        flights_.append(flight)
+        surfaces = [h[2] for h in mine]
         # flight j lies between contact j - 1 (the surface left) and contact j (landed on)
-        for side, names in (("before", [None, *surfaces]), ("after", [*surfaces, None])):
-            frame[f"surface_{side}"] = pl.Series(names, dtype=pl.String)[flight]
+        for around, name_idx, clear in (
+            ([None, *surfaces], surfaces_before, c_before),
+            ([*surfaces, None], surfaces_after, c_after),
+        ):
+            codes = np.array([_code(names, n) for n in around], dtype=np.int64)
+            name_idx.append(codes[flight])
             c = np.full(flight.size, np.nan)
             found = np.zeros(flight.size, dtype=bool)
-            for i, name in enumerate(names):
+            for i, name in enumerate(around):
                 spot = flight == i
                 if name is not None and spot.any():
-                    c[spot], found[spot] = ground.clearance_at(str(body), name, t_kept[spot])
-            frame[f"c_{side}"] = pl.Series(c).scatter(np.flatnonzero(~found), None)
-        frame["g"] = np.full(flight.size, g)
-        parts.append(pl.DataFrame(frame))
-    rows = pl.concat(parts) if parts else None
-    return None if rows is None or rows.is_empty() else rows
+                    c[spot], found[spot] = grounds[r].clearance_at(b, name, t_kept[spot])
+            clear.append((c, found))
+    at = np.concatenate(picks)
+    if not at.size:
+        return None
+    block_of = np.repeat(np.arange(len(blocks)), [p.size for p in picks])
+    run_ids = pl.Series("run_id", [blk[0] for blk in blocks], dtype=pl.String)
+    bodies = pl.Series("body", [blk[1] for blk in blocks], dtype=pl.String)
+    surface_names = pl.Series("surface", names, dtype=pl.String)
+
+    def clearances(name: str, parts: list[tuple[np.ndarray, np.ndarray]]) -> pl.Series:
+        values = np.concatenate([c for c, _ in parts])
+        found = np.concatenate([f for _, f in parts])
+        return pl.Series(name, values).scatter(np.flatnonzero(~found), None)
+
+    return pl.DataFrame(
+        [
+            run_ids.gather(block_of),
+            bodies.gather(block_of),
+            pl.Series("flight", np.concatenate(flights_)),
+            pl.Series("row", arrays["row"][at]),
+            pl.Series("t_s", arrays["t_s"][at]),
+            pl.Series("z_up", arrays["z_up"][at]),
+            pl.Series("w", arrays["w"][at]),
+            surface_names.gather(np.concatenate(surfaces_before)).alias("surface_before"),
+            clearances("c_before", c_before),
+            surface_names.gather(np.concatenate(surfaces_after)).alias("surface_after"),
+            clearances("c_after", c_after),
+            pl.Series("g", arrays["g"][at]),
+        ]
+    )
+
+
+def _vertical(run: RunLog) -> tuple[float, float, float, float, float]:
+    """A run's unit vector against gravity, the velocity shift g h and |g|."""
+    g = float(np.linalg.norm(run.gravity))
+    up = -run.gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
+    w_shift = g * (0.0 if run.integrator == RK4 else run.timestep_s / 2)
+    return float(up[0]), float(up[1]), float(up[2]), w_shift, g
+
+
+def _code(names: list[str | None], name: str | None) -> int:
+    """The index of `name` in `names`, appended when new."""
+    if name not in names:
+        names.append(name)
+    return names.index(name)
