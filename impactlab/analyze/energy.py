@@ -192,7 +192,8 @@ def run_energies(
             for r, b, _, _ in kept
         ]
     )
-    extra = [pl.Series(k, np.repeat(values[:, i], lengths)) for i, k in enumerate(CONSTANTS)]
+    per_row = values[np.repeat(np.arange(len(kept)), lengths)]  # each block's constants
+    extra = [pl.Series(k, per_row[:, i]) for i, k in enumerate(CONSTANTS)]
     bodies = energy_rows(frame.hstack(extra))
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
     bodies = _with_heights(bodies, kept, starts, grounds, refs)
@@ -210,19 +211,13 @@ def run_energies(
         parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
         arrays = (sums, [mine[b] for b in order]) if exact else None
         totals.append(total_energy(parts, run.energy, shift, arrays))
-    combined = pl.concat([bodies, *totals], how="diagonal")
-    where = {(r, b): span for r, mine in spans.items() for b, span in mine.items()}
-    at = bodies.height
-    for (r, _), total in zip(spans.items(), totals, strict=True):
-        where[(r, "total")] = (at, at + total.height)
-        at += total.height
-    pieces = []  # each run's bodies by name, "total" the sum's rows (a body of that name too)
-    for r, mine in spans.items():
+    out = {}  # each run's bodies by name, "total" the sum's rows (a body of that name too)
+    for (r, mine), total in zip(spans.items(), totals, strict=True):
+        frames = []
         for b in sorted({*mine, "total"}):
-            first, end = where[(r, b)]
-            pieces.append(np.arange(first, end))
-    ordered = combined[np.concatenate(pieces)]
-    out = {str(k[0]): f for k, f in ordered.partition_by("run_id", as_dict=True).items()}
+            first, end = mine[b] if b != "total" else (0, 0)
+            frames.append(total if b == "total" else bodies.slice(first, end - first))
+        out[r] = pl.concat(frames, how="diagonal")
     by_time = {
         r: t if t["t_ns"].is_sorted() else t.sort("t_ns")
         for r, t in zip(spans, totals, strict=True)
