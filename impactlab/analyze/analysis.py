@@ -114,7 +114,7 @@ def _contacts(
         [contact_rows(group, surfaces, rows) for (_, surfaces), group in kinds.items()]
     )
     raw = approach_and_release(raw_intervals(steps, runs, rows), states, runs, grounds)
-    states_of, rows_of, raw_of = by_run(states), by_run(rows), by_run(raw)
+    states_of, rows_of, raw_of = _run_slices(states), by_run(rows), by_run(raw)
     parts = [
         _Contacts(
             run,
@@ -126,6 +126,14 @@ def _contacts(
         for run in runs
     ]
     return parts, states
+
+
+def _run_slices(states: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """`states_long` of several runs split by run (each run's rows are together: slices)."""
+    spans: dict[str, list[int]] = {}
+    for r, _, first, end in state_blocks(states):
+        spans.setdefault(r, [first, end])[1] = end
+    return {r: states.slice(first, end - first) for r, (first, end) in spans.items()}
 
 
 def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
