@@ -11,12 +11,15 @@ from __future__ import annotations
 import base64
 import html
 import mimetypes
+import re
+from collections.abc import Iterator
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
+from markdown_it.rules_core import StateCore
 from markdown_it.token import Token
-from mdit_py_plugins.anchors import anchors_plugin
+from mdit_py_plugins.anchors.index import slugify, unique_slug
 
 from impactlab.files import write_text
 
@@ -34,8 +37,99 @@ pre { background: #f3f3f3; padding: 0.5rem; overflow-x: auto; }
 """
 
 
+SLICE_ROWS = 200
+"""A table of more rows is parsed in slices of this many rows (the page is the same)."""
+_FENCE = re.compile(r" {0,3}(`{3,}|~{3,})")
+_HEADING = re.compile(r"#{1,6}(\s|$)")  # at the margin: never inside a list or a quote
+_DELIMITER = re.compile(r"\|?\s*:?-+:?\s*(\|\s*:?-+:?\s*)*\|?\s*$")
+_HEAD, _TAIL = "<tbody>\n", "</tbody>\n</table>\n"
+
+
 def _parser() -> MarkdownIt:
-    return MarkdownIt("commonmark").enable("table").use(anchors_plugin, max_level=6)
+    md = MarkdownIt("commonmark").enable("table")
+    md.core.ruler.push("anchor", _anchors)
+    return md
+
+
+def _anchors(state: StateCore) -> None:
+    """GitHub's heading ids (`mdit_py_plugins.anchors`), unique over every piece of one page
+    (the ids taken so far are kept in the parse's env)."""
+    slugs: set[str] = state.env.setdefault("slugs", set())
+    for i, token in enumerate(state.tokens):
+        if token.type != "heading_open" or token.attrGet("id"):
+            continue
+        children = state.tokens[i + 1].children or []
+        title = "".join(c.content for c in children if c.type in ("text", "code_inline"))
+        token.attrSet("id", unique_slug(slugify(title), slugs))
+
+
+def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
+    """The Markdown in pieces that render alone as within the whole page: its sections (cut
+    before each heading outside a code fence) and, of a table of more than SLICE_ROWS rows
+    standing between blank lines, slices of rows under its header. Yields (part, text):
+    part "" for Markdown as it is, "first", "middle" or "last" for a table's slices."""
+    lines = markdown.splitlines(keepends=True)
+    text: list[str] = []
+    fence = ""
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        opened = _FENCE.match(line)
+        if fence:
+            fence = "" if _closes(line, fence) else fence
+        elif opened:
+            fence = opened.group(1)
+        elif _HEADING.match(line) and text:
+            yield "", "".join(text)
+            text = []
+        elif _table_at(lines, i) and (not text or not text[-1].strip()):
+            end = i + 2
+            while end < len(lines) and lines[end].startswith("|"):
+                end += 1
+            rows = end - i - 2
+            if rows > SLICE_ROWS and (end == len(lines) or not lines[end].strip()):
+                if text:
+                    yield "", "".join(text)
+                    text = []
+                head = "".join(lines[i : i + 2])
+                for at in range(i + 2, end, SLICE_ROWS):
+                    part = (
+                        "first" if at == i + 2 else "last" if at + SLICE_ROWS >= end else "middle"
+                    )
+                    yield part, head + "".join(lines[at : min(at + SLICE_ROWS, end)])
+                i = end
+                continue
+        text.append(line)
+        i += 1
+    if text:
+        yield "", "".join(text)
+
+
+def _closes(line: str, fence: str) -> bool:
+    """Whether `line` closes a code fence opened with `fence` (CommonMark)."""
+    closing = _FENCE.match(line)
+    if closing is None:
+        return False
+    mark = closing.group(1)
+    return mark[0] == fence[0] and len(mark) >= len(fence) and not line[closing.end() :].strip()
+
+
+def _table_at(lines: list[str], i: int) -> bool:
+    """Whether a table (a row, then its delimiter row) starts at line i."""
+    return (
+        lines[i].startswith("|")  # at the margin: a table of the page, not of a list item
+        and i + 1 < len(lines)
+        and bool(_DELIMITER.match(lines[i + 1].strip()))
+    )
+
+
+def _stitched(part: str, html_text: str) -> str:
+    """A table slice's HTML as its part of the one table."""
+    if part in ("first", "middle"):
+        html_text = html_text.removesuffix(_TAIL)
+    if part in ("middle", "last"):
+        html_text = html_text[html_text.index(_HEAD) + len(_HEAD) :]
+    return html_text
 
 
 def _local(src: str) -> str | None:
@@ -69,11 +163,21 @@ def _embed(tokens: list[Token], folder: Path) -> list[str]:
 
 
 def report_html(markdown: str, folder: Path, title: str = "impactlab report") -> str:
-    """The Markdown `markdown` (whose relative paths are relative to `folder`) as one page."""
+    """The Markdown `markdown` (whose relative paths are relative to `folder`) as one page.
+
+    It is parsed piece by piece (`_pieces`), so that no syntax tree of the whole report
+    exists at once: memory stays bounded by a section or a slice of a table, whatever the
+    number of runs.
+    """
     md = _parser()
-    tokens = md.parse(markdown)
-    missing = _embed(tokens, folder)
-    body = md.renderer.render(tokens, md.options, {})
+    env: dict = {}
+    parts, missing = [], []
+    for part, text in _pieces(markdown):
+        tokens = md.parse(text, env)
+        missing += _embed(tokens, folder)
+        parts.append(_stitched(part, md.renderer.render(tokens, md.options, env)))
+        del tokens
+    body = "".join(parts)
     note = ""
     if missing:
         items = "".join(f"<li>{html.escape(m)}</li>" for m in missing)

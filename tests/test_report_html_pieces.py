@@ -1,0 +1,91 @@
+"""report.html is rendered piece by piece (sections, slices of big tables) so that memory
+stays bounded whatever the number of runs: the page must be the one the whole document
+renders to, byte for byte."""
+
+from __future__ import annotations
+
+import tracemalloc
+from pathlib import Path
+
+import pytest
+from markdown_it import MarkdownIt
+from mdit_py_plugins.anchors import anchors_plugin
+
+from impactlab.analyze import html as page
+
+
+def whole(markdown: str, folder: Path) -> str:
+    """The page body as one parse of the whole document renders it."""
+    md = MarkdownIt("commonmark").enable("table").use(anchors_plugin, max_level=6)
+    tokens = md.parse(markdown)
+    page._embed(tokens, folder)
+    return md.renderer.render(tokens, md.options, {})
+
+
+def table(rows: int, cols: int = 4, align: str = "---") -> str:
+    head = "| " + " | ".join(f"c{j}" for j in range(cols)) + " |\n"
+    head += "|" + "|".join([align] * cols) + "|\n"
+    return head + "".join(
+        "| " + " | ".join(f"r{i} `x{j}` [l](#runs)" for j in range(cols)) + " |\n"
+        for i in range(rows)
+    )
+
+
+CASES = {
+    "duplicate headings across sections": "# Report\n\n## Runs\n\ntext\n\n## Runs\n\n### Runs\n"
+    "\n## Runs\n\n# Report\n",
+    "a fence with blank lines, pipes and hashes": "## A\n\n```text\n| a | b |\n|---|---|\n\n"
+    "# not a heading\n```\n\n## B\n\n~~~~\n```\n# still code\n~~~~\n\n## C\n",
+    "big tables between blank lines": f"# T\n\nbefore\n\n{table(450)}\nafter\n\n"
+    f"## Next\n\n{table(201, align=':--:')}\n{table(200)}\n{table(3)}",
+    "a big table right after a paragraph line": f"# T\n\nintro line\n{table(300)}\n",
+    "a big table ending the document": f"# T\n\n{table(401, cols=2)}",
+    "a table followed by a paragraph line": f"# T\n\n{table(250)}tail line\n",
+    "setext and lists": "Title\n=====\n\n- a\n\n- b\n\n  # in a list\n\n1. x\n2. y\n\nSub\n---\n",
+    "images and links": "# F\n\n![here](fig.png)\n\n![gone](none.png)\n\n[to runs](#runs)\n\n"
+    "## Runs\n",
+    "no trailing newline": "## A\ntext",
+    "a big table in a list item": "# L\n\n- item\n\n"
+    + "".join("  " + r for r in table(300).splitlines(True)),
+    "a big table in a quote": "# Q\n\n" + "".join("> " + r for r in table(300).splitlines(True)),
+}
+
+
+SLICED = {
+    "big tables between blank lines",
+    "a big table ending the document",
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_pieces_render_as_the_whole_document(tmp_path, name):
+    (tmp_path / "fig.png").write_bytes(b"\x89PNG\r\n\x1a\nnot really")
+    text = CASES[name]
+    out = page.report_html(text, tmp_path, "t")
+    assert whole(text, tmp_path) in out
+    slices = [part for part, _ in page._pieces(text) if part]
+    assert bool(slices) == (name in SLICED)  # only tables of the page between blank lines
+
+
+def test_page_memory_does_not_grow_with_the_rows(tmp_path):
+    """The peak of rendering a table of 4,000 rows stays within a few times its output
+    above that of 200 rows (one parse of the whole table would hold a token tree of
+    kilobytes per row)."""
+
+    def peak(rows: int) -> tuple[int, int]:
+        text = "# Runs\n\n" + table(rows, cols=10)
+        tracemalloc.start()
+        out = page.report_html(text, tmp_path, "t")
+        top = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return top, len(out)
+
+    small, small_out = peak(200)
+    big, big_out = peak(4000)
+    added = big_out - small_out
+    assert big - small < 6 * added, (small, big, added)
+    tracemalloc.start()
+    whole("# Runs\n\n" + table(4000, cols=10), tmp_path)
+    old = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert old - small > 6 * added  # the bound tells the two ways apart
