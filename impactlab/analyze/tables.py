@@ -107,5 +107,8 @@ class TableReducer:
 
 
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
+    """The frames as one, in contiguous memory: a table of thousands of runs' small chunks
+    would make every later operation work chunk by chunk (a mapping of run labels, for one,
+    was built again per chunk: 265 MB for the bounces of 2,000 runs)."""
     frames = [f for f in frames if f.width]
-    return pl.concat(frames, how="diagonal_relaxed") if frames else pl.DataFrame()
+    return pl.concat(frames, how="diagonal_relaxed", rechunk=True) if frames else pl.DataFrame()
