@@ -13,7 +13,7 @@ import multiprocessing
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
@@ -63,19 +63,25 @@ class ProcessExecutor:
         pool = self._start(min(self.workers, len(items)))
         futures: dict[Future, int] = {pool.submit(_timed, fn, it): i for i, it in enumerate(items)}
         try:
-            for future in as_completed(futures):
-                i = futures[future]
-                try:
-                    value, wall = future.result()
-                except BrokenProcessPool:
-                    yield TaskOutcome(i, error="a worker process died (killed or out of memory)")
-                except Exception as exc:  # one failed item never stops the others
-                    yield TaskOutcome(i, error=describe_error(exc))
-                else:
-                    yield TaskOutcome(i, value=value, wall_s=wall)
+            while futures:
+                done, _ = wait(futures, return_when=FIRST_COMPLETED)
+                for future in done:
+                    i = futures.pop(future)  # its value is freed once the caller drops it
+                    yield self._outcome(future, i)
+                del done
         finally:
             for future in futures:
                 future.cancel()
+
+    @staticmethod
+    def _outcome(future: Future, i: int) -> TaskOutcome:
+        try:
+            value, wall = future.result()
+        except BrokenProcessPool:
+            return TaskOutcome(i, error="a worker process died (killed or out of memory)")
+        except Exception as exc:  # one failed item never stops the others
+            return TaskOutcome(i, error=describe_error(exc))
+        return TaskOutcome(i, value=value, wall_s=wall)
 
     def _start(self, workers: int) -> ProcessPoolExecutor:
         if self._pool is None:
