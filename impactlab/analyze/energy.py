@@ -8,12 +8,7 @@ the centre (relative to the world origin) of every body, static ones included (t
 `static_potential_J`), so `mujoco_total_J` is shifted by that and sum(-m g . r_ref) before it
 is compared. `height_m` is the body's clearance above its
 reference surface (its lowest point), or, without a clearance, its centre's height above
-the reference.
-
-Flight phases are the runs of logged rows in no contact (contacts merged across chatter);
-the energy of the run should stay constant there (`drift_J`). Each contact phase loses
-`loss_J`: the energy at the last logged row before it minus that at the first logged row
-after it, so that E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
+the reference. The energy budget over flights and contacts: `impactlab.analyze.phases`.
 """
 
 from __future__ import annotations
@@ -330,9 +325,6 @@ def total_energy(
         mujoco_total,
         (mujoco_total - total["total_J"]).alias("mujoco_diff_J"),
     )
-
-
-ENERGY_FRAME_COLUMNS = ("run_id", "body", "t_ns", "t_s", "height_m", *ENERGY_COLUMNS)
 
 
 def empty_energy() -> pl.DataFrame:
