@@ -37,6 +37,7 @@ def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) ->
     path.parent.mkdir(parents=True, exist_ok=True)
     if not tight_bbox:
         fig.tight_layout()
+        fig.set_layout_engine(None)  # laid out: saving then draws once, not twice
     try:
         with atomic_path(path) as tmp:
             fig.savefig(
