@@ -183,19 +183,18 @@ def test_runs_of_every_kind_together(record_spec):
     assert miss.collisions.height == 1 and "never happened" in miss.collisions["note"][0]
 
 
-def test_energy_decimated_for_a_batch_as_for_each_run(monkeypatch):
-    """The energy tables of a task's runs are decimated together, each as on its own, also
-    when one log comes twice (one run id, two analyses)."""
+def test_energy_decimated_from_blocks_as_by_groups(monkeypatch):
+    """Each run's energy table is decimated from its bodies' blocks (numpy): the rows a
+    group-by over (run, body) keeps, also for a table not by body (the general path)."""
     monkeypatch.setattr(outputs, "ENERGY_ROWS_PER_RUN", 50)
-    runs = [load_log(LOGS[0]), load_log(LOGS[1])]
-    analyses = analyze_runs(runs) + analyze_runs([load_log(LOGS[0])])
-    together = outputs.with_decimated_energies(analyses)
-    for a, b in zip(together, analyses, strict=True):
-        alone = outputs.with_decimated_energy(b)
-        assert a.energy_logged == alone.energy_logged
-        assert a.energy_logged[1] > 50  # decimated
-        assert_frame_equal(a.energy, alone.energy)
-        assert a.energy.height < b.energy.height
+    for a in analyze_runs([load_log(p) for p in LOGS]):
+        fast = outputs.with_decimated_energy(a)
+        assert fast.energy_logged[1] > 50 and fast.energy.height < a.energy.height
+        assert_frame_equal(fast.energy, outputs.decimate(a.energy, max_rows=50))
+        shuffled = dataclasses.replace(a, energy=a.energy.sort("t_ns", "body"))
+        general = outputs.with_decimated_energy(shuffled)
+        assert general.energy_logged == fast.energy_logged
+        assert_frame_equal(general.energy, outputs.decimate(shuffled.energy, max_rows=50))
 
 
 def test_step_rows_are_an_inner_join_on_run_and_time():

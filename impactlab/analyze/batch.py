@@ -19,7 +19,7 @@ from pathlib import Path
 import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis, analyze_runs
-from impactlab.analyze.outputs import with_decimated_energies, with_decimated_energy
+from impactlab.analyze.outputs import with_decimated_energy
 from impactlab.analyze.run_figures import run_figures
 from impactlab.analyze.tables import TableReducer
 from impactlab.errors import LogError
@@ -150,7 +150,7 @@ def _task(
     """The body of one executor task: as `analyze_some`, returning small tables only."""
     results = analyze_some(items, fig_dir, previous)
     done = [r.analysis for r in results if r.analysis is not None]
-    slimmed = iter(slim(a) for a in with_decimated_energies(done))
+    slimmed = iter([slim(a) for a in done])  # slim decimates each run's energy table
     return [
         r if r.analysis is None else dataclasses.replace(r, analysis=next(slimmed)) for r in results
     ]

@@ -13,16 +13,11 @@ ENERGY_ROWS_PER_RUN = 4000
 """The energy table keeps at most about this many rows per body and run (every k-th step)."""
 
 
-def decimate(
-    energy: pl.DataFrame,
-    *,
-    max_rows: int = ENERGY_ROWS_PER_RUN,
-    group: tuple[str, ...] = ("run_id", "body"),
-) -> pl.DataFrame:
-    """Every k-th row per (run, body), k = ceil(rows / max_rows) of that run; last row kept.
-
-    `group`: the columns that tell the runs' bodies apart (another key than run_id when
-    one frame holds two runs of one id)."""
+def decimate(energy: pl.DataFrame, *, max_rows: int | None = None) -> pl.DataFrame:
+    """Every k-th row per (run, body), k = ceil(rows / max_rows) of that run; last row kept
+    (max_rows: ENERGY_ROWS_PER_RUN by default)."""
+    max_rows = ENERGY_ROWS_PER_RUN if max_rows is None else max_rows
+    group = ("run_id", "body")
     if energy.is_empty():
         return energy
     idx = pl.int_range(pl.len()).over(group)
@@ -33,41 +28,24 @@ def decimate(
 
 def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
     """The analysis with its energy frame decimated as it is written (`decimate`), and the
-    full-resolution counts in `energy_logged`; unchanged when that was done already."""
+    full-resolution counts in `energy_logged`; unchanged when that was done already.
+
+    An analysis' energy frame holds each body's rows together (by body, then time): the
+    rows kept are then found in numpy from the blocks' lengths, with one filter.
+    """
     if a.energy_logged != (0, 0) or not a.energy.height:
         return a
-    longest = int(a.energy.group_by("body").len()["len"].max())
-    energy = (
-        a.energy
-        if longest <= ENERGY_ROWS_PER_RUN
-        else decimate(a.energy, max_rows=ENERGY_ROWS_PER_RUN)
-    )
+    blocks = a.energy["body"].rle()
+    lengths = blocks.struct.field("len").to_numpy().astype(np.int64)
+    if len(set(blocks.struct.field("value").to_list())) != lengths.size:  # not by body
+        longest = int(a.energy.group_by("body").len()["len"].max())
+        energy = a.energy if longest <= ENERGY_ROWS_PER_RUN else decimate(a.energy)
+        return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
+    longest = int(lengths.max())
+    energy = a.energy
+    if longest > ENERGY_ROWS_PER_RUN:
+        k = np.maximum((lengths + ENERGY_ROWS_PER_RUN - 1) // ENERGY_ROWS_PER_RUN, 1)
+        at = np.arange(a.energy.height) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+        keep = (at % np.repeat(k, lengths) == 0) | (at == np.repeat(lengths, lengths) - 1)
+        energy = a.energy.filter(pl.Series(keep))
     return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
-
-
-def with_decimated_energies(analyses: list[RunAnalysis]) -> list[RunAnalysis]:
-    """`with_decimated_energy` of each analysis, in a few operations for all of them."""
-    todo = [i for i, a in enumerate(analyses) if a.energy_logged == (0, 0) and a.energy.height]
-    if len(todo) < 2:
-        return [with_decimated_energy(a) for a in analyses]
-    key = "_analysis"
-    every = pl.concat(
-        [
-            analyses[i].energy.hstack([pl.Series(key, np.full(analyses[i].energy.height, i))])
-            for i in todo
-        ]
-    )
-    counts = every.group_by(key, "body").len().group_by(key).agg(pl.col("len").max())
-    longest = dict(zip(counts[key].to_list(), counts["len"].to_list(), strict=True))
-    kept = {
-        int(k[0]): f.drop(key)
-        for k, f in decimate(every, max_rows=ENERGY_ROWS_PER_RUN, group=(key, "body"))
-        .partition_by(key, as_dict=True, maintain_order=True)
-        .items()
-    }
-    out = list(analyses)
-    for i in todo:
-        a = analyses[i]
-        energy = a.energy if longest[i] <= ENERGY_ROWS_PER_RUN else kept[i]
-        out[i] = dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest[i]))
-    return out
