@@ -226,9 +226,9 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
     """Group consecutive contact rows of each run's pairs into raw intervals.
 
     Args:
-        steps: `contact_rows` of the runs.
+        steps: `contact_rows` of the runs (each run's rows together, by pair and row).
         runs: the runs (the nominal time between their logged rows gives the impulse).
-        rows: the runs' logged rows (`states_long`; the last logged row of each).
+        rows: the runs' logged rows (`states_long`: each run's together, from row 0).
 
     Returns:
         One row per interval: the pair, `interval` (0-based per pair), first_row, last_row,
@@ -239,11 +239,20 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
     """
     pair = ["run_id", *PAIR]
     point = ("px", "py", "pz", "nx", "ny", "nz", "pen")
-    last = rows.group_by("run_id").agg(pl.col("row").max().alias("last_logged"))
+    blocks = rows["run_id"].rle()  # each run's rows are together, numbered from 0
+    last = dict(
+        zip(
+            blocks.struct.field("value").to_list(),
+            blocks.struct.field("len").to_list(),
+            strict=True,
+        )
+    )
     interval_s = per_run(runs, logged_interval_s)
+    last_row = pl.col("run_id").replace_strict(
+        {r: n - 1 for r, n in last.items()}, default=0, return_dtype=pl.Int64
+    )
     return (
-        steps.sort(*pair, "row")
-        .with_columns(
+        steps.with_columns(
             pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
         )
         .group_by(*pair, "interval", maintain_order=True)
@@ -259,12 +268,10 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
             *[pl.col(c).first().alias(f"{c}_in") for c in point],
             *[pl.col(c).last().alias(f"{c}_out") for c in point],
         )
-        .join(last, on="run_id", how="left", maintain_order="left")
         .with_columns(
-            (pl.col("last_row") >= pl.col("last_logged").fill_null(0)).alias("open"),
+            (pl.col("last_row") >= last_row).alias("open"),
             pl.col("interval").cast(pl.Int64),
         )
-        .drop("last_logged")
         .sort("run_id", "start_t_ns", *PAIR)
     )
 
