@@ -8,6 +8,7 @@ after it, so that E(start) - E(end) = sum(loss_J) - sum(drift_J) exactly.
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 
 
@@ -27,11 +28,12 @@ def energy_phases(total: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
         each run.
     """
     phases = (
-        total.select("run_id", "t_ns", "t_s", "total_J")
-        .with_columns(in_contact.alias("in_contact"))
-        .with_columns(pl.col("in_contact").rle_id().over("run_id").alias("phase"))
-        .group_by("run_id", "phase", maintain_order=True)
+        total.select("run_id", "t_s", "total_J")
+        .hstack([in_contact.alias("in_contact"), *_phase_ids(total["run_id"], in_contact)])
+        .group_by("_phase", maintain_order=True)
         .agg(
+            pl.col("run_id").first(),
+            pl.col("phase").first(),
             pl.col("in_contact").first(),
             pl.col("t_s").first().alias("start_t_s"),
             pl.col("t_s").last().alias("end_t_s"),
@@ -65,3 +67,18 @@ def energy_phases(total: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
             "open"
         ),
     )
+
+
+def _phase_ids(run_id: pl.Series, in_contact: pl.Series) -> list[pl.Series]:
+    """Each row's phase over all runs (`_phase`) and within its run (`phase`, from 0): a
+    new phase where the run or the contact state changes (each run's rows together)."""
+    inside = in_contact.to_numpy().astype(bool)
+    n = inside.size
+    change = np.ones(n, dtype=bool)
+    change[1:] = inside[1:] != inside[:-1]
+    lengths = run_id.rle().struct.field("len").to_numpy() if n else np.zeros(0, np.int64)
+    starts = np.cumsum(lengths) - lengths
+    change[starts] = True
+    every = np.cumsum(change) - 1
+    first = np.repeat(every[starts], lengths)
+    return [pl.Series("_phase", every), pl.Series("phase", every - first, dtype=pl.UInt32)]
