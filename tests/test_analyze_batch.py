@@ -267,3 +267,19 @@ def test_runs_of_different_physics_together(record_spec):
     v_min = [a.intervals["v_min_mps"][0] for a in together]
     assert len(set(v_min)) == len(cases)  # each run's own gravity and logging stride
     assert all(a.bounces.filter(pl.col("complete")).height >= 1 for a in together)
+
+
+def test_contacts_in_any_row_order_give_the_same_analysis(alone):
+    """Contact rows as decoded come by pair and time (no sort needed); in any other order
+    (a run built by hand, a box's points shuffled) they are sorted first: same results."""
+    runs = [load_log(p) for p in LOGS]
+    shuffled = [
+        dataclasses.replace(r, contacts=r.contacts.sample(fraction=1.0, shuffle=True, seed=7))
+        for r in runs
+    ]
+    assert any(
+        not r.contacts["t_ns"].is_sorted() for r in shuffled if r.contacts.height
+    )  # really out of order
+    for a, b in zip(analyze_runs(shuffled), alone, strict=True):
+        for name in ("intervals", "bounces", "collisions", "phases"):
+            assert_frame_equal(getattr(a, name), getattr(b, name), rel_tol=1e-12, abs_tol=1e-15)

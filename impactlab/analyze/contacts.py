@@ -154,7 +154,8 @@ def contact_rows(
         *[(sign * pl.col(f"n{a}")).alias(f"n{a}") for a in "xyz"],
     )
     keys = ["run_id", *PAIR, "t_ns"]
-    tagged = tagged.sort(keys)
+    if not _grouped_by_time(tagged):  # as decoded it mostly is: each pair's channel by time
+        tagged = tagged.sort(keys, maintain_order=True)
     if _one_point_per_step(tagged):  # the group-by below would keep every row as it is
         steps = tagged.select(
             *keys,
@@ -208,6 +209,21 @@ def with_rows(steps: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
     found = row >= 0
     out = steps.hstack([pl.Series("row", row, dtype=pl.Int64)])
     return out if found.all() else out.filter(pl.Series(found))
+
+
+def _grouped_by_time(tagged: pl.DataFrame) -> bool:
+    """Whether each (run, pair) of `tagged` is one block of rows, by time (what a sort by
+    run, pair and time would give but for the order of the blocks)."""
+    if tagged.height < 2:
+        return True
+    changed = [pl.col(c) != pl.col(c).shift() for c in ("run_id", *PAIR)]
+    new = tagged.select(pl.any_horizontal(changed).fill_null(True)).to_series().to_numpy()
+    t = tagged["t_ns"].to_numpy()
+    if not (new[1:] | (t[1:] >= t[:-1])).all():
+        return False
+    starts = np.flatnonzero(new)
+    heads = tagged[starts].select("run_id", *PAIR).rows()
+    return len(set(heads)) == len(heads)
 
 
 def _one_point_per_step(tagged: pl.DataFrame) -> bool:
