@@ -185,7 +185,8 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
 
 
 def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunAnalysis]:
-    """The analyses of runs whose per-run part is done (see `analyze_runs`)."""
+    """The analyses of runs whose states and raw contacts are computed (`_contacts`), in
+    their order (see `analyze_runs`)."""
     runs = [p.run for p in parts]
     contacts = merge_chatter(pl.concat([p.raw for p in parts])).with_columns(
         per_run(runs, logged_interval_s).alias("interval_s")
@@ -195,21 +196,17 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         .sort("run_id", "body", "first_row")
         .with_columns(pl.int_range(pl.len()).over("run_id", "body").alias("contact"))
     )
-    first: dict[tuple[str, str], str] = {}  # each body's first ground contact: the surface
-    for key in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
-        first.setdefault(key[:2], key[2])
+    first: dict[str, dict[str, str]] = {}  # per run, each body's first ground contact's surface
+    for r, b, s in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
+        first.setdefault(r, {}).setdefault(b, s)
     contacts_of, empty_contacts = by_run(contacts), contacts.clear()
     start = _first_positions(states)
+    grounds = {p.run.run_id: p.ground for p in parts}
     refs = {
-        p.run.run_id: references(
-            p.run,
-            p.ground,
-            {b: s for (r, b), s in first.items() if r == p.run.run_id},
-            start.get(p.run.run_id, {}),
-        )
-        for p in parts
+        r.run_id: references(r, grounds[r.run_id], first.get(r.run_id, {}), start.get(r.run_id, {}))
+        for r in runs
     }
-    energies, total_of = run_energies(states, runs, {p.run.run_id: p.ground for p in parts}, refs)
+    energies, total_of = run_energies(states, runs, grounds, refs)
     totals, in_contact = [], []
     for p in parts:
         total = total_of[p.run.run_id]
@@ -218,7 +215,7 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         in_contact.append(np.isin(total["t_ns"].to_numpy(), times.to_numpy()))
     total_all = pl.concat(totals)
     phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
-    fl = flights(flight_rows(states, on_ground, runs, {p.run.run_id: p.ground for p in parts}))
+    fl = flights(flight_rows(states, on_ground, runs, grounds))
     g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
     g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
     bnc = _with_no_bounce_rows(parts, bounces(on_ground, fl, gravity_n=g_n), on_ground)
