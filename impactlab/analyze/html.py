@@ -17,6 +17,7 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
+from markdown_it.common.utils import escapeHtml
 from markdown_it.rules_core import StateCore
 from markdown_it.token import Token
 from mdit_py_plugins.anchors.index import slugify, unique_slug
@@ -68,6 +69,9 @@ def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
     before each heading outside a code fence) and, of a table of more than SLICE_ROWS rows
     standing between blank lines, slices of rows under its header. Yields (part, text):
     part "" for Markdown as it is, "first", "middle" or "last" for a table's slices."""
+    if _DEFINITION.search(markdown):  # a reference may be defined in another piece: whole
+        yield "", markdown
+        return
     lines = markdown.splitlines(keepends=True)
     text: list[str] = []
     fence = ""
@@ -103,6 +107,52 @@ def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
         i += 1
     if text:
         yield "", "".join(text)
+
+
+_SYNTAX = re.compile(r"[\\`*<>&]|\]\(|(?<![0-9A-Za-z])_|_(?![0-9A-Za-z])")
+"""Anything in a cell that inline Markdown could read as more than text (an underscore only
+between two letters or digits cannot open or close emphasis; brackets without a link
+destination are text in a page without reference definitions, see `_pieces`)."""
+_DEFINITION = re.compile(r" {0,3}\[[^\]]+\]:", re.MULTILINE)
+
+
+def _plain_table(text: str) -> str | None:
+    """A table whose cells are plain text (`_SYNTAX` absent, but for escaped pipes) and whose
+    delimiter row sets no alignment, as markdown-it renders it; None for any other."""
+    lines = text.splitlines()
+    if len(lines) < 2 or set(lines[1].replace("|", "").strip()) != {"-"}:
+        return None
+    rows = [_plain_cells(line) for line in (lines[0], *lines[2:])]
+    if any(r is None for r in rows):
+        return None
+    head, *body = rows
+    assert head is not None
+    if len(_plain_cells(lines[1]) or ()) != len(head):
+        return None
+    width = len(head)
+    out = ["<table>\n<thead>\n<tr>\n"]
+    out += [f"<th>{escapeHtml(c)}</th>\n" for c in head]
+    out.append("</tr>\n</thead>\n")
+    if body:
+        out.append("<tbody>\n")
+        for row in body:
+            assert row is not None
+            cells = (row + [""] * width)[:width]
+            out.append("<tr>\n" + "".join(f"<td>{escapeHtml(c)}</td>\n" for c in cells) + "</tr>\n")
+        out.append("</tbody>\n")
+    out.append("</table>\n")
+    return "".join(out)
+
+
+def _plain_cells(line: str) -> list[str] | None:
+    """The cells of a table row `| a | b |` when each is plain text, else None."""
+    row = line.strip()
+    if not (row.startswith("|") and row.endswith("|")) or row.endswith("\\|") or len(row) < 2:
+        return None
+    cells = [c.strip() for c in re.split(r"(?<!\\)\|", row[1:-1])]
+    if any(_SYNTAX.search(c.replace("\\|", "")) for c in cells):
+        return None
+    return [c.replace("\\|", "|") for c in cells]
 
 
 def _closes(line: str, fence: str) -> bool:
@@ -173,6 +223,10 @@ def report_html(markdown: str, folder: Path, title: str = "impactlab report") ->
     env: dict = {}
     parts, missing = [], []
     for part, text in _pieces(markdown):
+        plain = _plain_table(text) if part else None  # a slice of plain rows: written as is
+        if plain is not None:
+            parts.append(_stitched(part, plain))
+            continue
         tokens = md.parse(text, env)
         missing += _embed(tokens, folder)
         parts.append(_stitched(part, md.renderer.render(tokens, md.options, env)))
