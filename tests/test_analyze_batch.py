@@ -283,3 +283,21 @@ def test_contacts_in_any_row_order_give_the_same_analysis(alone):
     for a, b in zip(analyze_runs(shuffled), alone, strict=True):
         for name in ("intervals", "bounces", "collisions", "phases"):
             assert_frame_equal(getattr(a, name), getattr(b, name), rel_tol=1e-12, abs_tol=1e-15)
+
+
+def test_bodies_logged_at_different_times_sum_by_time():
+    """A damaged log whose bodies are not logged at the same times: its "total" rows are the
+    sums of the bodies' energies at each time either logged (a group-by), in a batch too."""
+    runs = [load_log(p) for p in LOGS]
+    i = next(k for k, r in enumerate(runs) if len(r.bodies) == 2)
+    run = runs[i]
+    first = next(iter(run.bodies))
+    bodies = dict(run.bodies)
+    bodies[first] = bodies[first].gather_every(2)  # every other row of one body lost
+    runs[i] = dataclasses.replace(run, bodies=bodies)
+    a = analyze_runs(runs)[i]
+    parts = a.energy.filter(pl.col("body") != "total")
+    expected = parts.group_by("t_ns", maintain_order=True).agg(pl.col("total_J").sum()).sort("t_ns")
+    total = a.energy.filter(pl.col("body") == "total").sort("t_ns")
+    assert total.height == expected.height > parts.filter(pl.col("body") == first).height
+    assert_frame_equal(total.select("t_ns", "total_J"), expected, rel_tol=1e-12, abs_tol=1e-15)

@@ -197,15 +197,27 @@ def run_energies(
     spans: dict[str, dict[str, tuple[int, int]]] = {}
     for (r, b, _, _), at, n in zip(kept, starts, lengths, strict=True):
         spans.setdefault(r, {})[b] = (int(at), int(at + n))
-    totals = []
+    summed, slow = [], {}  # runs summed over arrays; the others by a group-by
     for r, mine in spans.items():
         run = by_id[r]
         order = [b for b in refs[r] if b in mine]  # the bodies in the order of the metadata
         shift = float(sum(-run.body_info[n].mass * run.gravity @ refs[r][n].point for n in refs[r]))
         shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
-        parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
-        arrays = (sums, [mine[b] for b in order]) if exact else None
-        totals.append(total_energy(parts, run.energy, shift, arrays))
+        cols = [{c: v[a:z] for c, v in sums.items()} for a, z in (mine[b] for b in order)]
+        if exact and all(
+            np.array_equal(f["t_ns"], cols[0]["t_ns"]) and np.array_equal(f["t_s"], cols[0]["t_s"])
+            for f in cols
+        ):  # every body logged at the same times: sums over the arrays, in the bodies' order
+            total = {c: cols[0][c] for c in ENERGY_COLUMNS}
+            for f in cols[1:]:
+                total = {c: total[c] + f[c] for c in ENERGY_COLUMNS}
+            theirs, found = _mujoco_at(run.energy, cols[0]["t_ns"], shift)
+            summed.append((r, cols[0]["t_ns"], cols[0]["t_s"], total, theirs, found))
+        else:
+            parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
+            slow[r] = total_energy(parts, run.energy, shift)
+    totals = _totals(summed) | slow
+    totals = [totals[r] for r in spans]
     out = {}  # each run's bodies by name, "total" the sum's rows (a body of that name too)
     for (r, mine), total in zip(spans.items(), totals, strict=True):
         frames = []
@@ -252,68 +264,16 @@ def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
     return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
 
 
-def total_energy(
-    bodies: list[pl.DataFrame],
-    mujoco: pl.DataFrame,
-    shift: float,
-    arrays: tuple[dict[str, np.ndarray], list[tuple[int, int]]] | None = None,
-) -> pl.DataFrame:
-    """The run's "total" rows: the bodies' energies summed at each logged time, and MuJoCo's
-    total (`mujoco`: t_ns, total) minus `shift` where it was logged at that time.
-
-    When every body is logged at the same times (always, except in a damaged log), the sums
-    are taken over the arrays in the bodies' order, as a group-by sums them. `arrays`: the
-    bodies' columns as arrays (t_ns, t_s and the energies, without nulls) and each body's
-    span in them, when the caller has them.
-    """
-    first = bodies[0]
-    if arrays is not None:
-        columns, span = arrays
-        cols = [{c: v[a:z] for c, v in columns.items()} for a, z in span]
-        same = all(
-            f["t_ns"].size == cols[0]["t_ns"].size
-            and np.array_equal(f["t_ns"], cols[0]["t_ns"])
-            and np.array_equal(f["t_s"], cols[0]["t_s"])
-            for f in cols
-        )
-    else:
-        same = all(
-            f.height == first.height
-            and f["t_ns"].equals(first["t_ns"])
-            and f["t_s"].equals(first["t_s"])
-            and f["run_id"].equals(first["run_id"])
-            and not any(f[c].null_count() for c in ENERGY_COLUMNS)
-            for f in bodies
-        )
-    if not same:
-        total = (
-            pl.concat(bodies)
-            .group_by("run_id", "t_ns", "t_s", maintain_order=True)
-            .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
-        )
-    else:
-        own = (
-            cols
-            if arrays is not None
-            else [{c: f[c].to_numpy() for c in ENERGY_COLUMNS} for f in bodies]
-        )
-        sums = {c: own[0][c] for c in ENERGY_COLUMNS}
-        for f in own[1:]:
-            sums = {c: sums[c] + f[c] for c in ENERGY_COLUMNS}
-        total = pl.DataFrame(
-            [first["run_id"], first["t_ns"], first["t_s"]]
-            + [pl.Series(c, v, dtype=pl.Float64) for c, v in sums.items()]
-        )
-    t = total["t_ns"].to_numpy()
-    logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
-    order = np.argsort(logged, kind="stable")
-    logged, values = logged[order], values[order]
-    found = np.zeros(t.size, dtype=bool)
-    theirs = np.full(t.size, np.nan)
-    if logged.size:
-        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
-        found = (logged[spot] == t) & mujoco["total"].is_not_null().to_numpy()[order][spot]
-        theirs[found] = values[spot[found]] - shift
+def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float) -> pl.DataFrame:
+    """The run's "total" rows when its bodies are not all logged at the same times (a
+    damaged log): the bodies' energies summed by a group-by at each logged time, and MuJoCo's
+    total (`mujoco`: t_ns, total) minus `shift` where it was logged at that time."""
+    total = (
+        pl.concat(bodies)
+        .group_by("run_id", "t_ns", "t_s", maintain_order=True)
+        .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
+    )
+    theirs, found = _mujoco_at(mujoco, total["t_ns"].to_numpy(), shift)
     mujoco_total = with_nulls("mujoco_total_J", theirs, found)
     return total.select(
         "run_id",
@@ -325,6 +285,58 @@ def total_energy(
         mujoco_total,
         (mujoco_total - total["total_J"]).alias("mujoco_diff_J"),
     )
+
+
+def _totals(
+    summed: list[tuple[str, np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray]],
+) -> dict[str, pl.DataFrame]:
+    """The "total" rows of runs summed over arrays (run id, t_ns, t_s, the sums, MuJoCo's
+    total and where it was logged), built as one frame and split into each run's slice."""
+    if not summed:
+        return {}
+    sizes = [t.size for _, t, *_ in summed]
+    n = sum(sizes)
+    ids = pl.Series("run_id", [r for r, *_ in summed], dtype=pl.String)
+    total_j = np.concatenate([x[3]["total_J"] for x in summed])
+    mujoco_total = with_nulls(
+        "mujoco_total_J",
+        np.concatenate([x[4] for x in summed]),
+        np.concatenate([x[5] for x in summed]),
+    )
+    frame = pl.DataFrame(
+        [
+            ids.gather(np.repeat(np.arange(len(summed)), sizes)),
+            pl.Series("body", ["total"], dtype=pl.String).new_from_index(0, n),
+            pl.Series("t_ns", np.concatenate([x[1] for x in summed]), dtype=pl.Int64),
+            pl.Series("t_s", np.concatenate([x[2] for x in summed]), dtype=pl.Float64),
+            pl.Series("height_m", [None], dtype=pl.Float64).new_from_index(0, n),
+            *[
+                pl.Series(c, np.concatenate([x[3][c] for x in summed]), dtype=pl.Float64)
+                for c in ENERGY_COLUMNS
+            ],
+            mujoco_total,
+            (mujoco_total - pl.Series(total_j)).alias("mujoco_diff_J"),
+        ]
+    )
+    starts = np.cumsum(sizes) - sizes
+    return {
+        r: frame.slice(int(a), size) for (r, *_), a, size in zip(summed, starts, sizes, strict=True)
+    }
+
+
+def _mujoco_at(mujoco: pl.DataFrame, t: np.ndarray, shift: float) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's total energy (`mujoco`: t_ns, total) minus `shift` at each time of `t`, and
+    whether it was logged there (NaN where not)."""
+    logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
+    order = np.argsort(logged, kind="stable")
+    logged, values = logged[order], values[order]
+    found = np.zeros(t.size, dtype=bool)
+    theirs = np.full(t.size, np.nan)
+    if logged.size:
+        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
+        found = (logged[spot] == t) & mujoco["total"].is_not_null().to_numpy()[order][spot]
+        theirs[found] = values[spot[found]] - shift
+    return theirs, found
 
 
 def empty_energy() -> pl.DataFrame:
