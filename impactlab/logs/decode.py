@@ -3,6 +3,7 @@ the protobuf library."""
 
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -249,6 +250,12 @@ def empty_frame(names: Sequence[str], run_id: str) -> pl.DataFrame:
 
 
 def empty_contacts(run_id: str) -> pl.DataFrame:
+    """A contact frame with no rows (a new one each time, from one built once)."""
+    return _no_contacts().clear()
+
+
+@functools.cache
+def _no_contacts() -> pl.DataFrame:
     schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
     schema |= {k: pl.String for k in ("geom1", "geom2", "body1", "body2")}
     schema["point"] = pl.Int32
