@@ -211,11 +211,12 @@ def run_energies(
             total = {c: cols[0][c] for c in ENERGY_COLUMNS}
             for f in cols[1:]:
                 total = {c: total[c] + f[c] for c in ENERGY_COLUMNS}
+            total = _with_joints(total, run.joint_energy, cols[0]["t_ns"])
             theirs, found = _mujoco_at(run.energy, cols[0]["t_ns"], shift)
             summed.append((r, cols[0]["t_ns"], cols[0]["t_s"], total, theirs, found))
         else:
             parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
-            slow[r] = total_energy(parts, run.energy, shift)
+            slow[r] = total_energy(parts, run.energy, shift, run.joint_energy)
     totals = _totals(summed) | slow
     totals = [totals[r] for r in spans]
     out = {}  # each run's bodies by name, "total" the sum's rows (a body of that name too)
@@ -264,15 +265,26 @@ def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
     return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
 
 
-def total_energy(bodies: list[pl.DataFrame], mujoco: pl.DataFrame, shift: float) -> pl.DataFrame:
+def total_energy(
+    bodies: list[pl.DataFrame],
+    mujoco: pl.DataFrame,
+    shift: float,
+    joints: pl.DataFrame | None = None,
+) -> pl.DataFrame:
     """The run's "total" rows when its bodies are not all logged at the same times (a
-    damaged log): the bodies' energies summed by a group-by at each logged time, and MuJoCo's
-    total (`mujoco`: t_ns, total) minus `shift` where it was logged at that time."""
+    damaged log): the bodies' energies summed by a group-by at each logged time, plus the
+    joints' (`joints`: t_ns, kinetic, potential), and MuJoCo's total (`mujoco`: t_ns, total)
+    minus `shift` where it was logged at that time."""
     total = (
         pl.concat(bodies)
         .group_by("run_id", "t_ns", "t_s", maintain_order=True)
         .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
     )
+    if joints is not None and joints.height:
+        sums = _with_joints(
+            {c: total[c].to_numpy() for c in ENERGY_COLUMNS}, joints, total["t_ns"].to_numpy()
+        )
+        total = total.with_columns(pl.Series(c, v) for c, v in sums.items())
     theirs, found = _mujoco_at(mujoco, total["t_ns"].to_numpy(), shift)
     mujoco_total = with_nulls("mujoco_total_J", theirs, found)
     return total.select(
@@ -322,6 +334,25 @@ def _totals(
     return {
         r: frame.slice(int(a), size) for (r, *_), a, size in zip(summed, starts, sizes, strict=True)
     }
+
+
+def _with_joints(
+    total: dict[str, np.ndarray], joints: pl.DataFrame, t: np.ndarray
+) -> dict[str, np.ndarray]:
+    """The bodies' summed energy plus the joints' at each time of `t`: rotor inertia's
+    kinetic energy counts as rotation, springs as potential energy (none logged: unchanged)."""
+    if not joints.height:
+        return total
+    logged = joints["t_ns"].to_numpy()
+    spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
+    found = logged[spot] == t
+    rotor = np.where(found, joints["kinetic"].to_numpy()[spot], np.nan)
+    spring = np.where(found, joints["potential"].to_numpy()[spot], np.nan)
+    out = dict(total)
+    out["ke_rot_J"] = total["ke_rot_J"] + rotor
+    out["pe_J"] = total["pe_J"] + spring
+    out["total_J"] = total["total_J"] + rotor + spring
+    return out
 
 
 def _mujoco_at(mujoco: pl.DataFrame, t: np.ndarray, shift: float) -> tuple[np.ndarray, np.ndarray]:

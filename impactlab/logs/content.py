@@ -24,6 +24,8 @@ class BodyMeta:
     `radius` is set when the body is one sphere centred at its centre of mass; `shape` names
     its collision geoms' types, `geoms` the geoms, and `rest_height_m` is the lowest height
     its centre of mass can have above a flat surface it touches (None: no collision geom).
+    `motion` is "free" for a lone free body (ballistic between contacts), "articulated" for
+    a body of a jointed or welded tree.
     """
 
     name: str
@@ -33,6 +35,7 @@ class BodyMeta:
     shape: str = ""
     rest_height_m: float | None = None
     geoms: tuple[str, ...] = ()
+    motion: str = "free"
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,7 @@ class RunMeta:
                         "shape": b.shape,
                         "rest_height_m": b.rest_height_m,
                         "geoms": list(b.geoms),
+                        **({} if b.motion == "free" else {"motion": b.motion}),
                     }
                     for b in self.bodies
                 ]
@@ -149,6 +153,7 @@ class LogHeader:
     geoms: Sequence[GeomShape]
     model_xml: str
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
+    joint_energy: bool = False  # whether rows carry `joint_energy` (`/energy/joints`)
 
 
 @dataclass(frozen=True)
@@ -186,6 +191,8 @@ class LogRows:
             `messages.POINT_FIELDS` order (rows with count 0 have no message).
         clearance: per body in `LogHeader.clearance` order, its distance to each of its
             surfaces, (n, k) m.
+        joint_energy: the joints' rotor kinetic, spring potential and their total energy,
+            J, (n, 3), when `LogHeader.joint_energy`.
     """
 
     t_ns: np.ndarray
@@ -193,6 +200,7 @@ class LogRows:
     energy: np.ndarray
     contacts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     clearance: list[np.ndarray] = field(default_factory=list)
+    joint_energy: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t_ns.size)
@@ -205,6 +213,7 @@ class LogRows:
             self.energy[lo:hi],
             [(count[lo:hi], points[lo:hi]) for count, points in self.contacts],
             [c[lo:hi] for c in self.clearance],
+            None if self.joint_energy is None else self.joint_energy[lo:hi],
         )
 
     @staticmethod
@@ -227,4 +236,7 @@ class LogRows:
                 np.concatenate([p.clearance[i] for p in parts])
                 for i in range(len(parts[0].clearance))
             ],
+            None
+            if parts[0].joint_energy is None
+            else np.concatenate([p.joint_energy for p in parts]),  # type: ignore[misc]
         )

@@ -9,6 +9,8 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 |                             |                         | ground surface to measure against)  |
 | /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
 | /energy                     | impactlab.Energy        | every logged step                   |
+| /energy/joints              | impactlab.Energy        | every logged step (models with      |
+|                             |                         | rotor inertia or springs)           |
 | /tf                         | foxglove.FrameTransforms| every logged step                   |
 | /scene                      | foxglove.SceneUpdate    | once, at t = 0                      |
 | /events                     | foxglove.Log            | at the end (outcome, warnings)      |
@@ -29,6 +31,7 @@ BODY_STATE_TOPIC = "/bodies/{body}/state"
 CLEARANCE_TOPIC = "/bodies/{body}/clearance"
 CONTACT_TOPIC_PREFIX = "/contacts/"
 ENERGY_TOPIC = "/energy"
+JOINT_ENERGY_TOPIC = "/energy/joints"  # the joints' rotor kinetic and spring potential energy
 TF_TOPIC = "/tf"
 SCENE_TOPIC = "/scene"
 EVENTS_TOPIC = "/events"

@@ -65,6 +65,12 @@ class BodyInfo:
     rest_height_m: float | None = None
     shape: str = ""
     geoms: tuple[str, ...] = ()
+    motion: str = "free"  # or "articulated" (`logs.content.BodyMeta`); older logs: free
+
+    @property
+    def ballistic(self) -> bool:
+        """Whether the body flies on a parabola between contacts (a lone free body)."""
+        return self.motion == "free"
 
 
 @dataclass(frozen=True)
@@ -93,6 +99,8 @@ class RunLog:
         partial: the file is damaged or incomplete, or its metadata; `problems` says how.
         clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
             surface, clearance_m); empty in logs written before it was recorded.
+        joint_energy: the energy MuJoCo counts in joints (run_id, t_ns, t_s, kinetic: rotor
+            inertia, potential: springs, total), J; empty when the model has neither.
         checked: the metadata checked against its schema and the channels
             (`impactlab.logs.metadata`): typed values, and the problem of each bad key. The
             properties below read it, so a bad value reads as unknown.
@@ -109,6 +117,7 @@ class RunLog:
     problems: list[str] = field(default_factory=list)
     checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
+    joint_energy: pl.DataFrame = field(default_factory=lambda: empty_frame(ENERGY_FIELDS, ""))
 
     @property
     def experiment(self) -> str:
@@ -141,7 +150,14 @@ class RunLog:
             shape = b.get("shape", "sphere" if radius is not None else "")
             inertia = tuple(float(x) for x in b["inertia"])
             out[b["name"]] = BodyInfo(
-                b["name"], float(b["mass"]), inertia, radius, rest, shape, tuple(b.get("geoms", ()))
+                b["name"],
+                float(b["mass"]),
+                inertia,
+                radius,
+                rest,
+                shape,
+                tuple(b.get("geoms", ())),
+                b.get("motion", "free"),
             )
         return out
 
@@ -324,6 +340,7 @@ def load_log(path: str | Path) -> RunLog:
     contact_frames: list[pl.DataFrame] = []
     clearance_frames: list[pl.DataFrame] = []
     energy: pl.DataFrame | None = None
+    joint_energy: pl.DataFrame | None = None
     events: pl.DataFrame | None = None
     for channel in raw.channels.values():
         schema, topic = channel.schema, channel.topic
@@ -338,7 +355,10 @@ def load_log(path: str | Path) -> RunLog:
                 clearance_frames.append(decode_clearance(run_id, channel))
             elif schema == logformat.ENERGY_SCHEMA:
                 t, values = decode_fixed(channel, messages.energy(), energy_values)
-                energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
+                if topic == logformat.JOINT_ENERGY_TOPIC:
+                    joint_energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
+                else:
+                    energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
             elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
                 t, payloads = loose_payloads(channel)
                 events = decode_events(run_id, t, payloads)
@@ -365,4 +385,5 @@ def load_log(path: str | Path) -> RunLog:
         problems=problems,
         checked=checked,
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
+        joint_energy=empty_frame(ENERGY_FIELDS, run_id) if joint_energy is None else joint_energy,
     )

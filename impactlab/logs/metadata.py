@@ -179,6 +179,10 @@ def _gravity(value: str) -> tuple[float, float, float]:
     return tuple(float(g) for g in parsed)  # type: ignore[return-value]
 
 
+MOTIONS = ("free", "articulated")
+"""A body's `motion` in `bodies`: a lone free body, or one of a jointed or welded tree."""
+
+
 def _bodies(value: str) -> list[dict[str, Any]]:
     parsed = _json(value)
     if not isinstance(parsed, list):
@@ -216,6 +220,8 @@ def _bodies(value: str) -> list[dict[str, Any]]:
             isinstance(geoms, list) and all(isinstance(g, str) for g in geoms)
         ):
             raise Invalid(f"{where}: its shape or geoms are not text")
+        if body.get("motion", "free") not in MOTIONS:
+            raise Invalid(f"{where}: motion {_quote(body.get('motion'))} is not one of {MOTIONS}")
     return parsed
 
 

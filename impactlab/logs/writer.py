@@ -101,12 +101,15 @@ class LogWriter:
             }
             self._pairs.append((channels.add(pair.topic, pb.Contact, meta), pair))
         self._energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
+        self._joint_energy = (
+            channels.add(logformat.JOINT_ENERGY_TOPIC, pb.Energy) if header.joint_energy else None
+        )
         self._tf = channels.add(logformat.TF_TOPIC, FrameTransforms)
         self._events = channels.add(logformat.EVENTS_TOPIC, Log)
         self._tf_layout = messages.transforms(tuple(b.name for b in header.run.bodies))
         row_bytes = (
             len(self._bodies) * messages.body_state().size
-            + messages.energy().size
+            + messages.energy().size * (2 if header.joint_energy else 1)
             + sum(layout.size for _, layout in self._clearance)
             + self._tf_layout.size
             + 200
@@ -154,6 +157,8 @@ class LogWriter:
         for (channel_id, pair), (count, points) in zip(self._pairs, rows.contacts, strict=True):
             blocks += _contact_blocks(channel_id, pair, t, count, points)
         blocks.append(Block(self._energy, t, rows.energy, messages.energy()))
+        if self._joint_energy is not None and rows.joint_energy is not None:
+            blocks.append(Block(self._joint_energy, t, rows.joint_energy, messages.energy()))
         poses = rows.bodies[:, :, :7].reshape(len(t), -1)
         blocks.append(Block(self._tf, t, poses, self._tf_layout))
         self._out.write_chunk(blocks)

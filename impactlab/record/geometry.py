@@ -50,17 +50,48 @@ def is_static(model: mujoco.MjModel, g: int) -> bool:
 
 
 def body_geoms(model: mujoco.MjModel, body: int) -> list[int]:
-    """The collision geoms welded to a body (visual-only geoms excluded)."""
+    """The body's own collision geoms (visual-only geoms excluded; a welded child body's
+    geoms are its own, since every moving body is logged)."""
     return [
         g
         for g in range(model.ngeom)
-        if int(model.body_weldid[model.geom_bodyid[g]]) == body
+        if int(model.geom_bodyid[g]) == body
         and (model.geom_contype[g] or model.geom_conaffinity[g])
     ]
 
 
+def moving_bodies(model: mujoco.MjModel) -> list[int]:
+    """The bodies that move, in model order: free or jointed, or welded to a body that moves
+    (not to the world), not mocap, with mass (a massless body holds no energy)."""
+    return [
+        b
+        for b in range(1, model.nbody)
+        if int(model.body_weldid[b]) != 0
+        and int(model.body_mocapid[b]) < 0
+        and model.body_mass[b] > 0
+    ]
+
+
+def motion(model: mujoco.MjModel, body: int) -> str:
+    """How a moving body moves: "free" for a lone rigid body with a free joint (it flies on
+    a parabola between contacts), "articulated" for any body of a jointed or welded tree."""
+    free = int(model.body_jntnum[body]) == 1 and int(
+        model.jnt_type[model.body_jntadr[body]]
+    ) == int(mujoco.mjtJoint.mjJNT_FREE)
+    alone = int(np.count_nonzero(model.body_rootid == model.body_rootid[body])) == 1
+    return "free" if free and alone else "articulated"
+
+
+def gravity(model: mujoco.MjModel) -> np.ndarray:
+    """The gravity the model simulates, m/s^2, (3,): zero when its flag disables gravity."""
+    if int(model.opt.disableflags) & int(mujoco.mjtDisableBit.mjDSBL_GRAVITY):
+        return np.zeros(3)
+    return np.asarray(model.opt.gravity, dtype=float).copy()
+
+
 def ground_geoms(model: mujoco.MjModel, free_geoms: list[int]) -> list[int]:
-    """Static geoms that at least one of `free_geoms` can collide with, in model order."""
+    """Static geoms that at least one of `free_geoms` (geoms of moving bodies) can collide
+    with, in model order."""
     return [
         g
         for g in range(model.ngeom)
@@ -70,7 +101,7 @@ def ground_geoms(model: mujoco.MjModel, free_geoms: list[int]) -> list[int]:
 
 def up_vector(model: mujoco.MjModel) -> np.ndarray:
     """Unit vector against gravity, (3,); +z without gravity."""
-    g = np.asarray(model.opt.gravity, dtype=float)
+    g = gravity(model)
     scale = float(np.abs(g).max())
     if not 0 < scale < np.inf:
         return np.array([0.0, 0.0, 1.0])
@@ -186,7 +217,8 @@ def static_potential(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     """MuJoCo's potential energy of the bodies welded to the world (they count in its
     `energy[0]` though they never move), J."""
     static = [b for b in range(1, model.nbody) if int(model.body_weldid[b]) == 0]
-    return float(sum(-model.body_mass[b] * model.opt.gravity @ data.xipos[b] for b in static))
+    g = gravity(model)
+    return float(sum(-model.body_mass[b] * g @ data.xipos[b] for b in static))
 
 
 def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> SurfaceMeta:

@@ -16,6 +16,7 @@ import numpy as np
 
 from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
 from impactlab.logs.messages import POINT_FIELDS
+from impactlab.record import geometry
 from impactlab.record.model import (
     BODY_STATE_SIZE,
     CONTACT_SLOT_SIZE,
@@ -53,6 +54,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
             shape=b.shape,
             rest_height_m=b.rest_height,
             geoms=b.geoms,
+            motion=b.motion,
         )
         for b in inst.bodies
     ]
@@ -67,7 +69,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         spec_hash=info.spec_hash,
         timestep_s=float(model.opt.timestep),
         log_every=info.log_every,
-        gravity=tuple(float(x) for x in model.opt.gravity),
+        gravity=tuple(float(x) for x in geometry.gravity(model)),
         bodies=bodies,
         plane_z=plane[0].pos[2] if plane else None,
         mujoco_version=mujoco.__version__,
@@ -82,7 +84,14 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         for b in inst.bodies
         if inst.clearance_of(b.name)
     ]
-    return LogHeader(run, [c.meta for c in inst.contacts], inst.geoms, inst.xml, clearance)
+    return LogHeader(
+        run,
+        [c.meta for c in inst.contacts],
+        inst.geoms,
+        inst.xml,
+        clearance,
+        joint_energy=inst.joints is not None,
+    )
 
 
 def integrator_name(model: mujoco.MjModel) -> str:
@@ -105,7 +114,11 @@ def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) 
         for b in inst.bodies
         if inst.clearance_of(b.name)
     ]
-    return LogRows(t_ns, bodies, energy, contacts, clearance)
+    joints = None
+    if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
+        rotor, spring = sensordata[:, -2], sensordata[:, -1]
+        joints = np.stack([rotor, spring, rotor + spring], axis=1)
+    return LogRows(t_ns, bodies, energy, contacts, clearance, joints)
 
 
 def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -21,6 +21,7 @@ from impactlab.record.spec import schema_error, set_path
 from impactlab.record.sweep import parse_override
 
 MJCF_SECTIONS = ("stop", "logging")
+MJCF_KEYS = ("keyframe",)  # run options outside the sections
 
 
 @dataclass(frozen=True)
@@ -30,6 +31,7 @@ class MjcfOptions:
     stop: Stop
     log_every: int
     document: dict[str, Any]
+    keyframe: str | None = None
 
 
 def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) -> MjcfOptions:
@@ -44,11 +46,11 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
     doc["stop"]["max_time"] = None
     for text in overrides:
         key, value = parse_override(text)
-        if key.split(".")[0] not in MJCF_SECTIONS:
+        if key.split(".")[0] not in MJCF_SECTIONS and key not in MJCF_KEYS:
             raise SpecError(
                 source,
                 f"--set {key}",
-                "an MJCF model takes run options only (stop.*, logging.*); "
+                "an MJCF model takes run options only (stop.*, logging.*, keyframe); "
                 "change the model itself for anything else",
             )
         set_path(doc, key, value, source)
@@ -71,7 +73,7 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         options = MjcfRunOptions.model_validate(doc)
     except ValidationError as exc:
         raise schema_error(exc, source) from None
-    return MjcfOptions(options.stop, options.logging.every, doc)
+    return MjcfOptions(options.stop, options.logging.every, doc, options.keyframe)
 
 
 def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) -> None:

@@ -22,6 +22,7 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
 from impactlab.record.spec import RunSpec
 
 SENSOR_PREFIX = "impactlab:"
@@ -36,13 +37,17 @@ DISTANCE_CUTOFF_M = 1.0e4
 
 @dataclass(frozen=True)
 class BodyChannel:
-    """A free body, where its 13 state values start in sensordata, and its shape.
+    """A moving body, where its 13 state values start in sensordata, and its shape.
+
+    The state is the body's centre of mass and inertial frame (MuJoCo's `xipos`, `ximat`)
+    and their world-frame velocities.
 
     Attributes:
         radius: the radius when the body is one sphere centred at its centre of mass.
         shape: its collision geoms' types ("sphere", "box", "box+sphere", ...).
         rest_height: lowest centre-of-mass height above a flat surface it touches, m.
         geoms: names of its collision geoms.
+        motion: "free" (a lone free body: ballistic between contacts) or "articulated".
     """
 
     name: str
@@ -52,6 +57,7 @@ class BodyChannel:
     shape: str = "sphere"
     rest_height: float | None = None
     geoms: tuple[str, ...] = ()
+    motion: str = "free"
 
 
 @dataclass(frozen=True)
@@ -95,6 +101,7 @@ class InstrumentedModel:
     clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
+    joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -167,15 +174,16 @@ def model_from_spec(run: RunSpec) -> InstrumentedModel:
     return instrument(mujoco.MjSpec.from_string(xml), run.source, xml=xml, keyframe="initial")
 
 
-def model_from_mjcf(path: Path) -> InstrumentedModel:
-    """Load a user's MJCF file and instrument every free body and every possible contact."""
+def model_from_mjcf(path: Path, *, keyframe: str | None = None) -> InstrumentedModel:
+    """Load a user's MJCF file and instrument every moving body and every possible contact;
+    the run starts from the named keyframe, or the model's default pose."""
     if not path.is_file():
         raise SpecError(str(path), "", "file not found")
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
-    return instrument(spec, str(path), xml=path.read_text(), keyframe=None)
+    return instrument(spec, str(path), xml=path.read_text(), keyframe=keyframe)
 
 
 def _one_line(exc: BaseException) -> str:
@@ -196,20 +204,23 @@ def instrument(
     dynamics, so that text reproduces the run.
 
     Raises:
-        SpecError: the model does not compile or has no free body.
+        SpecError: the model does not compile, has no body that moves, or lacks `keyframe`.
     """
     _name_unnamed(spec)
     try:
         plain = spec.compile()
     except Exception as exc:
         raise SpecError(source, "", f"invalid MJCF: {_one_line(exc)}") from None
-    free_bodies = [
-        int(plain.jnt_bodyid[j])
-        for j in range(plain.njnt)
-        if plain.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE
-    ]
+    free_bodies = geometry.moving_bodies(plain)
     if not free_bodies:
-        raise SpecError(source, "", "the model has no free body (a body with a <freejoint/>)")
+        raise SpecError(
+            source, "", "the model has no body that moves (every body is welded to the world)"
+        )
+    if keyframe is not None and keyframe not in {plain.key(k).name for k in range(plain.nkey)}:
+        known = ", ".join(repr(plain.key(k).name) for k in range(plain.nkey)) or "none"
+        raise SpecError(
+            source, "keyframe", f"no keyframe named {keyframe!r} (the model has {known})"
+        )
     body_names = [plain.body(b).name for b in free_bodies]
     for name in body_names:
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
@@ -221,6 +232,13 @@ def instrument(
             )
     spec.add_sensor(name=f"{SENSOR_PREFIX}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
     spec.add_sensor(name=f"{SENSOR_PREFIX}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
+    for t in sprung_tendons(plain):
+        spec.add_sensor(
+            name=f"{SENSOR_PREFIX}{TENDON_SENSOR}{plain.tendon(t).name}",
+            type=mujoco.mjtSensor.mjSENS_TENDONPOS,
+            objtype=mujoco.mjtObj.mjOBJ_TENDON,
+            objname=plain.tendon(t).name,
+        )
     pairs = _contact_pairs(plain, set(free_bodies))
     for g1, g2, num in pairs:
         spec.add_sensor(
@@ -239,8 +257,13 @@ def instrument(
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
     clearance_plan = _distance_sensors(spec, plain, own, measurable, between_bodies=False)
-    gap_plan = _distance_sensors(spec, plain, own, [], between_bodies=True)
+    lone = {b: gs for b, gs in own.items() if geometry.motion(plain, b) == "free"}
+    gap_plan = _distance_sensors(spec, plain, lone, [], between_bodies=True)
     model = spec.compile()
+    # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
+    # computes after the sensors: one step late. Off, they compute it themselves, at the
+    # step. The flag changes no dynamics.
+    model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
 
     def adr(name: str) -> int:
         return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])
@@ -257,6 +280,7 @@ def instrument(
             geometry.shape_name(plain, own[b]),
             geometry.rest_height(plain, data, b, own[b]) if own[b] else None,
             tuple(plain.geom(g).name for g in own[b]),
+            geometry.motion(plain, b),
         )
         for name, b in zip(body_names, free_bodies, strict=True)
     ]
@@ -284,6 +308,9 @@ def instrument(
         clearances=channels(clearance_plan),
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
+        joints=joint_energy(
+            model, [adr(f"{TENDON_SENSOR}{model.tendon(t).name}") for t in sprung_tendons(model)]
+        ),
     )
 
 
@@ -338,28 +365,35 @@ def _name_unnamed(spec: mujoco.MjSpec) -> None:
     for i, geom in enumerate(spec.geoms):
         if not geom.name:
             geom.name = f"geom{i}"
+    for i, tendon in enumerate(spec.tendons):
+        if not tendon.name:
+            tendon.name = f"tendon{i}"
 
 
 def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
-    """Geom pairs (g1, g2, slots) that may collide and involve a free body.
+    """Geom pairs (g1, g2, slots) that may collide and involve a moving body (`free`).
 
-    g1 is the geom of the static or lower-numbered body, so normals point into g2.
-    Sphere-sphere and sphere-plane pairs touch at one point; other pairs get four slots.
+    Pairs within one kinematic tree (a robot's own links) are left out. g1 is the geom of
+    the static or lower-numbered tree, so normals point into g2. Sphere-sphere and
+    sphere-plane pairs touch at one point; other pairs get four slots.
     """
 
     def root(g: int) -> int:
         return int(model.body_rootid[model.geom_bodyid[g]])
 
+    def moves(g: int) -> bool:
+        return int(model.geom_bodyid[g]) in free
+
     pairs = []
     for g1, g2 in itertools.combinations(range(model.ngeom), 2):
         b1, b2 = root(g1), root(g2)
-        if b1 == b2 or (b1 not in free and b2 not in free):
+        if b1 == b2 or not (moves(g1) or moves(g2)):
             continue
         if not (model.geom_contype[g1] & model.geom_conaffinity[g2]) and not (
             model.geom_contype[g2] & model.geom_conaffinity[g1]
         ):
             continue
-        if (b1 in free, b1) > (b2 in free, b2):
+        if (moves(g1), b1) > (moves(g2), b2):
             g1, g2 = g2, g1
         simple = {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_PLANE}
         types = {int(model.geom_type[g1]), int(model.geom_type[g2])}

@@ -326,6 +326,8 @@ class MjcfRunOptions(Section):
 
     stop: Stop
     logging: Logging = Logging()
+    keyframe: Annotated[str | None, Field(min_length=1)] = None
+    """The model's keyframe the run starts from (`--set keyframe=home`); none: its default pose."""
 
 
 SECTIONS: Mapping[str, type[Section]] = {

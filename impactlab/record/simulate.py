@@ -87,7 +87,8 @@ class Piece:
     Attributes:
         request: the run.
         t_ns: simulation time of each logged row, integer ns, (nrow,).
-        sensordata: the recorder's sensors at those times, (nrow, nsensordata).
+        sensordata: the recorder's sensors at those times, (nrow, nsensordata), then (for a
+            model with rotor inertia or springs) their energy, 2 columns (`JointEnergy`).
         ending: set on the run's last piece.
         error: set when the run's batch failed (nothing more comes for it).
         wall_s: wall time of the run's batch so far, shared among its runs.
@@ -156,9 +157,14 @@ class _Batch:
         pieces = []
         wall = (time.perf_counter() - self.started) / len(self.active)
         for i, a in enumerate(self.running):
+            first_state = a.state
             rows, steps = _advance(
                 a, sens[i, :nstep], states[i, nstep - 1], self.step0, states[i, :, 0]
             )
+            joints = a.request.inst.joints
+            if joints is not None:  # its rotor and spring energy, as two more columns
+                before = np.concatenate([first_state[None], states[i, :nstep]])
+                rows = np.hstack([rows, joints.terms(before[steps - self.step0], rows)])
             t_ns = steps * self.dt_ns
             if t_ns.size:
                 a.logged += t_ns.size

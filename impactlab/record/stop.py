@@ -6,11 +6,12 @@ returns the global step index of the last row to keep when it fires.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from impactlab.record.geometry import up_vector
+from impactlab.record.geometry import gravity, up_vector
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.spec import Stop
 
@@ -144,47 +145,46 @@ class _Separated(_Rule):
 
 @dataclass
 class _EnergyGain(_Rule):
-    """Unstable when the bodies' mechanical energy grows beyond a bound (no source exists).
+    """Unstable when MuJoCo's own mechanical energy (kinetic plus potential: gravity and
+    springs, every body and joint) grows beyond a bound while the model has no source.
 
-    Energy from the logged state: 0.5 m v^2 + 0.5 I |w|^2 - m g.p, with I the mean of the
-    principal inertias (exact for spheres).
+    `adr`: the column of MuJoCo's potential energy sensor; its kinetic one follows.
     """
 
-    masses: np.ndarray
-    inertias: np.ndarray
-    adrs: list[int]
-    gravity: np.ndarray
+    adr: int
     fraction: float
     timestep: float
+    floor_J: float
     e0: float | None = None
     scale: float = 0.0
 
-    def energy(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Kinetic and potential energy of every row, J, (n,) each."""
-        kinetic, potential = np.zeros(rows.shape[0]), np.zeros(rows.shape[0])
-        for m, inertia, a in zip(self.masses, self.inertias, self.adrs, strict=True):
-            pos, v, w = rows[:, a : a + 3], rows[:, a + 7 : a + 10], rows[:, a + 10 : a + 13]
-            kinetic += 0.5 * m * (v**2).sum(1) + 0.5 * inertia * (w**2).sum(1)
-            potential -= m * pos @ self.gravity
-        return kinetic, potential
-
     def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        kinetic, potential = self.energy(rows)
+        potential, kinetic = rows[:, self.adr], rows[:, self.adr + 1]
         energy = kinetic + potential
         if self.e0 is None:
             self.e0 = float(energy[0])
-            ten_cm_fall = 0.1 * float(np.sum(self.masses) * np.linalg.norm(self.gravity))
-            self.scale = max(float(kinetic[0] + abs(potential[0])), ten_cm_fall, 1e-6)
+            self.scale = max(float(kinetic[0] + abs(potential[0])), self.floor_J, 1e-6)
         gain = energy - self.e0
         bad = _first(gain > self.fraction * self.scale)
         if bad is None:
             return None
         t = (step0 + bad) * self.timestep
         reason = (
-            f"energy grew by {gain[bad]:.4g} J (bound {self.fraction:g} x {self.scale:.4g} J) "
-            f"at t = {t:.6g} s with no source"
+            f"MuJoCo's energy grew by {gain[bad]:.4g} J (bound {self.fraction:g} x "
+            f"{self.scale:.4g} J) at t = {t:.6g} s with no source"
         )
         return Verdict(step0 + bad, "unstable", reason)
+
+
+def energy_sources(model) -> list[str]:
+    """What can feed a model's energy with no control input: actuators with a bias force
+    (position or velocity servos), gravity compensation. Empty: the energy cannot grow."""
+    sources = []
+    if model.nu and np.any(model.actuator_biasprm[:, :3] != 0):
+        sources.append("actuators with a bias force")
+    if np.any(model.body_gravcomp > 0):
+        sources.append("gravity compensation")
+    return sources
 
 
 @dataclass
@@ -214,16 +214,16 @@ class StopMonitor:
         self.bodybody_cols: list[int] = []
         model = inst.model
         gain = stop.max_energy_gain if stop else Stop.model_fields["max_energy_gain"].default
-        self.rules.append(
-            _EnergyGain(
-                masses=np.array([model.body_mass[b.body_id] for b in inst.bodies]),
-                inertias=np.array([model.body_inertia[b.body_id].mean() for b in inst.bodies]),
-                adrs=[b.adr for b in inst.bodies],
-                gravity=np.array(model.opt.gravity),
-                fraction=gain,
-                timestep=timestep,
+        if not energy_sources(model):
+            mass = float(sum(model.body_mass[b.body_id] for b in inst.bodies))
+            self.rules.append(
+                _EnergyGain(
+                    adr=inst.energy_adr,
+                    fraction=gain,
+                    timestep=timestep,
+                    floor_J=0.1 * mass * math.hypot(*gravity(model)),  # no overflow
+                )
             )
-        )
         radius = {b.name: b.radius for b in inst.bodies}
         fraction = stop.max_penetration if stop else Stop.model_fields["max_penetration"].default
         limited = [
@@ -245,6 +245,7 @@ class StopMonitor:
             landing = {
                 b.name: [c.adr for c in inst.contacts if c.geom1 in ground and c.body2 == b.name]
                 for b in inst.bodies
+                if b.motion == "free"  # an apex is a free body's
             }
             landing = {name: cols for name, cols in landing.items() if cols}
             self.rules.append(
