@@ -173,7 +173,7 @@ def assert_one_line_error(capsys, code: int, words: list[str], out: Path) -> Non
             ["--duration", "1"],
             ["model.xml", "invalid MJCF"],
         ),
-        ("no free body", NO_FREE_BODY, ["--duration", "1"], ["model.xml", "no free body"]),
+        ("nothing moves", NO_FREE_BODY, ["--duration", "1"], ["model.xml", "no body that moves"]),
         ("no duration", NO_FREE_BODY, [], ["--duration"]),
         ("set on mjcf", NO_FREE_BODY, ["--duration", "1", "--set", "a=1"], ["--set"]),
         (

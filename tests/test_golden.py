@@ -133,6 +133,22 @@ def test_official_reader_agrees_with_load(golden: Golden):
         g1, g2 = topic.removeprefix(logformat.CONTACT_TOPIC_PREFIX).split("/")
         n = run.contacts.filter(geom1=g1, geom2=g2)["t_ns"].n_unique()
         assert n == counts[topic]
+    work = sorted(
+        ((t, m) for tp, t, m in messages if tp.startswith(logformat.CONTACT_WORK_TOPIC_PREFIX)),
+        key=lambda x: x[0],
+    )
+    assert work, "every golden run has contacts, each with its work"
+    frame = run.contact_work.sort("end_ns")
+    assert frame["end_ns"].to_list() == [t for t, _ in work] == [m.end_ns for _, m in work]
+    for name, column in [
+        ("start_ns", "start_ns"),
+        ("work_compression", "work_compression_J"),
+        ("work_restitution", "work_restitution_J"),
+        ("v_start", "v_start_mps"),
+        ("v_end", "v_end_mps"),
+        ("open", "open"),
+    ]:
+        assert frame[column].to_list() == [getattr(m, name) for _, m in work], name
     events = [m.message for tp, _, m in messages if tp == logformat.EVENTS_TOPIC]
     assert run.events["message"].to_list() == events
     assert events[0] == f"completed: {run.meta['reason']}"

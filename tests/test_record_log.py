@@ -72,6 +72,7 @@ def test_channels_schemas_and_counts(bouncy_log):
         "/bodies/ball/clearance": "impactlab.Clearance",
         "/contacts/plane/ball": "impactlab.Contact",
         "/energy": "impactlab.Energy",
+        "/contact_work/plane/ball": "impactlab.ContactWork",
         "/tf": "foxglove.FrameTransforms",
         "/events": "foxglove.Log",
     }
@@ -83,6 +84,7 @@ def test_channels_schemas_and_counts(bouncy_log):
     assert counts["/bodies/ball/state"] == counts["/energy"] == counts["/tf"]
     assert counts["/bodies/ball/clearance"] == counts["/energy"]
     assert 0 < counts["/contacts/plane/ball"] < counts["/energy"]
+    assert 0 < counts["/contact_work/plane/ball"] < counts["/contacts/plane/ball"]  # per contact
     assert counts["/scene"] == 1
 
 

@@ -218,7 +218,12 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     fl = flights(flight_rows(states, on_ground, runs, grounds))
     g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
     g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
-    bnc = _with_no_bounce_rows(parts, bounces(on_ground, fl, gravity_n=g_n), on_ground)
+    articulated = [
+        (r.run_id, b) for r in runs for b, i in r.body_info.items() if i.motion != "free"
+    ]
+    work = pl.concat([r.contact_work for r in runs])
+    found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated, work=work)
+    bnc = _with_no_bounce_rows(parts, found, on_ground)
     bounces_of, phases_of = by_run(bnc), by_run(phases)
     body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
     heads = headlines(total_all, phases, bnc)

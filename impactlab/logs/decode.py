@@ -204,6 +204,42 @@ def decode_clearance(run_id: str, channel: ChannelData) -> pl.DataFrame:
     )
 
 
+CONTACT_WORK_SCHEMA: dict[str, Any] = {
+    "run_id": pl.String,
+    "geom1": pl.String,
+    "geom2": pl.String,
+    "body1": pl.String,
+    "body2": pl.String,
+    "start_ns": pl.Int64,
+    "end_ns": pl.Int64,
+    "work_compression_J": pl.Float64,
+    "work_restitution_J": pl.Float64,
+    "v_start_mps": pl.Float64,
+    "v_end_mps": pl.Float64,
+    "open": pl.Boolean,
+}
+
+
+def decode_contact_work(
+    run_id: str, channel: ChannelData, payloads: Sequence[bytes]
+) -> pl.DataFrame:
+    """A ContactWork channel's payloads -> one row per contact (`CONTACT_WORK_SCHEMA`); the
+    channel's metadata names the pair."""
+    meta = channel.metadata
+    pair = tuple(meta.get(k, "") for k in ("geom1", "geom2", "body1", "body2"))
+    rows = []
+    for data in payloads:
+        w = pb.ContactWork.FromString(data)
+        numbers = (w.start_ns, w.end_ns, w.work_compression, w.work_restitution)
+        rows.append((run_id, *pair, *numbers, w.v_start, w.v_end, w.open))
+    return pl.DataFrame(rows, schema=CONTACT_WORK_SCHEMA, orient="row")
+
+
+def empty_contact_work(run_id: str) -> pl.DataFrame:
+    """A contact-work frame with no rows."""
+    return pl.DataFrame(schema=CONTACT_WORK_SCHEMA)
+
+
 def empty_clearance(run_id: str) -> pl.DataFrame:
     """A clearance frame with no rows."""
     schema: dict[str, Any] = {"run_id": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}

@@ -103,6 +103,17 @@ def diff_logs(
 Table = tuple[pl.DataFrame, tuple[str, ...], tuple[str, ...]]
 
 
+WORK_FIELDS = (
+    "start_ns",
+    "work_compression_J",
+    "work_restitution_J",
+    "v_start_mps",
+    "v_end_mps",
+    "open",
+)
+"""The compared fields of a contact's work (`/contact_work/<g1>/<g2>`)."""
+
+
 def channel_tables(log: RunLog) -> dict[str, Table]:
     """Per topic: (frame, join keys, compared fields), for every channel with messages."""
     out: dict[str, Table] = {}
@@ -126,6 +137,15 @@ def channel_tables(log: RunLog) -> dict[str, Table]:
             out[logformat.CLEARANCE_TOPIC.format(body=body)] = (wide, ("t_ns",), fields)
     if log.energy.height:
         out[logformat.ENERGY_TOPIC] = (log.energy, ("t_ns",), ENERGY_FIELDS)
+    if log.joint_energy.height:
+        out[logformat.JOINT_ENERGY_TOPIC] = (log.joint_energy, ("t_ns",), ENERGY_FIELDS)
+    if log.contact_work.height:  # one message per contact, at its last step
+        work = log.contact_work.with_columns(
+            pl.col("end_ns").alias("t_ns"), pl.col("open").cast(pl.Int8)
+        )
+        for (g1, g2), frame in work.group_by(["geom1", "geom2"], maintain_order=True):
+            topic = f"{logformat.CONTACT_WORK_TOPIC_PREFIX}{g1}/{g2}"
+            out[topic] = (frame.sort("t_ns"), ("t_ns",), WORK_FIELDS)
     if log.events.height:
         events = log.events.with_columns(pl.int_range(pl.len()).over("t_ns").alias("seq"))
         out[logformat.EVENTS_TOPIC] = (events, ("t_ns", "seq"), EVENT_FIELDS)

@@ -8,6 +8,7 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /bodies/<body>/clearance    | impactlab.Clearance     | every logged step (bodies with a    |
 |                             |                         | ground surface to measure against)  |
 | /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
+| /contact_work/<g1>/<g2>     | impactlab.ContactWork   | once per contact, at its last step  |
 | /energy                     | impactlab.Energy        | every logged step                   |
 | /energy/joints              | impactlab.Energy        | every logged step (models with      |
 |                             |                         | rotor inertia or springs)           |
@@ -40,6 +41,8 @@ WORLD_FRAME = "world"
 BODY_STATE_SCHEMA = "impactlab.BodyState"
 CLEARANCE_SCHEMA = "impactlab.Clearance"
 CONTACT_SCHEMA = "impactlab.Contact"
+CONTACT_WORK_SCHEMA = "impactlab.ContactWork"
+CONTACT_WORK_TOPIC_PREFIX = "/contact_work/"  # + <geom1>/<geom2>: each contact's work
 ENERGY_SCHEMA = "impactlab.Energy"
 
 RUN_METADATA = "impactlab.run"

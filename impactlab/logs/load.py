@@ -25,10 +25,12 @@ from impactlab.logs import messages
 from impactlab.logs.decode import (
     body_state_values,
     decode_clearance,
+    decode_contact_work,
     decode_contacts,
     decode_events,
     decode_fixed,
     empty_clearance,
+    empty_contact_work,
     empty_contacts,
     empty_frame,
     energy_values,
@@ -46,6 +48,7 @@ DATA_SCHEMAS = frozenset(
         logformat.CONTACT_SCHEMA,
         logformat.ENERGY_SCHEMA,
         logformat.CLEARANCE_SCHEMA,
+        logformat.CONTACT_WORK_SCHEMA,
     }
 )
 
@@ -65,12 +68,7 @@ class BodyInfo:
     rest_height_m: float | None = None
     shape: str = ""
     geoms: tuple[str, ...] = ()
-    motion: str = "free"  # or "articulated" (`logs.content.BodyMeta`); older logs: free
-
-    @property
-    def ballistic(self) -> bool:
-        """Whether the body flies on a parabola between contacts (a lone free body)."""
-        return self.motion == "free"
+    motion: str = "free"  # "free": ballistic between contacts, or "articulated"; older: free
 
 
 @dataclass(frozen=True)
@@ -99,6 +97,10 @@ class RunLog:
         partial: the file is damaged or incomplete, or its metadata; `problems` says how.
         clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
             surface, clearance_m); empty in logs written before it was recorded.
+        contact_work: each contact of each pair over every simulated step (run_id, geom1,
+            geom2, body1, body2, start_ns, end_ns, work_compression_J, work_restitution_J,
+            v_start_mps, v_end_mps, open), `impactlab.record.contact_work`; empty in logs
+            written before it was recorded.
         joint_energy: the energy MuJoCo counts in joints (run_id, t_ns, t_s, kinetic: rotor
             inertia, potential: springs, total), J; empty when the model has neither.
         checked: the metadata checked against its schema and the channels
@@ -118,6 +120,7 @@ class RunLog:
     checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
     joint_energy: pl.DataFrame = field(default_factory=lambda: empty_frame(ENERGY_FIELDS, ""))
+    contact_work: pl.DataFrame = field(default_factory=lambda: empty_contact_work(""))
 
     @property
     def experiment(self) -> str:
@@ -339,6 +342,7 @@ def load_log(path: str | Path) -> RunLog:
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
     clearance_frames: list[pl.DataFrame] = []
+    work_frames: list[pl.DataFrame] = []
     energy: pl.DataFrame | None = None
     joint_energy: pl.DataFrame | None = None
     events: pl.DataFrame | None = None
@@ -353,6 +357,8 @@ def load_log(path: str | Path) -> RunLog:
                 contact_frames.append(decode_contacts(run_id, channel))
             elif schema == logformat.CLEARANCE_SCHEMA:
                 clearance_frames.append(decode_clearance(run_id, channel))
+            elif schema == logformat.CONTACT_WORK_SCHEMA:
+                work_frames.append(decode_contact_work(run_id, channel, loose_payloads(channel)[1]))
             elif schema == logformat.ENERGY_SCHEMA:
                 t, values = decode_fixed(channel, messages.energy(), energy_values)
                 if topic == logformat.JOINT_ENERGY_TOPIC:
@@ -386,4 +392,5 @@ def load_log(path: str | Path) -> RunLog:
         checked=checked,
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
         joint_energy=empty_frame(ENERGY_FIELDS, run_id) if joint_energy is None else joint_energy,
+        contact_work=pl.concat(work_frames) if work_frames else empty_contact_work(run_id),
     )

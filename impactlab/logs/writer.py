@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from functools import cache
 from pathlib import Path
 from typing import IO
@@ -72,7 +73,7 @@ class LogWriter:
         )
         writer = self._out.writer
         writer.add_metadata(logformat.RUN_METADATA, header.run.record())
-        channels = _Channels(writer)
+        channels = self._channels = _Channels(writer)
         self._scene = channels.add(logformat.SCENE_TOPIC, SceneUpdate)
         self._bodies = [
             channels.add(
@@ -163,10 +164,16 @@ class LogWriter:
         blocks.append(Block(self._tf, t, poses, self._tf_layout))
         self._out.write_chunk(blocks)
 
-    def finish(self, outcome: Outcome) -> Path:
-        """Write the rest, the outcome, the model and the summary; rename. Returns the path."""
+    def finish(self, outcome: Outcome, contact_work: Sequence[np.ndarray] = ()) -> Path:
+        """Write the rest, the outcome, the model and the summary; rename. Returns the path.
+
+        `contact_work`: per pair in `LogHeader.pairs` order, its contacts (k, 7): start and
+        end time (ns), work while approaching and separating (J), normal velocity at the
+        first and last step (m/s), whether still open (`impactlab.ContactWork`).
+        """
         try:
             self._flush(whole_chunks_only=False)
+            self._write_contact_work(contact_work)
             if self._scene_payload is not None:  # a run with no rows still has its scene
                 scene = Block(self._scene, np.zeros(1, np.int64), self._scene_payload)
                 self._out.write_chunk([scene])
@@ -195,6 +202,31 @@ class LogWriter:
             self.abort()
             raise
         return self.path
+
+    def _write_contact_work(self, contact_work: Sequence[np.ndarray]) -> None:
+        blocks = []
+        for (_, pair), work in zip(self._pairs, contact_work, strict=False):
+            if not len(work):
+                continue
+            meta = {"geom1": pair.geom1, "geom2": pair.geom2}
+            meta |= {"body1": pair.body1, "body2": pair.body2}
+            topic = f"{logformat.CONTACT_WORK_TOPIC_PREFIX}{pair.geom1}/{pair.geom2}"
+            channel = self._channels.add(topic, pb.ContactWork, meta)
+            payloads = [
+                pb.ContactWork(
+                    start_ns=int(row[0]),
+                    end_ns=int(row[1]),
+                    work_compression=float(row[2]),
+                    work_restitution=float(row[3]),
+                    v_start=float(row[4]),
+                    v_end=float(row[5]),
+                    open=bool(row[6]),
+                ).SerializeToString()
+                for row in work
+            ]
+            blocks.append(Block(channel, work[:, 1].astype(np.int64), payloads))
+        if blocks:
+            self._out.write_chunk(blocks)
 
     def abort(self) -> None:
         """Close and remove the temporary file (nothing is left behind)."""

@@ -95,3 +95,21 @@ class Clearance(_message.Message):
     DISTANCE_FIELD_NUMBER: _ClassVar[int]
     distance: _containers.RepeatedScalarFieldContainer[float]
     def __init__(self, distance: _Optional[_Iterable[float]] = ...) -> None: ...
+
+class ContactWork(_message.Message):
+    __slots__ = ("start_ns", "end_ns", "work_compression", "work_restitution", "v_start", "v_end", "open")
+    START_NS_FIELD_NUMBER: _ClassVar[int]
+    END_NS_FIELD_NUMBER: _ClassVar[int]
+    WORK_COMPRESSION_FIELD_NUMBER: _ClassVar[int]
+    WORK_RESTITUTION_FIELD_NUMBER: _ClassVar[int]
+    V_START_FIELD_NUMBER: _ClassVar[int]
+    V_END_FIELD_NUMBER: _ClassVar[int]
+    OPEN_FIELD_NUMBER: _ClassVar[int]
+    start_ns: int
+    end_ns: int
+    work_compression: float
+    work_restitution: float
+    v_start: float
+    v_end: float
+    open: bool
+    def __init__(self, start_ns: _Optional[int] = ..., end_ns: _Optional[int] = ..., work_compression: _Optional[float] = ..., work_restitution: _Optional[float] = ..., v_start: _Optional[float] = ..., v_end: _Optional[float] = ..., open: _Optional[bool] = ...) -> None: ...

@@ -18,10 +18,10 @@ from impactlab.executors.base import describe_error
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
 from impactlab.record.job import PlannedRun
-from impactlab.record.log_rows import log_header, log_rows, outcome
+from impactlab.record.log_rows import contact_work, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.results import RecordedRun
-from impactlab.record.simulate import Piece, RunRequest, simulate
+from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
 
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
 
@@ -95,7 +95,8 @@ class _OpenLog:
         if piece.ending is None:
             return None
         end = piece.ending
-        self.writer.finish(outcome(end))
+        dt_ns = timestep_ns(float(self.inst.model.opt.timestep))
+        self.writer.finish(outcome(end), contact_work(end, dt_ns))
         v = end.verdict
         return RecordedRun(
             self.run.info.run_id,

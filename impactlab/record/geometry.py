@@ -19,6 +19,8 @@ sensor per pair of a body geom and a surface, see `impactlab.record.model`).
 
 from __future__ import annotations
 
+import itertools
+
 import mujoco
 import numpy as np
 
@@ -231,3 +233,34 @@ def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> SurfaceMeta:
         level_m=level,
         distance=int(model.geom_type[g]) not in NO_DISTANCE_TYPES,
     )
+
+
+def contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
+    """Geom pairs (g1, g2, slots) that may collide and involve a moving body (`free`).
+
+    Pairs within one kinematic tree (a robot's own links) are left out. g1 is the geom of
+    the static or lower-numbered tree, so normals point into g2. Sphere-sphere and
+    sphere-plane pairs touch at one point; other pairs get four slots.
+    """
+
+    def root(g: int) -> int:
+        return int(model.body_rootid[model.geom_bodyid[g]])
+
+    def moves(g: int) -> bool:
+        return int(model.geom_bodyid[g]) in free
+
+    pairs = []
+    for g1, g2 in itertools.combinations(range(model.ngeom), 2):
+        b1, b2 = root(g1), root(g2)
+        if b1 == b2 or not (moves(g1) or moves(g2)):
+            continue
+        if not (model.geom_contype[g1] & model.geom_conaffinity[g2]) and not (
+            model.geom_contype[g2] & model.geom_conaffinity[g1]
+        ):
+            continue
+        if (moves(g1), b1) > (moves(g2), b2):
+            g1, g2 = g2, g1
+        simple = {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_PLANE}
+        types = {int(model.geom_type[g1]), int(model.geom_type[g2])}
+        pairs.append((g1, g2, 1 if types <= {int(t) for t in simple} else 4))
+    return pairs

@@ -140,6 +140,16 @@ def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, 
     return count, points
 
 
+def contact_work(ending: Ending, timestep_ns: int) -> list[np.ndarray]:
+    """Each pair's contacts as the log writer takes them: steps turned into times (ns)."""
+    out = []
+    for work in ending.contact_work:
+        work = work.copy()
+        work[:, :2] *= timestep_ns
+        out.append(work)
+    return out
+
+
 def outcome(ending: Ending) -> Outcome:
     """How the run ended, for the log."""
     v = ending.verdict

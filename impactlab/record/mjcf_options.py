@@ -53,7 +53,10 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
                 "an MJCF model takes run options only (stop.*, logging.*, keyframe); "
                 "change the model itself for anything else",
             )
-        set_path(doc, key, value, source)
+        if key in MJCF_KEYS:
+            doc[key] = value
+        else:
+            set_path(doc, key, value, source)
     if duration is not None:
         if not 0 < duration <= MAX_TIME_S:
             raise SpecError(

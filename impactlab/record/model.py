@@ -10,7 +10,6 @@ bodies' shapes are described by `impactlab.record.geometry`.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -239,7 +238,7 @@ def instrument(
             objtype=mujoco.mjtObj.mjOBJ_TENDON,
             objname=plain.tendon(t).name,
         )
-    pairs = _contact_pairs(plain, set(free_bodies))
+    pairs = geometry.contact_pairs(plain, set(free_bodies))
     for g1, g2, num in pairs:
         spec.add_sensor(
             name=f"{SENSOR_PREFIX}contact:{plain.geom(g1).name}:{plain.geom(g2).name}",
@@ -368,37 +367,6 @@ def _name_unnamed(spec: mujoco.MjSpec) -> None:
     for i, tendon in enumerate(spec.tendons):
         if not tendon.name:
             tendon.name = f"tendon{i}"
-
-
-def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
-    """Geom pairs (g1, g2, slots) that may collide and involve a moving body (`free`).
-
-    Pairs within one kinematic tree (a robot's own links) are left out. g1 is the geom of
-    the static or lower-numbered tree, so normals point into g2. Sphere-sphere and
-    sphere-plane pairs touch at one point; other pairs get four slots.
-    """
-
-    def root(g: int) -> int:
-        return int(model.body_rootid[model.geom_bodyid[g]])
-
-    def moves(g: int) -> bool:
-        return int(model.geom_bodyid[g]) in free
-
-    pairs = []
-    for g1, g2 in itertools.combinations(range(model.ngeom), 2):
-        b1, b2 = root(g1), root(g2)
-        if b1 == b2 or not (moves(g1) or moves(g2)):
-            continue
-        if not (model.geom_contype[g1] & model.geom_conaffinity[g2]) and not (
-            model.geom_contype[g2] & model.geom_conaffinity[g1]
-        ):
-            continue
-        if (moves(g1), b1) > (moves(g2), b2):
-            g1, g2 = g2, g1
-        simple = {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_PLANE}
-        types = {int(model.geom_type[g1]), int(model.geom_type[g2])}
-        pairs.append((g1, g2, 1 if types <= {int(t) for t in simple} else 4))
-    return pairs
 
 
 def _geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:

@@ -23,13 +23,14 @@ import queue
 import threading
 import time
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import mujoco
 import numpy as np
 from mujoco import rollout
 
+from impactlab.record.contact_work import ContactWork
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.mujoco_warnings import first_warning, quiet_mujoco
 from impactlab.record.spec import Stop
@@ -68,12 +69,14 @@ class RunRequest:
 
 @dataclass
 class Ending:
-    """How a run ended: the verdict, its warnings, steps simulated and rows logged."""
+    """How a run ended: the verdict, its warnings, steps simulated and rows logged, and each
+    contact pair's contacts with their work (`impactlab.record.contact_work`)."""
 
     verdict: Verdict
     warnings: list[str]
     logged: int
     t_end_ns: int
+    contact_work: list[np.ndarray] = field(default_factory=list)
 
     @property
     def steps(self) -> int:
@@ -106,6 +109,7 @@ class Piece:
 class _Active:
     request: RunRequest
     monitor: StopMonitor
+    work: ContactWork
     total_steps: int
     state: np.ndarray
     touched: bool = False
@@ -128,6 +132,7 @@ class _Batch:
             _Active(
                 request=r,
                 monitor=StopMonitor(r.inst, r.stop, timestep=self.dt),
+                work=ContactWork(r.inst, self.dt),
                 total_steps=run_steps(r.max_time, self.dt),
                 state=r.inst.initial_state(),
             )
@@ -206,6 +211,7 @@ def _advance(
     if verdict is None and step0 + n >= a.total_steps:
         verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
     end = n if verdict is None else verdict.last_step - step0 + 1
+    a.work.update(rows[:end], step0)
     if a.monitor.bodybody_cols:
         a.touched |= bool((rows[:end, a.monitor.bodybody_cols] > 0).any())
     a.state = last_state
@@ -262,7 +268,7 @@ def _ending(a: _Active, dt: float) -> Ending:
         )
     if verdict.outcome == "unstable":
         warnings.append(f"unstable: {verdict.reason}")
-    return Ending(verdict, warnings, a.logged, a.last_t_ns)
+    return Ending(verdict, warnings, a.logged, a.last_t_ns, a.work.finish())
 
 
 def simulate(
