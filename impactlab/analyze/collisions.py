@@ -65,6 +65,8 @@ COLLISION_SCHEMA: dict[str, pl.DataType] = {
     "peak_force_N": pl.Float64,
     "impulse_Ns": pl.Float64,
     "max_penetration_m": pl.Float64,
+    "touched_by": pl.String,
+    "gravity_impulse_rel": pl.Float64,
     "complete": pl.Boolean,
     "note": pl.String,
 }
@@ -203,6 +205,13 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         .otherwise(pl.lit(""))
         .alias("note"),
     )
+    out = out.with_columns(
+        *[
+            pl.lit(None, dtype=COLLISION_SCHEMA[c]).alias(c)
+            for c in ("touched_by", "gravity_impulse_rel")
+            if c not in out.columns
+        ]
+    )
     after_cols = [
         c
         for c in COLLISION_SCHEMA
@@ -214,6 +223,45 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in after_cols]
     )
     return out.select(list(COLLISION_SCHEMA)).cast(COLLISION_SCHEMA).sort("impact_t_s")
+
+
+def with_surroundings(
+    col: pl.DataFrame, contacts: pl.DataFrame, gravity: float, interval_s: float
+) -> pl.DataFrame:
+    """The collisions with what else acted on each pair from the logged row before the
+    contact to the one after it: `touched_by`, the other bodies and surfaces (a static
+    body's geom by name) in any logged contact with either body ("" none), and
+    `gravity_impulse_rel`, (m1 + m2) |g| dt over that time / (|m1 v1| + |m2 v2|).
+
+    Args:
+        col: the run's collisions (`collisions`); contacts: its logged contacts
+            (`RunLog.contacts`: t_ns, geom1, geom2, body1, body2).
+        gravity: |g|, m/s^2; interval_s: the time between two logged rows.
+    """
+    if col.is_empty():
+        return col
+    touched = []
+    for b1, b2, t0, t1 in col.select("body1", "body2", "impact_t_s", "release_t_s").iter_rows():
+        if t0 is None or t1 is None:
+            touched.append(None)
+            continue
+        lo, hi = round((t0 - interval_s) * 1e9), round(t1 * 1e9)
+        near = contacts.filter(pl.col("t_ns").is_between(lo, hi))
+        names = set()
+        for g1, g2, c1, c2 in near.select("geom1", "geom2", "body1", "body2").iter_rows():
+            for mine, other, geom in ((c1, c2, g2), (c2, c1, g1)):
+                if mine in (b1, b2) and other not in (b1, b2):
+                    names.add(geom if other == "world" else other)
+        touched.append(", ".join(sorted(names)))
+    m = pl.col("m1_kg") + pl.col("m2_kg")
+    dt = pl.col("release_t_s") - pl.col("impact_t_s") + interval_s
+    scale = pl.col("m1_kg") * _norm(_vec("v1", "_before_mps")) + pl.col("m2_kg") * _norm(
+        _vec("v2", "_before_mps")
+    )
+    return col.with_columns(
+        pl.Series("touched_by", touched, dtype=pl.String),
+        (m * gravity * dt / scale).alias("gravity_impulse_rel"),
+    )
 
 
 ELASTIC_COLUMNS = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")

@@ -218,7 +218,7 @@ def build_report(
     out += [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
 
     out.append("\n## Step 3: collision\n")
-    out += [f"- {s}" for s in answers.collision_answer(collisions)] or ["- No two-body run."]
+    out += [f"- {s}" for s in answers.collision_answer(collisions, runs)] or ["- No two-body run."]
     if collisions.height:
         out.append("\nCollisions (contact-point velocities along the contact normal, m/s):\n")
         out.append(
