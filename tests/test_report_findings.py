@@ -371,3 +371,27 @@ def test_mujocos_test_model_is_analysed_and_a_good_run_beside_it_kept(tmp_path, 
     assert "golden_collision" in step3 and "momentum is conserved: it changes by" in step3
     # the model's pairs are touched by other bodies, pulled by gravity or held: not conserved
     assert "momentum is not conserved" in step3 or "does not test conservation" in step3
+
+
+def test_one_runs_failing_sentence_does_not_cost_the_batch_its_results(tmp_path, monkeypatch):
+    """A fault in one run's wording (here forced) used to end `analyze` with a traceback and
+    discard the staged tables, figures and report of every run of the batch."""
+    from impactlab.analyze.job import run_analysis
+
+    real = F.drift_finding
+
+    def failing(row: dict) -> str:
+        if row["run_id"].startswith("golden_drop_bounces"):
+            raise TypeError("unsupported format string passed to NoneType.__format__")
+        return real(row)
+
+    monkeypatch.setattr(F, "drift_finding", failing)
+    logs = Path(__file__).parent / "golden" / "logs"
+    out = tmp_path / "results"
+    result = run_analysis([logs], out, figures=False)
+    assert result.exit_code == 0
+    assert pl.read_parquet(out / "runs.parquet").height == len(list(logs.glob("*.mcap")))
+    report = (out / "report.md").read_text()
+    assert "golden_drop_bounces: this finding could not be worded (TypeError" in report
+    assert "box_edge: the largest flight drift is" in report  # the other runs keep theirs
+    assert "Not answered: Step 1: this finding could not be worded" in report  # its worst drift

@@ -23,6 +23,7 @@ def _who(row: dict) -> str:
     return str(row.get("run") or f"`{row['run_id']}`")
 
 
+@F.guard_lines("the energy answer")
 def energy_answer(runs: pl.DataFrame) -> list[str]:
     """Is energy conserved in flight and lost at contacts? One sentence per run with a
     ground, its words chosen by `findings` from its numbers and its integrator."""
@@ -45,6 +46,7 @@ def _energy_sentence(r: dict) -> str:
     return f"{_who(r)}: {F.drift_finding(r)}; {removed}at the end ({_f(r['duration_s'])} s) {end}."
 
 
+@F.guard_lines("the answer on e across bounces")
 def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
     """Is e constant across bounces? Asked of each body on each surface of each run: bodies
     with different contacts are never put in one answer."""
@@ -79,6 +81,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
     return out
 
 
+@F.guard_lines("the answer on e against drop height")
 def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
     """Does e depend on the drop height (impact speed)?"""
     out = []
@@ -115,6 +118,7 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
     return out
 
 
+@F.guard_lines("the collision answer")
 def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> list[str]:
     """Is momentum conserved in the collisions, how much kinetic energy is lost? The
     momentum's words come from `findings.momentum_finding` (its change and what else acted
@@ -156,6 +160,7 @@ def _collision_sentence(r: dict, run: dict | None) -> str:
     return out
 
 
+@F.guard_lines("the parameter study answer")
 def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]]) -> list[str]:
     """What does each collision parameter study show?"""
     out = []

@@ -8,9 +8,12 @@ left out with the reason, never formatted. docs/analysis.md lists every threshol
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Iterable
 from typing import Any
+
+import polars as pl
 
 MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which momentum is called
@@ -263,6 +266,21 @@ def elastic_gap(v1_after: Iterable[Any], v1_elastic: Any) -> float | None:
     return min(gaps) if gaps else None
 
 
+WORDING_ERRORS: tuple[type[Exception], ...] = (
+    TypeError,
+    ValueError,
+    ArithmeticError,
+    LookupError,
+    pl.exceptions.PolarsError,
+)
+"""The faults a sentence builder can hit on numbers it did not expect (a None formatted, a
+missing column): caught per run (`each`) or per answer (`guard_lines`, `guard_line`)."""
+
+
+def _failed(what: str, exc: Exception) -> str:
+    return f"{what}: this finding could not be worded ({type(exc).__name__}: {exc})."
+
+
 def each(rows: Iterable[dict[str, Any]], sentence: Callable[[dict[str, Any]], str]) -> list[str]:
     """`sentence` of each row; a row whose sentence fails gets a sentence naming it and the
     error, so a fault in one run's wording stays that run's and the report is still written."""
@@ -270,7 +288,40 @@ def each(rows: Iterable[dict[str, Any]], sentence: Callable[[dict[str, Any]], st
     for r in rows:
         try:
             out.append(sentence(r))
-        except (TypeError, ValueError, ArithmeticError, KeyError) as exc:
-            who = r.get("run") or r.get("run_id") or "a run"
-            out.append(f"{who}: this finding could not be worded ({type(exc).__name__}: {exc}).")
+        except WORDING_ERRORS as exc:
+            out.append(_failed(str(r.get("run") or r.get("run_id") or "a run"), exc))
     return out
+
+
+def guard_lines(what: str) -> Callable[[Callable[..., list[str]]], Callable[..., list[str]]]:
+    """Decorate an answer builder (a list of sentences): a fault becomes one sentence naming
+    `what` and the error instead of ending the whole analysis."""
+
+    def wrap(build: Callable[..., list[str]]) -> Callable[..., list[str]]:
+        @functools.wraps(build)
+        def guarded(*args: Any, **kwargs: Any) -> list[str]:
+            try:
+                return build(*args, **kwargs)
+            except WORDING_ERRORS as exc:
+                return [_failed(what, exc)]
+
+        return guarded
+
+    return wrap
+
+
+def guard_line(what: str) -> Callable[[Callable[..., str]], Callable[..., str]]:
+    """Decorate a headline builder (one answer): a fault becomes "Not answered" with `what`
+    and the error instead of ending the whole analysis."""
+
+    def wrap(build: Callable[..., str]) -> Callable[..., str]:
+        @functools.wraps(build)
+        def guarded(*args: Any, **kwargs: Any) -> str:
+            try:
+                return build(*args, **kwargs)
+            except WORDING_ERRORS as exc:
+                return "Not answered: " + _failed(what, exc)
+
+        return guarded
+
+    return wrap

@@ -49,6 +49,7 @@ def _span(values: pl.Series, digits: int = 3) -> str:
     return F.span(values.to_list(), f".{digits}f") or "not measured"
 
 
+@F.guard_line("this experiment's result")
 def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> str | None:
     """What the experiment's runs gave, in a few words with their numbers (None: no runs)."""
     ids = runs.filter(pl.col("experiment") == experiment)["run_id"]

@@ -35,6 +35,7 @@ def _pick(paths: list[Path], prefer: str) -> Path | None:
     return next((p for p in paths if prefer in p.name), paths[0] if paths else None)
 
 
+@F.guard_line("Step 1")
 def energy_line(runs: pl.DataFrame) -> str:
     """Step 1 in one or two sentences: the flight drift against the integrator's, and the share
     of the initial energy gone at the end (`findings` chooses the words)."""
@@ -117,6 +118,7 @@ def rest_line(ground: pl.DataFrame) -> str:
     return out
 
 
+@F.guard_line("Step 2")
 def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -> str:
     """Step 2 in two sentences: the spread of e across bounces, e against drop height."""
     out = []
@@ -157,6 +159,7 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
     return " ".join(out) or "Not answered: no run has a bounce."
 
 
+@F.guard_line("Step 3")
 def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> str:
     """Step 3 in two sentences: momentum change, measured and predicted energy loss."""
     if collisions.is_empty():
@@ -197,6 +200,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
     return out
 
 
+@F.guard_line("Step 4")
 def study_line(studies: dict, params: dict[str, list[str]]) -> str:
     """Step 4 in one or two sentences: per collision sweep, e's span and the elastic gap."""
     out = []
