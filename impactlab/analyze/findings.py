@@ -62,6 +62,20 @@ this, the model has moving parts the analysis does not follow (a hinged arm, a s
 which may touch or pull the bodies without a contact the analysis sees."""
 
 
+def method_line() -> str:
+    """The report's Method bullet on how findings are worded, with the thresholds' values."""
+    return (
+        "**Findings** (conserved, constant, a drift the integrator explains) are chosen by "
+        "stated thresholds on the numbers quoted: momentum is conserved below "
+        f"{MOMENTUM_CONSERVED_REL:g} relative change for a pair nothing else touched; e is "
+        f"constant when its spread is below {E_CONSTANT_SPREAD:g}; a flight drift is the "
+        f"integrator's within a factor {DRIFT_FACTOR:g} of m g^2 dt T / 2 for the semi-implicit "
+        f"integrators ({', '.join(SEMI_IMPLICIT)}; RK4 has none); energies below "
+        f"{NEGLIGIBLE_ENERGY_J:g} J are zero; percentages of the initial energy only up to "
+        f"{PERCENT_MAX * 100:.0f} % (docs/analysis.md lists every threshold)."
+    )
+
+
 def defined(x: Any) -> bool:
     """Whether `x` is a finite number (not None, NaN or infinite)."""
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)

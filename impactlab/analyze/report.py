@@ -8,7 +8,7 @@ from typing import Any
 
 import polars as pl
 
-from impactlab.analyze import answers
+from impactlab.analyze import answers, findings
 from impactlab.analyze.handout import as_written_section
 from impactlab.analyze.headline import headline
 from impactlab.analyze.labels import run_labels, with_labels
@@ -254,6 +254,7 @@ def build_report(
 
     out.append("\n## Method\n")
     out.append(METHOD)
+    out.append(f"- {findings.method_line()}")
     out.append(f"- {energy_stride_note}\n")
     out.append(
         "\n## Files\n\n- `runs.parquet`: one row per run (parameters, state of the log, results)"
