@@ -55,7 +55,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         return out
     pairs = bounces.filter(pl.col("bounce").is_not_null()).select("run_id", "body", "surface")
     reasons = {
-        run_id: reason or outcome
+        run_id: reason or outcome or "reason not recorded"
         for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
     }
     for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
@@ -75,8 +75,9 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             out.append(
                 f"{who}: {es.len()} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
-                f"cannot be tested: the log ends ({reasons.get(run_id) or 'n/a'}) after "
-                f"{mine.height} contact(s) with an impact, the last one without a flight after it."
+                f"cannot be tested: the log ends ({reasons.get(run_id, 'reason not recorded')}) "
+                f"after {mine.height} contact(s) with an impact, the last one without a flight "
+                "after it."
             )
     return out
 
@@ -131,7 +132,8 @@ def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None)
 
 def _collision_sentence(r: dict, run: dict | None) -> str:
     if not r["complete"]:
-        return f"{_who(r)} ({r['body1']}-{r['body2']}): {r['note']}."
+        why = r["note"] or "incomplete (no state after the contact, or the bodies were not closing)"
+        return f"{_who(r)} ({r['body1']}-{r['body2']}): {why}."
     out = f"{_who(r)} ({r['body1']}-{r['body2']}): {F.momentum_finding(r, run)}"
     before, after, frac = r["ke_before_J"], r["ke_after_J"], r["ke_loss_frac"]
     if F.defined(before) and F.defined(after):

@@ -166,7 +166,8 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
         return "Not answered: no run has two bodies that collide."
     done = collisions.filter(pl.col("complete"))
     if done.is_empty():
-        return f"Not answered: no collision separated ({collisions['note'][0]})."
+        why = collisions["note"][0] or "no complete collision"
+        return f"Not answered: no collision separated ({why})."
     by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
     rows = done.to_dicts()
     kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in rows]
