@@ -16,6 +16,7 @@ are left empty and the note says so. The relative momentum change is |p' - p| / 
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.contacts import state_at
@@ -240,28 +241,38 @@ def with_surroundings(
     """
     if col.is_empty():
         return col
-    touched = []
-    for b1, b2, t0, t1 in col.select("body1", "body2", "impact_t_s", "release_t_s").iter_rows():
+    order = np.argsort(contacts["t_ns"].to_numpy(), kind="stable")  # by channel as decoded
+    t_ns = contacts["t_ns"].to_numpy()[order]
+    b1s, b2s, g1s, g2s = (
+        contacts[c].to_numpy().astype(object)[order] for c in ("body1", "body2", "geom1", "geom2")
+    )
+    touched: list[str | None] = []
+    for a, b, t0, t1 in zip(
+        *(col[c].to_list() for c in ("body1", "body2", "impact_t_s", "release_t_s")), strict=True
+    ):
         if t0 is None or t1 is None:
             touched.append(None)
             continue
-        lo, hi = round((t0 - interval_s) * 1e9), round(t1 * 1e9)
-        near = contacts.filter(pl.col("t_ns").is_between(lo, hi))
+        lo = np.searchsorted(t_ns, round((t0 - interval_s) * 1e9), "left")
+        hi = np.searchsorted(t_ns, round(t1 * 1e9), "right")
+        c1, c2, g1, g2 = (x[lo:hi] for x in (b1s, b2s, g1s, g2s))
+        in1, in2 = (c1 == a) | (c1 == b), (c2 == a) | (c2 == b)
         names = set()
-        for g1, g2, c1, c2 in near.select("geom1", "geom2", "body1", "body2").iter_rows():
-            for mine, other, geom in ((c1, c2, g2), (c2, c1, g1)):
-                if mine in (b1, b2) and other not in (b1, b2):
-                    names.add(geom if other == "world" else other)
+        for mine, other, geom in ((in1 & ~in2, c2, g2), (in2 & ~in1, c1, g1)):
+            names.update(np.where(other[mine] == "world", geom[mine], other[mine]).tolist())
         touched.append(", ".join(sorted(names)))
-    m = pl.col("m1_kg") + pl.col("m2_kg")
-    dt = pl.col("release_t_s") - pl.col("impact_t_s") + interval_s
-    scale = pl.col("m1_kg") * _norm(_vec("v1", "_before_mps")) + pl.col("m2_kg") * _norm(
-        _vec("v2", "_before_mps")
+    v = [np.sqrt(sum(col[f"v{k}{c}_before_mps"].to_numpy() ** 2 for c in "xyz")) for k in "12"]
+    m1, m2 = col["m1_kg"].to_numpy(), col["m2_kg"].to_numpy()
+    dt = col["release_t_s"].to_numpy() - col["impact_t_s"].to_numpy() + interval_s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = (m1 + m2) * gravity * dt / (m1 * v[0] + m2 * v[1])
+    out = col.clone()  # the columns replaced in place: no query for two columns
+    out.replace_column(out.get_column_index("touched_by"), pl.Series("touched_by", touched))
+    out.replace_column(
+        out.get_column_index("gravity_impulse_rel"),
+        pl.Series("gravity_impulse_rel", rel, dtype=pl.Float64, nan_to_null=True),
     )
-    return col.with_columns(
-        pl.Series("touched_by", touched, dtype=pl.String),
-        (m * gravity * dt / scale).alias("gravity_impulse_rel"),
-    )
+    return out
 
 
 ELASTIC_COLUMNS = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")
