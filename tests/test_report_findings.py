@@ -200,6 +200,13 @@ def test_a_drift_within_the_factor_is_the_integrators(integrator):
     assert "2.5 times the loss" in sentence and "not explained" in sentence
 
 
+def test_a_drift_without_gravity_is_not_the_integrators():
+    row = _run("g0", flight_drift_J=-0.3, flight_drift_predicted_J=-0.0)
+    (sentence,) = answers.energy_answer(_runs(row))
+    assert "without gravity Euler has no drift in a free flight" in sentence
+    assert "not explained by the integrator" in sentence
+
+
 def test_a_drift_below_a_nanojoule_is_conservation():
     row = _run("c", integrator="RK4", flight_drift_J=-8.5e-13, flight_drift_predicted_J=0.0)
     (sentence,) = answers.energy_answer(_runs(row))

@@ -176,6 +176,12 @@ def drift_finding(row: dict[str, Any]) -> str:
             f"the largest flight drift is {size}; the drift {integrator} predicts is not "
             "known, so it is not explained by the integrator"
         )
+    if not predicted:
+        return (
+            f"the largest flight drift is {size}; without gravity {integrator} has no drift in "
+            "a free flight, so it is not explained by the integrator (something else acts in "
+            "flight)"
+        )
     formula = f"m g^2 dt T / 2 = {abs(predicted):.3g} J"
     if kind == "integrator":
         return (
