@@ -24,6 +24,8 @@ COLLISIONS = pl.DataFrame(
         "v2n_after_mps": [-1.0, 0.7],
         "v1n_after_elastic_mps": [-1.0, -1.0],
         "momentum_rel_change": [None, 1e-15],
+        "touched_by": [None, ""],
+        "gravity_impulse_rel": [None, 0.0],
     }
 )
 

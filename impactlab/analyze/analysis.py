@@ -10,7 +10,12 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.bounces import bounces, no_bounce_rows
-from impactlab.analyze.collisions import COLLISION_SCHEMA, collisions, no_collision_rows
+from impactlab.analyze.collisions import (
+    COLLISION_SCHEMA,
+    collisions,
+    no_collision_rows,
+    with_surroundings,
+)
 from impactlab.analyze.contacts import (
     contact_rows,
     logged_interval_s,
@@ -235,6 +240,8 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         col = pl.DataFrame(schema=COLLISION_SCHEMA)
         if rid in body_contacts:
             col = collisions(body_contacts[rid], p.states, infos)
+            g = float(np.linalg.norm(run.gravity))
+            col = with_surroundings(col, run.contacts, g, logged_interval_s(run))
         if col.is_empty() and len(names) >= 2 and expects_collision(run):
             col = no_collision_rows(
                 rid,

@@ -1,22 +1,21 @@
 """Answers to the handout's questions, worded from the computed tables (no fixed conclusions).
 
-Each function takes the tables and returns Markdown sentences; thresholds used for wording are
-named constants so the words follow the numbers.
+Each function takes the tables and returns Markdown sentences; the thresholds that choose the
+words are named constants in `findings`, so the words follow the numbers.
 """
 
 from __future__ import annotations
 
 import polars as pl
 
-E_CONSTANT_SPREAD = 0.02
-"""Spread (max - min) of e below which e is called constant."""
+from impactlab.analyze import findings as F
 
-APPROACH_FRACTION = 0.1
-"""A sweep approaches the elastic answer when its best run is within this fraction of it."""
+E_CONSTANT_SPREAD = F.E_CONSTANT_SPREAD
+APPROACH_FRACTION = F.APPROACH_FRACTION
 
 
 def _f(x: float | None, fmt: str = ".3g") -> str:
-    return "n/a" if x is None else format(x, fmt)
+    return format(x, fmt) if F.defined(x) else "n/a"
 
 
 def _who(row: dict) -> str:
@@ -24,25 +23,30 @@ def _who(row: dict) -> str:
     return str(row.get("run") or f"`{row['run_id']}`")
 
 
+@F.guard_lines("the energy answer")
 def energy_answer(runs: pl.DataFrame) -> list[str]:
-    """Is energy conserved in flight and lost at contacts?"""
-    out = []
-    for r in runs.filter(pl.col("ground")).iter_rows(named=True):
-        if r["energy_initial_J"] is None:
-            continue
-        drift = r["flight_drift_max_rel"]
-        out.append(
-            f"{_who(r)}: flight phases keep the total energy to "
-            f"{_f(drift and drift * 100)} % "
-            f"of the initial {r['energy_initial_J']:.4g} J (largest flight drift "
-            f"{_f(r['flight_drift_max_J'])} J, the semi-implicit Euler drift m g^2 dt T / 2); the "
-            f"contacts remove {r['contact_loss_sum_J']:.4g} J, i.e. "
-            f"{_f(r['energy_loss_frac'] and r['energy_loss_frac'] * 100, '.1f')} % of it is gone "
-            f"at the end ({r['duration_s']:.3g} s)."
-        )
-    return out
+    """Is energy conserved in flight and lost at contacts? One sentence per run with a
+    ground, its words chosen by `findings` from its numbers and its integrator."""
+    rows = [r for r in runs.filter(pl.col("ground")).iter_rows(named=True)]
+    return F.each([r for r in rows if r["energy_initial_J"] is not None], _energy_sentence)
 
 
+def _energy_sentence(r: dict) -> str:
+    e0, e1 = r["energy_initial_J"], r["energy_final_J"]
+    contacts = r["contact_loss_sum_J"]
+    if not (F.defined(e0) and F.defined(e1)):
+        end = "the energy at the end is not measured"
+    elif e1 > e0 and not F.negligible(e1 - e0, e0):
+        end = f"the energy gained is {F.of_initial(e1 - e0, e0)}"
+    else:
+        end = f"the energy gone is {F.of_initial(e0 - e1, e0)}"
+    removed = ""
+    if F.defined(contacts):
+        removed = f"the contacts {'add' if contacts < 0 else 'remove'} {abs(contacts):.4g} J; "
+    return f"{_who(r)}: {F.drift_finding(r)}; {removed}at the end ({_f(r['duration_s'])} s) {end}."
+
+
+@F.guard_lines("the answer on e across bounces")
 def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
     """Is e constant across bounces? Asked of each body on each surface of each run: bodies
     with different contacts are never put in one answer."""
@@ -51,33 +55,34 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         return out
     pairs = bounces.filter(pl.col("bounce").is_not_null()).select("run_id", "body", "surface")
     reasons = {
-        run_id: reason or outcome
+        run_id: reason or outcome or "reason not recorded"
         for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
     }
     for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
         mine = bounces.filter(
             (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
         )
-        es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls()
+        es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls().drop_nans()
         who = f"{_who(mine.row(0, named=True))}, {body} on {surface}"
         if es.len() >= 2:
             spread = float(es.max() - es.min())
-            word = "constant" if spread < E_CONSTANT_SPREAD else "not constant"
             vals = ", ".join(f"{e:.3f}" for e in es)
             out.append(
-                f"{who}: e is {word} across its {es.len()} complete bounces "
-                f"({vals}; spread {spread:.3f})."
+                f"{who}: across its {es.len()} complete bounces ({vals}) e is "
+                f"{F.spread_finding(spread)}."
             )
         else:
             out.append(
                 f"{who}: {es.len()} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
-                f"cannot be tested: the log ends ({reasons.get(run_id) or 'n/a'}) after "
-                f"{mine.height} contact(s) with an impact, the last one without a flight after it."
+                f"cannot be tested: the log ends ({reasons.get(run_id, 'reason not recorded')}) "
+                f"after {mine.height} contact(s) with an impact, the last one without a flight "
+                "after it."
             )
     return out
 
 
+@F.guard_lines("the answer on e against drop height")
 def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
     """Does e depend on the drop height (impact speed)?"""
     out = []
@@ -89,9 +94,10 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
             rows = rows.with_columns(pl.lit(None, dtype=pl.Float64).alias("e_velocity_first"))
         parts = []
         for r in rows.iter_rows(named=True):
-            e = r["e_velocity_first"]
+            e, h, v = r["e_velocity_first"], r["drop_height_m"], r["first_impact_speed_mps"]
             parts.append(
-                f"{_f(r['drop_height_m'])} m drop, {_f(r['first_impact_speed_mps'])} m/s impact: "
+                (f"{h:.3g} m drop" if F.defined(h) else "drop height not measured")
+                + (f", {v:.3g} m/s impact: " if F.defined(v) else ", no impact speed: ")
                 + ("no rebound (the ball stays on the plane)" if e is None else f"e = {e:.3f}")
             )
         es = rows.filter(pl.col("e_velocity_first").is_not_null())
@@ -113,26 +119,50 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
     return out
 
 
-def collision_answer(collisions: pl.DataFrame) -> list[str]:
-    """Is momentum conserved in the collisions, how much kinetic energy is lost?"""
-    out = []
-    for r in collisions.iter_rows(named=True):
-        if not r["complete"]:
-            out.append(f"{_who(r)} ({r['body1']}-{r['body2']}): {r['note']}.")
-            continue
-        out.append(
-            f"{_who(r)}: momentum changes by {r['momentum_rel_change']:.2g} (relative), i.e. "
-            f"it is conserved; the kinetic energy falls from {r['ke_before_J']:.4g} J to "
-            f"{r['ke_after_J']:.4g} J ({r['ke_loss_frac'] * 100:.1f} % lost). Measured e = "
-            f"{r['e_measured']:.3f}; the 1D formula predicts a loss of "
-            f"{r['ke_loss_predicted_J']:.4g} J for it. After: v1' = {r['v1n_after_mps']:.3f}, "
-            f"v2' = {r['v2n_after_mps']:.3f} m/s (elastic: {r['v1n_after_elastic_mps']:.3f}, "
-            f"{r['v2n_after_elastic_mps']:.3f}; perfectly inelastic: "
-            f"{r['v_after_inelastic_mps']:.3f} m/s)."
+@F.guard_lines("the collision answer")
+def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> list[str]:
+    """Is momentum conserved in the collisions, how much kinetic energy is lost? The
+    momentum's words come from `findings.momentum_finding` (its change and what else acted
+    on the pair, with the run's row from `runs`)."""
+    by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
+    return F.each(
+        collisions.iter_rows(named=True), lambda r: _collision_sentence(r, by_run.get(r["run_id"]))
+    )
+
+
+def _collision_sentence(r: dict, run: dict | None) -> str:
+    if not r["complete"]:
+        why = r["note"] or "incomplete (no state after the contact, or the bodies were not closing)"
+        return f"{_who(r)} ({r['body1']}-{r['body2']}): {why}."
+    out = f"{_who(r)} ({r['body1']}-{r['body2']}): {F.momentum_finding(r, run)}"
+    before, after, frac = r["ke_before_J"], r["ke_after_J"], r["ke_loss_frac"]
+    if F.defined(before) and F.defined(after):
+        out += f"; the kinetic energy falls from {before:.4g} J to {after:.4g} J"
+        out += f" ({frac * 100:.1f} % lost)" if F.defined(frac) else ""
+    out += "."
+    e, predicted = r["e_measured"], r["ke_loss_predicted_J"]
+    if F.defined(e):
+        out += f" Measured e = {e:.3f}"
+        out += (
+            f"; the 1D formula predicts a loss of {predicted:.4g} J for it."
+            if F.defined(predicted)
+            else f"; no 1D prediction ({r['note'] or 'the impact is not central'})."
         )
+    names = ("v1n_after_mps", "v2n_after_mps")
+    if all(F.defined(r[c]) for c in names):
+        out += f" After: v1' = {r['v1n_after_mps']:.3f}, v2' = {r['v2n_after_mps']:.3f} m/s"
+        elastic = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")
+        if all(F.defined(r[c]) for c in elastic):
+            out += (
+                f" (elastic: {r['v1n_after_elastic_mps']:.3f}, "
+                f"{r['v2n_after_elastic_mps']:.3f}; perfectly inelastic: "
+                f"{r['v_after_inelastic_mps']:.3f} m/s)"
+            )
+        out += "."
     return out
 
 
+@F.guard_lines("the parameter study answer")
 def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]]) -> list[str]:
     """What does each collision parameter study show?"""
     out = []
@@ -146,24 +176,28 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
             continue
         es = rows["e_collision"]
         el1, el2 = rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]
-        gap = ((rows["v1n_after_mps"] - el1).abs() / abs(el1 or 1.0)).to_list()
-        approached = min(gap) < APPROACH_FRACTION
+        gap = F.elastic_gap(rows["v1n_after_mps"].to_list(), el1)
         spread = float(es.max() - es.min())
         vals = ", ".join(
-            f"{p:g}: e = {e:.3f} (v1' = {a:.3f}, v2' = {b:.3f})"
+            f"{p:g}: e = {e:.3f} (v1' = {_f(a, '.3f')}, v2' = {_f(b, '.3f')})"
             for p, e, a, b in rows.select(
                 param, "e_collision", "v1n_after_mps", "v2n_after_mps"
             ).iter_rows()
         )
-        out.append(
-            f"`{name}` over {param} = {vals}. "
-            + (
-                f"e spans only {spread:.3f} over the sweep (essentially independent of the knob)"
-                if spread < 0.05
-                else f"e follows the knob, spanning {spread:.3f} over the sweep"
-            )
-            + f"; the elastic answer v1' = {el1:.3f}, v2' = {el2:.3f} m/s is "
-            + ("approached" if approached else "not approached")
-            + f" (closest v1' is {min(gap) * 100:.0f} % of |v1'_elastic| away)."
+        knob = (
+            f"e spans only {spread:.3f} over the sweep (below {F.E_KNOB_SPREAD:g}: essentially "
+            "independent of the knob)"
+            if spread < F.E_KNOB_SPREAD
+            else f"e follows the knob, spanning {spread:.3f} over the sweep"
         )
+        if gap is None or not F.defined(el2):
+            elastic = "; the elastic answer is not defined for it (not a central impact)."
+        else:
+            word = "approached" if gap < F.APPROACH_FRACTION else "not approached"
+            elastic = (
+                f"; the elastic answer v1' = {el1:.3f}, v2' = {el2:.3f} m/s is {word} (closest "
+                f"v1' is {gap * 100:.0f} % of |v1'_elastic| away, threshold "
+                f"{F.APPROACH_FRACTION * 100:.0f} %)."
+            )
+        out.append(f"`{name}` over {param} = {vals}. {knob}{elastic}")
     return out

@@ -16,6 +16,7 @@ are left empty and the note says so. The relative momentum change is |p' - p| / 
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.contacts import state_at
@@ -65,6 +66,8 @@ COLLISION_SCHEMA: dict[str, pl.DataType] = {
     "peak_force_N": pl.Float64,
     "impulse_Ns": pl.Float64,
     "max_penetration_m": pl.Float64,
+    "touched_by": pl.String,
+    "gravity_impulse_rel": pl.Float64,
     "complete": pl.Boolean,
     "note": pl.String,
 }
@@ -203,6 +206,13 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         .otherwise(pl.lit(""))
         .alias("note"),
     )
+    out = out.with_columns(
+        *[
+            pl.lit(None, dtype=COLLISION_SCHEMA[c]).alias(c)
+            for c in ("touched_by", "gravity_impulse_rel")
+            if c not in out.columns
+        ]
+    )
     after_cols = [
         c
         for c in COLLISION_SCHEMA
@@ -214,6 +224,55 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in after_cols]
     )
     return out.select(list(COLLISION_SCHEMA)).cast(COLLISION_SCHEMA).sort("impact_t_s")
+
+
+def with_surroundings(
+    col: pl.DataFrame, contacts: pl.DataFrame, gravity: float, interval_s: float
+) -> pl.DataFrame:
+    """The collisions with what else acted on each pair from the logged row before the
+    contact to the one after it: `touched_by`, the other bodies and surfaces (a static
+    body's geom by name) in any logged contact with either body ("" none), and
+    `gravity_impulse_rel`, (m1 + m2) |g| dt over that time / (|m1 v1| + |m2 v2|).
+
+    Args:
+        col: the run's collisions (`collisions`); contacts: its logged contacts
+            (`RunLog.contacts`: t_ns, geom1, geom2, body1, body2).
+        gravity: |g|, m/s^2; interval_s: the time between two logged rows.
+    """
+    if col.is_empty():
+        return col
+    order = np.argsort(contacts["t_ns"].to_numpy(), kind="stable")  # by channel as decoded
+    t_ns = contacts["t_ns"].to_numpy()[order]
+    b1s, b2s, g1s, g2s = (
+        contacts[c].to_numpy().astype(object)[order] for c in ("body1", "body2", "geom1", "geom2")
+    )
+    touched: list[str | None] = []
+    for a, b, t0, t1 in zip(
+        *(col[c].to_list() for c in ("body1", "body2", "impact_t_s", "release_t_s")), strict=True
+    ):
+        if t0 is None or t1 is None:
+            touched.append(None)
+            continue
+        lo = np.searchsorted(t_ns, round((t0 - interval_s) * 1e9), "left")
+        hi = np.searchsorted(t_ns, round(t1 * 1e9), "right")
+        c1, c2, g1, g2 = (x[lo:hi] for x in (b1s, b2s, g1s, g2s))
+        in1, in2 = (c1 == a) | (c1 == b), (c2 == a) | (c2 == b)
+        names = set()
+        for mine, other, geom in ((in1 & ~in2, c2, g2), (in2 & ~in1, c1, g1)):
+            names.update(np.where(other[mine] == "world", geom[mine], other[mine]).tolist())
+        touched.append(", ".join(sorted(names)))
+    v = [np.sqrt(sum(col[f"v{k}{c}_before_mps"].to_numpy() ** 2 for c in "xyz")) for k in "12"]
+    m1, m2 = col["m1_kg"].to_numpy(), col["m2_kg"].to_numpy()
+    dt = col["release_t_s"].to_numpy() - col["impact_t_s"].to_numpy() + interval_s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = (m1 + m2) * gravity * dt / (m1 * v[0] + m2 * v[1])
+    out = col.clone()  # the columns replaced in place: no query for two columns
+    out.replace_column(out.get_column_index("touched_by"), pl.Series("touched_by", touched))
+    out.replace_column(
+        out.get_column_index("gravity_impulse_rel"),
+        pl.Series("gravity_impulse_rel", rel, dtype=pl.Float64, nan_to_null=True),
+    )
+    return out
 
 
 ELASTIC_COLUMNS = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")

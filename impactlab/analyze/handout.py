@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import polars as pl
 
+from impactlab.analyze import findings as F
+
 PAIRS = (
     (
         "Steps 1-2: drops",
@@ -44,10 +46,10 @@ PAIRS = (
 
 
 def _span(values: pl.Series, digits: int = 3) -> str:
-    lo, hi = values.min(), values.max()
-    return f"{lo:.{digits}f}" if lo == hi else f"{lo:.{digits}f}-{hi:.{digits}f}"
+    return F.span(values.to_list(), f".{digits}f") or "not measured"
 
 
+@F.guard_line("this experiment's result")
 def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> str | None:
     """What the experiment's runs gave, in a few words with their numbers (None: no runs)."""
     ids = runs.filter(pl.col("experiment") == experiment)["run_id"]
@@ -58,21 +60,31 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
         done = col.filter(pl.col("complete") & pl.col("e_measured").is_not_null())
         if done.is_empty():
             row = col.row(0, named=True)
-            return (
-                f"no collision: {row['note']}; v1' = {row['v1n_after_mps']:.3g} m/s, "
-                f"v2' = {row['v2n_after_mps']:.3g} m/s"
-            )
-        words = (
-            f"e = {_span(done['e_measured'])} over {done.height} collision(s), momentum kept to "
-            f"{done['momentum_rel_change'].max():.1g} (relative)"
+            after = [
+                f"{name}' = {row[c]:.3g} m/s"
+                for name, c in (("v1", "v1n_after_mps"), ("v2", "v2n_after_mps"))
+                if F.defined(row[c])
+            ]
+            return f"no collision: {row['note']}" + (f"; {', '.join(after)}" if after else "")
+        by_run = {r["run_id"]: r for r in runs.to_dicts()}
+        kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.to_dicts()]
+        rels = done["momentum_rel_change"].drop_nulls()
+        momentum = (
+            f"momentum kept to {rels.max():.1g} (relative)"
+            if all(k == "conserved" for k in kinds)
+            else f"momentum changes by up to {rels.max():.2g} (relative)"
+            if rels.len()
+            else "momentum change not measured"
         )
+        words = f"e = {_span(done['e_measured'])} over {done.height} collision(s), {momentum}"
         if done.height > 1:  # a sweep: how close it comes to the elastic answer
             el1 = done["v1n_after_elastic_mps"][0]
-            gap = ((done["v1n_after_mps"] - el1).abs() / abs(el1 or 1.0)).min()
-            words += (
-                f"; the closest v1' is {gap * 100:.0f} % of |v1'_elastic| = {abs(el1):.3f} m/s "
-                "from the elastic answer"
-            )
+            gap = F.elastic_gap(done["v1n_after_mps"].to_list(), el1)
+            if gap is not None:
+                words += (
+                    f"; the closest v1' is {gap * 100:.0f} % of |v1'_elastic| = {abs(el1):.3f} "
+                    "m/s from the elastic answer"
+                )
         return words
     mine = runs.filter(pl.col("experiment") == experiment)
     e = mine["e_velocity_first"].drop_nulls()

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import polars as pl
 
+from impactlab.analyze import findings as F
+
 RUBRIC = (
     ("Energy analysis", 25, "Step 1", "step-1-energy"),
     ("Restitution measurement", 25, "Step 2", "step-2-restitution"),
@@ -33,30 +35,64 @@ def _pick(paths: list[Path], prefer: str) -> Path | None:
     return next((p for p in paths if prefer in p.name), paths[0] if paths else None)
 
 
+@F.guard_line("Step 1")
 def energy_line(runs: pl.DataFrame) -> str:
-    """Step 1 in one sentence: the largest flight drift and the range of energy lost."""
+    """Step 1 in one or two sentences: the flight drift against the integrator's, and the share
+    of the initial energy gone at the end (`findings` chooses the words)."""
     ground = runs.filter(pl.col("ground") & pl.col("energy_initial_J").is_not_null())
     if ground.is_empty():
         return (
             "Not answered: no run has a ground to fall onto, so there is no contact to lose energy."
         )
-    drift = ground["flight_drift_max_rel"].drop_nulls()
-    lost = ground["energy_loss_frac"].drop_nulls()
-    drift_words = (
-        f"during flight the total energy drifts by at most {drift.max() * 100:.3g} % of the "
-        "initial energy (the semi-implicit Euler drift, not a physical loss)"
-        if drift.len()
-        else "no run has a flight phase to test conservation on"
-    )
-    lost_words = (
-        f"the contacts remove the rest: {lost.min() * 100:.1f}-{lost.max() * 100:.1f} % of the "
-        "initial energy is gone at the end"
-        if lost.len()
-        else "no run ends with a measurable loss"
-    )
+    rows = ground.to_dicts()
+    kinds = [F.drift_kind(r) for r in rows]
+    flown = [r for r, k in zip(rows, kinds, strict=True) if k != "none"]
+    if flown:
+        worst = max(flown, key=lambda r: abs(r.get("flight_drift_J") or 0.0))
+        n_ok = sum(k in ("negligible", "integrator") for k in kinds)
+        odd = [_who(r) for r, k in zip(rows, kinds, strict=True) if k == "unexplained"]
+        drift_words = (
+            f"in {n_ok} of {len(flown)} run(s) with a flight the energy is conserved in flight "
+            f"up to the integrator's drift (at most {F.DRIFT_FACTOR:g} times m g^2 dt T / 2 for "
+            "the semi-implicit integrators, none for RK4)"
+            + (
+                f"; not in {len(odd)} ({', '.join(odd[:3])}{', ...' if len(odd) > 3 else ''})"
+                if odd
+                else ""
+            )
+            + f". Largest drift, run {_who(worst)}: {F.drift_finding(worst)}"
+        )
+    else:
+        drift_words = "no run has a flight phase to test conservation on"
+    lost = [(r["energy_initial_J"], r.get("energy_final_J")) for r in rows]
+    lost = [(e0, e0 - e1) for e0, e1 in lost if F.defined(e0) and F.defined(e1)]
+    readable = [
+        d / e0 * 100 for e0, d in lost if not F.negligible(e0) and abs(d / e0) <= F.PERCENT_MAX
+    ]
+    other = len(lost) - len(readable)
+    if readable:
+        lost_words = f"at the end {F.span(readable, '.1f', '%')} of the initial energy is gone"
+        if min(readable) < 0:
+            lost_words += " (negative: the run ends with more energy than it started with)"
+        if other:
+            lost_words += (
+                f"; {other} run(s) start with zero or too little energy for a percentage "
+                "(their change in J is in the detail)"
+            )
+    elif lost:
+        lost_words = (
+            f"the {len(lost)} run(s) start with zero or too little energy for a percentage of "
+            f"it; their energy changes by {F.span([-d for _, d in lost], '.4g', 'J')}"
+        )
+    else:
+        lost_words = "no run ends with a measurable energy"
     return f"Over {ground.height} run(s) with a ground, {drift_words}; {lost_words}." + rest_line(
         ground
     )
+
+
+def _who(row: dict) -> str:
+    return f'"{row.get("run") or row["run_id"]}"'
 
 
 def rest_line(ground: pl.DataFrame) -> str:
@@ -82,6 +118,7 @@ def rest_line(ground: pl.DataFrame) -> str:
     return out
 
 
+@F.guard_line("Step 2")
 def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -> str:
     """Step 2 in two sentences: the spread of e across bounces, e against drop height."""
     out = []
@@ -93,9 +130,16 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
             .filter(pl.col("n") >= 2)
         )
         if spread.height:
+            worst = float(spread["s"].max())
+            within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
+            pairs = f"{spread.height} body-surface pair(s) with two or more complete bounces"
             out.append(
-                f"Across bounces e is constant to within {spread['s'].max():.3f} (largest "
-                f"spread max - min over {spread.height} run(s) with two or more complete bounces)."
+                f"Across bounces e is constant: its spread (max - min) is at most {worst:.3f} "
+                f"over {pairs}, below the {F.E_CONSTANT_SPREAD:g} threshold."
+                if worst < F.E_CONSTANT_SPREAD
+                else f"Across bounces e is not constant: its spread (max - min) reaches "
+                f"{worst:.3f} over {pairs}, above the {F.E_CONSTANT_SPREAD:g} threshold; "
+                f"{within} of them stay within it."
             )
         else:
             out.append("No run has two complete bounces, so constancy cannot be tested.")
@@ -104,39 +148,60 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
         if "e_velocity_first" not in study.columns or "first_impact_speed_mps" not in study.columns:
             continue
         rows = study.filter(pl.col("e_velocity_first").is_not_null())
-        speeds = study["first_impact_speed_mps"].drop_nulls()
-        if rows.height and speeds.len():
+        speeds = F.span(study["first_impact_speed_mps"].to_list(), ".3g", "m/s")
+        if rows.height and speeds:
             heights.append(
-                f"`{name}`: e = {rows['e_velocity_first'].min():.3f}-"
-                f"{rows['e_velocity_first'].max():.3f} for impacts at "
-                f"{speeds.min():.3g}-{speeds.max():.3g} m/s ({rows.height} of {study.height} "
-                "heights rebound)"
+                f"`{name}`: e = {F.span(rows['e_velocity_first'].to_list(), '.3f')} for impacts "
+                f"at {speeds} ({rows.height} of {study.height} heights rebound)"
             )
     if heights:
         out.append("Against drop height: " + "; ".join(heights) + ".")
     return " ".join(out) or "Not answered: no run has a bounce."
 
 
-def collision_line(collisions: pl.DataFrame) -> str:
+@F.guard_line("Step 3")
+def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> str:
     """Step 3 in two sentences: momentum change, measured and predicted energy loss."""
     if collisions.is_empty():
         return "Not answered: no run has two bodies that collide."
     done = collisions.filter(pl.col("complete"))
     if done.is_empty():
-        return f"Not answered: no collision separated ({collisions['note'][0]})."
-    r = done.row(0, named=True)
-    loss = r["ke_before_J"] - r["ke_after_J"]
-    who = r.get("run") or r["run_id"]
-    return (
-        f"Momentum is conserved: its relative change is at most "
-        f"{done['momentum_rel_change'].max():.1g} over {done.height} collision(s). "
-        f'In run "{who}" the '
-        f"kinetic energy falls by {loss:.4g} J ({r['ke_before_J']:.4g} J -> "
-        f"{r['ke_after_J']:.4g} J); the 1D formula with the measured e = {r['e_measured']:.3f} "
-        f"predicts {r['ke_loss_predicted_J']:.4g} J."
-    )
+        why = collisions["note"][0] or "no complete collision"
+        return f"Not answered: no collision separated ({why})."
+    by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
+    rows = done.to_dicts()
+    kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in rows]
+    rels = [c["momentum_rel_change"] for c in rows if F.defined(c["momentum_rel_change"])]
+    if all(k == "conserved" for k in kinds):
+        out = (
+            f"Momentum is conserved in all {len(rows)} collision(s): its relative change is at "
+            f"most {max(rels):.1g} (below {F.MOMENTUM_CONSERVED_REL:g}) and nothing else "
+            "touched the pairs. "
+        )
+    else:
+        odd = next(c for c, k in zip(rows, kinds, strict=True) if k != "conserved")
+        n = sum(k == "conserved" for k in kinds)
+        words = F.momentum_finding(odd, by_run.get(odd["run_id"]))
+        out = (
+            f"Momentum is conserved in {n} of {len(rows)} collision(s); in run {_who(odd)} "
+            f"({odd['body1']}-{odd['body2']}) {words}. "
+        )
+    r = rows[0]
+    before, after = r["ke_before_J"], r["ke_after_J"]
+    if F.defined(before) and F.defined(after):
+        out += (
+            f"In run {_who(r)} the kinetic energy falls by {before - after:.4g} J "
+            f"({before:.4g} J -> {after:.4g} J)"
+        )
+        e, predicted = r["e_measured"], r["ke_loss_predicted_J"]
+        if F.defined(e) and F.defined(predicted):
+            out += f"; the 1D formula with the measured e = {e:.3f} predicts {predicted:.4g} J."
+        else:
+            out += f"; no 1D prediction ({r['note'] or 'e is not measured'})."
+    return out
 
 
+@F.guard_line("Step 4")
 def study_line(studies: dict, params: dict[str, list[str]]) -> str:
     """Step 4 in one or two sentences: per collision sweep, e's span and the elastic gap."""
     out = []
@@ -147,11 +212,16 @@ def study_line(studies: dict, params: dict[str, list[str]]) -> str:
         if rows.is_empty():
             continue
         el1 = rows["v1n_after_elastic_mps"][0]
-        gap = ((rows["v1n_after_mps"] - el1).abs() / abs(el1 or 1.0)).min()
+        gap = F.elastic_gap(rows["v1n_after_mps"].to_list(), el1)
+        elastic = (
+            f"the closest v1' is {gap * 100:.0f} % of |v1'_elastic| = {abs(el1):.3f} m/s away "
+            "from the elastic answer"
+            if gap is not None
+            else "the elastic answer is not defined for it (not a central impact)"
+        )
         out.append(
-            f"`{name}` (sweeping {params[name][0]}): e = {rows['e_collision'].min():.3f}-"
-            f"{rows['e_collision'].max():.3f}, the closest v1' is {gap * 100:.0f} % of "
-            f"|v1'_elastic| = {abs(el1):.3f} m/s away from the elastic answer"
+            f"`{name}` (sweeping {params[name][0]}): "
+            f"e = {F.span(rows['e_collision'].to_list(), '.3f')}, {elastic}"
         )
     return ("; ".join(out) + ".") if out else "Not answered: no collision sweep."
 
@@ -202,7 +272,7 @@ def headline(
         (
             "Step 3: collision",
             "collision",
-            collision_line(collisions),
+            collision_line(collisions, runs),
             _pick(figures.get("collision", []), "collision-collision-"),
         ),
         (

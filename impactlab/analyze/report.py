@@ -8,7 +8,7 @@ from typing import Any
 
 import polars as pl
 
-from impactlab.analyze import answers
+from impactlab.analyze import answers, findings
 from impactlab.analyze.handout import as_written_section
 from impactlab.analyze.headline import headline
 from impactlab.analyze.labels import run_labels, with_labels
@@ -218,7 +218,7 @@ def build_report(
     out += [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
 
     out.append("\n## Step 3: collision\n")
-    out += [f"- {s}" for s in answers.collision_answer(collisions)] or ["- No two-body run."]
+    out += [f"- {s}" for s in answers.collision_answer(collisions, runs)] or ["- No two-body run."]
     if collisions.height:
         out.append("\nCollisions (contact-point velocities along the contact normal, m/s):\n")
         out.append(
@@ -254,6 +254,7 @@ def build_report(
 
     out.append("\n## Method\n")
     out.append(METHOD)
+    out.append(f"- {findings.method_line()}")
     out.append(f"- {energy_stride_note}\n")
     out.append(
         "\n## Files\n\n- `runs.parquet`: one row per run (parameters, state of the log, results)"

@@ -11,14 +11,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import polars as pl
 
+from impactlab.analyze.findings import SEMI_IMPLICIT
 from impactlab.logs.load import RunLog
 
 EMPTY_ENERGY = {"e0": None, "e1": None, "mujoco_diff_max": None}
 EMPTY_PHASES = {
     "n_flights": 0,
     "drift_max": None,
+    "drift_worst": None,
+    "drift_worst_T": None,
     "dev_max": None,
     "n_contacts": 0,
     "loss_sum": 0.0,
@@ -66,9 +70,16 @@ def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) 
         pl.col("total_J").last().alias("e1"),
         pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
     )
+    worst = pl.col("drift_J").filter(flight).abs()  # the flight with the largest |drift|
     p = phases.group_by("run_id", maintain_order=True).agg(
         flight.sum().alias("n_flights"),
         pl.col("drift_J").filter(flight).abs().max().alias("drift_max"),
+        pl.col("drift_J").filter(flight).sort_by(worst).last().alias("drift_worst"),
+        (pl.col("end_t_s") - pl.col("start_t_s"))
+        .filter(flight)
+        .sort_by(worst)
+        .last()
+        .alias("drift_worst_T"),
         pl.col("max_dev_J").filter(flight).max().alias("dev_max"),
         contact.sum().alias("n_contacts"),
         pl.col("loss_J").filter(contact).sum().alias("loss_sum"),
@@ -86,6 +97,21 @@ def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) 
         pl.col("note").filter(~bounced).alias("notes"),
     )
     return Headlines(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
+
+
+def predicted_drift(run: RunLog, flight_s: float | None) -> float | None:
+    """The energy drift, J, the run's integrator gives its free bodies in a flight of
+    `flight_s`: -M g^2 dt T / 2 for MuJoCo's semi-implicit integrators (positions advance with
+    the new velocity), 0 for RK4 (exact on a parabola); None when not known."""
+    if flight_s is None:
+        return None
+    if run.integrator == "RK4":
+        return 0.0
+    if run.integrator not in SEMI_IMPLICIT:
+        return None
+    mass = sum(info.mass for name, info in run.body_info.items() if name in run.bodies)
+    g2 = float(np.dot(run.gravity, run.gravity))
+    return -0.5 * mass * g2 * run.timestep_s * flight_s
 
 
 def summary_row(
@@ -133,6 +159,7 @@ def summary_row(
         "reason": run.meta.get("reason", ""),
         "warnings": "; ".join(run.warnings),
         "timestep_s": run.timestep_s,
+        "integrator": run.integrator,
         "log_every": run.log_every,
         "duration_s": float(states["t_s"].max() or 0.0) if states.height else 0.0,
         "n_bodies": len(run.bodies),
@@ -143,6 +170,10 @@ def summary_row(
         "energy_loss_frac": (e0 - e1) / e0 if e0 else None,
         "flight_drift_max_J": ph["drift_max"] if ph["n_flights"] else None,
         "flight_drift_max_rel": (ph["dev_max"] / scale) if ph["n_flights"] and scale else None,
+        "flight_drift_J": ph["drift_worst"] if ph["n_flights"] else None,
+        "flight_drift_predicted_J": predicted_drift(run, ph["drift_worst_T"])
+        if ph["n_flights"]
+        else None,
         "contact_loss_sum_J": ph["loss_sum"] if ph["n_contacts"] else 0.0,
         "mujoco_diff_max_J": en["mujoco_diff_max"],
         "drop_height_m": f("apex_before_m"),

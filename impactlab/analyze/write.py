@@ -88,7 +88,7 @@ def write_all(
             "energy": answers.energy_answer(result.runs),
             "e_constant_across_bounces": answers.constancy_answer(result.runs, result.bounces),
             "e_against_drop_height": answers.height_answer(result.studies),
-            "collision": answers.collision_answer(result.collisions),
+            "collision": answers.collision_answer(result.collisions, result.runs),
             "parameter_study": answers.study_answer(result.studies, params),
         },
         "energy_table": stride_note,
