@@ -5,6 +5,7 @@ replay holds the same recording `impactlab replay` writes."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import shutil
 import subprocess
 import sys
@@ -36,12 +37,32 @@ def _result(outputs) -> dict:
     return result["data"]
 
 
-def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path):
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
+def _kernel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
+    """A kernel spec of this interpreter, found first (JUPYTER_PATH), so the notebook runs
+    with the impactlab under test whatever other kernels the machine has; Jupyter's and
+    IPython's files go into tmp_path."""
+    spec = tmp_path / "jupyter" / "kernels" / "impactlab-test"
+    spec.mkdir(parents=True)
+    argv = [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"]
+    (spec / "kernel.json").write_text(
+        json.dumps({"argv": argv, "display_name": "impactlab test", "language": "python"})
+    )
+    monkeypatch.setenv("JUPYTER_PATH", str(tmp_path / "jupyter"))
+    monkeypatch.setenv("JUPYTER_RUNTIME_DIR", str(tmp_path / "runtime"))
+    monkeypatch.setenv("IPYTHONDIR", str(tmp_path / "ipython"))
+    return "impactlab-test"
+
+
+def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path, monkeypatch):
+    work = tmp_path / "work"
+    shutil.copytree(ROOT / "experiments", work / "experiments")
     nb = nbformat.read(NOTEBOOK, as_version=4)
     assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code"), "stored outputs"
     client = NotebookClient(
-        nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(tmp_path)}}
+        nb,
+        timeout=300,
+        kernel_name=_kernel(tmp_path, monkeypatch),
+        resources={"metadata": {"path": str(work)}},
     )
     client.execute()  # raises CellExecutionError with the cell's traceback when a cell fails
 
@@ -50,7 +71,7 @@ def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path):
     assert any(WIDGET in o.get("data", {}) for o in record)
     data = _result(record)
     assert data["text/plain"] == "<RecordResult 2 runs: 2 recorded, logs/>"
-    logs = sorted((tmp_path / "logs").glob("*.mcap"))
+    logs = sorted((work / "logs").glob("*.mcap"))
     assert len(logs) == 2
     html = data["text/html"]
     assert html.startswith('<table class="impactlab">') and html.count("<tr>") == 3

@@ -19,7 +19,7 @@ velocities, heights and energies). Names from the logs are made printable (`show
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -157,7 +157,12 @@ def _collision_groups(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
     }
 
 
-def _events(golden: pl.DataFrame, new: pl.DataFrame, groups) -> Iterator[tuple[str, Any, Any]]:
+Groups = Callable[[pl.DataFrame], dict[str, pl.DataFrame]]
+
+
+def _events(
+    golden: pl.DataFrame, new: pl.DataFrame, groups: Groups
+) -> Iterator[tuple[str, Any, Any]]:
     a, b = groups(golden), groups(new)
     for name in sorted(a.keys() | b.keys()):
         yield name, a.get(name), b.get(name)
