@@ -128,3 +128,21 @@ def test_collisions_are_compared_per_pair(tmp_path):
 def test_the_entry_point_names_the_plugin():
     pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert pyproject["project"]["entry-points"]["pytest11"] == {"impactlab": PLUGIN}
+
+
+def test_a_lost_bounce_is_named_with_the_counts(tmp_path):
+    doc = {
+        "name": "bouncy",
+        "options": {"timestep": 0.0005},
+        "contact": {"solref": [-20000.0, -5.0]},
+        "bodies": {"ball": {"radius": 0.1, "mass": 1.0, "pos": [0.0, 0.0, 1.0]}},
+        "stop": {"max_time": 3.0, "bounces": 3},
+    }
+    three = impactlab.analyze(impactlab.record(doc, out=tmp_path / "a").paths)
+    doc["stop"]["bounces"] = 2
+    two = impactlab.analyze(impactlab.record(doc, out=tmp_path / "b").paths)
+    assert three.runs["n_bounces"][0] == 3 and two.runs["n_bounces"][0] == 2
+    diff = compare_physics(three, two).differences
+    assert "bounces of ball: 3 -> 2" in diff
+    assert "run ended: apex after bounce 3 -> apex after bounce 2" in diff
+    assert not any(d.startswith("bounce 1 of ball") for d in diff), diff  # the same first two
