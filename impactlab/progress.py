@@ -85,6 +85,9 @@ class ConsoleProgress:
     has printed nothing for `quiet_s` seconds prints where it stands on stderr instead
     (`analyze: 16 of 64 logs done (25 %), 5.1 s`), so a long job never looks stuck.
 
+    With `notebook`, the bar is `tqdm.auto`'s (a widget in a Jupyter notebook), always shown
+    and left in the cell when the job is over.
+
     Call `close()` when the job is over (the bar is removed from the terminal).
     """
 
@@ -94,10 +97,12 @@ class ConsoleProgress:
         echo: Callable[[str], None] = print,
         quiet_s: float = QUIET_SECONDS,
         clock: Callable[[], float] = time.monotonic,
+        notebook: bool = False,
     ) -> None:
         self.echo = echo
         self.quiet_s = quiet_s
         self.clock = clock
+        self.notebook = notebook
         self._bar: Any = None
         self._stage: str | None = None
         self._started = self._last_output = clock()
@@ -109,16 +114,8 @@ class ConsoleProgress:
         if event.stage != self._stage:
             self.close()
             self._stage = event.stage
-            if event.total >= 2:
-                from tqdm import tqdm
-
-                # no monitor thread: a process with another thread cannot fork record workers
-                tqdm.monitor_interval = 0
-
-                unit = "log" if event.stage in ("analyze", "replay") else "run"
-                # disable=None: no bar when stderr is not a terminal (logs, CI)
-                bar = tqdm(total=event.total, unit=unit, leave=False, file=sys.stderr, disable=None)
-                self._bar = None if bar.disable else bar
+            if event.total >= 2 or (self.notebook and event.total >= 1):
+                self._bar = self._new_bar(event)
             self._started = self._last_output = self.clock()
         bar = self._bar
         if bar is not None:
@@ -129,6 +126,22 @@ class ConsoleProgress:
         self._print(event)
         if bar is None and event.line is None and 0 < event.done < event.total:
             self._count_line(event)
+
+    def _new_bar(self, event: ProgressEvent) -> Any:
+        """A tqdm bar for the stage (None when stderr is no terminal, outside notebooks)."""
+        unit = "log" if event.stage in ("analyze", "replay") else "run"
+        if self.notebook:
+            from tqdm.auto import tqdm as auto_tqdm
+
+            auto_tqdm.monitor_interval = 0
+            return auto_tqdm(total=event.total, unit=unit, desc=event.stage, leave=True)
+        from tqdm import tqdm
+
+        # no monitor thread: a process with another thread cannot fork record workers
+        tqdm.monitor_interval = 0
+        # disable=None: no bar when stderr is not a terminal (logs, CI)
+        bar = tqdm(total=event.total, unit=unit, leave=False, file=sys.stderr, disable=None)
+        return None if bar.disable else bar
 
     def _count_line(self, event: ProgressEvent) -> None:
         """Where the job stands, when nothing was printed for `quiet_s` seconds."""
@@ -168,13 +181,26 @@ def console_progress() -> ConsoleProgress:
     return ConsoleProgress()
 
 
+def in_notebook() -> bool:
+    """Whether this process is a Jupyter kernel (IPython running in an `IPKernelApp`)."""
+    ipython = sys.modules.get("IPython")
+    if ipython is None:
+        return False
+    try:
+        shell = ipython.get_ipython()
+    except Exception:  # an IPython without a shell, or a broken one: not a notebook
+        return False
+    return shell is not None and "IPKernelApp" in getattr(shell, "config", {})
+
+
 @contextlib.contextmanager
 def reporter(progress: Progress | None, verbose: bool) -> Iterator[Progress | None]:
-    """`progress` itself, or with `verbose` (and no `progress`) the console's, closed after."""
+    """`progress` itself, or with `verbose` (and no `progress`) the console's, closed after:
+    in a notebook, a `tqdm.auto` bar (a widget) that stays in the cell."""
     if progress is not None or not verbose:
         yield progress
         return
-    console = console_progress()
+    console = ConsoleProgress(notebook=True) if in_notebook() else console_progress()
     try:
         yield console
     finally:

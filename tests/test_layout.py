@@ -46,6 +46,10 @@ FORBIDDEN = {
         "third": {"mujoco", "matplotlib"},
     },
     "impactlab.calibrate": {"impactlab": {"replay", "cli", "lab"}, "third": {"rerun"}},
+    "impactlab.testing": {
+        "impactlab": {"replay", "calibrate", "contact", "cli", "lab", "golden"},
+        "third": {"mujoco", "matplotlib", "rerun"},
+    },
 }
 BASE = (
     "errors",
@@ -54,6 +58,7 @@ BASE = (
     "packages",
     "physics",
     "plotting",
+    "show",
     "version",
 )  # below every stage
 FACES = {f"impactlab.{stage}" for stage in STAGES}  # what other stages may use of a stage
@@ -147,7 +152,7 @@ def test_calibrate_and_lab_use_the_other_stages_public_faces_only():
     bad = []
     for name, path in MODULES.items():
         user = _owner(name)
-        if user not in ("impactlab.calibrate", "impactlab.lab"):
+        if user not in ("impactlab.calibrate", "impactlab.lab", "impactlab.testing"):
             continue
         for imported in _imports(name, path):
             owner = _owner(imported)

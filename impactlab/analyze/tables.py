@@ -45,6 +45,17 @@ class AnalysisResult:
         """0 when every input was analyzed, else 1."""
         return 1 if self.failed else 0
 
+    def __repr__(self) -> str:
+        from impactlab.analyze.view import analysis_repr
+
+        return analysis_repr(self)
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: one row per run (`impactlab.analyze.view`)."""
+        from impactlab.analyze.view import analysis_html
+
+        return analysis_html(self)
+
 
 REDUCE_EVERY = 64
 """Runs whose frames are gathered before they are concatenated into the tables."""

@@ -246,6 +246,17 @@ class RunLog:
         parts += [f"{k}: missing" for k in missing]
         return f"damaged metadata: {'; '.join(parts)}: cannot analyze" if parts else None
 
+    def __repr__(self) -> str:
+        from impactlab.logs.view import log_repr
+
+        return log_repr(self)
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks (`impactlab.logs.view`)."""
+        from impactlab.logs.view import log_html
+
+        return log_html(self)
+
     def _known(self, key: str) -> Any:
         if key in self.checked.values:
             return self.checked.values[key]

@@ -112,6 +112,17 @@ class RecordResult:
         """0 when every run completed (recorded or reused), else 1."""
         return 1 if self.failed or self.unstable else 0
 
+    def __repr__(self) -> str:
+        from impactlab.record.view import record_repr
+
+        return record_repr(self)
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: one row per run (`impactlab.record.view`)."""
+        from impactlab.record.view import record_html
+
+        return record_html(self)
+
     def summary(self, out_dir: Path) -> str:
         """One line for people: how many runs were written, unstable, failed."""
         parts = [f"{len(self.recorded)} run(s) written to {out_dir}/"]
