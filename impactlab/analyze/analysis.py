@@ -241,7 +241,8 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         if rid in body_contacts:
             col = collisions(body_contacts[rid], p.states, infos)
             g = float(np.linalg.norm(run.gravity))
-            col = with_surroundings(col, run.contacts, g, logged_interval_s(run))
+            links = frozenset(n for n, i in run.body_info.items() if i.motion != "free")
+            col = with_surroundings(col, run.contacts, g, logged_interval_s(run), links)
         if col.is_empty() and len(names) >= 2 and expects_collision(run):
             col = no_collision_rows(
                 rid,

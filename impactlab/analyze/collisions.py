@@ -227,11 +227,16 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
 
 
 def with_surroundings(
-    col: pl.DataFrame, contacts: pl.DataFrame, gravity: float, interval_s: float
+    col: pl.DataFrame,
+    contacts: pl.DataFrame,
+    gravity: float,
+    interval_s: float,
+    articulated: frozenset[str] = frozenset(),
 ) -> pl.DataFrame:
     """The collisions with what else acted on each pair from the logged row before the
     contact to the one after it: `touched_by`, the other bodies and surfaces (a static
-    body's geom by name) in any logged contact with either body ("" none), and
+    body's geom by name) in any logged contact with either body, and "<body>'s joints" for
+    an `articulated` body of the pair, which its tree pushes ("" none), and
     `gravity_impulse_rel`, (m1 + m2) |g| dt over that time / (|m1 v1| + |m2 v2|).
 
     Args:
@@ -257,7 +262,7 @@ def with_surroundings(
         hi = np.searchsorted(t_ns, round(t1 * 1e9), "right")
         c1, c2, g1, g2 = (x[lo:hi] for x in (b1s, b2s, g1s, g2s))
         in1, in2 = (c1 == a) | (c1 == b), (c2 == a) | (c2 == b)
-        names = set()
+        names = {f"{x}'s joints" for x in (a, b) if x in articulated}
         for mine, other, geom in ((in1 & ~in2, c2, g2), (in2 & ~in1, c1, g1)):
             names.update(np.where(other[mine] == "world", geom[mine], other[mine]).tolist())
         touched.append(", ".join(sorted(names)))

@@ -57,8 +57,9 @@ below its zero of potential energy; beyond that the initial energy is too small 
 to be read, and the change is written in joules."""
 
 HIDDEN_PARTS_J = 1e-6
-"""When MuJoCo's total energy differs from the analysis' (the free bodies') by more than
-this, the model has moving parts the analysis does not follow (a hinged arm, a slider),
+"""When MuJoCo's total energy differs from the analysis' (every logged body and the joints'
+rotor and spring energy) by more than this, the model has parts the analysis does not
+follow (in logs written before every moving body was logged: a hinged arm, a slider),
 which may touch or pull the bodies without a contact the analysis sees."""
 
 
@@ -237,7 +238,7 @@ def _acting(col: dict[str, Any], run: dict[str, Any] | None) -> tuple[list[str],
     if defined(hidden) and hidden > HIDDEN_PARTS_J:
         others.append(
             f"the model has moving parts the analysis does not follow (MuJoCo's energy "
-            f"differs from the free bodies' by {hidden:.3g} J)"
+            f"differs from the logged bodies' by {hidden:.3g} J)"
         )
     return others, touched is None or not defined(gravity)
 
