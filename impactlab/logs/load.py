@@ -152,16 +152,9 @@ class RunLog:
             rest = b.get("rest_height_m", radius)  # older logs: spheres only
             shape = b.get("shape", "sphere" if radius is not None else "")
             inertia = tuple(float(x) for x in b["inertia"])
-            out[b["name"]] = BodyInfo(
-                b["name"],
-                float(b["mass"]),
-                inertia,
-                radius,
-                rest,
-                shape,
-                tuple(b.get("geoms", ())),
-                b.get("motion", "free"),
-            )
+            geoms, motion = tuple(b.get("geoms", ())), b.get("motion", "free")
+            fields = (b["name"], float(b["mass"]), inertia, radius, rest, shape, geoms, motion)
+            out[b["name"]] = BodyInfo(*fields)
         return out
 
     @property
