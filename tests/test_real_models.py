@@ -187,3 +187,32 @@ def test_a_run_starts_from_a_named_keyframe(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "no keyframe named 'nope'" in err and "'home'" in err
     assert "Traceback" not in err and not (tmp_path / "x").exists()
+
+
+RAMP = """<mujoco>
+  <option timestep="0.001"/>
+  <worldbody>
+    <geom name="ramp" type="box" size="1 0.5 0.05" pos="0 0 0.5" euler="0 30 0"/>
+    <body name="block" pos="0.6 0 0.6">
+      <freejoint/><geom type="box" size="0.05 0.05 0.05" mass="0.5"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def test_a_body_above_a_ramp_starts_with_the_potential_energy_of_its_clearance(tmp_path):
+    """The ramp's highest point (1.05 m) is above the block (0.6 m): the reference is the
+    surface under the block, so it starts with m g (its clearance), not a negative energy."""
+    (tmp_path / "ramp.xml").write_text(RAMP)
+    run = record(tmp_path / "ramp.xml", tmp_path / "logs", "--duration", "0.05")
+    (surface,) = run.surfaces
+    assert surface.level_m > 1.0 > run.bodies["block"]["z"][0]
+    energy = analyze_run(run).energy
+    first = energy.filter(pl.col("body") == "block").row(0, named=True)
+    clearance = run.clearance.filter(pl.col("surface") == "ramp")["clearance_m"][0]
+    assert clearance > 0.2
+    assert first["pe_J"] == pytest.approx(0.5 * 9.81 * clearance, rel=1e-9)
+    assert first["height_m"] == pytest.approx(clearance, rel=1e-12)
+    total = energy.filter(pl.col("body") == "total")
+    assert total["mujoco_diff_J"].abs().max() < 1e-9

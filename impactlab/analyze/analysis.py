@@ -24,9 +24,9 @@ from impactlab.analyze.contacts import (
     state_blocks,
     states_long,
 )
-from impactlab.analyze.energy import references, run_energies
+from impactlab.analyze.energy import run_energies
 from impactlab.analyze.flights import flight_rows, flights
-from impactlab.analyze.ground import Ground, run_ground
+from impactlab.analyze.ground import Ground, references, run_ground
 from impactlab.analyze.impacts import approach_and_release, merge_chatter
 from impactlab.analyze.phases import energy_phases
 from impactlab.analyze.summary import headlines, summary_row

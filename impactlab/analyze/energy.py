@@ -14,49 +14,15 @@ the reference. The energy budget over flights and contacts: `impactlab.analyze.p
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
 from impactlab.analyze.contacts import state_blocks
-from impactlab.analyze.ground import Ground
+from impactlab.analyze.ground import Ground, Reference
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
-
-
-@dataclass(frozen=True)
-class Reference:
-    """Where a body's potential energy is zero: a point (only its height along -gravity
-    matters), and the surface its heights are measured from (None: centre above `point`)."""
-
-    point: np.ndarray
-    surface: str | None
-
-
-def references(
-    run: RunLog,
-    ground: Ground,
-    first_surface: dict[str, str],
-    start: dict[str, tuple[float, float, float]],
-) -> dict[str, Reference]:
-    """Per body, its energy reference (see the module docstring).
-
-    Args:
-        first_surface: per body, the surface of its first ground contact (if any).
-        start: per body, its first logged position (the reference without a ground).
-    """
-    refs = {}
-    for name, info in run.body_info.items():
-        surface = ground.reference(name, first_surface.get(name), info.rest_height_m)
-        if surface is not None and info.rest_height_m is not None:
-            level = ground.surfaces[surface].level_m + info.rest_height_m
-            measured = ground.has_clearance(name, surface)
-            refs[name] = Reference(level * ground.up, surface if measured else None)
-            continue
-        refs[name] = Reference(np.asarray(start.get(name, (0.0, 0.0, 0.0)), dtype=float), None)
-    return refs
 
 
 def body_frame_omega() -> list[pl.Expr]:

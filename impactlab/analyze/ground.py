@@ -144,3 +144,68 @@ def legacy_plane_name(run: RunLog) -> str:
     """The plane geom's name in an older log: the world's geom in its contact channels."""
     world = run.contacts.filter(pl.col("body1") == "world")["geom1"].unique().sort()
     return str(world[0]) if world.len() else "plane"
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Where a body's potential energy is zero: a point (only its height along -gravity
+    matters), and the surface its heights are measured from (None: centre above `point`)."""
+
+    point: np.ndarray
+    surface: str | None
+
+
+def references(
+    run: RunLog,
+    ground: Ground,
+    first_surface: dict[str, str],
+    start: dict[str, tuple[float, float, float]],
+) -> dict[str, Reference]:
+    """Per body, its energy reference (see the module docstring).
+
+    Args:
+        first_surface: per body, the surface of its first ground contact (if any).
+        start: per body, its first logged position (the reference without a ground).
+    """
+    refs = {}
+    for name, info in run.body_info.items():
+        surface = ground.reference(name, first_surface.get(name), info.rest_height_m)
+        if surface is not None and info.rest_height_m is not None:
+            level = _level_under(run, ground, name, surface, start.get(name))
+            measured = ground.has_clearance(name, surface)
+            refs[name] = Reference(
+                (level + info.rest_height_m) * ground.up, surface if measured else None
+            )
+            continue
+        refs[name] = Reference(np.asarray(start.get(name, (0.0, 0.0, 0.0)), dtype=float), None)
+    return refs
+
+
+def _level_under(
+    run: RunLog,
+    ground: Ground,
+    body: str,
+    surface: str,
+    start: tuple[float, float, float] | None,
+) -> float:
+    """The level (along -gravity, m) of the surface under a body at its first logged step.
+
+    A plane's is its level. Another surface (a table, a mesh, a height field) may reach
+    higher elsewhere than under the body (a hand's fingers above its palm): its level under
+    the body is at most the body's first height minus its rest height and its first
+    clearance (MuJoCo's distance to the surface; not counted when negative, e.g. inside a
+    mesh's convex hull), so no body starts below its reference.
+    """
+    top = ground.surfaces[surface].level_m
+    rest = run.body_info[body].rest_height_m
+    frame = run.bodies.get(body)
+    if ground.surfaces[surface].type == "plane" or start is None or rest is None:
+        return top
+    if frame is None or not frame.height:
+        return top
+    under = float(np.dot(start, ground.up)) - rest
+    t0 = frame["t_ns"][:1].to_numpy()
+    clearance, found = ground.clearance_at(body, surface, t0)
+    if found[0] and clearance[0] > 0:
+        under -= float(clearance[0])
+    return min(top, under)
