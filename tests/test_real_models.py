@@ -216,3 +216,27 @@ def test_a_body_above_a_ramp_starts_with_the_potential_energy_of_its_clearance(t
     assert first["height_m"] == pytest.approx(clearance, rel=1e-12)
     total = energy.filter(pl.col("body") == "total")
     assert total["mujoco_diff_J"].abs().max() < 1e-9
+
+
+def test_every_command_runs_on_every_model_alone_and_in_one_batch(tmp_path, capsys):
+    logs = tmp_path / "logs"
+    for model in MODELS.values():
+        assert main(["record", str(model), "-o", str(logs), "--duration", "0.3"]) == 0
+    paths = sorted(logs.glob("*.mcap"))
+    assert len(paths) == len(MODELS)
+    assert main(["info", *map(str, paths)]) == 0
+    assert main(["analyze", str(logs), "-o", str(tmp_path / "all"), "--no-figures"]) == 0
+    for path in paths[:2]:  # alone, as well
+        assert main(["analyze", str(path), "-o", str(tmp_path / path.stem), "--no-figures"]) == 0
+    replay = [
+        "replay",
+        str(paths[0]),
+        "-o",
+        str(tmp_path / "r.rrd"),
+        "--analysis",
+        str(tmp_path / "all"),
+    ]
+    assert main(replay) == 0
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert (tmp_path / "all" / "report.md").is_file() and (tmp_path / "r.rrd").is_file()
