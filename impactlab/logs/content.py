@@ -149,6 +149,7 @@ class LogHeader:
     geoms: Sequence[GeomShape]
     model_xml: str
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
+    attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
 
 
 @dataclass(frozen=True)

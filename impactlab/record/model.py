@@ -95,6 +95,8 @@ class InstrumentedModel:
     clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
+    attachments: tuple[tuple[str, str, bytes], ...] = ()  # more files for the log (name, type)
+    inputs: tuple[tuple[str, str], ...] = ()  # (file, SHA-256) the model reads besides its own
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -168,14 +170,27 @@ def model_from_spec(run: RunSpec) -> InstrumentedModel:
 
 
 def model_from_mjcf(path: Path) -> InstrumentedModel:
-    """Load a user's MJCF file and instrument every free body and every possible contact."""
+    """Load a user's MJCF file and instrument every free body and every possible contact.
+
+    The log keeps the model's text with its includes inlined and, when it reads mesh or
+    texture files, the compiled model (`impactlab.record.model_files`).
+    """
+    from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files, parse_mjcf
+
     if not path.is_file():
         raise SpecError(str(path), "", "file not found")
+    spec = parse_mjcf(path)
+    files = model_files(spec, path)
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
-        raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
-    return instrument(spec, str(path), xml=path.read_text(), keyframe=None)
+        inst = instrument(spec, str(path), xml=files.xml, keyframe=None)
+    except UnicodeDecodeError:  # MuJoCo keeps names as the file's bytes
+        raise SpecError(
+            str(path), "", "a name in the model is not UTF-8 text: save the model as UTF-8"
+        ) from None
+    inst.inputs = files.inputs
+    if files.needs_binary:
+        inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
+    return inst
 
 
 def _one_line(exc: BaseException) -> str:

@@ -1,0 +1,245 @@
+"""Valid but unusual models, specs and options (issue 25): each is handled or one error line.
+
+Model rewriting never writes over the model's own files and keeps their bytes; a log carries
+what reproduces its run and is reused only when every file of the model is unchanged; the
+names impactlab generates cannot clash with the user's; the rest are one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import mujoco
+import pytest
+
+from impactlab.cli import main
+
+BALL = """<mujoco>
+  <worldbody>
+    <body name="ball" pos="0 0 0.5">
+      <freejoint/>
+      <geom name="g" type="sphere" size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+MAIN = """<mujoco model="m">
+  <option timestep="{dt}"/>
+  <include file="ball.xml"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+  </worldbody>
+</mujoco>
+"""
+ONE = """<mujoco model="m">
+  <option timestep="0.00002"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="{body}" pos="0 0 0.5">
+      <freejoint/>
+      <geom name="a" type="sphere" size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+  <contact>
+    <pair geom1="a" geom2="floor"/>
+  </contact>
+</mujoco>
+"""
+
+
+def cli(capsys, *args: str) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_error(err: str, *words: str) -> None:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("impactlab"), err
+    for word in words:
+        assert word in lines[0], err
+
+
+def digest(folder: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+@pytest.fixture
+def included(tmp_path) -> Path:
+    (tmp_path / "ball.xml").write_text(BALL)
+    (tmp_path / "main.xml").write_text(MAIN.format(dt="0.00002"))
+    return tmp_path
+
+
+# -- rewriting a user's model ------------------------------------------------------------
+
+
+def test_contact_never_writes_over_an_included_file(included, capsys):
+    before = digest(included)
+    code, _, err = cli(
+        capsys,
+        "contact",
+        included / "main.xml",
+        "--pair",
+        "g/floor=0.8",
+        "-o",
+        included / "ball.xml",
+    )
+    assert code == 2
+    one_error(err, "ball.xml", "-o")
+    (included / "link.xml").symlink_to(included / "ball.xml")
+    code, _, err = cli(
+        capsys,
+        "contact",
+        included / "main.xml",
+        "--pair",
+        "g/floor=0.8",
+        "-o",
+        included / "link.xml",
+    )
+    assert code == 2
+    one_error(err, "link.xml")
+    code, _, err = cli(
+        capsys,
+        "contact",
+        included / "main.xml",
+        "--pair",
+        "g/floor=0.8",
+        "-o",
+        included / "main.xml",
+    )
+    assert code == 2
+    one_error(err, "main.xml")
+    after = digest(included)
+    after.pop("link.xml")
+    assert after == before
+
+
+def test_contact_with_an_include_writes_a_model_that_compiles(included, capsys):
+    out = included / "tuned.xml"
+    code, _, err = cli(capsys, "contact", included / "main.xml", "--pair", "g/floor=0.8", "-o", out)
+    assert code == 0, err
+    model = mujoco.MjModel.from_xml_path(str(out))
+    assert model.npair == 1
+    assert (included / "ball.xml").read_text() == BALL
+
+
+def test_a_pair_given_twice_is_refused(tmp_path, capsys):
+    path = tmp_path / "m.xml"
+    path.write_text(ONE.format(body="a"))
+    out = tmp_path / "out.xml"
+    code, _, err = cli(
+        capsys, "contact", path, "--pair", "a/floor=0.8", "--pair", "floor/a=0.8", "-o", out
+    )
+    assert code == 2
+    one_error(err, "a/floor", "floor/a")
+    assert not out.exists()
+
+
+def test_line_ends_and_encoding_are_kept(tmp_path, capsys):
+    text = '<?xml version="1.0" encoding="ISO-8859-1"?>\n<!-- café au lait -->\n'
+    text += ONE.format(body="b")
+    raw = text.replace("\n", "\r\n").encode("iso-8859-1")
+    path = tmp_path / "latin.xml"
+    path.write_bytes(raw)
+    out = tmp_path / "out.xml"
+    code, _, err = cli(capsys, "contact", path, "--pair", "a/floor=0.8", "-o", out)
+    assert code == 0, err
+    written = out.read_bytes()
+    assert b"caf\xe9 au lait" in written  # still ISO-8859-1
+    assert written.count(b"\n") == written.count(b"\r\n")  # every line end CRLF
+    assert written.count(b"\r\n") == raw.count(b"\r\n")  # the pair replaced in place
+    assert mujoco.MjModel.from_xml_path(str(out)).npair == 1
+
+
+def test_a_name_that_is_not_utf8_is_one_line(tmp_path, capsys):
+    text = '<?xml version="1.0" encoding="ISO-8859-1"?>\n' + ONE.format(body="café")
+    path = tmp_path / "latin.xml"
+    path.write_bytes(text.encode("iso-8859-1"))
+    code, _, err = cli(capsys, "contact", path, "--pair", "a/floor=0.8")
+    assert code == 2
+    one_error(err, "UTF-8")
+    code, _, err = cli(capsys, "record", path, "--duration", "0.001", "-o", tmp_path / "logs")
+    assert code == 2
+    one_error(err, "UTF-8")
+    assert not (tmp_path / "logs").exists()
+
+
+# -- logs that reproduce their run ------------------------------------------------------
+
+MESH = """<mujoco model="mesh">
+  <option timestep="0.001"/>
+  <asset><mesh name="tet" file="tet.obj"/></asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="5 5 0.1"/>
+    <body name="rock" pos="0 0 0.5">
+      <freejoint/>
+      <geom name="rock" type="mesh" mesh="tet" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+TET = "v 0 0 0\nv {s} 0 0\nv 0 {s} 0\nv 0 0 {s}\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n"
+
+
+def record(capsys, model: Path, out: Path) -> tuple[str, list[Path]]:
+    code, printed, err = cli(capsys, "record", model, "--duration", "0.005", "-o", out)
+    assert code == 0, err
+    return printed, sorted(out.glob("*.mcap"))
+
+
+def attachments(log: Path) -> dict[str, bytes]:
+    from impactlab.logs.reader import read_attachments
+
+    return dict(read_attachments(log))
+
+
+def test_a_log_of_a_model_with_includes_compiles_alone_and_is_not_reused_stale(included, capsys):
+    (included / "main.xml").write_text(MAIN.format(dt="0.001"))
+    printed, logs = record(capsys, included / "main.xml", included / "logs")
+    assert len(logs) == 1
+    xml = attachments(logs[0])["model.xml"].decode()
+    assert "<include" not in xml
+    alone = mujoco.MjModel.from_xml_string(xml)  # no file beside it
+    assert alone.nbody == 2 and alone.body_pos[1][2] == pytest.approx(0.5, abs=1e-15)
+    (included / "ball.xml").write_text(BALL.replace("0 0 0.5", "0 0 0.625"))
+    printed, logs = record(capsys, included / "main.xml", included / "logs")
+    assert "reused" not in printed
+    assert len(logs) == 2  # the edit is another run
+    heights = sorted(
+        mujoco.MjModel.from_xml_string(attachments(p)["model.xml"].decode()).body_pos[1][2]
+        for p in logs
+    )
+    assert heights == pytest.approx([0.5, 0.625], abs=1e-15)
+    printed, again = record(capsys, included / "main.xml", included / "logs")
+    assert "reused 1" in printed and again == logs  # unchanged files: reused
+    (included / "ball.xml").write_text(BALL.replace("0 0 0.5", "0 0 0.625") + "<!-- x -->\n")
+    printed, _ = record(capsys, included / "main.xml", included / "logs")
+    assert "reused" not in printed  # any byte of an included file is part of the key
+
+
+def test_a_log_of_a_model_with_a_mesh_carries_the_compiled_model(tmp_path, capsys):
+    (tmp_path / "m.xml").write_text(MESH)
+    (tmp_path / "tet.obj").write_text(TET.format(s=0.2))
+    _, logs = record(capsys, tmp_path / "m.xml", tmp_path / "logs")
+    binary = tmp_path / "model.mjb"
+    binary.write_bytes(attachments(logs[0])["model.mjb"])
+    model = mujoco.MjModel.from_binary_path(str(binary))
+    source = mujoco.MjModel.from_xml_path(str(tmp_path / "m.xml"))
+    assert model.nmeshvert == source.nmeshvert
+    assert model.mesh_vert == pytest.approx(source.mesh_vert, abs=1e-12)
+    (tmp_path / "tet.obj").write_text(TET.format(s=0.3))  # the mesh changes, the XML does not
+    printed, logs = record(capsys, tmp_path / "m.xml", tmp_path / "logs")
+    assert "reused" not in printed and len(logs) == 2
+
+
+def test_a_nan_in_a_model_is_one_line_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "m.xml").write_text(MESH.replace('pos="0 0 0.5"', 'pos="0 0 nan"'))
+    (tmp_path / "tet.obj").write_text(TET.format(s=0.2))
+    code, _, err = cli(capsys, "record", "m.xml", "--duration", "0.01", "-o", "logs")
+    assert code == 2
+    one_error(err, "m.xml", "NaN")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.xml", "tet.obj"]
