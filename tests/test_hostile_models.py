@@ -11,6 +11,7 @@ import hashlib
 from pathlib import Path
 
 import mujoco
+import numpy as np
 import pytest
 
 from impactlab.cli import main
@@ -243,3 +244,42 @@ def test_a_nan_in_a_model_is_one_line_and_writes_nothing(tmp_path, capsys, monke
     assert code == 2
     one_error(err, "m.xml", "NaN")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.xml", "tet.obj"]
+
+
+# -- generated names cannot clash with the user's ----------------------------------------
+
+NAMES = {
+    "unnamed body beside body2": """<mujoco><option timestep="0.001"/><worldbody>
+  <geom name="floor" type="plane" size="5 5 0.1"/>
+  <body name="body2" pos="0 0 1"><freejoint/><geom name="x" size="0.1"/></body>
+  <body pos="1 0 1"><freejoint/><geom name="y" size="0.1"/></body></worldbody></mujoco>""",
+    "unnamed geom beside geom1": """<mujoco><option timestep="0.001"/><worldbody>
+  <geom name="geom1" type="plane" size="5 5 0.1"/>
+  <body name="b" pos="0 0 1"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>""",
+    "geom names with colons": """<mujoco><option timestep="0.001"/><worldbody>
+  <geom name="a:b" type="plane" size="5 5 0.1"/>
+  <geom name="a" type="plane" pos="0 0 -0.5" size="5 5 0.1"/>
+  <body name="b" pos="0 0 1"><freejoint/><geom name="b:c" size="0.1"/>
+    <geom name="c" size="0.1" pos="0.1 0 0"/></body></worldbody></mujoco>""",
+    "the user's own impactlab: sensor": """<mujoco><option timestep="0.001"/><worldbody>
+  <geom name="floor" type="plane" size="5 5 0.1"/>
+  <body name="b" pos="0 0 1"><freejoint/><geom name="g" size="0.1"/></body></worldbody>
+  <sensor><framepos name="impactlab:e_potential" objtype="body" objname="b"/>
+    <framepos name="impactlab2:b:framepos" objtype="body" objname="b"/></sensor></mujoco>""",
+}
+
+
+@pytest.mark.parametrize("case", list(NAMES))
+def test_generated_names_do_not_clash(case, tmp_path, capsys):
+    from impactlab.logs.load import load_log
+
+    (tmp_path / "m.xml").write_text(NAMES[case])
+    _, logs = record(capsys, tmp_path / "m.xml", tmp_path / "logs")
+    log = load_log(logs[0])
+    assert not log.partial
+    assert len(log.bodies) == NAMES[case].count("<body")
+    for frame in log.bodies.values():  # each fell freely from z = 1 for 5 ms (Euler)
+        n = np.rint(frame["t_s"].to_numpy() / 0.001)
+        assert frame["z"].to_numpy() == pytest.approx(1 - 9.81e-6 * n * (n + 1) / 2, abs=1e-9)
+    code, _, err = cli(capsys, "analyze", logs[0], "-o", tmp_path / "out")
+    assert code == 0, err

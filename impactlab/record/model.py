@@ -214,6 +214,7 @@ def instrument(
         SpecError: the model does not compile or has no free body.
     """
     _name_unnamed(spec)
+    prefix = sensor_prefix(spec)
     try:
         plain = spec.compile()
     except Exception as exc:
@@ -229,17 +230,17 @@ def instrument(
     for name in body_names:
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
             spec.add_sensor(
-                name=f"{SENSOR_PREFIX}{name}:{kind.lower()}",
+                name=f"{prefix}{name}:{kind.lower()}",
                 type=getattr(mujoco.mjtSensor, f"mjSENS_{kind}"),
                 objtype=mujoco.mjtObj.mjOBJ_BODY,
                 objname=name,
             )
-    spec.add_sensor(name=f"{SENSOR_PREFIX}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
-    spec.add_sensor(name=f"{SENSOR_PREFIX}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
+    spec.add_sensor(name=f"{prefix}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
+    spec.add_sensor(name=f"{prefix}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
     pairs = _contact_pairs(plain, set(free_bodies))
     for g1, g2, num in pairs:
         spec.add_sensor(
-            name=f"{SENSOR_PREFIX}contact:{plain.geom(g1).name}:{plain.geom(g2).name}",
+            name=f"{prefix}contact:{g1}:{g2}",  # ids: geom names may hold ':'
             type=mujoco.mjtSensor.mjSENS_CONTACT,
             objtype=mujoco.mjtObj.mjOBJ_GEOM,
             objname=plain.geom(g1).name,
@@ -253,12 +254,12 @@ def instrument(
     ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
-    clearance_plan = _distance_sensors(spec, plain, own, measurable, between_bodies=False)
-    gap_plan = _distance_sensors(spec, plain, own, [], between_bodies=True)
+    clearance_plan = _distance_sensors(spec, plain, own, measurable, prefix, between_bodies=False)
+    gap_plan = _distance_sensors(spec, plain, own, [], prefix, between_bodies=True)
     model = spec.compile()
 
     def adr(name: str) -> int:
-        return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])
+        return int(model.sensor_adr[model.sensor(f"{prefix}{name}").id])
 
     def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
@@ -281,7 +282,7 @@ def instrument(
             geom2=model.geom(g2).name,
             body1=model.body(model.geom_bodyid[g1]).name,
             body2=model.body(model.geom_bodyid[g2]).name,
-            adr=adr(f"contact:{model.geom(g1).name}:{model.geom(g2).name}"),
+            adr=adr(f"contact:{g1}:{g2}"),
             num=num,
         )
         for g1, g2, num in pairs
@@ -307,6 +308,7 @@ def _distance_sensors(
     model: mujoco.MjModel,
     own: dict[int, list[int]],
     surfaces: list[int],
+    prefix: str,
     *,
     between_bodies: bool,
 ) -> list[tuple[str, str, list[str]]]:
@@ -330,9 +332,9 @@ def _distance_sensors(
             for g2 in targets:
                 if not geometry.can_collide(model, g1, g2):
                     continue
-                name = f"distance:{model.geom(g1).name}:{model.geom(g2).name}"
+                name = f"distance:{g1}:{g2}"
                 spec.add_sensor(
-                    name=f"{SENSOR_PREFIX}{name}",
+                    name=f"{prefix}{name}",
                     type=mujoco.mjtSensor.mjSENS_GEOMDIST,
                     objtype=mujoco.mjtObj.mjOBJ_GEOM,
                     objname=model.geom(g1).name,
@@ -346,13 +348,29 @@ def _distance_sensors(
     return plan
 
 
+def sensor_prefix(spec: mujoco.MjSpec) -> str:
+    """`SENSOR_PREFIX`, or ``impactlab2:``, ... : the first that no sensor of the model's
+    own starts with (the recorder's sensor names cannot clash with the user's)."""
+    own = [s.name for s in spec.sensors if s.name]
+    prefix, n = SENSOR_PREFIX, 1
+    while any(name.startswith(prefix) for name in own):
+        n += 1
+        prefix = f"{SENSOR_PREFIX[:-1]}{n}:"
+    return prefix
+
+
 def _name_unnamed(spec: mujoco.MjSpec) -> None:
-    for i, body in enumerate(spec.bodies):
-        if i > 0 and not body.name:
-            body.name = f"body{i}"
-    for i, geom in enumerate(spec.geoms):
-        if not geom.name:
-            geom.name = f"geom{i}"
+    """Name unnamed bodies ``body<i>`` and geoms ``geom<i>``, with ``_`` added until the name
+    is none of the model's own."""
+    for kind, elements, first in (("body", spec.bodies, 1), ("geom", spec.geoms, 0)):
+        taken = {e.name for e in elements if e.name}
+        for i, element in enumerate(elements):
+            if i >= first and not element.name:
+                name = f"{kind}{i}"
+                while name in taken:
+                    name += "_"
+                element.name = name
+                taken.add(name)
 
 
 def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
