@@ -283,3 +283,58 @@ def test_generated_names_do_not_clash(case, tmp_path, capsys):
         assert frame["z"].to_numpy() == pytest.approx(1 - 9.81e-6 * n * (n + 1) / 2, abs=1e-9)
     code, _, err = cli(capsys, "analyze", logs[0], "-o", tmp_path / "out")
     assert code == 0, err
+
+
+# -- specs: names and sweeps that are valid ----------------------------------------------
+
+SPEC = """name = "s"
+[options]
+timestep = 0.001
+[stop]
+max_time = 0.02
+[bodies.{body}]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 0.5]
+"""
+
+
+def test_a_sweep_over_the_description_is_analyzed(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(body="ball") + '[sweep]\ndescription = ["first", "second"]\n')
+    code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")
+    assert code == 0, err
+    code, _, err = cli(capsys, "analyze", tmp_path / "logs", "-o", tmp_path / "out", "--no-figures")
+    assert code == 0, err
+    import polars as pl
+
+    runs = pl.read_parquet(tmp_path / "out" / "runs.parquet")
+    assert sorted(runs["description"].to_list()) == ["first", "second"]
+
+
+@pytest.mark.parametrize("name", ["plane", "world"])
+def test_a_body_named_like_the_plane_or_the_world_is_one_line(name, tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(body=name))
+    code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")
+    assert code == 2
+    one_error(err, "s.toml", f"bodies.{name}")
+    assert not (tmp_path / "logs").exists()
+
+
+def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
+    import polars as pl
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(body="total"))
+    assert cli(capsys, "record", spec, "-o", tmp_path / "logs")[0] == 0
+    code, _, err = cli(capsys, "analyze", tmp_path / "logs", "-o", tmp_path / "out")
+    assert code == 0, err
+    energy = pl.read_parquet(tmp_path / "out" / "energy.parquet")
+    body = energy.filter(~pl.col("is_total"))
+    total = energy.filter(pl.col("is_total"))
+    assert body["body"].unique().to_list() == ["total"] == total["body"].unique().to_list()
+    assert body.height == total.height == 21
+    # one body: the sum is the body's own energy, and the body's rows carry its height
+    assert body["total_J"].to_numpy() == pytest.approx(total["total_J"].to_numpy(), abs=1e-12)
+    assert body["height_m"].null_count() == 0 and total["height_m"].null_count() == 21

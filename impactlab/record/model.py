@@ -22,9 +22,9 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.spec import RunSpec
 
-SENSOR_PREFIX = "impactlab:"
 # contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
 CONTACT_DATA_BITS = 1 | 2 | 8 | 16 | 32 | 64
 CONTACT_SLOT_SIZE = 1 + 3 + 1 + 3 + 3 + 3
@@ -213,7 +213,7 @@ def instrument(
     Raises:
         SpecError: the model does not compile or has no free body.
     """
-    _name_unnamed(spec)
+    name_unnamed(spec)
     prefix = sensor_prefix(spec)
     try:
         plain = spec.compile()
@@ -346,31 +346,6 @@ def _distance_sensors(
         if names:
             plan.append((model.body(b).name, other, names))
     return plan
-
-
-def sensor_prefix(spec: mujoco.MjSpec) -> str:
-    """`SENSOR_PREFIX`, or ``impactlab2:``, ... : the first that no sensor of the model's
-    own starts with (the recorder's sensor names cannot clash with the user's)."""
-    own = [s.name for s in spec.sensors if s.name]
-    prefix, n = SENSOR_PREFIX, 1
-    while any(name.startswith(prefix) for name in own):
-        n += 1
-        prefix = f"{SENSOR_PREFIX[:-1]}{n}:"
-    return prefix
-
-
-def _name_unnamed(spec: mujoco.MjSpec) -> None:
-    """Name unnamed bodies ``body<i>`` and geoms ``geom<i>``, with ``_`` added until the name
-    is none of the model's own."""
-    for kind, elements, first in (("body", spec.bodies, 1), ("geom", spec.geoms, 0)):
-        taken = {e.name for e in elements if e.name}
-        for i, element in enumerate(elements):
-            if i >= first and not element.name:
-                name = f"{kind}{i}"
-                while name in taken:
-                    name += "_"
-                element.name = name
-                taken.add(name)
 
 
 def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
