@@ -8,6 +8,7 @@ names impactlab generates cannot clash with the user's; the rest are one line, e
 from __future__ import annotations
 
 import hashlib
+import re
 from pathlib import Path
 
 import mujoco
@@ -338,3 +339,69 @@ def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
     # one body: the sum is the body's own energy, and the body's rows carry its height
     assert body["total_J"].to_numpy() == pytest.approx(total["total_J"].to_numpy(), abs=1e-12)
     assert body["height_m"].null_count() == 0 and total["height_m"].null_count() == 21
+
+
+# -- options ---------------------------------------------------------------------------
+
+
+def test_a_line_break_in_a_set_value_is_one_line(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(body="ball"))
+    code, _, err = cli(
+        capsys, "record", spec, "-o", tmp_path / "logs", "--set", "ball.mass=2\nball.radius=0.05"
+    )
+    assert code == 2
+    one_error(err, "--set", "line break")
+    assert not (tmp_path / "logs").exists()
+
+
+def test_calibrate_with_a_target_twice_is_one_line_and_leaves_nothing(
+    tmp_path, capsys, monkeypatch
+):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = cli(capsys, "calibrate", "--quick", "--targets", "0.8", "0.8", "-o", "out")
+    assert code == 2
+    one_error(err, "--targets", "0.8")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_diff_in_the_python_api(tmp_path, capsys):
+    import impactlab
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(body="ball"))
+    assert cli(capsys, "record", spec, "-o", tmp_path / "a")[0] == 0
+    assert cli(capsys, "record", spec, "-o", tmp_path / "b", "--set", "ball.mass=2")[0] == 0
+    (a,), (b,) = sorted((tmp_path / "a").glob("*.mcap")), sorted((tmp_path / "b").glob("*.mcap"))
+    assert impactlab.diff(a, a).equal
+    assert not impactlab.diff(a, b).equal
+
+
+# -- advice that is accepted when followed -----------------------------------------------
+
+BOUND = re.compile(r"timestep <= ([0-9.e+-]+) s")
+
+
+def test_the_timestep_a_refusal_names_is_accepted_as_printed(tmp_path, capsys):
+    args = ["contact", "--restitution", "0.3", "--radius", "0.12", "--speed", "0.5..6"]
+    code, out, _ = cli(capsys, *args, "--timestep", "1e-5")
+    assert code == 1
+    printed = BOUND.search(out).group(1)
+    assert float(printed) < 2.86e-06  # the bound of the design at 1e-5 is not enough
+    code, out, err = cli(capsys, *args, "--timestep", printed)
+    assert code == 0, out + err
+    # the same in a spec: the refusal's number, used as printed, is accepted
+    spec = tmp_path / "r.toml"
+    spec.write_text(
+        SPEC.format(body="ball").replace("0.001", "1e-5").replace("0.02", "0.0005")
+        + "[contact]\nrestitution = 0.3\nspeed_range = [0.5, 6.0]\n"
+    )
+    spec.write_text(spec.read_text().replace("radius = 0.1", "radius = 0.12"))
+    code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")
+    assert code == 2
+    one_error(err, "contact")
+    printed = BOUND.search(err).group(1)
+    code, _, err = cli(
+        capsys, "record", spec, "-o", tmp_path / "logs", "--set", f"options.timestep={printed}"
+    )
+    assert code == 0, err
