@@ -154,6 +154,12 @@ def test_line_ends_and_encoding_are_kept(tmp_path, capsys):
     assert written.count(b"\n") == written.count(b"\r\n")  # every line end CRLF
     assert written.count(b"\r\n") == raw.count(b"\r\n")  # the pair replaced in place
     assert mujoco.MjModel.from_xml_path(str(out)).npair == 1
+    # record reads it too, and its log keeps the text as UTF-8, declared so, line ends kept
+    code, _, err = cli(capsys, "record", path, "--duration", "0.001", "-o", tmp_path / "logs")
+    assert code == 0, err
+    (log,) = tmp_path.glob("logs/*.mcap")
+    kept = attachments(log)["model.xml"]
+    assert kept.decode("utf-8") == text.replace("\n", "\r\n").replace("ISO-8859-1", "UTF-8")
 
 
 def test_a_name_that_is_not_utf8_is_one_line(tmp_path, capsys):
