@@ -22,6 +22,7 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
 from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.spec import RunSpec
 
