@@ -251,6 +251,10 @@ def test_a_nan_in_a_model_is_one_line_and_writes_nothing(tmp_path, capsys, monke
     assert code == 2
     one_error(err, "m.xml", "NaN")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.xml", "tet.obj"]
+    code, _, err = cli(capsys, "contact", "m.xml", "--pair", "rock/floor=0.8", "--speed", "1")
+    assert code == 2
+    one_error(err, "m.xml", "NaN")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.xml", "tet.obj"]
 
 
 # -- generated names cannot clash with the user's ----------------------------------------

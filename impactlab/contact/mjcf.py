@@ -19,6 +19,7 @@ import numpy as np
 
 from impactlab.contact.checks import ContactModelError
 from impactlab.contact.mjcf_files import included_files
+from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.contact.params import ContactParams
 
 
@@ -69,9 +70,12 @@ def load_model(path: Path):
     if not path.is_file():
         raise ContactModelError(f"{path}: file not found")
     try:
-        model = mujoco.MjModel.from_xml_path(str(path))
+        model, warned = parse_warnings(lambda: mujoco.MjModel.from_xml_path(str(path)))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
+    nan = nan_warning(warned)
+    if nan is not None:
+        raise ContactModelError(f"invalid MJCF: a number is NaN ({nan})")
     check_names(model)
     return model
 
@@ -130,7 +134,7 @@ def model_inputs(path: Path) -> list[Path]:
 
     files = [path, *included_files(path)]
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        spec, _ = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
     return files + asset_files(spec, path)

@@ -24,8 +24,8 @@ import numpy as np
 from impactlab.contact.checks import ContactModelError
 from impactlab.contact.mjcf import asset_files
 from impactlab.contact.mjcf_files import encoding, included_files, inlined_text, read_text
+from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.errors import SpecError
-from impactlab.record.mujoco_warnings import MESSAGES, quiet_mujoco
 
 BINARY_ATTACHMENT = "model.mjb"
 _DECLARATION = re.compile(r"^(\ufeff?\s*<\?xml[^>]*encoding\s*=\s*)([\"'])[^\"']*\2")
@@ -52,21 +52,13 @@ def parse_mjcf(path: Path) -> mujoco.MjSpec:
     Raises:
         SpecError: MuJoCo cannot parse it, or it holds a NaN.
     """
-    quiet_mujoco()
-    marker = f"impactlab: parsing {path} ({id(path)})"
-    MESSAGES.append(marker)
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
+        spec, fresh = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise SpecError(str(path), "", f"invalid MJCF: {' '.join(str(exc).split())}") from None
-    finally:
-        kept = list(MESSAGES)
-        fresh = kept[kept.index(marker) + 1 :] if marker in kept else kept
-        if marker in kept:
-            MESSAGES.remove(marker)
-    for message in fresh:
-        if "NaN" in message:
-            raise SpecError(str(path), "", f"invalid MJCF: a number is NaN ({message})")
+    nan = nan_warning(fresh)
+    if nan is not None:
+        raise SpecError(str(path), "", f"invalid MJCF: a number is NaN ({nan})")
     return spec
 
 
