@@ -238,6 +238,14 @@ def test_a_log_of_a_model_with_a_mesh_carries_the_compiled_model(tmp_path, capsy
     source = mujoco.MjModel.from_xml_path(str(tmp_path / "m.xml"))
     assert model.nmeshvert == source.nmeshvert
     assert model.mesh_vert == pytest.approx(source.mesh_vert, abs=1e-12)
+    mesh = (tmp_path / "tet.obj").read_bytes()
+    code, _, err = cli(
+        capsys, "contact", tmp_path / "m.xml", "--pair", "rock/floor=0.8", "--speed", "1",
+        "--max-penetration", "0.001", "-o", tmp_path / "tet.obj",
+    )  # fmt: skip
+    assert code == 2
+    one_error(err, "tet.obj")
+    assert (tmp_path / "tet.obj").read_bytes() == mesh
     (tmp_path / "tet.obj").write_text(TET.format(s=0.3))  # the mesh changes, the XML does not
     printed, logs = record(capsys, tmp_path / "m.xml", tmp_path / "logs")
     assert "reused" not in printed and len(logs) == 2

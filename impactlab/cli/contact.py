@@ -50,7 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="G1/G2=E[@LO..HI]",
         help="a pair of the model's geoms, its target e and impact speeds (repeatable)",
     )
-    p.add_argument("-o", "--out", type=Path, metavar="TUNED.xml", help="write the tuned model")
+    p.add_argument(
+        "-o",
+        "--out",
+        type=Path,
+        metavar="TUNED.xml",
+        help="write the tuned model (never the model or a file it includes or reads)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     p.set_defaults(func=run)
 
