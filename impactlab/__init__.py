@@ -55,12 +55,12 @@ def diff(a: Any, b: Any, *, atol: float | None = None, rtol: float | None = None
 
     Returns an `impactlab.logs.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).
     """
-    from impactlab.logs.diff import (
+    from impactlab.logs.diff import diff_logs
+    from impactlab.logs.diff_result import (
         DEFAULT_ATOL,
         DEFAULT_IGNORED_META,
         DEFAULT_RTOL,
         Tolerance,
-        diff_logs,
     )
     from impactlab.logs.load import RunLog, load_log
 

@@ -23,6 +23,21 @@ from impactlab.analyze.ground import Ground, Reference
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
+TOTAL_FLAG = "is_total"
+"""True on the rows that sum every body of the run (their `body` is "total"), false on a
+body's own rows: a body may itself be named "total"."""
+ENERGY_ORDER = (
+    "run_id",
+    "body",
+    TOTAL_FLAG,
+    "t_ns",
+    "t_s",
+    "height_m",
+    *ENERGY_COLUMNS,
+    "mujoco_total_J",
+    "mujoco_diff_J",
+)
+_NOT_TOTAL = pl.lit(False).alias(TOTAL_FLAG)
 
 
 def body_frame_omega() -> list[pl.Expr]:
@@ -124,16 +139,16 @@ def run_energies(
     grounds: Mapping[str, Ground],
     refs: Mapping[str, dict[str, Reference]],
 ) -> tuple[dict[str, pl.DataFrame], dict[str, pl.DataFrame]]:
-    """Each run's energy per body and in all (body = "total"), with MuJoCo's total compared,
-    and its "total" rows by time.
+    """Each run's energy per body and in all (body "total", `is_total` true), with MuJoCo's
+    total compared, and its "total" rows by time.
 
     Args:
         states: `states_long` of the runs (ids distinct).
         grounds, refs: each run's ground and its bodies' `references`, by run id.
 
     Returns:
-        Per run id: (run_id, body, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J, total_J,
-        mujoco_total_J, mujoco_diff_J), by body and time; the MuJoCo columns are set on the
+        Per run id: (run_id, body, is_total, t_ns, t_s, height_m, ke_trans_J, ke_rot_J, pe_J,
+        total_J, mujoco_total_J, mujoco_diff_J), by body and time; the MuJoCo columns are set on the
         "total" rows only: MuJoCo's total minus sum(-m g . r_ref), and that minus total_J.
         Then per run id its "total" rows, by time. Every body's rows are computed in one set
         of frame operations for all runs.
@@ -185,13 +200,18 @@ def run_energies(
             slow[r] = total_energy(parts, run.energy, shift, run.joint_energy)
     totals = _totals(summed) | slow
     totals = [totals[r] for r in spans]
-    out = {}  # each run's bodies by name, "total" the sum's rows (a body of that name too)
+    out = {}  # each run's bodies by name, the sum's rows (is_total) where "total" sorts
     for (r, mine), total in zip(spans.items(), totals, strict=True):
         frames = []
-        for b in sorted({*mine, "total"}):
-            first, end = mine[b] if b != "total" else (0, 0)
-            frames.append(total if b == "total" else bodies.slice(first, end - first))
-        out[r] = pl.concat(frames, how="diagonal")
+        for b in sorted(mine):
+            if b >= "total" and total is not None:  # the sum's rows before a body named total
+                frames.append(total.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
+                total = None
+            first, end = mine[b]
+            frames.append(bodies.slice(first, end - first).with_columns(_NOT_TOTAL))
+        if total is not None:
+            frames.append(total.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
+        out[r] = pl.concat(frames, how="diagonal").select(ENERGY_ORDER)
     by_time = {
         r: t if t["t_ns"].is_sorted() else t.sort("t_ns")
         for r, t in zip(spans, totals, strict=True)
@@ -338,7 +358,8 @@ def _mujoco_at(mujoco: pl.DataFrame, t: np.ndarray, shift: float) -> tuple[np.nd
 
 def empty_energy() -> pl.DataFrame:
     """An energy frame with no rows."""
-    schema = {"run_id": pl.String, "body": pl.String, "t_ns": pl.Int64, "t_s": pl.Float64}
+    schema = {"run_id": pl.String, "body": pl.String, TOTAL_FLAG: pl.Boolean}
+    schema |= {"t_ns": pl.Int64, "t_s": pl.Float64}
     schema |= {c: pl.Float64 for c in ("height_m", *ENERGY_COLUMNS)}
     schema |= {c: pl.Float64 for c in ("mujoco_total_J", "mujoco_diff_J")}
     return pl.DataFrame(schema=schema)

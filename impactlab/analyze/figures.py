@@ -35,16 +35,14 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
         contacts: the run's contact phases (start_t_s, end_t_s), shaded.
     """
     fig, (ax_h, ax_e) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    for body, frame in energy.filter(pl.col("body") != "total").group_by(
-        "body", maintain_order=True
-    ):
+    for body, frame in energy.filter(~pl.col("is_total")).group_by("body", maintain_order=True):
         ax_h.plot(frame["t_s"], frame["height_m"], label=str(body[0]))
     _shade_contacts(ax_h, contacts)
     ax_h.set_ylabel("lowest point above the ground (m)")
     ax_h.set_title(title)
     ax_h.legend(loc="upper right")
     ax_h.grid(True, alpha=0.3)
-    total = energy.filter(pl.col("body") == "total")
+    total = energy.filter(pl.col("is_total"))
     t = total["t_s"]
     ax_e.plot(t, total["ke_trans_J"] + total["ke_rot_J"], label="kinetic", alpha=0.8)
     ax_e.plot(t, total["pe_J"], label="potential (zero at rest on the ground)", alpha=0.8)

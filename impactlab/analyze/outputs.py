@@ -17,7 +17,7 @@ def decimate(energy: pl.DataFrame, *, max_rows: int | None = None) -> pl.DataFra
     """Every k-th row per (run, body), k = ceil(rows / max_rows) of that run; last row kept
     (max_rows: ENERGY_ROWS_PER_RUN by default)."""
     max_rows = ENERGY_ROWS_PER_RUN if max_rows is None else max_rows
-    group = ("run_id", "body")
+    group = ("run_id", "body", "is_total")
     if energy.is_empty():
         return energy
     idx = pl.int_range(pl.len()).over(group)
@@ -35,10 +35,10 @@ def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
     """
     if a.energy_logged != (0, 0) or not a.energy.height:
         return a
-    blocks = a.energy["body"].rle()
+    blocks = _body_key(a.energy).rle()
     lengths = blocks.struct.field("len").to_numpy().astype(np.int64)
     if len(set(blocks.struct.field("value").to_list())) != lengths.size:  # not by body
-        longest = int(a.energy.group_by("body").len()["len"].max())
+        longest = int(a.energy.group_by("body", "is_total").len()["len"].max())
         energy = a.energy if longest <= ENERGY_ROWS_PER_RUN else decimate(a.energy)
         return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
     longest = int(lengths.max())
@@ -49,3 +49,8 @@ def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
         keep = (at % np.repeat(k, lengths) == 0) | (at == np.repeat(lengths, lengths) - 1)
         energy = a.energy.filter(pl.Series(keep))
     return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
+
+
+def _body_key(energy: pl.DataFrame) -> pl.Series:
+    """Each row's body, null on the rows of the run's sum (a body may be named "total")."""
+    return energy.select(pl.when(pl.col("is_total")).then(None).otherwise(pl.col("body")))[:, 0]

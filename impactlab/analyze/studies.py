@@ -36,12 +36,18 @@ COLLISION_RESULTS = (
 
 
 def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
-    """(run_id, <param columns>) from the runs table's `sweep` JSON, varying elements only."""
+    """(run_id, <param columns>) from the runs table's `sweep` JSON, varying elements only.
+
+    A swept top-level key that is also a column of the runs table (`description`) is named
+    `sweep.<key>`.
+    """
     values: dict[str, dict[str, Any]] = {}
     for run_id, experiment, sweep in runs.select("run_id", "experiment", "sweep").iter_rows():
         point = json.loads(sweep or "{}")
         values[run_id] = {"__experiment": experiment}
         for key, value in point.items():
+            if "." not in key and (key in runs.columns or key == "__experiment"):
+                key = f"sweep.{key}"  # a top-level spec key: `description`, `name`
             if isinstance(value, list):
                 for i, item in enumerate(value):
                     values[run_id][f"{key}[{i}]"] = item

@@ -55,7 +55,8 @@ def choose_grid(
     """The grid to run: `grid` (a name or a Grid), else quick or full; lists replaced.
 
     Raises:
-        SpecError: an unknown grid name, or a target, speed or mass out of range.
+        SpecError: an unknown grid name, or a target, speed or mass out of range or listed
+            twice.
     """
     if isinstance(grid, Grid):
         base = grid
@@ -73,6 +74,9 @@ def choose_grid(
         bad = [x for x in values or () if not (math.isfinite(x) and ok(x))]
         if bad:
             raise SpecError(flag, "", f"{bad[0]!r} is out of range (must be {rule})")
+        twice = [x for i, x in enumerate(values or ()) if x in list(values or ())[:i]]
+        if twice:
+            raise SpecError(flag, "", f"lists {twice[0]!r} twice: give each value once")
     return base.with_values(targets=targets, speeds=speeds, masses=masses)
 
 

@@ -50,7 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         metavar="G1/G2=E[@LO..HI]",
         help="a pair of the model's geoms, its target e and impact speeds (repeatable)",
     )
-    p.add_argument("-o", "--out", type=Path, metavar="TUNED.xml", help="write the tuned model")
+    p.add_argument(
+        "-o",
+        "--out",
+        type=Path,
+        metavar="TUNED.xml",
+        help="write the tuned model (never the model or a file it includes or reads)",
+    )
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     p.set_defaults(func=run)
 
@@ -111,6 +117,7 @@ def _alone(args: argparse.Namespace) -> int:
 
 def _model(args: argparse.Namespace) -> int:
     from impactlab.contact import ContactModelError
+    from impactlab.contact.mjcf import check_not_input
     from impactlab.contact.summary import design_dict, design_lines
     from impactlab.contact.tune import parse_pair, parse_speeds, tune_model, write_tuned
     from impactlab.files import check_writable
@@ -125,6 +132,8 @@ def _model(args: argparse.Namespace) -> int:
         if args.out.is_dir():
             raise ContactModelError(f"-o {args.out} is a folder: give the tuned model's file name")
         check_writable(args.out.resolve().parent)
+        if args.model.is_file():
+            check_not_input(args.out, args.model)
     tuned = tune_model(
         args.model,
         [parse_pair(text) for text in args.pair],

@@ -17,12 +17,17 @@ import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
 from impactlab.contact.checks import ContactModelError
-from impactlab.contact.design import design_inputs, design_stiffness, params_from
+from impactlab.contact.design import (
+    accepted_largest_timestep,
+    design_inputs,
+    design_stiffness,
+    params_from,
+)
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, table
-from impactlab.contact.timestep import check_timestep, largest_timestep
+from impactlab.contact.timestep import check_timestep, coarse_message
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -220,7 +225,10 @@ def design_contact(
         problem = str(exc)
     else:
         return ContactDesign(params, True, None, predict(params))
-    dt_max = largest_timestep(params) if params.gravity_spread < PHASE_BUDGET else None
+    dt_max = None
+    if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
+        dt_max = accepted_largest_timestep(params, bound, duration_s)
+        problem = coarse_message(params, dt, dt_max)
     best_ev = _best(e, dt, speeds, g, integrator, ev.w0)
     best = softer = None
     if best_ev is not None:

@@ -47,8 +47,8 @@ from impactlab.contact.closed_form import (
 )
 from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import RESTITUTION_TOLERANCE
-from impactlab.contact.timestep import check_timestep
+from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
+from impactlab.contact.timestep import accepted_timestep, check_timestep, largest_timestep
 
 __all__ = [
     "RESTITUTION_TOLERANCE",
@@ -270,8 +270,47 @@ def contact_params(
         integrator=integrator,
     )
     params = params_from(ev, e, (lo, hi), dt, g, integrator)
-    check_timestep(params, dt, allow_coarse=allow_coarse)
+    try:
+        check_timestep(params, dt)
+    except ContactModelError:
+        dt_max = None
+        if params.gravity_spread < PHASE_BUDGET and params.timestep_s == dt:
+            dt_max = accepted_largest_timestep(params, bound, duration_s)
+        check_timestep(params, dt, allow_coarse=allow_coarse, timestep_max_s=dt_max)
     return params
+
+
+def accepted_largest_timestep(
+    params: ContactParams, bound_m: float | None, duration_s: float | None
+) -> float:
+    """The largest timestep (three significant digits, as messages print it) at which the
+    same request (target, speeds, penetration bound or duration) is met by the design made
+    for that timestep: a timestep named as the bound is accepted when used as printed."""
+    e, (lo, hi), g, integrator = (
+        params.restitution,
+        params.speed_range_mps,
+        params.gravity_mps2,
+        params.integrator,
+    )
+    speeds = shift_speeds(lo, hi)
+
+    def passes(dt: float) -> bool:
+        try:
+            ev = design_stiffness(
+                e,
+                bound_m=bound_m,
+                duration_s=duration_s,
+                dt=dt,
+                speeds=speeds,
+                g=g,
+                integrator=integrator,
+            )
+            check_timestep(params_from(ev, e, (lo, hi), dt, g, integrator), dt)
+        except ContactModelError:
+            return False
+        return True
+
+    return accepted_timestep(largest_timestep(params), passes)
 
 
 def params_from(

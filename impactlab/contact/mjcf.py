@@ -2,7 +2,7 @@
 
 :func:`model_pairs` reads a model with MuJoCo and describes the pairs a user asks for (radius,
 gravity along the contact normal, the first impact speed when it follows from the model's
-initial state); :func:`with_pairs` writes the model's own text back with one ``<pair>`` per
+initial state); `mjcf_text.with_pairs` writes the model's own text back with one ``<pair>`` per
 calibrated pair, replacing a ``<pair>`` of the same geoms and leaving every other byte as it
 was; :func:`check_tuned` compiles the result and checks that MuJoCo sees those parameters.
 """
@@ -10,7 +10,6 @@ was; :func:`check_tuned` compiles the result and checks that MuJoCo sees those p
 from __future__ import annotations
 
 import math
-import xml.parsers.expat
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from impactlab.contact.checks import ContactModelError
+from impactlab.contact.mjcf_files import included_files
+from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.contact.params import ContactParams
 
 
@@ -69,9 +70,94 @@ def load_model(path: Path):
     if not path.is_file():
         raise ContactModelError(f"{path}: file not found")
     try:
-        return mujoco.MjModel.from_xml_path(str(path))
+        model, warned = parse_warnings(lambda: mujoco.MjModel.from_xml_path(str(path)))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
+    nan = nan_warning(warned)
+    if nan is not None:
+        raise ContactModelError(f"invalid MJCF: a number is NaN ({nan})")
+    check_names(model)
+    return model
+
+
+def check_names(model) -> None:
+    """MuJoCo keeps names as the file's bytes; Python reads them as UTF-8.
+
+    Raises:
+        ContactModelError: a name is not UTF-8 (e.g. an ISO-8859-1 model with an accent).
+    """
+    try:
+        bytes(model.names).decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raw = bytes(model.names)
+        start = raw.rfind(b"\0", 0, exc.start) + 1
+        stop = raw.find(b"\0", exc.start)
+        name = raw[start : stop if stop >= 0 else None].decode("utf-8", "backslashreplace")
+        raise ContactModelError(
+            f"the name {name!r} is not UTF-8 text (MuJoCo reads names as UTF-8 bytes): "
+            "save the model as UTF-8"
+        ) from None
+
+
+def asset_files(spec, path: Path) -> list[Path]:
+    """The mesh, texture, height-field and skin files a parsed model (`MjSpec`) reads, in
+    the order MuJoCo lists them, each once (paths as MuJoCo resolves them; they may be
+    missing)."""
+    base = path.parent
+    out: list[Path] = []
+
+    def add(folder: str, file: str) -> None:
+        if file:
+            target = base / folder / file
+            if target not in out:
+                out.append(target)
+
+    for mesh in spec.meshes:
+        add(spec.meshdir, mesh.file)
+    for skin in spec.skins:
+        add(spec.meshdir, skin.file)
+    for hfield in spec.hfields:
+        add(spec.meshdir, hfield.file)
+    for texture in spec.textures:
+        for file in (texture.file, *texture.cubefiles):
+            add(spec.texturedir, file)
+    return out
+
+
+def model_inputs(path: Path) -> list[Path]:
+    """Every file the model at `path` is read from: itself, its includes, its assets.
+
+    Raises:
+        ContactModelError: the model cannot be read or parsed.
+    """
+    import mujoco
+
+    files = [path, *included_files(path)]
+    try:
+        spec, _ = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
+    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
+        raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
+    return files + asset_files(spec, path)
+
+
+def check_not_input(out: Path, model: Path) -> None:
+    """Refuse to write `out` over the model or any file it is read from.
+
+    Raises:
+        ContactModelError: `out` is one of the model's files (same path or same inode).
+    """
+    if not out.exists():
+        return
+    for file in model_inputs(model):
+        try:
+            same = file.exists() and out.samefile(file)
+        except OSError:
+            same = out.resolve() == file.resolve()
+        if same:
+            what = "the model" if file == model else f"a file the model reads ({file})"
+            raise ContactModelError(
+                f"-o {out} is {what}: give another file name (the model is never overwritten)"
+            )
 
 
 def model_options(model) -> ModelOptions:
@@ -182,127 +268,6 @@ def pair_element(pair: ModelPair, params: ContactParams) -> str:
         attrs += [f'margin="{pair.margin!r}"', f'gap="{pair.gap!r}"']
     attrs += [f'solref="{a["solref"]}"', f'solimp="{a["solimp"]}"']
     return "<pair " + " ".join(attrs) + "/>"
-
-
-@dataclass
-class _Layout:
-    """Where things are in the model's bytes (from expat)."""
-
-    root_end: int | None = None
-    contact: tuple[int, int, bool] | None = None  # first top-level <contact>: start, end, empty
-    pairs: list[tuple[frozenset[str], int, int, dict]] | None = None  # geoms, span, attributes
-
-
-def _layout(raw: bytes) -> _Layout:
-    parser = xml.parsers.expat.ParserCreate()
-    layout = _Layout(pairs=[])
-    stack: list[tuple[str, int, dict]] = []
-
-    def start(name, attrs):
-        stack.append((name, parser.CurrentByteIndex, attrs))
-
-    def end(name):
-        _, begin, attrs = stack.pop()
-        here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
-        head = _tag_end(raw, begin)
-        empty = raw[head - 2 : head] == b"/>"
-        stop = head if empty else raw.index(b">", here) + 1
-        if name == "mujoco" and not stack:
-            layout.root_end = here if not empty else None
-        elif name == "contact" and len(stack) == 1 and layout.contact is None:
-            layout.contact = (begin, here if not empty else stop, empty)
-        elif name == "pair" and stack and stack[-1][0] == "contact":
-            geoms = frozenset((attrs.get("geom1", ""), attrs.get("geom2", "")))
-            layout.pairs.append((geoms, begin, stop, attrs))
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    try:
-        parser.Parse(raw, True)
-    except xml.parsers.expat.ExpatError as exc:
-        raise ContactModelError(f"the model's XML cannot be parsed: {exc}") from None
-    return layout
-
-
-def _tag_end(raw: bytes, begin: int) -> int:
-    """End (exclusive) of the tag starting at `begin`, skipping quoted attribute values."""
-    quote = None
-    for i in range(begin, len(raw)):
-        c = raw[i : i + 1]
-        if quote:
-            quote = None if c == quote else quote
-        elif c in (b'"', b"'"):
-            quote = c
-        elif c == b">":
-            return i + 1
-    raise ContactModelError("the model's XML ends inside a tag")
-
-
-def _indent(raw: bytes, pos: int) -> bytes:
-    line_start = raw.rfind(b"\n", 0, pos) + 1
-    prefix = raw[line_start:pos]
-    return prefix if not prefix.strip() else b""
-
-
-def with_pairs(text: str, elements: Sequence[tuple[str, str, str]]) -> str:
-    """The model text with a ``<pair>`` element per (geom1, geom2, element) added.
-
-    A ``<pair>`` of the same two geoms in the model's top-level ``<contact>`` is replaced;
-    the others go into that ``<contact>`` (or a new one before ``</mujoco>``). Every other
-    byte of the text is kept.
-
-    Raises:
-        ContactModelError: the text is not XML with a ``<mujoco>`` root.
-    """
-    raw = text.encode("utf-8")
-    layout = _layout(raw)
-    if layout.root_end is None:
-        raise ContactModelError("the model has no <mujoco> root element with an end tag")
-    edits: list[tuple[int, int, bytes]] = []
-    new: list[bytes] = []
-    for g1, g2, element in elements:
-        match = [p for p in layout.pairs or () if p[0] == frozenset((g1, g2))]
-        if match:
-            _, start, stop, attrs = match[0]
-            if attrs.get("geom1") == g2:  # keep the pair's order (the normal's direction)
-                names = f"geom1={quoteattr(g1)} geom2={quoteattr(g2)}"
-                element = element.replace(names, f"geom1={quoteattr(g2)} geom2={quoteattr(g1)}")
-            if "name" in attrs:  # keep the pair's name: other elements may refer to it
-                element = element.replace("<pair ", f"<pair name={quoteattr(attrs['name'])} ", 1)
-            edits += [(start, stop, element.encode())]
-            edits += [(start, stop, b"") for _, start, stop, _ in match[1:]]
-        else:
-            new.append(element.encode())
-    if new:
-        if layout.contact is not None:
-            start, end, empty = layout.contact
-            indent = _indent(raw, start)
-            body = b"".join(b"\n" + indent + b"  " + e for e in new)
-            if empty:
-                edits.append((start, end, b"<contact>" + body + b"\n" + indent + b"</contact>"))
-            else:
-                edits.append(_insert_before(raw, end, new))
-        else:
-            end = layout.root_end
-            inner = b"  "
-            block = b"<contact>" + b"".join(b"\n" + inner * 2 + e for e in new)
-            block += b"\n" + inner + b"</contact>\n"
-            lead = b"" if _indent(raw, end) or raw[end - 1 : end] == b"\n" else b"\n"
-            edits.append((end, end, lead + inner + block))
-    out = raw
-    for start, stop, data in sorted(edits, reverse=True):
-        out = out[:start] + data + out[stop:]
-    return out.decode("utf-8")
-
-
-def _insert_before(raw: bytes, end: int, elements: list[bytes]) -> tuple[int, int, bytes]:
-    """Insert elements before a ``</contact>`` end tag, indented like the tag's line."""
-    line_start = raw.rfind(b"\n", 0, end) + 1
-    indent = raw[line_start:end]
-    if indent.strip():  # the end tag follows other content on its line
-        return end, end, b"".join(b"\n  " + e for e in elements) + b"\n"
-    inner = indent + b"  "
-    return line_start, line_start, b"".join(inner + e + b"\n" for e in elements)
 
 
 def check_tuned(path: Path, pairs: Sequence[tuple[ModelPair, ContactParams]]) -> None:

@@ -18,7 +18,13 @@ from impactlab.contact.table import (
 )
 
 
-def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bool = False) -> int:
+def check_timestep(
+    params: ContactParams,
+    timestep_s: float,
+    *,
+    allow_coarse: bool = False,
+    timestep_max_s: float | None = None,
+) -> int:
     """Check that a timestep resolves the contact well enough for the restitution tolerance.
 
     The worst case over the speed range and over where in a step the contact begins is
@@ -30,6 +36,8 @@ def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bo
         params: parameters from :func:`contact_params`.
         timestep_s: simulation timestep in s.
         allow_coarse: warn (UserWarning) instead of raising.
+        timestep_max_s: the largest timestep the message names (default: this contact's
+            `largest_timestep`; a designer passes the one its design at that timestep meets).
 
     Returns:
         Steps per contact, floor(duration_s / timestep_s).
@@ -50,7 +58,8 @@ def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bo
     too_coarse = w0dt > cap * (1.0 + 1e-9)
     if err <= PHASE_BUDGET + 1e-6 and not too_coarse:
         return steps
-    msg = coarse_message(params, dt) if dt >= params.timestep_s * (1.0 - 1e-9) else None
+    coarse = dt >= params.timestep_s * (1.0 - 1e-9)
+    msg = coarse_message(params, dt, timestep_max_s) if coarse else None
     if msg is None:
         msg = (
             f"contact parameters were calibrated for timestep {params.timestep_s:.3g} s, not "
@@ -63,8 +72,9 @@ def check_timestep(params: ContactParams, timestep_s: float, *, allow_coarse: bo
     raise ContactModelError(msg)
 
 
-def coarse_message(params: ContactParams, dt: float) -> str:
-    """Why a timestep is too coarse for a contact, and the largest one that works."""
+def coarse_message(params: ContactParams, dt: float, timestep_max_s: float | None = None) -> str:
+    """Why a timestep is too coarse for a contact, and the largest one that works
+    (`timestep_max_s`, else `largest_timestep`)."""
     e, (lo, hi) = params.restitution, params.speed_range_mps
     steps = int(params.duration_s / dt)
     where = f"at {hi:g} m/s" if lo == hi else f"over {lo:g}..{hi:g} m/s"
@@ -74,7 +84,7 @@ def coarse_message(params: ContactParams, dt: float) -> str:
             f"(duration {params.duration_s:.3g} s): e = {e:.4g} within "
             f"{RESTITUTION_TOLERANCE} needs a shorter contact or a narrower speed range"
         )
-    dt_max = largest_timestep(params)
+    dt_max = largest_timestep(params) if timestep_max_s is None else timestep_max_s
     steps_needed = math.ceil(params.duration_s / dt_max)
     return (
         f"timestep {dt:.3g} s gives {steps} steps per contact (w0*dt = "
@@ -116,3 +126,32 @@ def largest_timestep(params: ContactParams) -> float:
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
+
+
+def round_down(value: float, digits: int = 3) -> float:
+    """`value` rounded down to `digits` significant digits (as ``:.3g`` prints it, never
+    above `value`)."""
+    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
+    units = round(float(mantissa) * 10 ** (digits - 1))
+    scale = int(exponent) - (digits - 1)
+    while units > 0 and float(f"{units}e{scale}") > value:
+        units -= 1
+    return float(f"{units}e{scale}")
+
+
+def accepted_timestep(estimate: float, passes, *, digits: int = 3, tries: int = 40) -> float:
+    """The largest timestep of `digits` significant digits, at most `estimate`, at which
+    `passes` (a design made for that timestep meets its target), stepping down one unit of
+    the last digit at a time (the design's stiffness depends on the timestep, so the
+    estimate of a design at another timestep may be a little too large).
+
+    Returns the last one tried if none passes in `tries` steps.
+    """
+    dt = round_down(estimate, digits)
+    for _ in range(tries):
+        if dt <= 0 or passes(dt):
+            return dt
+        mantissa, exponent = f"{dt:.{digits - 1}e}".split("e")
+        units = round(float(mantissa) * 10 ** (digits - 1)) - 1
+        dt = float(f"{units}e{int(exponent) - (digits - 1)}")
+    return dt

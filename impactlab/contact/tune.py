@@ -19,13 +19,14 @@ from impactlab.contact.design import SPEED_FLOOR_MPS
 from impactlab.contact.mjcf import (
     ModelOptions,
     ModelPair,
+    check_not_input,
     check_tuned,
     load_model,
     model_options,
     model_pairs,
     pair_element,
-    with_pairs,
 )
+from impactlab.contact.mjcf_text import with_pairs
 from impactlab.files import atomic_path
 
 _PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
@@ -116,6 +117,14 @@ def tune_model(
     """
     if not requests:
         raise ContactModelError("name the pairs to calibrate: --pair GEOM1/GEOM2=E")
+    seen: dict[frozenset[str], PairRequest] = {}
+    for r in requests:
+        first = seen.setdefault(frozenset((r.geom1, r.geom2)), r)
+        if first is not r:
+            raise ContactModelError(
+                f"--pair {r.geom1}/{r.geom2} names the same pair as --pair "
+                f"{first.geom1}/{first.geom2}: give each pair once"
+            )
     model = load_model(path)
     options = model_options(model)
     described = model_pairs(model, [(r.geom1, r.geom2) for r in requests])
@@ -169,11 +178,13 @@ def write_tuned(tuned: TunedModel, out: Path) -> Path:
     """
     if not tuned.ok:
         raise ContactModelError("a pair misses its target: nothing written")
-    text = with_pairs(
-        tuned.path.read_text(encoding="utf-8"),
-        [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs],
-    )
+    check_not_input(out, tuned.path)
+    try:
+        raw = tuned.path.read_bytes()
+    except OSError as exc:
+        raise ContactModelError(f"{tuned.path}: cannot read: {exc.strerror or exc}") from None
+    data = with_pairs(raw, [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs])
     with atomic_path(out) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+        tmp.write_bytes(data)
         check_tuned(tmp, [(t.pair, t.design.params) for t in tuned.pairs])
     return out

@@ -154,6 +154,7 @@ class LogHeader:
     model_xml: str
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
     joint_energy: bool = False  # whether rows carry `joint_energy` (`/energy/joints`)
+    attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
 
 
 @dataclass(frozen=True)

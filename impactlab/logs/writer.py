@@ -192,6 +192,10 @@ class LogWriter:
                 media_type="application/xml",
                 data=self.header.model_xml.encode(),
             )
+            for name, media_type, data in self.header.attachments:
+                writer.add_attachment(
+                    create_time=0, log_time=0, name=name, media_type=media_type, data=data
+                )
             writer.add_metadata(logformat.OUTCOME_METADATA, outcome.record())
             self._out.finish()
             assert self._stream is not None

@@ -146,7 +146,10 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     inst = model_from_mjcf(path, keyframe=options.keyframe)  # validate now; rebuilt when run
     check_options(options, inst, str(path))
     # the model by name and content, not by where it is: the same model gives the same run
-    document = {"mjcf": path.name, "xml_sha256": _sha256(inst.xml), **options.document}
+    document: dict[str, Any] = {"mjcf": path.name, "xml_sha256": inst_digest(inst)}
+    if inst.inputs:  # every file the model reads: a change in any is another run
+        document["files_sha256"] = dict(inst.inputs)
+    document |= options.document
     digest = spec_hash(document)
     info = RunInfo(
         run_id=run_name(path.stem, {}, digest),
@@ -164,8 +167,9 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     return PlannedRun(info, lambda: inst, None, max_time, options.stop, work)
 
 
-def _sha256(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()
+def inst_digest(inst: InstrumentedModel) -> str:
+    """SHA-256 of the model's text as the log keeps it (includes inlined)."""
+    return hashlib.sha256(inst.xml.encode()).hexdigest()
 
 
 def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -> str:

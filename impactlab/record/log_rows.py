@@ -90,6 +90,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         inst.geoms,
         inst.xml,
         clearance,
+        attachments=inst.attachments,
         joint_energy=inst.joints is not None,
     )
 

@@ -22,9 +22,10 @@ from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
+from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
+from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.spec import RunSpec
 
-SENSOR_PREFIX = "impactlab:"
 # contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
 CONTACT_DATA_BITS = 1 | 2 | 8 | 16 | 32 | 64
 CONTACT_SLOT_SIZE = 1 + 3 + 1 + 3 + 3 + 3
@@ -101,6 +102,8 @@ class InstrumentedModel:
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
     joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
+    attachments: tuple[tuple[str, str, bytes], ...] = ()  # more files for the log (name, type)
+    inputs: tuple[tuple[str, str], ...] = ()  # (file, SHA-256) the model reads besides its own
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -175,14 +178,27 @@ def model_from_spec(run: RunSpec) -> InstrumentedModel:
 
 def model_from_mjcf(path: Path, *, keyframe: str | None = None) -> InstrumentedModel:
     """Load a user's MJCF file and instrument every moving body and every possible contact;
-    the run starts from the named keyframe, or the model's default pose."""
+    the run starts from the named keyframe, or the model's default pose.
+
+    The log keeps the model's text with its includes inlined and, when it reads mesh or
+    texture files, the compiled model (`impactlab.record.model_files`).
+    """
+    from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files, parse_mjcf
+
     if not path.is_file():
         raise SpecError(str(path), "", "file not found")
+    spec = parse_mjcf(path)
+    files = model_files(spec, path)
     try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
-        raise SpecError(str(path), "", f"invalid MJCF: {_one_line(exc)}") from None
-    return instrument(spec, str(path), xml=path.read_text(), keyframe=keyframe)
+        inst = instrument(spec, str(path), xml=files.xml, keyframe=keyframe)
+    except UnicodeDecodeError:  # MuJoCo keeps names as the file's bytes
+        raise SpecError(
+            str(path), "", "a name in the model is not UTF-8 text: save the model as UTF-8"
+        ) from None
+    inst.inputs = files.inputs
+    if files.needs_binary:
+        inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
+    return inst
 
 
 def _one_line(exc: BaseException) -> str:
@@ -205,7 +221,8 @@ def instrument(
     Raises:
         SpecError: the model does not compile, has no body that moves, or lacks `keyframe`.
     """
-    _name_unnamed(spec)
+    name_unnamed(spec)
+    prefix = sensor_prefix(spec)
     try:
         plain = spec.compile()
     except Exception as exc:
@@ -224,16 +241,16 @@ def instrument(
     for name in body_names:
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
             spec.add_sensor(
-                name=f"{SENSOR_PREFIX}{name}:{kind.lower()}",
+                name=f"{prefix}{name}:{kind.lower()}",
                 type=getattr(mujoco.mjtSensor, f"mjSENS_{kind}"),
                 objtype=mujoco.mjtObj.mjOBJ_BODY,
                 objname=name,
             )
-    spec.add_sensor(name=f"{SENSOR_PREFIX}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
-    spec.add_sensor(name=f"{SENSOR_PREFIX}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
+    spec.add_sensor(name=f"{prefix}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
+    spec.add_sensor(name=f"{prefix}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
     for t in sprung_tendons(plain):
         spec.add_sensor(
-            name=f"{SENSOR_PREFIX}{TENDON_SENSOR}{plain.tendon(t).name}",
+            name=f"{prefix}{TENDON_SENSOR}{t}",
             type=mujoco.mjtSensor.mjSENS_TENDONPOS,
             objtype=mujoco.mjtObj.mjOBJ_TENDON,
             objname=plain.tendon(t).name,
@@ -241,7 +258,7 @@ def instrument(
     pairs = geometry.contact_pairs(plain, set(free_bodies))
     for g1, g2, num in pairs:
         spec.add_sensor(
-            name=f"{SENSOR_PREFIX}contact:{plain.geom(g1).name}:{plain.geom(g2).name}",
+            name=f"{prefix}contact:{g1}:{g2}",  # ids: geom names may hold ':'
             type=mujoco.mjtSensor.mjSENS_CONTACT,
             objtype=mujoco.mjtObj.mjOBJ_GEOM,
             objname=plain.geom(g1).name,
@@ -255,9 +272,9 @@ def instrument(
     ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
-    clearance_plan = _distance_sensors(spec, plain, own, measurable, between_bodies=False)
+    clearance_plan = _distance_sensors(spec, plain, own, measurable, prefix, between_bodies=False)
     lone = {b: gs for b, gs in own.items() if geometry.motion(plain, b) == "free"}
-    gap_plan = _distance_sensors(spec, plain, lone, [], between_bodies=True)
+    gap_plan = _distance_sensors(spec, plain, lone, [], prefix, between_bodies=True)
     model = spec.compile()
     # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
     # computes after the sensors: one step late. Off, they compute it themselves, at the
@@ -265,7 +282,7 @@ def instrument(
     model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
 
     def adr(name: str) -> int:
-        return int(model.sensor_adr[model.sensor(f"{SENSOR_PREFIX}{name}").id])
+        return int(model.sensor_adr[model.sensor(f"{prefix}{name}").id])
 
     def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
@@ -289,7 +306,7 @@ def instrument(
             geom2=model.geom(g2).name,
             body1=model.body(model.geom_bodyid[g1]).name,
             body2=model.body(model.geom_bodyid[g2]).name,
-            adr=adr(f"contact:{model.geom(g1).name}:{model.geom(g2).name}"),
+            adr=adr(f"contact:{g1}:{g2}"),
             num=num,
         )
         for g1, g2, num in pairs
@@ -307,9 +324,7 @@ def instrument(
         clearances=channels(clearance_plan),
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
-        joints=joint_energy(
-            model, [adr(f"{TENDON_SENSOR}{model.tendon(t).name}") for t in sprung_tendons(model)]
-        ),
+        joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
     )
 
 
@@ -318,6 +333,7 @@ def _distance_sensors(
     model: mujoco.MjModel,
     own: dict[int, list[int]],
     surfaces: list[int],
+    prefix: str,
     *,
     between_bodies: bool,
 ) -> list[tuple[str, str, list[str]]]:
@@ -341,9 +357,9 @@ def _distance_sensors(
             for g2 in targets:
                 if not geometry.can_collide(model, g1, g2):
                     continue
-                name = f"distance:{model.geom(g1).name}:{model.geom(g2).name}"
+                name = f"distance:{g1}:{g2}"
                 spec.add_sensor(
-                    name=f"{SENSOR_PREFIX}{name}",
+                    name=f"{prefix}{name}",
                     type=mujoco.mjtSensor.mjSENS_GEOMDIST,
                     objtype=mujoco.mjtObj.mjOBJ_GEOM,
                     objname=model.geom(g1).name,
@@ -355,18 +371,6 @@ def _distance_sensors(
         if names:
             plan.append((model.body(b).name, other, names))
     return plan
-
-
-def _name_unnamed(spec: mujoco.MjSpec) -> None:
-    for i, body in enumerate(spec.bodies):
-        if i > 0 and not body.name:
-            body.name = f"body{i}"
-    for i, geom in enumerate(spec.geoms):
-        if not geom.name:
-            geom.name = f"geom{i}"
-    for i, tendon in enumerate(spec.tendons):
-        if not tendon.name:
-            tendon.name = f"tendon{i}"
 
 
 def _geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:

@@ -1,35 +1,20 @@
 """MuJoCo's warnings: kept out of the working folder, and named for the run that raised them.
 
 By default MuJoCo prints a warning and appends it to `MUJOCO_LOG.TXT` in the working folder.
-`quiet_mujoco` installs a handler (`mujoco.set_mju_user_warning`) that keeps the last messages
-in memory instead; the recorder puts the warning of each run into the run's outcome, which the
-log and the console show. `first_warning` steps a run alone to find which warning it raised.
+`quiet_mujoco` (`impactlab.contact.mujoco_log`, shared with the contact designer) installs a
+handler (`mujoco.set_mju_user_warning`) that keeps the last messages in memory instead; the
+recorder puts the warning of each run into the run's outcome, which the log and the console
+show. `first_warning` steps a run alone to find which warning it raised.
 """
 
 from __future__ import annotations
 
-import collections
-import threading
-
 import mujoco
 import numpy as np
 
-MESSAGES: collections.deque[str] = collections.deque(maxlen=100)  # the last ones, any run
-_installed = threading.Lock()
-_done = False
+from impactlab.contact.mujoco_log import MESSAGES, quiet_mujoco
 
-
-def _keep(message: str) -> None:
-    MESSAGES.append(" ".join(str(message).split()))
-
-
-def quiet_mujoco() -> None:
-    """Route MuJoCo's warnings to `MESSAGES` (once per process; no MUJOCO_LOG.TXT)."""
-    global _done
-    with _installed:
-        if not _done:
-            mujoco.set_mju_user_warning(_keep)
-            _done = True
+__all__ = ["MESSAGES", "first_warning", "quiet_mujoco"]
 
 
 def first_warning(model: mujoco.MjModel, state: np.ndarray, nstep: int) -> tuple[int, str] | None:

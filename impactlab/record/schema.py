@@ -32,6 +32,10 @@ MAX_TIME_S = 1e9  # log times are int64 nanoseconds (2^63 ns is 292 years)
 MAX_LOG_EVERY = 1_000_000_000
 MAX_NAME_LENGTH = 64
 MAX_BODIES = 64
+RESERVED_BODY_NAMES = {
+    "world": "MuJoCo's world body",
+    "plane": 'the ground plane\'s name (contact pairs such as "ball/plane")',
+}
 MUJOCO_MINVAL = 1e-15  # mjMINVAL: MuJoCo refuses lighter moving bodies
 
 
@@ -291,6 +295,13 @@ class SpecDocument(Section):
     bodies: Annotated[dict[Name, BodySpec], Field(min_length=1, max_length=MAX_BODIES)]
     stop: Stop
     logging: Logging = Logging()
+
+    @model_validator(mode="after")
+    def _names_are_free(self) -> SpecDocument:
+        for name, why in RESERVED_BODY_NAMES.items():
+            if name in self.bodies:
+                raise problem(f"{name!r} is {why}: give the body another name", f"bodies.{name}")
+        return self
 
     @model_validator(mode="after")
     def _stop_fits_the_model(self) -> SpecDocument:

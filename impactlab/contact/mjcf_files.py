@@ -1,0 +1,213 @@
+"""The files an MJCF model is made of: its text in its own encoding, and its ``<include>`` files.
+
+MuJoCo resolves an ``<include file=...>`` relative to the main model's folder (also inside an
+included file) and puts the children of the included file's ``<mujoco>`` root in its place.
+:func:`included_files` lists them (recursively, in document order), :func:`inlined_text` is
+the model with every include replaced by what it stands for, every number as written (MuJoCo's
+own saved XML rounds numbers to six digits). No MuJoCo here: expat reads the files.
+"""
+
+from __future__ import annotations
+
+import codecs
+import re
+import xml.parsers.expat
+from dataclasses import dataclass
+from pathlib import Path
+
+from impactlab.contact.checks import ContactModelError
+
+MAX_INCLUDES = 1000  # files of one model: more is a loop or not a model
+_DECLARED = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([A-Za-z0-9._-]+)[\"']")
+
+
+@dataclass(frozen=True)
+class _Element:
+    start: int  # byte offsets in the file
+    stop: int
+    inner: tuple[int, int] | None  # between the start tag and the end tag (None: empty)
+    attrs: dict[str, str]
+
+
+def encoding(raw: bytes) -> str:
+    """The encoding of an XML document's bytes: its BOM, its declaration, else UTF-8."""
+    if raw.startswith(codecs.BOM_UTF8):
+        return "utf-8-sig"
+    for bom, name in ((codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16")):
+        if raw.startswith(bom):
+            return name
+    m = _DECLARED.match(raw)
+    if m is None:
+        return "utf-8"
+    name = m.group(1).decode("ascii")
+    try:
+        return codecs.lookup(name).name
+    except LookupError:
+        raise ContactModelError(f"unknown encoding {name!r} in the XML declaration") from None
+
+
+def read_text(path: Path) -> str:
+    """An XML file's text, decoded as its declaration says (line ends kept as they are).
+
+    Raises:
+        ContactModelError: the file cannot be read or is not text in its encoding.
+    """
+    raw = _read(path)
+    name = encoding(raw)
+    try:
+        return raw.decode(name)
+    except UnicodeDecodeError as exc:
+        raise ContactModelError(
+            f"{path}: not {name} text: {exc.reason} at byte {exc.start}"
+        ) from None
+
+
+def _read(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise ContactModelError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+def _elements(
+    raw: bytes, path: Path, *, need_root: bool = False
+) -> tuple[_Element | None, list[_Element]]:
+    """The root element and every ``<include>`` element of a file's bytes."""
+    parser = xml.parsers.expat.ParserCreate()
+    stack: list[tuple[int, dict[str, str]]] = []
+    found: list[_Element] = []
+    root: list[_Element] = []
+
+    def start(name: str, attrs: dict[str, str]) -> None:
+        stack.append((parser.CurrentByteIndex, attrs))
+
+    def end(name: str) -> None:
+        begin, attrs = stack.pop()
+        here = parser.CurrentByteIndex
+        head = tag_end(raw, begin)
+        empty = raw[head - 2 : head] == b"/>"
+        stop = head if empty else raw.index(b">", here) + 1
+        element = _Element(begin, stop, None if empty else (head, here), attrs)
+        if name == "include":
+            found.append(element)
+        if not stack:
+            root.append(element)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    if b"<include" not in raw and not need_root:
+        return None, []  # the root is only needed to inline an included file
+    try:
+        parser.Parse(raw, True)
+    except xml.parsers.expat.ExpatError as exc:
+        lenient = _lenient(raw)
+        if lenient is None:
+            raise ContactModelError(f"{path}: the XML cannot be parsed: {exc}") from None
+        return lenient
+    return (root[0] if root else None), found
+
+
+_COMMENT = re.compile(rb"<!--.*?-->", re.S)
+_INCLUDE = re.compile(rb"<include\s+file\s*=\s*([\"'])(.*?)\1\s*/>")
+_ROOT = re.compile(rb"<mujoco\b[^>]*>")
+
+
+def _lenient(raw: bytes) -> tuple[_Element | None, list[_Element]] | None:
+    """What MuJoCo's more lenient parser reads where expat refuses (e.g. ``--`` inside a
+    comment): comments blanked, ``<include file="..."/>`` elements, the ``<mujoco>`` root."""
+    text = _COMMENT.sub(lambda m: b" " * len(m.group()), raw)
+    found = [
+        _Element(m.start(), m.end(), None, {"file": m.group(2).decode("utf-8", "replace")})
+        for m in _INCLUDE.finditer(text)
+    ]
+    head, end = _ROOT.search(text), text.rfind(b"</mujoco>")
+    if head is None or end < head.end():
+        return None
+    return _Element(head.start(), end + 9, (head.end(), end), {}), found
+
+
+def tag_end(raw: bytes, begin: int) -> int:
+    """End (exclusive) of the tag starting at `begin`, skipping quoted attribute values."""
+    quote = None
+    for i in range(begin, len(raw)):
+        c = raw[i : i + 1]
+        if quote:
+            quote = None if c == quote else quote
+        elif c in (b'"', b"'"):
+            quote = c
+        elif c == b">":
+            return i + 1
+    raise ContactModelError("the model's XML ends inside a tag")
+
+
+def _target(main: Path, element: _Element, where: Path) -> Path:
+    file = element.attrs.get("file")
+    if not file:
+        raise ContactModelError(f"{where}: an <include> without a file")
+    target = Path(file)
+    return target if target.is_absolute() else main.parent / target
+
+
+def included_files(path: Path) -> list[Path]:
+    """Every file the model at `path` includes, recursively, in document order (each once).
+
+    Raises:
+        ContactModelError: a file cannot be read or parsed, or includes itself.
+    """
+    out: list[Path] = []
+    _walk(path, path, [path.resolve()], out)
+    return out
+
+
+def _walk(main: Path, path: Path, chain: list[Path], out: list[Path]) -> None:
+    _, includes = _elements(_read(path), path)
+    for element in includes:
+        target = _target(main, element, path)
+        if target.resolve() in chain:
+            raise ContactModelError(f"{path}: includes {target}, which includes it")
+        if target not in out:
+            out.append(target)
+            if len(out) > MAX_INCLUDES:
+                raise ContactModelError(f"{main}: more than {MAX_INCLUDES} included files")
+        _walk(main, target, [*chain, target.resolve()], out)
+
+
+def inlined_text(path: Path) -> str:
+    """The model's text with every ``<include>`` replaced by the included root's children.
+
+    Raises:
+        ContactModelError: a file cannot be read, decoded or parsed, or includes itself.
+    """
+    return _inline(path, path, [path.resolve()], whole=True)
+
+
+def _inline(main: Path, path: Path, chain: list[Path], *, whole: bool) -> str:
+    raw = _read(path)
+    name = encoding(raw)
+    root, includes = _elements(raw, path, need_root=not whole)
+    if whole:
+        span = (0, len(raw))
+    elif root is None:
+        raise ContactModelError(f"{path}: no root element")
+    elif root.inner is None:
+        return ""
+    else:
+        span = root.inner
+    parts: list[str] = []
+    at = span[0]
+    for element in includes:
+        target = _target(main, element, path)
+        if target.resolve() in chain:
+            raise ContactModelError(f"{path}: includes {target}, which includes it")
+        parts.append(_decode(raw[at : element.start], name, path))
+        parts.append(_inline(main, target, [*chain, target.resolve()], whole=False))
+        at = element.stop
+    parts.append(_decode(raw[at : span[1]], name, path))
+    return "".join(parts)
+
+
+def _decode(raw: bytes, name: str, path: Path) -> str:
+    try:
+        return raw.decode(name)
+    except UnicodeDecodeError as exc:
+        raise ContactModelError(f"{path}: not {name} text: {exc.reason}") from None

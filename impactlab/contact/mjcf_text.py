@@ -1,0 +1,142 @@
+"""The text of an MJCF model with calibrated ``<pair>`` elements, every other byte kept.
+
+Works on the file's bytes (expat's byte offsets): the new elements are written in the file's
+encoding and with its line ends. No MuJoCo here.
+"""
+
+from __future__ import annotations
+
+import xml.parsers.expat
+from collections.abc import Sequence
+from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
+
+from impactlab.contact.checks import ContactModelError
+from impactlab.contact.mjcf_files import encoding, tag_end
+
+
+@dataclass
+class _Layout:
+    """Where things are in the model's bytes (from expat)."""
+
+    root_end: int | None = None
+    contact: tuple[int, int, bool] | None = None  # first top-level <contact>: start, end, empty
+    pairs: list[tuple[frozenset[str], int, int, dict]] | None = None  # geoms, span, attributes
+
+
+def _layout(raw: bytes) -> _Layout:
+    parser = xml.parsers.expat.ParserCreate()
+    layout = _Layout(pairs=[])
+    stack: list[tuple[str, int, dict]] = []
+
+    def start(name, attrs):
+        stack.append((name, parser.CurrentByteIndex, attrs))
+
+    def end(name):
+        _, begin, attrs = stack.pop()
+        here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
+        head = tag_end(raw, begin)
+        empty = raw[head - 2 : head] == b"/>"
+        stop = head if empty else raw.index(b">", here) + 1
+        if name == "mujoco" and not stack:
+            layout.root_end = here if not empty else None
+        elif name == "contact" and len(stack) == 1 and layout.contact is None:
+            layout.contact = (begin, here if not empty else stop, empty)
+        elif name == "pair" and stack and stack[-1][0] == "contact":
+            geoms = frozenset((attrs.get("geom1", ""), attrs.get("geom2", "")))
+            layout.pairs.append((geoms, begin, stop, attrs))
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    try:
+        parser.Parse(raw, True)
+    except xml.parsers.expat.ExpatError as exc:
+        raise ContactModelError(f"the model's XML cannot be parsed: {exc}") from None
+    return layout
+
+
+def _indent(raw: bytes, pos: int) -> bytes:
+    line_start = raw.rfind(b"\n", 0, pos) + 1
+    prefix = raw[line_start:pos]
+    return prefix if not prefix.strip() else b""
+
+
+def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]]) -> bytes:
+    """The model's bytes with a ``<pair>`` element per (geom1, geom2, element) added.
+
+    A ``<pair>`` of the same two geoms in the model's top-level ``<contact>`` is replaced;
+    the others go into that ``<contact>`` (or a new one before ``</mujoco>``). Every other
+    byte is kept: the new text is written in the file's encoding and with its line ends.
+
+    Raises:
+        ContactModelError: the text is not XML with a ``<mujoco>`` root, a pair is given
+            twice, or a name cannot be written in the file's encoding.
+    """
+    charset = encoding(raw)
+    if "<".encode(charset, errors="replace") != b"<":
+        raise ContactModelError(f"the model is {charset} text: save it as UTF-8")
+    nl = b"\r\n" if b"\r\n" in raw else b"\n"
+    layout = _layout(raw)
+    if layout.root_end is None:
+        raise ContactModelError("the model has no <mujoco> root element with an end tag")
+    keys = [frozenset((g1, g2)) for g1, g2, _ in elements]
+    for i, key in enumerate(keys):
+        if key in keys[:i]:
+            g1, g2, _ = elements[i]
+            raise ContactModelError(f"the pair {g1}/{g2} is given twice")
+    edits: list[tuple[int, int, bytes]] = []
+    new: list[bytes] = []
+    for g1, g2, element in elements:
+        match = [p for p in layout.pairs or () if p[0] == frozenset((g1, g2))]
+        if match:
+            _, start, stop, attrs = match[0]
+            if attrs.get("geom1") == g2:  # keep the pair's order (the normal's direction)
+                names = f"geom1={quoteattr(g1)} geom2={quoteattr(g2)}"
+                element = element.replace(names, f"geom1={quoteattr(g2)} geom2={quoteattr(g1)}")
+            if "name" in attrs:  # keep the pair's name: other elements may refer to it
+                element = element.replace("<pair ", f"<pair name={quoteattr(attrs['name'])} ", 1)
+            edits += [(start, stop, _encode(element, charset))]
+            edits += [(start, stop, b"") for _, start, stop, _ in match[1:]]
+        else:
+            new.append(_encode(element, charset))
+    if new:
+        if layout.contact is not None:
+            start, end, empty = layout.contact
+            indent = _indent(raw, start)
+            body = b"".join(nl + indent + b"  " + e for e in new)
+            if empty:
+                edits.append((start, end, b"<contact>" + body + nl + indent + b"</contact>"))
+            else:
+                edits.append(_insert_before(raw, end, new, nl))
+        else:
+            end = layout.root_end
+            inner = b"  "
+            block = b"<contact>" + b"".join(nl + inner * 2 + e for e in new)
+            block += nl + inner + b"</contact>" + nl
+            lead = b"" if _indent(raw, end) or raw[end - 1 : end] == b"\n" else nl
+            edits.append((end, end, lead + inner + block))
+    out = raw
+    for start, stop, data in sorted(edits, reverse=True):
+        out = out[:start] + data + out[stop:]
+    return out
+
+
+def _encode(element: str, charset: str) -> bytes:
+    try:
+        return element.encode(charset)
+    except UnicodeEncodeError:
+        raise ContactModelError(
+            f"{element[:60]}...: a geom name cannot be written as {charset} text"
+        ) from None
+
+
+def _insert_before(
+    raw: bytes, end: int, elements: list[bytes], nl: bytes
+) -> tuple[int, int, bytes]:
+    """Insert elements before a ``</contact>`` end tag, indented like the tag's line."""
+    line_start = raw.rfind(b"\n", 0, end) + 1
+    indent = raw[line_start:end]
+    if indent.strip():  # the end tag follows other content on its line
+        return end, end, b"".join(nl + b"  " + e for e in elements) + nl
+    inner = indent + b"  "
+    return line_start, line_start, b"".join(inner + e + nl for e in elements)
