@@ -54,6 +54,7 @@ BASE = (
     "packages",
     "physics",
     "plotting",
+    "text",
     "version",
 )  # below every stage
 FACES = {f"impactlab.{stage}" for stage in STAGES}  # what other stages may use of a stage

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import polars as pl
 
+from impactlab.text import md_code, md_text
+
 E_CONSTANT_SPREAD = 0.02
 """Spread (max - min) of e below which e is called constant."""
 
@@ -21,7 +23,7 @@ def _f(x: float | None, fmt: str = ".3g") -> str:
 
 def _who(row: dict) -> str:
     """The run's readable label when the table has one (`labels.with_labels`), else its id."""
-    return str(row.get("run") or f"`{row['run_id']}`")
+    return md_text(row["run"]) if row.get("run") else md_code(row["run_id"])
 
 
 def energy_answer(runs: pl.DataFrame) -> list[str]:
@@ -59,7 +61,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
         )
         es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls()
-        who = f"{_who(mine.row(0, named=True))}, {body} on {surface}"
+        who = f"{_who(mine.row(0, named=True))}, {md_text(body)} on {md_text(surface)}"
         if es.len() >= 2:
             spread = float(es.max() - es.min())
             word = "constant" if spread < E_CONSTANT_SPREAD else "not constant"
@@ -72,7 +74,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             out.append(
                 f"{who}: {es.len()} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
-                f"cannot be tested: the log ends ({reasons.get(run_id) or 'n/a'}) after "
+                f"cannot be tested: the log ends ({md_text(reasons.get(run_id) or 'n/a')}) after "
                 f"{mine.height} contact(s) with an impact, the last one without a flight after it."
             )
     return out
@@ -109,7 +111,7 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
             verdict = "only one drop height rebounds at all, so e depends on the impact speed"
         else:
             verdict = "no drop height rebounds"
-        out.append(f"`{name}`: {'; '.join(parts)}. So {verdict}.")
+        out.append(f"{md_code(name)}: {'; '.join(parts)}. So {verdict}.")
     return out
 
 
@@ -118,7 +120,8 @@ def collision_answer(collisions: pl.DataFrame) -> list[str]:
     out = []
     for r in collisions.iter_rows(named=True):
         if not r["complete"]:
-            out.append(f"{_who(r)} ({r['body1']}-{r['body2']}): {r['note']}.")
+            pair = f"{md_text(r['body1'])}-{md_text(r['body2'])}"
+            out.append(f"{_who(r)} ({pair}): {md_text(r['note'])}.")
             continue
         out.append(
             f"{_who(r)}: momentum changes by {r['momentum_rel_change']:.2g} (relative), i.e. "
@@ -142,7 +145,7 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
         param = params[name][0]
         rows = study.filter(pl.col("e_collision").is_not_null()).sort(param)
         if rows.is_empty():
-            out.append(f"`{name}`: no run of the sweep has a collision.")
+            out.append(f"{md_code(name)}: no run of the sweep has a collision.")
             continue
         es = rows["e_collision"]
         el1, el2 = rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]
@@ -156,7 +159,7 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
             ).iter_rows()
         )
         out.append(
-            f"`{name}` over {param} = {vals}. "
+            f"{md_code(name)} over {md_text(param)} = {vals}. "
             + (
                 f"e spans only {spread:.3f} over the sweep (essentially independent of the knob)"
                 if spread < 0.05

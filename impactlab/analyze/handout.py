@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import polars as pl
 
+from impactlab.text import md_text
+
 PAIRS = (
     (
         "Steps 1-2: drops",
@@ -59,7 +61,7 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
         if done.is_empty():
             row = col.row(0, named=True)
             return (
-                f"no collision: {row['note']}; v1' = {row['v1n_after_mps']:.3g} m/s, "
+                f"no collision: {md_text(row['note'])}; v1' = {row['v1n_after_mps']:.3g} m/s, "
                 f"v2' = {row['v2n_after_mps']:.3g} m/s"
             )
         words = (

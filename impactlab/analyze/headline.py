@@ -10,6 +10,8 @@ from pathlib import Path
 
 import polars as pl
 
+from impactlab.text import md_code, md_link, md_text
+
 RUBRIC = (
     ("Energy analysis", 25, "Step 1", "step-1-energy"),
     ("Restitution measurement", 25, "Step 2", "step-2-restitution"),
@@ -66,7 +68,7 @@ def rest_line(ground: pl.DataFrame) -> str:
         return ""
     named = rest.filter(pl.col("experiment") == "free_fall")
     r = (named if named.height else rest).row(0, named=True)
-    who = r.get("run") or r["run_id"]
+    who = md_text(r.get("run") or r["run_id"])
     out = (
         f' {rest.height} run(s) stop once every body is at rest (stop rule `at_rest`): "{who}" '
         f"ends at {r['duration_s']:.3g} s (the handout runs 2 s; the rest would log a ball "
@@ -107,7 +109,7 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
         speeds = study["first_impact_speed_mps"].drop_nulls()
         if rows.height and speeds.len():
             heights.append(
-                f"`{name}`: e = {rows['e_velocity_first'].min():.3f}-"
+                f"{md_code(name)}: e = {rows['e_velocity_first'].min():.3f}-"
                 f"{rows['e_velocity_first'].max():.3f} for impacts at "
                 f"{speeds.min():.3g}-{speeds.max():.3g} m/s ({rows.height} of {study.height} "
                 "heights rebound)"
@@ -123,10 +125,10 @@ def collision_line(collisions: pl.DataFrame) -> str:
         return "Not answered: no run has two bodies that collide."
     done = collisions.filter(pl.col("complete"))
     if done.is_empty():
-        return f"Not answered: no collision separated ({collisions['note'][0]})."
+        return f"Not answered: no collision separated ({md_text(collisions['note'][0])})."
     r = done.row(0, named=True)
     loss = r["ke_before_J"] - r["ke_after_J"]
-    who = r.get("run") or r["run_id"]
+    who = md_text(r.get("run") or r["run_id"])
     return (
         f"Momentum is conserved: its relative change is at most "
         f"{done['momentum_rel_change'].max():.1g} over {done.height} collision(s). "
@@ -149,7 +151,8 @@ def study_line(studies: dict, params: dict[str, list[str]]) -> str:
         el1 = rows["v1n_after_elastic_mps"][0]
         gap = ((rows["v1n_after_mps"] - el1).abs() / abs(el1 or 1.0)).min()
         out.append(
-            f"`{name}` (sweeping {params[name][0]}): e = {rows['e_collision'].min():.3f}-"
+            f"{md_code(name)} (sweeping {md_text(params[name][0])}): "
+            f"e = {rows['e_collision'].min():.3f}-"
             f"{rows['e_collision'].max():.3f}, the closest v1' is {gap * 100:.0f} % of "
             f"|v1'_elastic| = {abs(el1):.3f} m/s away from the elastic answer"
         )
@@ -217,6 +220,6 @@ def headline(
         lines += [f"\n### {title} answer\n", f"**Question.** {QUESTIONS[key]}\n"]
         lines.append(f"**Answer.** {answer}\n")
         if figure is not None:
-            lines.append(f"![{title}]({figure.relative_to(out_dir).as_posix()})\n")
+            lines.append(f"![{title}]({md_link(figure.relative_to(out_dir).as_posix())})\n")
         lines.append(f"Detail: [{title}](#{anchor}).\n")
     return lines
