@@ -28,7 +28,6 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from impactlab.analyze import html as page_module
 from impactlab.logs import format as logformat
 
 TITLE = "Impact lab: analysis report"
@@ -69,9 +68,14 @@ def model(floor: str, bodies: Sequence[str]) -> str:
     )
 
 
-def impactlab(*args: str, stdin: int | None = None) -> subprocess.CompletedProcess:
-    """`python -m impactlab ARGS` in a process of its own, with a memory limit and a
-    timeout; stdin is an open pipe unless given."""
+def impactlab(*args: str) -> subprocess.CompletedProcess:
+    """`python -m impactlab ARGS` in a process of its own (`python`)."""
+    return python("-m", "impactlab", *args)
+
+
+def python(*args: str) -> subprocess.CompletedProcess:
+    """`python ARGS` in a process of its own, with a memory limit, a timeout, and an open
+    pipe as stdin."""
     keep, write = os.pipe()  # nothing is ever written: a read of /dev/stdin would wait
 
     def limit() -> None:
@@ -79,8 +83,8 @@ def impactlab(*args: str, stdin: int | None = None) -> subprocess.CompletedProce
 
     try:
         return subprocess.run(
-            [sys.executable, "-m", "impactlab", *args],
-            stdin=keep if stdin is None else stdin,
+            [sys.executable, *args],
+            stdin=keep,
             capture_output=True,
             timeout=TIMEOUT_S,
             preexec_fn=limit,
@@ -244,10 +248,11 @@ def test_no_name_puts_a_local_file_in_the_page(tmp_path):
         assert html.escape(name, quote=False) in page, name
 
 
-def test_only_figures_inside_the_folder_are_embedded(tmp_path, monkeypatch):
+def test_only_figures_inside_the_folder_are_embedded(tmp_path):
     """report.html embeds figure files inside its folder and nothing else: not an absolute
-    path, a path out of the folder, a link out of it, a device, a file that is not an image,
-    a file over the size cap; each is listed as not embedded."""
+    path, a path out of the folder, a link out of it, a device, a pipe, a file that is not an
+    image, a file over the size cap; each is listed as not embedded. (The page is made in a
+    process of its own, with a memory limit and a timeout.)"""
     folder = tmp_path / "results"
     (folder / "figures").mkdir(parents=True)
     secret = tmp_path / "secret.png"
@@ -258,7 +263,6 @@ def test_only_figures_inside_the_folder_are_embedded(tmp_path, monkeypatch):
     (folder / "figures" / "link.png").symlink_to(secret)
     (folder / "figures" / "zero.png").symlink_to("/dev/zero")
     os.mkfifo(folder / "figures" / "fifo.png")  # opened, a pipe would wait for a writer
-    monkeypatch.setattr(page_module, "MAX_FIGURE_BYTES", 100, raising=False)
     refused = [
         str(secret),
         "../secret.png",
@@ -272,7 +276,16 @@ def test_only_figures_inside_the_folder_are_embedded(tmp_path, monkeypatch):
     markdown = "# R\n\n![ok](figures/ok.png)\n\n" + "".join(
         f"![r{i}]({p})\n\n" for i, p in enumerate(refused)
     )
-    page = page_module.report_html(markdown, folder)
+    (tmp_path / "report.md").write_text(markdown)
+    code = (
+        "import sys, pathlib; from impactlab.analyze import html as page\n"
+        "page.MAX_FIGURE_BYTES = 100\n"
+        "text = pathlib.Path(sys.argv[1]).read_text()\n"
+        "pathlib.Path(sys.argv[3]).write_text(page.report_html(text, pathlib.Path(sys.argv[2])))"
+    )
+    done = python("-c", code, str(tmp_path / "report.md"), str(folder), str(tmp_path / "page.html"))
+    assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
+    page = (tmp_path / "page.html").read_text()
     assert page.count('src="data:image/png;base64,') == 1
     assert base64.b64encode(b"\x89PNG fine").decode() in page
     assert "SECRET" not in page and base64.b64encode(secret.read_bytes()).decode() not in page
