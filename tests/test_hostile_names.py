@@ -218,10 +218,10 @@ def test_no_name_runs_script_in_the_page(tmp_path):
     out = tmp_path / "results"
     done = analyze([drop, ball, crafted, unreadable], out)
     assert done.returncode == 1, done.stderr  # one input could not be read, the others were
-    page = (out / "report.html").read_text(encoding="utf-8")
-    assert "<img" not in page and "<script" not in page and "<svg" not in page
     dom = browse(out / "report.html", tmp_path / "profile")
     assert title(dom) == TITLE  # no onerror, onload or script ran
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "<img" not in page and "<script" not in page and "<svg" not in page
     shown = text_of(dom)
     for name in (SCRIPT_BODY, SCRIPT_FLOOR, SCRIPT_FILE, str(unreadable), "__init__", "_ball_"):
         assert name in shown, name
@@ -306,9 +306,9 @@ def test_no_name_loads_a_url_or_makes_a_heading(tmp_path, server):
     done = analyze(logs, out)
     assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
     page = out / "report.html"
-    assert "Content-Security-Policy" in page.read_text(encoding="utf-8")
     dom = browse(page, tmp_path / "profile")
     assert Requests.seen == []
+    assert "Content-Security-Policy" in page.read_text(encoding="utf-8")
     shown = text_of(dom)
     assert all(name in shown for name in names)
     report = (out / "report.md").read_text(encoding="utf-8")
