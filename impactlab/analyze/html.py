@@ -22,7 +22,6 @@ from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
 from markdown_it.common.utils import escapeHtml
-from markdown_it.rules_block.table import escapedSplit
 from markdown_it.rules_core import StateCore
 from markdown_it.token import Token
 from mdit_py_plugins.anchors.index import slugify, unique_slug
@@ -131,11 +130,13 @@ between two letters or digits cannot open or close emphasis; brackets without a 
 destination are text in a page without reference definitions, see `_pieces`)."""
 _ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")
 """A backslash escape of ASCII punctuation: the punctuation as text (CommonMark)."""
+_PIPE = re.compile(r"(?<!\\)\|")
+"""A pipe that separates table cells (one after a backslash is text)."""
 _DEFINITION = re.compile(r" {0,3}\[[^\]]+\]:", re.MULTILINE)
 
 
 def _plain_table(text: str) -> str | None:
-    """A table whose cells are plain text (`_SYNTAX` absent, but for escaped pipes) and whose
+    """A table whose cells are plain text (`_SYNTAX` absent, but for backslash escapes) and whose
     delimiter row sets no alignment, as markdown-it renders it; None for any other."""
     lines = text.splitlines()
     if len(lines) < 2 or set(lines[1].replace("|", "").strip()) != {"-"}:
@@ -171,16 +172,17 @@ def _plain_cells(line: str) -> list[str] | None:
     cells = []
     for cell in _split_row(row[1:-1]):
         text = cell.strip()
-        if _SYNTAX.search(_ESCAPED.sub("\0", text)):
+        escaped = "\\" in text
+        if _SYNTAX.search(_ESCAPED.sub("\0", text) if escaped else text):
             return None
-        cells.append(_ESCAPED.sub(r"\1", text))
+        cells.append(_ESCAPED.sub(r"\1", text) if escaped else text)
     return cells
 
 
 def _split_row(row: str) -> list[str]:
-    """A row's cells as markdown-it's table rule splits them: a pipe after a backslash is
-    text, and that backslash is dropped."""
-    return escapedSplit(row) if "\\" in row else row.split("|")
+    """A row's cells as markdown-it's table rule splits them (`escapedSplit`): a pipe after a
+    backslash is text, and that backslash is dropped."""
+    return [c.replace("\\|", "|") for c in _PIPE.split(row)]
 
 
 def _closes(line: str, fence: str) -> bool:
