@@ -25,9 +25,13 @@ from pathlib import Path
 from typing import ClassVar
 
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+from markdown_it import MarkdownIt
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
+from impactlab.analyze import html as page_html
 from impactlab.logs import format as logformat
 
 TITLE = "Impact lab: analysis report"
@@ -357,3 +361,34 @@ def test_names_in_figures_are_text(tmp_path):
     assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
     assert len(list((out / "figures").glob("energy-*.png"))) == 1
     assert "$\\undefinedcmd$" in text_of((out / "report.html").read_text(encoding="utf-8"))
+
+
+TEMPLATES = ("{}", "- {} tail", "x {} y", "| a | {} |\n|---|---|\n| {} | b |\n", "- {} on {}")
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.text(alphabet=st.sampled_from(list("ab1 _*`[]()!<>&|\\#-+=.~$:\"'\n\t\x1b\x85\u202e"))))
+def test_md_text_renders_as_the_text_itself(name):
+    """Any text through `md_text`, in a paragraph, a list item or a table cell, renders as
+    that text (control characters as their escapes) and adds no element; in a table,
+    through report.html's direct path for plain cells too."""
+    from impactlab.text import (
+        md_text,
+        visible,
+    )  # (imported here: the other tests run on any version)
+
+    md = MarkdownIt("commonmark", {"html": False}).enable("table")
+    expected = visible(name).strip(" ")
+    assume(expected)  # blank: no paragraph at all
+    for template in TEMPLATES:
+        plain = md.render(template.replace("{}", "Q"))
+        rendered = md.render(template.replace("{}", md_text(name)))
+        tags = re.findall(r"<[a-z0-9]+", rendered)
+        assert tags == re.findall(r"<[a-z0-9]+", plain), (template, rendered)
+        texts = re.findall(r">([^<]*)<", rendered)
+        shown = [html.unescape(t) for t in texts if t.strip()]
+        assert any(expected in t for t in shown), (template, rendered)
+    table = "| a | b |\n|---|---|\n" + f"| {md_text(name)} | x |\n" * 3
+    fast = page_html._plain_table(table)
+    if fast is not None:
+        assert fast == md.render(table)
