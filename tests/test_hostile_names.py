@@ -372,10 +372,8 @@ def test_md_text_renders_as_the_text_itself(name):
     """Any text through `md_text`, in a paragraph, a list item or a table cell, renders as
     that text (control characters as their escapes) and adds no element; in a table,
     through report.html's direct path for plain cells too."""
-    from impactlab.text import (
-        md_text,
-        visible,
-    )  # (imported here: the other tests run on any version)
+    # imported here, so that the other tests of the file run on any version
+    from impactlab.text import md_text, visible
 
     md = MarkdownIt("commonmark", {"html": False}).enable("table")
     expected = visible(name).strip(" ")
