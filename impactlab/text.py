@@ -9,6 +9,7 @@ punctuation is backslash-escaped.
 
 from __future__ import annotations
 
+import hashlib
 import re
 from urllib.parse import quote
 
@@ -76,3 +77,20 @@ def md_link(path: str) -> str:
     """A relative path as a Markdown link or image destination: percent-encoded but for
     letters, digits and `/_.-~=+,:@`, so no character of it ends the link or becomes markup."""
     return quote(path, safe="/=+,:@")
+
+
+_FILE_UNSAFE = re.compile(r"[^A-Za-z0-9._=+-]")
+FILE_PART_CHARS = 150
+"""The longest name `file_part` keeps (a file name has at most 255 bytes)."""
+
+
+def file_part(name: str) -> str:
+    """A name (a run id, an experiment) as part of a file name in the output folder: kept
+    when it is letters, digits and `._=+-` only (not starting with a dot) and short;
+    otherwise those characters, the rest as `_`, and a hash of the name (so that two names
+    never share a file, and no `/` or `..` leads out of the folder)."""
+    short = 0 < len(name) <= FILE_PART_CHARS
+    if short and not name.startswith(".") and not _FILE_UNSAFE.search(name):
+        return name
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    return f"{_FILE_UNSAFE.sub('_', name)[:FILE_PART_CHARS].lstrip('.')}-{digest}"

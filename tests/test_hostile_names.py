@@ -390,3 +390,21 @@ def test_md_text_renders_as_the_text_itself(name):
     fast = page_html._plain_table(table)
     if fast is not None:
         assert fast == md.render(table)
+
+
+def test_no_name_writes_outside_the_output_folder(tmp_path):
+    """A log whose run id is a path out of the output folder: its figure is written inside the
+    folder, under a name made safe (before, it went to that path)."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    (log,) = record([spec], tmp_path / "logs")
+    target = tmp_path / "outside"  # figures/energy-x/../../.. ... /outside.png
+    crafted = rewrite(log, tmp_path / "crafted.mcap", run_id="x/" + "../" * 40 + str(target)[1:])
+    out = tmp_path / "results"
+    done = impactlab("analyze", str(crafted), "-o", str(out))
+    assert not target.with_suffix(".png").exists()
+    assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
+    (figure,) = (out / "figures").glob("energy-*.png")
+    assert figure.is_file() and "/" not in figure.name
+    mine = {out, tmp_path / "logs", tmp_path / "spec.toml", tmp_path / "crafted.mcap"}
+    assert {p for p in tmp_path.iterdir()} == mine

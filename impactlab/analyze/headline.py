@@ -10,7 +10,7 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.text import md_code, md_link, md_text
+from impactlab.text import file_part, md_code, md_link, md_text
 
 RUBRIC = (
     ("Energy analysis", 25, "Step 1", "step-1-energy"),
@@ -187,7 +187,7 @@ def headline(
         for name in studies
         if "e_collision" in studies[name].columns
         for p in figures.get("study", [])
-        if p.stem == f"study-{name}"
+        if p.stem == f"study-{file_part(name)}"
     ]
     steps = [
         (
