@@ -16,6 +16,7 @@ from impactlab.errors import SpecError
 from impactlab.executors.base import Executor
 from impactlab.files import write_text
 from impactlab.progress import Progress, say
+from impactlab.text import md_link, md_text
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -151,5 +152,7 @@ def _replays_section(report: Path, replays: list[Path]) -> str:
         "One Rerun recording per run (open with `rerun FILE.rrd`; see docs/replay.md):",
         "",
     ]
-    lines += [f"- [{p.stem}]({os.path.relpath(p, report.parent)})" for p in replays]
+    lines += [
+        f"- [{md_text(p.stem)}]({md_link(os.path.relpath(p, report.parent))})" for p in replays
+    ]
     return "\n".join(lines) + "\n"

@@ -14,6 +14,8 @@ import matplotlib.pyplot as plt
 
 from impactlab.files import atomic_path
 
+matplotlib.rcParams["text.parse_math"] = False  # a name with `$` is text, never mathtext
+
 DPI = 110
 _PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
 

@@ -16,6 +16,8 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from impactlab.text import terminal_text
+
 COUNT_KEYS = ("finished", "unstable", "failed", "reused")
 
 
@@ -161,12 +163,13 @@ class ConsoleProgress:
         if event.line is None:
             return
         self._last_output = self.clock()
+        line = terminal_text(event.line)  # it may quote a log's or a model's names
         if event.level in ("error", "warning"):
-            print(event.line, file=sys.stderr)
+            print(line, file=sys.stderr)
         elif self._bar is not None:
-            self._bar.write(event.line)
+            self._bar.write(line)
         else:
-            self.echo(event.line)
+            self.echo(line)
 
     def close(self) -> None:
         """Remove the bar."""

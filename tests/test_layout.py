@@ -59,6 +59,7 @@ BASE = (
     "physics",
     "plotting",
     "show",
+    "text",
     "version",
 )  # below every stage
 FACES = {f"impactlab.{stage}" for stage in STAGES}  # what other stages may use of a stage

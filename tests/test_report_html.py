@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from matplotlib import image
 
-from impactlab.analyze.html import report_html
+from impactlab.analyze.html import CSP, report_html
 from impactlab.analyze.job import run_analysis
 
 GOLDEN = Path(__file__).parent / "golden" / "logs"
@@ -87,7 +87,10 @@ def test_report_html_opens_in_chromium_with_every_figure_and_link(results, tmp_p
         parts = urlsplit(html.unescape(href))
         if not parts.scheme:
             assert (results / unquote(parts.path)).exists(), href
+    policy = f'content="{CSP}"'
+    assert policy in text  # the page runs no script: the check's own is allowed in a copy
     checked = tmp_path / "check.html"
+    text = text.replace(policy, f"content=\"{CSP}; script-src 'unsafe-inline'\"")
     checked.write_text(text.replace("</body>", CHECK + "</body>"), encoding="utf-8")
     dom = browse(checked, tmp_path, "--dump-dom")
     found = re.search(r'data-check="([^"]*)"', dom)

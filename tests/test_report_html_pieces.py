@@ -12,11 +12,12 @@ from markdown_it import MarkdownIt
 from mdit_py_plugins.anchors import anchors_plugin
 
 from impactlab.analyze import html as page
+from impactlab.text import md_text
 
 
 def whole(markdown: str, folder: Path) -> str:
     """The page body as one parse of the whole document renders it."""
-    md = MarkdownIt("commonmark").enable("table").use(anchors_plugin, max_level=6)
+    md = MarkdownIt("commonmark", {"html": False}).enable("table").use(anchors_plugin, max_level=6)
     tokens = md.parse(markdown)
     page._embed(tokens, folder)
     return md.renderer.render(tokens, md.options, {})
@@ -37,6 +38,16 @@ def plain_table(rows: int) -> str:
     return head + "".join(
         f"| drop: ball at z = {i} m | bench_drop-ball.pos=0_0_{i}-9a8 | {i / 7:.4g} | "
         f'say "hi" \\| {i} | {"" if i % 5 else "-"} |\n'
+        for i in range(rows)
+    )
+
+
+def hostile_table(rows: int) -> str:
+    """A big table of names as `md_text` escapes them: plain text, written directly."""
+    head = "| run | body | note |\n|---|---|---|\n"
+    names = ["<img src=x onerror=alert(1)>", "![s](/etc/passwd)", "a|b\\|c", "_x_ *y* `z`", "&amp;"]
+    return head + "".join(
+        f"| {md_text(names[i % 5])} | {md_text(f'# {i}')} | {md_text(names[(i + 2) % 5])} |\n"
         for i in range(rows)
     )
 
@@ -66,6 +77,9 @@ CASES = {
     "no trailing newline": "## A\ntext",
     "plain big tables": f"# Runs\n\n{plain_table(650)}\n## Again\n\n{plain_table(201)}",
     "a big table with inline syntax": f"# Runs\n\n{odd_table(450)}\n",
+    "a big table of escaped names": f"# Names\n\n{hostile_table(420)}\n",
+    "raw html and escapes": "# H\n\n<script>x</script>\n\n<img src=x onerror=y> \\<b\\> \\\\| a\n\n"
+    "| a | b |\n|---|---|\n| <i>x</i> | \\_y\\_ \\\\\\| z |\n",
     "a reference defined in another section": f"# A\n\nsee [the runs][r]\n\n{plain_table(300)}\n"
     "# B\n\n[r]: #runs\n",
     "a big table in a list item": "# L\n\n- item\n\n"
@@ -79,6 +93,7 @@ SLICED = {
     "a big table ending the document",
     "plain big tables",
     "a big table with inline syntax",
+    "a big table of escaped names",
 }
 
 
@@ -124,3 +139,5 @@ def test_plain_slices_are_written_without_markdown_it():
     assert fast and all(fast)
     odd = [page._plain_table(t) is not None for p, t in page._pieces(odd_table(450)) if p]
     assert not all(odd)
+    names = [page._plain_table(t) is not None for p, t in page._pieces(hostile_table(420)) if p]
+    assert names and all(names)  # escaped names keep the fast path

@@ -9,6 +9,7 @@ from __future__ import annotations
 import polars as pl
 
 from impactlab.analyze import findings as F
+from impactlab.text import md_code, md_text
 
 E_CONSTANT_SPREAD = F.E_CONSTANT_SPREAD
 APPROACH_FRACTION = F.APPROACH_FRACTION
@@ -20,7 +21,7 @@ def _f(x: float | None, fmt: str = ".3g") -> str:
 
 def _who(row: dict) -> str:
     """The run's readable label when the table has one (`labels.with_labels`), else its id."""
-    return str(row.get("run") or f"`{row['run_id']}`")
+    return md_text(row["run"]) if row.get("run") else md_code(row["run_id"])
 
 
 @F.guard_lines("the energy answer")
@@ -63,7 +64,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
         )
         es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls().drop_nans()
-        who = f"{_who(mine.row(0, named=True))}, {body} on {surface}"
+        who = f"{_who(mine.row(0, named=True))}, {md_text(body)} on {md_text(surface)}"
         if es.len() >= 2:
             spread = float(es.max() - es.min())
             vals = ", ".join(f"{e:.3f}" for e in es)
@@ -75,7 +76,8 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
             out.append(
                 f"{who}: {es.len()} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
-                f"cannot be tested: the log ends ({reasons.get(run_id, 'reason not recorded')}) "
+                "cannot be tested: the log ends "
+                f"({md_text(reasons.get(run_id) or 'reason not recorded')}) "
                 f"after {mine.height} contact(s) with an impact, the last one without a flight "
                 "after it."
             )
@@ -115,7 +117,7 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
             verdict = "only one drop height rebounds at all, so e depends on the impact speed"
         else:
             verdict = "no drop height rebounds"
-        out.append(f"`{name}`: {'; '.join(parts)}. So {verdict}.")
+        out.append(f"{md_code(name)}: {'; '.join(parts)}. So {verdict}.")
     return out
 
 
@@ -130,11 +132,15 @@ def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None)
     )
 
 
+def _pair(r: dict) -> str:
+    return f"{md_text(r['body1'])}-{md_text(r['body2'])}"
+
+
 def _collision_sentence(r: dict, run: dict | None) -> str:
     if not r["complete"]:
         why = r["note"] or "incomplete (no state after the contact, or the bodies were not closing)"
-        return f"{_who(r)} ({r['body1']}-{r['body2']}): {why}."
-    out = f"{_who(r)} ({r['body1']}-{r['body2']}): {F.momentum_finding(r, run)}"
+        return f"{_who(r)} ({_pair(r)}): {md_text(why)}."
+    out = f"{_who(r)} ({_pair(r)}): {F.momentum_finding(r, run)}"
     before, after, frac = r["ke_before_J"], r["ke_after_J"], r["ke_loss_frac"]
     if F.defined(before) and F.defined(after):
         out += f"; the kinetic energy falls from {before:.4g} J to {after:.4g} J"
@@ -146,7 +152,7 @@ def _collision_sentence(r: dict, run: dict | None) -> str:
         out += (
             f"; the 1D formula predicts a loss of {predicted:.4g} J for it."
             if F.defined(predicted)
-            else f"; no 1D prediction ({r['note'] or 'the impact is not central'})."
+            else f"; no 1D prediction ({md_text(r['note'] or 'the impact is not central')})."
         )
     names = ("v1n_after_mps", "v2n_after_mps")
     if all(F.defined(r[c]) for c in names):
@@ -172,7 +178,7 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
         param = params[name][0]
         rows = study.filter(pl.col("e_collision").is_not_null()).sort(param)
         if rows.is_empty():
-            out.append(f"`{name}`: no run of the sweep has a collision.")
+            out.append(f"{md_code(name)}: no run of the sweep has a collision.")
             continue
         es = rows["e_collision"]
         el1, el2 = rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]
@@ -199,5 +205,5 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
                 f"v1' is {gap * 100:.0f} % of |v1'_elastic| away, threshold "
                 f"{F.APPROACH_FRACTION * 100:.0f} %)."
             )
-        out.append(f"`{name}` over {param} = {vals}. {knob}{elastic}")
+        out.append(f"{md_code(name)} over {md_text(param)} = {vals}. {knob}{elastic}")
     return out

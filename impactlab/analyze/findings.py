@@ -15,6 +15,8 @@ from typing import Any
 
 import polars as pl
 
+from impactlab.text import md_text
+
 MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which momentum is called
 conserved. MuJoCo's contact forces on two bodies are equal and opposite, so an isolated pair
@@ -227,7 +229,7 @@ def _acting(col: dict[str, Any], run: dict[str, Any] | None) -> tuple[list[str],
     others = []
     touched = col.get("touched_by")
     if touched:
-        others.append(f"{touched} touched the pair during the collision")
+        others.append(f"{md_text(touched)} touched the pair during the collision")
     gravity = col.get("gravity_impulse_rel")
     if defined(gravity) and gravity >= MOMENTUM_CONSERVED_REL:
         others.append(

@@ -12,6 +12,7 @@ from __future__ import annotations
 import polars as pl
 
 from impactlab.analyze import findings as F
+from impactlab.text import md_text
 
 PAIRS = (
     (
@@ -65,7 +66,9 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
                 for name, c in (("v1", "v1n_after_mps"), ("v2", "v2n_after_mps"))
                 if F.defined(row[c])
             ]
-            return f"no collision: {row['note']}" + (f"; {', '.join(after)}" if after else "")
+            return f"no collision: {md_text(row['note'])}" + (
+                f"; {', '.join(after)}" if after else ""
+            )
         by_run = {r["run_id"]: r for r in runs.to_dicts()}
         kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.to_dicts()]
         rels = done["momentum_rel_change"].drop_nulls()

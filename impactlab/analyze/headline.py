@@ -11,6 +11,7 @@ from pathlib import Path
 import polars as pl
 
 from impactlab.analyze import findings as F
+from impactlab.text import file_part, md_code, md_link, md_text
 
 RUBRIC = (
     ("Energy analysis", 25, "Step 1", "step-1-energy"),
@@ -92,7 +93,7 @@ def energy_line(runs: pl.DataFrame) -> str:
 
 
 def _who(row: dict) -> str:
-    return f'"{row.get("run") or row["run_id"]}"'
+    return f'"{md_text(row.get("run") or row["run_id"])}"'
 
 
 def rest_line(ground: pl.DataFrame) -> str:
@@ -102,7 +103,7 @@ def rest_line(ground: pl.DataFrame) -> str:
         return ""
     named = rest.filter(pl.col("experiment") == "free_fall")
     r = (named if named.height else rest).row(0, named=True)
-    who = r.get("run") or r["run_id"]
+    who = md_text(r.get("run") or r["run_id"])
     out = (
         f' {rest.height} run(s) stop once every body is at rest (stop rule `at_rest`): "{who}" '
         f"ends at {r['duration_s']:.3g} s (the handout runs 2 s; the rest would log a ball "
@@ -151,8 +152,8 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
         speeds = F.span(study["first_impact_speed_mps"].to_list(), ".3g", "m/s")
         if rows.height and speeds:
             heights.append(
-                f"`{name}`: e = {F.span(rows['e_velocity_first'].to_list(), '.3f')} for impacts "
-                f"at {speeds} ({rows.height} of {study.height} heights rebound)"
+                f"{md_code(name)}: e = {F.span(rows['e_velocity_first'].to_list(), '.3f')} "
+                f"for impacts at {speeds} ({rows.height} of {study.height} heights rebound)"
             )
     if heights:
         out.append("Against drop height: " + "; ".join(heights) + ".")
@@ -166,7 +167,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
         return "Not answered: no run has two bodies that collide."
     done = collisions.filter(pl.col("complete"))
     if done.is_empty():
-        why = collisions["note"][0] or "no complete collision"
+        why = md_text(collisions["note"][0] or "no complete collision")
         return f"Not answered: no collision separated ({why})."
     by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
     rows = done.to_dicts()
@@ -184,7 +185,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
         words = F.momentum_finding(odd, by_run.get(odd["run_id"]))
         out = (
             f"Momentum is conserved in {n} of {len(rows)} collision(s); in run {_who(odd)} "
-            f"({odd['body1']}-{odd['body2']}) {words}. "
+            f"({md_text(odd['body1'])}-{md_text(odd['body2'])}) {words}. "
         )
     r = rows[0]
     before, after = r["ke_before_J"], r["ke_after_J"]
@@ -197,7 +198,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
         if F.defined(e) and F.defined(predicted):
             out += f"; the 1D formula with the measured e = {e:.3f} predicts {predicted:.4g} J."
         else:
-            out += f"; no 1D prediction ({r['note'] or 'e is not measured'})."
+            out += f"; no 1D prediction ({md_text(r['note'] or 'e is not measured')})."
     return out
 
 
@@ -220,7 +221,7 @@ def study_line(studies: dict, params: dict[str, list[str]]) -> str:
             else "the elastic answer is not defined for it (not a central impact)"
         )
         out.append(
-            f"`{name}` (sweeping {params[name][0]}): "
+            f"{md_code(name)} (sweeping {md_text(params[name][0])}): "
             f"e = {F.span(rows['e_collision'].to_list(), '.3f')}, {elastic}"
         )
     return ("; ".join(out) + ".") if out else "Not answered: no collision sweep."
@@ -254,7 +255,7 @@ def headline(
         for name in studies
         if "e_collision" in studies[name].columns
         for p in figures.get("study", [])
-        if p.stem == f"study-{name}"
+        if p.stem == f"study-{file_part(name)}"
     ]
     steps = [
         (
@@ -287,6 +288,6 @@ def headline(
         lines += [f"\n### {title} answer\n", f"**Question.** {QUESTIONS[key]}\n"]
         lines.append(f"**Answer.** {answer}\n")
         if figure is not None:
-            lines.append(f"![{title}]({figure.relative_to(out_dir).as_posix()})\n")
+            lines.append(f"![{title}]({md_link(figure.relative_to(out_dir).as_posix())})\n")
         lines.append(f"Detail: [{title}](#{anchor}).\n")
     return lines

@@ -1,17 +1,21 @@
 """The report as one self-contained HTML page: report.md rendered, its figures embedded.
 
-The page is what gets handed in or opened in a browser: every image the Markdown shows is
+The page is what gets handed in or opened in a browser: every figure the Markdown shows is
 inlined as a data URI (so the page can be mailed or moved alone), headings get the ids that
 GitHub gives them (so the report's in-page links work in both), and links to other files
 (tables, replays, the calibration details) stay relative, working beside the results.
+
+Nothing a model or a log says can run or load in the page: raw HTML in the Markdown is shown
+as text, only figure files inside the report's folder are embedded (any other image becomes
+its alt text), and the page's Content Security Policy allows no script and no request.
 """
 
 from __future__ import annotations
 
 import base64
 import html
-import mimetypes
 import re
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
@@ -38,6 +42,17 @@ pre { background: #f3f3f3; padding: 0.5rem; overflow-x: auto; }
 """
 
 
+CSP = (
+    "default-src 'none'; img-src data:; style-src 'unsafe-inline'; base-uri 'none'; "
+    "form-action 'none'"
+)
+"""The page's Content Security Policy: no script, nothing loaded but its own inline figures
+and style."""
+FIGURE_TYPES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
+"""The images the page embeds, by file suffix (the analysis draws PNG)."""
+MAX_FIGURE_BYTES = 64 * 2**20
+"""The largest figure file embedded."""
+
 SLICE_ROWS = 200
 """A table of more rows is parsed in slices of this many rows (the page is the same)."""
 _FENCE = re.compile(r" {0,3}(`{3,}|~{3,})")
@@ -47,7 +62,7 @@ _HEAD, _TAIL = "<tbody>\n", "</tbody>\n</table>\n"
 
 
 def _parser() -> MarkdownIt:
-    md = MarkdownIt("commonmark").enable("table")
+    md = MarkdownIt("commonmark", {"html": False}).enable("table")  # raw HTML stays text
     md.core.ruler.push("anchor", _anchors)
     return md
 
@@ -113,11 +128,15 @@ _SYNTAX = re.compile(r"[\\`*<>&]|\]\(|(?<![0-9A-Za-z])_|_(?![0-9A-Za-z])")
 """Anything in a cell that inline Markdown could read as more than text (an underscore only
 between two letters or digits cannot open or close emphasis; brackets without a link
 destination are text in a page without reference definitions, see `_pieces`)."""
+_ESCAPED = re.compile(r"\\([!-/:-@\[-`{-~])")
+"""A backslash escape of ASCII punctuation: the punctuation as text (CommonMark)."""
+_PIPE = re.compile(r"(?<!\\)\|")
+"""A pipe that separates table cells (one after a backslash is text)."""
 _DEFINITION = re.compile(r" {0,3}\[[^\]]+\]:", re.MULTILINE)
 
 
 def _plain_table(text: str) -> str | None:
-    """A table whose cells are plain text (`_SYNTAX` absent, but for escaped pipes) and whose
+    """A table whose cells are plain text (`_SYNTAX` absent, but for backslash escapes) and whose
     delimiter row sets no alignment, as markdown-it renders it; None for any other."""
     lines = text.splitlines()
     if len(lines) < 2 or set(lines[1].replace("|", "").strip()) != {"-"}:
@@ -145,14 +164,25 @@ def _plain_table(text: str) -> str | None:
 
 
 def _plain_cells(line: str) -> list[str] | None:
-    """The cells of a table row `| a | b |` when each is plain text, else None."""
+    """The cells of a table row `| a | b |` when each is plain text, else None. Escaped
+    punctuation (`\\_`, `\\<`, `\\|`, as `impactlab.text.md_text` writes it) is plain text."""
     row = line.strip()
     if not (row.startswith("|") and row.endswith("|")) or row.endswith("\\|") or len(row) < 2:
         return None
-    cells = [c.strip() for c in re.split(r"(?<!\\)\|", row[1:-1])]
-    if any(_SYNTAX.search(c.replace("\\|", "")) for c in cells):
-        return None
-    return [c.replace("\\|", "|") for c in cells]
+    cells = []
+    for cell in _split_row(row[1:-1]):
+        text = cell.strip()
+        escaped = "\\" in text
+        if _SYNTAX.search(_ESCAPED.sub("\0", text) if escaped else text):
+            return None
+        cells.append(_ESCAPED.sub(r"\1", text) if escaped else text)
+    return cells
+
+
+def _split_row(row: str) -> list[str]:
+    """A row's cells as markdown-it's table rule splits them (`escapedSplit`): a pipe after a
+    backslash is text, and that backslash is dropped."""
+    return [c.replace("\\|", "|") for c in _PIPE.split(row)]
 
 
 def _closes(line: str, fence: str) -> bool:
@@ -190,26 +220,53 @@ def _local(src: str) -> str | None:
     return unquote(parts.path)
 
 
+def _figure(folder: Path, src: str) -> tuple[bytes, str] | str:
+    """The bytes and media type of the figure `src` names, or why it is not embedded: only an
+    image file (`FIGURE_TYPES`) inside `folder` (after resolving links), a regular file of at
+    most `MAX_FIGURE_BYTES`, is ever read."""
+    path = _local(src)
+    if path is None or path.startswith("/"):
+        return "not a file in the report's folder"
+    root = folder.resolve()
+    file = (root / path).resolve()
+    mime = FIGURE_TYPES.get(file.suffix.lower())
+    if not file.is_relative_to(root) or mime is None:
+        return "not a figure file in the report's folder"
+    try:
+        info = file.stat()
+        if not stat.S_ISREG(info.st_mode):
+            return "not a regular file"
+        if info.st_size > MAX_FIGURE_BYTES:
+            return f"over {MAX_FIGURE_BYTES >> 20} MiB"
+        with open(file, "rb") as stream:
+            data = stream.read(MAX_FIGURE_BYTES + 1)
+    except OSError:
+        return "missing"
+    if len(data) > MAX_FIGURE_BYTES:
+        return f"over {MAX_FIGURE_BYTES >> 20} MiB"
+    return data, mime
+
+
 def _embed(tokens: list[Token], folder: Path) -> list[str]:
-    """Inline every local image as a data URI; returns the images that could not be read."""
-    missing = []
+    """Inline every figure as a data URI, and turn any other image into its alt text (the
+    page loads nothing); returns the images not embedded, with the reason."""
+    refused = []
     for token in tokens:
-        for child in token.children or []:
+        children = token.children or []
+        for i, child in enumerate(children):
             if child.type != "image":
                 continue
             src = str(child.attrGet("src") or "")
-            path = _local(src)
-            if path is None:
+            found = _figure(folder, src)
+            if isinstance(found, str):
+                refused.append(src if found == "missing" else f"{src} ({found})")
+                alt = Token("text", "", 0)
+                alt.content = "".join(c.content for c in child.children or [])
+                children[i] = alt
                 continue
-            file = folder / path
-            try:
-                data = file.read_bytes()
-            except OSError:
-                missing.append(src)
-                continue
-            mime = mimetypes.guess_type(file.name)[0] or "application/octet-stream"
+            data, mime = found
             child.attrSet("src", f"data:{mime};base64,{base64.b64encode(data).decode()}")
-    return missing
+    return refused
 
 
 def report_html(markdown: str, folder: Path, title: str = "impactlab report") -> str:
@@ -238,6 +295,7 @@ def report_html(markdown: str, folder: Path, title: str = "impactlab report") ->
         note = f"<p><strong>Figures missing when this page was made:</strong></p><ul>{items}</ul>"
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f'<meta http-equiv="Content-Security-Policy" content="{CSP}">\n'
         '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
         f"<title>{html.escape(title)}</title>\n<style>{STYLE}</style>\n</head>\n"
         f"<body>\n{note}{body}</body>\n</html>\n"

@@ -12,6 +12,7 @@ from impactlab.analyze import answers, findings
 from impactlab.analyze.handout import as_written_section
 from impactlab.analyze.headline import headline
 from impactlab.analyze.labels import run_labels, with_labels
+from impactlab.text import md_code, md_link, md_text
 
 METHOD = """\
 - **Ground and heights** come from the model: the static geoms a body can land on (planes,
@@ -53,7 +54,8 @@ METHOD = """\
 
 
 def fmt(value: Any) -> str:
-    """A table cell: floats to 4 significant digits, None as a dash."""
+    """A table cell: floats to 4 significant digits, None as a dash, text as text
+    (`md_text`: never markup, whatever a name holds)."""
     if value is None:
         return "-"
     if isinstance(value, bool):
@@ -62,7 +64,7 @@ def fmt(value: Any) -> str:
         if value != value:
             return "-"
         return f"{value:.4g}"
-    return str(value).replace("|", "\\|")
+    return md_text(value)
 
 
 def md_table(frame: pl.DataFrame, columns: Sequence[str] | None = None) -> str:
@@ -70,15 +72,15 @@ def md_table(frame: pl.DataFrame, columns: Sequence[str] | None = None) -> str:
     cols = [c for c in (columns or frame.columns) if c in frame.columns]
     if frame.is_empty() or not cols:
         return "_(no rows)_\n"
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    lines = ["| " + " | ".join(md_text(c) for c in cols) + " |", "|" + "---|" * len(cols)]
     for row in frame.select(cols).iter_rows():
         lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
     return "\n".join(lines) + "\n"
 
 
 def image(path: Path, out_dir: Path, alt: str) -> str:
-    """A Markdown image link relative to the report."""
-    return f"![{alt}]({path.relative_to(out_dir).as_posix()})\n"
+    """A Markdown image link relative to the report (its path URL-quoted)."""
+    return f"![{md_text(alt)}]({md_link(path.relative_to(out_dir).as_posix())})\n"
 
 
 def build_report(
@@ -113,12 +115,15 @@ def build_report(
     )
     if failed:
         out.append("\n**Inputs not analyzed:**\n")
-        out += [f"- `{p}`: {why}" for p, why in failed]
+        out += [f"- {md_code(p)}: {md_text(why)}" for p, why in failed]
         out.append("")
     partial = runs.filter(pl.col("partial"))
     if partial.height:
         out.append("\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n")
-        out += [f"- `{r}`: {why}" for r, why in partial.select("run_id", "problems").iter_rows()]
+        out += [
+            f"- {md_code(r)}: {md_text(why)}"
+            for r, why in partial.select("run_id", "problems").iter_rows()
+        ]
         out.append("")
     out += headline(
         out_dir=out_dir,
@@ -248,7 +253,8 @@ def build_report(
     out.append("\n## Step 4: parameter studies\n")
     out += [f"- {s}" for s in answers.study_answer(studies, params)] or ["- No collision sweep."]
     for name, study in studies.items():
-        out.append(f"\n`{name}` (swept: {', '.join(params.get(name, []))}):\n")
+        swept = ", ".join(md_text(p) for p in params.get(name, []))
+        out.append(f"\n{md_code(name)} (swept: {swept}):\n")
         out.append(md_table(study.drop("partial", "note", "run_id", strict=False)))
     out += [image(p, out_dir, "study") for p in figures.get("study", [])]
 

@@ -10,6 +10,7 @@ import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis
 from impactlab.analyze.labels import parameter_words
+from impactlab.text import file_part
 
 
 def sweep_words(sweep: dict) -> str:
@@ -85,7 +86,7 @@ def run_figures(
     contacts = a.phases.filter(pl.col("kind") == "contact")
     title = run_title(a)
     if a.ground is not None and a.ground.surfaces and a.energy.height:
-        path = fig_dir / f"energy-{a.run.run_id}.png"
+        path = fig_dir / f"energy-{file_part(a.run.run_id)}.png"
         key = figure_key("energy", a.energy, contacts, title)
         made.append(
             (
@@ -101,7 +102,7 @@ def run_figures(
             )
         )
     for row in a.collisions.head(1).iter_rows(named=True):
-        path = fig_dir / f"collision-{a.run.run_id}.png"
+        path = fig_dir / f"collision-{file_part(a.run.run_id)}.png"
         key = figure_key("collision", a.states, row, contacts, title)
         made.append(
             (

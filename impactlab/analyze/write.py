@@ -18,6 +18,7 @@ from impactlab.analyze.studies import study_parameters
 from impactlab.analyze.tables import AnalysisResult
 from impactlab.executors.base import Executor
 from impactlab.files import write_json, write_parquet, write_text
+from impactlab.text import file_part
 
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 
@@ -131,7 +132,7 @@ def summary_figures(
         grounded = [a for a in group if a.ground is not None and a.ground.surfaces]
         if grounded and _has_decay(result.bounces, [a.run.run_id for a in grounded]):
             labels = {a.run.run_id: run_label(a) for a in grounded}
-            path = fig_dir / f"bounce-decay-{exp}.png"
+            path = fig_dir / f"bounce-decay-{file_part(exp)}.png"
             title = f"Bounce height decay: {exp}"
             key = figure_key("decay", result.bounces, labels, title)
             draw = functools.partial(
@@ -171,7 +172,7 @@ def summary_figures(
         group = by_exp[name]
         if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
             infos = list(group[0].run.body_info.values())
-            path, title = fig_dir / f"study-{name}.png", f"Parameter study: {name}"
+            path, title = fig_dir / f"study-{file_part(name)}.png", f"Parameter study: {name}"
             m1, m2 = infos[0].mass, infos[1].mass
             key = figure_key("collision-study", study, param, title, m1, m2)
             draw = functools.partial(
@@ -185,7 +186,7 @@ def summary_figures(
             )
             jobs.append(("study", path, key, draw))
         elif "e_velocity_first" in study.columns:
-            path = fig_dir / f"study-{name}.png"
+            path = fig_dir / f"study-{file_part(name)}.png"
             title = f"Parameter study: {name}: e of the first bounce"
             key = figure_key("bounce-study", study, param, title)
             draw = functools.partial(

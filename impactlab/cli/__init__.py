@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from impactlab.cli import analyze, calibrate, contact, diff, info, lab, record, replay
 from impactlab.cli.options import OneLineParser
 from impactlab.errors import ImpactlabError
+from impactlab.text import terminal_text
 from impactlab.version import __version__
 
 COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in help order
@@ -49,7 +50,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except ImpactlabError as exc:
-        print(f"impactlab: error: {exc}", file=sys.stderr)
+        print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("impactlab: interrupted", file=sys.stderr)

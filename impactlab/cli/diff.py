@@ -20,6 +20,7 @@ from impactlab.logs.diff_result import (
     DEFAULT_RTOL,
     Tolerance,
 )
+from impactlab.text import terminal_text
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -106,16 +107,19 @@ def run(args: argparse.Namespace) -> int:
     try:
         a, b = load_log(args.a), load_log(args.b)
     except LogError as exc:  # LogError's own exit code is 1, which here means "different"
-        print(f"impactlab: error: {exc}", file=sys.stderr)
+        print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
         return EXIT_BAD_INPUT
     for log in (a, b):
         if log.partial:  # compared all the same: the differences show what is missing
-            print(f"impactlab: warning: {log.path}: {'; '.join(log.problems)}", file=sys.stderr)
+            print(
+                terminal_text(f"impactlab: warning: {log.path}: {'; '.join(log.problems)}"),
+                file=sys.stderr,
+            )
     ignored = [*([] if args.all_meta else DEFAULT_IGNORED_META), *args.ignore_meta]
     tolerance = Tolerance(atol=args.atol, rtol=args.rtol, fields=dict(args.field_tols))
     result = diff_logs(a, b, tolerance=tolerance, ignore_meta=ignored)
     if args.json:
         print(json.dumps(result.to_dict(), indent=2))
     else:
-        print(result.report())
+        print(terminal_text(result.report()))
     return EXIT_EQUAL if result.equal else EXIT_DIFFERENT

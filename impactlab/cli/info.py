@@ -18,14 +18,15 @@ def run(args: argparse.Namespace) -> int:
     """Describe each log; one error line per log that cannot be read (exit 1)."""
     from impactlab.errors import ImpactlabError
     from impactlab.logs.info import describe
+    from impactlab.text import terminal_text
 
     failed = 0
     for i, path in enumerate(args.logs):
         try:
             text = describe(path)
         except ImpactlabError as exc:
-            print(f"impactlab: error: {exc}", file=sys.stderr)
+            print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
             failed += 1
             continue
-        print(("\n" if i else "") + text)
+        print(terminal_text(("\n" if i else "") + text))
     return 1 if failed else 0

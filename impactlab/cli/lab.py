@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from impactlab.cli.options import add_executor_options, make_executor, path
+from impactlab.text import terminal_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,5 +56,5 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
         executor.close()
-    print(f"report: {result.report}")
+    print(terminal_text(f"report: {result.report}"))
     return result.exit_code

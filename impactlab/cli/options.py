@@ -8,6 +8,7 @@ from pathlib import Path
 
 from impactlab.executors.base import PROCESS_MIN_ITEMS
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
+from impactlab.text import terminal_text
 
 
 def add_executor_options(parser: argparse.ArgumentParser, default: str = "local") -> None:
@@ -58,4 +59,5 @@ class OneLineParser(argparse.ArgumentParser):
     """An argument parser whose mistakes are one line on stderr and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+        line = terminal_text(f"{self.prog}: error: {message} (see {self.prog} --help)")
+        self.exit(2, line + "\n")

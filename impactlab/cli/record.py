@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from impactlab.cli.options import add_executor_options, make_executor, path, seconds
+from impactlab.text import terminal_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -73,5 +74,5 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
         executor.close()
-    print(result.summary(args.out))
+    print(terminal_text(result.summary(args.out)))
     return result.exit_code

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from impactlab.cli.options import path
+from impactlab.text import terminal_text
 
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
 
@@ -66,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     paths, empty = require_logs(logs)
     failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
     for error in failed:
-        print(f"impactlab: error: {error}", file=sys.stderr)
+        print(terminal_text(f"impactlab: error: {error}"), file=sys.stderr)
     sinks: list = []
     if args.spawn:
         rr.spawn(connect=False, executable_path=_rerun_executable())
@@ -87,7 +88,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     for rrd in written:
-        print(f"wrote {rrd}")
+        print(terminal_text(f"wrote {rrd}"))
     if args.serve and written:
         subprocess.run([_rerun_executable() or "rerun", "--serve-web", *map(str, written)])
     return 1 if failed else 0

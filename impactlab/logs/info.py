@@ -26,6 +26,7 @@ from impactlab.logs.bounded import check_regular_file
 from impactlab.logs.metadata import check_channels, check_metadata
 from impactlab.logs.reader import MAGIC as MCAP0_MAGIC
 from impactlab.logs.reader import read_mcap
+from impactlab.text import one_line
 
 
 @dataclass
@@ -156,7 +157,9 @@ def from_reading(path: Path) -> Overview:
 
 
 def render(path: Path, o: Overview) -> str:
-    """The lines `impactlab info` prints for one file."""
+    """The lines `impactlab info` prints for one file. Every line is shown as written but for
+    its control characters (`impactlab.text.one_line`): what a log says is never a terminal
+    escape, nor a line of its own."""
     run = o.metadata.get(logformat.RUN_METADATA, {})
     ending = {"outcome": "incomplete", "reason": "no outcome record: the run did not finish"}
     lines = [f"file:       {path}"]
@@ -203,7 +206,7 @@ def render(path: Path, o: Overview) -> str:
     width = max((len(topic) for topic, *_ in o.channels), default=0)
     for topic, count, schema, _ in o.channels:
         lines.append(f"  {topic:<{width}}  {count:>8} msgs  {schema or '(no schema)'}")
-    return "\n".join(lines)
+    return "\n".join(one_line(line) for line in lines)
 
 
 def _json(text: str, default: Any) -> Any:
