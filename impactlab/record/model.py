@@ -22,6 +22,7 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks at import)
 from impactlab.record.spec import RunSpec
 
 SENSOR_PREFIX = "impactlab:"
