@@ -127,6 +127,28 @@ def test_the_sdist_holds_what_the_tests_need(dist):
     assert need <= names, sorted(need - names)
 
 
+def test_the_sdists_tests_run_from_it(dist, tmp_path):
+    """Unpacked, the sdist is a checkout: the tests of its golden data, experiments, schemas
+    and README run there (with this interpreter, the sdist's impactlab first on the path)."""
+    (sdist,) = dist.glob("impactlab-*.tar.gz")
+    with tarfile.open(sdist) as tar:
+        tar.extractall(tmp_path, filter="data")
+    (tree,) = tmp_path.glob("impactlab-*")
+    tests = ["test_golden.py", "test_examples.py", "test_schemas.py", "test_readme.py"]
+    env = {**_env(), "PYTHONPATH": str(tree)}
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+        + [f"tests/{t}" for t in tests],
+        cwd=tree,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert done.returncode == 0, done.stdout[-3000:]
+    assert " passed" in done.stdout and " skipped" not in done.stdout
+
+
 def test_contact_designs_and_tunes_a_model_from_an_empty_folder(venv, empty):
     done = run(
         [str(venv / "impactlab"), *ALONE],
