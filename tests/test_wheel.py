@@ -98,6 +98,8 @@ def test_the_wheel_holds_the_package_data_and_metadata(dist):
         sorted(n.split("/")[-1] for n in names if n.startswith("impactlab/experiments/")) == specs
     )
     assert {"impactlab/py.typed", "impactlab/proto/impactlab_pb2.pyi"} <= names
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "impactlab").rglob("*.py")}
+    assert modules - names == set()  # every module of every package (setup.py finds them)
     (meta,) = [n for n in names if n.endswith(".dist-info/METADATA")]
     text = zipfile.ZipFile(wheel).read(meta).decode()
     assert "License-Expression: MIT" in text and "Author: impactlab developers" in text
