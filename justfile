@@ -10,10 +10,11 @@ lab out="lab-output":
 test *args:
     {{python}} -m pytest {{args}}
 
-# Lint and format check.
+# Lint, format check and the public API's type check (mypy, [tool.mypy] in pyproject.toml).
 lint:
     {{python}} -m ruff check .
     {{python}} -m ruff format --check .
+    {{python}} -m mypy
 
 # Regenerate the Python bindings from schemas/*.proto.
 schemas:

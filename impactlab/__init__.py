@@ -10,33 +10,44 @@ The Python API (docs/python-api.md), each name imported on first use:
 - `impactlab.diff(a, b)`: two logs compared field by field.
 
 Nothing prints unless asked (`progress=` or `verbose=True`).
+
+For a type checker (the package ships `py.typed`), `impactlab.record`, `impactlab.analyze`
+and `impactlab.replay` are the functions (imported below under TYPE_CHECKING), also after
+`import impactlab.analyze`; a stage's other names are imported from it
+(`from impactlab.analyze import AnalysisResult`).
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from impactlab.version import __version__
+
+if TYPE_CHECKING:
+    from impactlab.analyze import analyze as analyze
+    from impactlab.logs.diff import LogDiff
+    from impactlab.logs.load import RunLog
+    from impactlab.record import plan as plan
+    from impactlab.record import record as record
+    from impactlab.replay import replay as replay
 
 __all__ = ["__version__", "analyze", "diff", "load", "plan", "record", "replay"]
 
 _STAGES = ("record", "analyze", "replay")  # callable packages
 
+if not TYPE_CHECKING:  # a type checker sees the imports above, and no attribute it does not
 
-def __getattr__(name: str) -> Any:
-    if name in _STAGES:
-        return importlib.import_module(f"impactlab.{name}")
-    if name == "plan":
-        return importlib.import_module("impactlab.record").plan
-    if name == "load":
-        return load
-    if name == "diff":
-        return diff
-    raise AttributeError(f"module 'impactlab' has no attribute {name!r}")
+    def __getattr__(name: str) -> Any:
+        if name in _STAGES:
+            return importlib.import_module(f"impactlab.{name}")
+        if name == "plan":
+            return importlib.import_module("impactlab.record").plan
+        raise AttributeError(f"module 'impactlab' has no attribute {name!r}")
 
 
-def load(path: Any) -> Any:
+def load(path: str | Path) -> RunLog:
     """One log decoded into polars frames (`impactlab.logs.load.RunLog`).
 
     `bodies` (a frame per body), `contacts`, `energy`, `events`, `meta` (the run and
@@ -50,7 +61,13 @@ def load(path: Any) -> Any:
     return load_log(path)
 
 
-def diff(a: Any, b: Any, *, atol: float | None = None, rtol: float | None = None) -> Any:
+def diff(
+    a: str | Path | RunLog,
+    b: str | Path | RunLog,
+    *,
+    atol: float | None = None,
+    rtol: float | None = None,
+) -> LogDiff:
     """Compare two logs (paths or loaded logs) channel by channel and field by field.
 
     Returns an `impactlab.logs.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).

@@ -241,6 +241,13 @@ def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = pri
         "--check", action="store_true", help="only compare; exit 1 when anything changed"
     )
     args = parser.parse_args(argv)
+    if not SPECS_DIR.is_dir():  # an installed impactlab: the golden data is in the repository
+        print(
+            f"impactlab.golden: error: {SPECS_DIR}: no such folder: this regenerates the golden "
+            "data of a checkout of impactlab (tests/golden/); run it there",
+            file=sys.stderr,
+        )
+        return 2
     LOGS_DIR.mkdir(parents=True, exist_ok=True)
     changed: list[str] = []
     with tempfile.TemporaryDirectory(prefix="impactlab-golden-") as tmp:

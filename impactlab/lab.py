@@ -1,8 +1,10 @@
 """The whole lab end to end: record every experiment, analyze, replay, calibrate, report.
 
-Logs go to OUT/logs, tables, figures and the report (report.md, and report.html with the
-figures embedded) to OUT/results, one Rerun recording per
-run to OUT/results/replays (linked from the report). Complete logs from an earlier run of
+The specs are those of `experiments` (by default `experiments/` in the working folder, or,
+when that holds none, the handout's experiments shipped with impactlab). Logs go to
+OUT/logs, tables, figures and the report (report.md, and report.html with the figures
+embedded) to OUT/results, one Rerun recording per run to OUT/results/replays (linked from
+the report). Complete logs from an earlier run of
 the same specs are reused.
 """
 
@@ -34,7 +36,7 @@ class LabResult:
 def run_lab(
     out: Path,
     *,
-    experiments: Path = DEFAULT_EXPERIMENTS,
+    experiments: Path | None = None,
     overwrite: bool = False,
     replay: bool = True,
     calibration: str = "medium",
@@ -45,7 +47,8 @@ def run_lab(
 
     Args:
         out: the output folder: logs/ and results/ (tables, figures, report, replays).
-        experiments: the folder of experiment specs.
+        experiments: the folder of experiment specs; None: `experiments/` here if it holds
+            any, else the handout's experiments shipped with impactlab (said in one line).
         overwrite: record again runs whose complete log exists (else they are reused).
         replay: write one Rerun recording per run.
         calibration: the calibration grid for the report ("none" to skip it).
@@ -56,9 +59,7 @@ def run_lab(
     from impactlab.analyze import analyze, write_report_html
     from impactlab.record import plan, record
 
-    specs = sorted(experiments.glob("*.toml"))
-    if not specs:
-        raise SpecError(str(experiments), "--experiments", "no experiment specs (*.toml) there")
+    specs = _specs(experiments, progress)
     logs_dir, results_dir = out / "logs", out / "results"
     runs = plan(specs)
     say(
@@ -95,6 +96,32 @@ def run_lab(
     write_report_html(report)
     failed = bool(recorded.exit_code or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
+
+
+def _specs(experiments: Path | None, progress: Progress | None) -> list[Path]:
+    """The spec files to run (see `run_lab`)."""
+    from impactlab.examples import example_specs, packaged_experiments
+
+    if experiments is None:
+        specs = sorted(DEFAULT_EXPERIMENTS.glob("*.toml"))
+        if specs:
+            return specs
+        say(
+            progress,
+            "lab",
+            f"no {DEFAULT_EXPERIMENTS}/ specs here: running the handout's experiments shipped "
+            f"with impactlab, {packaged_experiments()} (`impactlab examples` copies them to edit)",
+        )
+        return example_specs()
+    specs = sorted(experiments.glob("*.toml"))
+    if not specs:
+        raise SpecError(
+            str(experiments),
+            "--experiments",
+            "no experiment specs (*.toml) there (`impactlab examples DIR` copies the handout's "
+            "into DIR; without --experiments the lab runs them)",
+        )
+    return specs
 
 
 def _calibration_section(report: Path, result) -> str:

@@ -4,6 +4,9 @@ A stage package (`impactlab.record`, `impactlab.analyze`, `impactlab.replay`) is
 function of its name, so `impactlab.record(...)` records while `impactlab.record.spec`
 stays a module: Python sets a package as an attribute of its parent when it is imported,
 which would hide a function of the same name, so the package itself is made callable.
+A type checker does not see a module's `__call__`: for it, `impactlab/__init__.py` imports
+the functions under `TYPE_CHECKING`, and a package's lazy exports are imported there too
+(its `__getattr__` hidden), so every public name has its type and a misspelt one is an error.
 Exports are imported on first use, so importing one module of a package never imports the
 heavy libraries its other modules need.
 """

@@ -319,3 +319,27 @@ def test_calibrate_twice_into_one_folder(tmp_path):
     assert summary[0] == summary[1]
     for name in (n for n in first if n.suffix == ".parquet"):
         assert_frame_equal(pl.read_parquet(out / name), pl.read_parquet(first[name]), rel_tol=1e-12)
+
+
+@pytest.mark.parametrize("existed", [False, True], ids=["new folder", "existing folder"])
+def test_a_failed_calibration_leaves_no_folder_it_created(tmp_path, monkeypatch, existed):
+    """A job that fails after writing its specs (as an install without the restitution tables
+    did) removes the output folder it created, and leaves a folder that was there alone."""
+    import impactlab.calibrate.job as job
+
+    out = tmp_path / "calibration"
+    if existed:
+        out.mkdir()
+        (out / "mine.txt").write_text("kept")
+
+    def broken(grid, out_dir, *, echo):
+        (out_dir / "specs").mkdir()
+        (out_dir / "specs" / "a.toml").write_text("")
+        raise FileNotFoundError("restitution_table.json")
+
+    monkeypatch.setattr(job, "calibrate", broken)
+    with pytest.raises(FileNotFoundError):
+        run_calibration(out, grid="quick", echo=lambda _: None)
+    assert out.exists() == existed
+    if existed:
+        assert (out / "mine.txt").read_text() == "kept"

@@ -22,21 +22,27 @@ from typing import TYPE_CHECKING
 from impactlab.packages import callable_package, lazy_exports
 
 if TYPE_CHECKING:
-    from impactlab.analyze.tables import AnalysisResult
+    from impactlab.analyze.analysis import RunAnalysis as RunAnalysis
+    from impactlab.analyze.analysis import analyze_run as analyze_run
+    from impactlab.analyze.analysis import analyze_runs as analyze_runs
+    from impactlab.analyze.html import write_report_html as write_report_html
+    from impactlab.analyze.job import run_analysis as run_analysis
+    from impactlab.analyze.tables import AnalysisResult as AnalysisResult
     from impactlab.executors.base import Executor
     from impactlab.progress import Progress
 
-__getattr__ = lazy_exports(
-    __name__,
-    {
-        "AnalysisResult": "impactlab.analyze.tables",
-        "RunAnalysis": "impactlab.analyze.analysis",
-        "analyze_run": "impactlab.analyze.analysis",
-        "analyze_runs": "impactlab.analyze.analysis",
-        "run_analysis": "impactlab.analyze.job",
-        "write_report_html": "impactlab.analyze.html",
-    },
-)
+if not TYPE_CHECKING:  # a type checker sees the imports above
+    __getattr__ = lazy_exports(
+        __name__,
+        {
+            "AnalysisResult": "impactlab.analyze.tables",
+            "RunAnalysis": "impactlab.analyze.analysis",
+            "analyze_run": "impactlab.analyze.analysis",
+            "analyze_runs": "impactlab.analyze.analysis",
+            "run_analysis": "impactlab.analyze.job",
+            "write_report_html": "impactlab.analyze.html",
+        },
+    )
 
 
 def analyze(

@@ -110,7 +110,20 @@ def run_calibration(
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     chosen = choose_grid(quick=quick, grid=grid, targets=targets, speeds=speeds, masses=masses)
+    created = not out_dir.exists()
     check_writable(out_dir)
+    try:
+        return _calibrate_into(out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0)
+    except BaseException:  # a folder this job created holds only its own partial work
+        if created:
+            shutil.rmtree(out_dir, ignore_errors=True)
+        raise
+
+
+def _calibrate_into(
+    out_dir: Path, chosen: Grid, *, echo: Callable[[str], None], keep_logs: bool, t0: float
+) -> CalibrationResult:
+    """`run_calibration` once the output folder is checked: record, analyze, write."""
     points, table, analysis, timings = calibrate(chosen, out_dir, echo=echo)
     t1 = time.perf_counter()
     curves = lowspeed_curves(points)

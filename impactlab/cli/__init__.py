@@ -15,13 +15,23 @@ import sys
 import threading
 from collections.abc import Sequence
 
-from impactlab.cli import analyze, calibrate, contact, diff, info, lab, record, replay
+from impactlab.cli import (
+    analyze,
+    calibrate,
+    contact,
+    diff,
+    examples,
+    info,
+    lab,
+    record,
+    replay,
+)
 from impactlab.cli.options import OneLineParser
 from impactlab.errors import ImpactlabError
 from impactlab.text import terminal_text
 from impactlab.version import __version__
 
-COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab)  # in help order
+COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab, examples)  # in help order
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,14 +15,16 @@ def register(sub: argparse._SubParsersAction) -> None:
         "lab",
         help="record every experiment, analyze the logs, write replays and the report",
         description="Run the whole lab: record each spec in the experiments folder, analyze "
-        "all logs into tables, figures and a report, and write one Rerun replay per run.",
+        "all logs into tables, figures and a report, and write one Rerun replay per run. "
+        "Without an experiments/ folder here, it runs the handout's experiments that ship "
+        "with impactlab.",
     )
     p.add_argument("-o", "--out", type=path, default=Path("lab-output"), help="output folder")
     p.add_argument(
         "--experiments",
         type=path,
-        default=Path("experiments"),
-        help="folder of experiment specs (experiments/)",
+        help="folder of experiment specs (default: experiments/ if it holds any, else the "
+        "handout's experiments shipped with impactlab; `impactlab examples` copies them)",
     )
     p.add_argument("--overwrite", action="store_true", help="re-record runs with complete logs")
     p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")

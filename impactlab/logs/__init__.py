@@ -12,16 +12,27 @@ depend on the log format, never the other way round.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from impactlab.packages import lazy_exports
 
-__getattr__ = lazy_exports(
-    __name__,
-    {
-        "RunLog": "impactlab.logs.load",
-        "find_logs": "impactlab.logs.load",
-        "load_log": "impactlab.logs.load",
-        "diff_logs": "impactlab.logs.diff",
-        "LogDiff": "impactlab.logs.diff",
-        "Tolerance": "impactlab.logs.diff",
-    },
-)
+if TYPE_CHECKING:
+    from impactlab.logs.diff import LogDiff as LogDiff
+    from impactlab.logs.diff import Tolerance as Tolerance
+    from impactlab.logs.diff import diff_logs as diff_logs
+    from impactlab.logs.load import RunLog as RunLog
+    from impactlab.logs.load import find_logs as find_logs
+    from impactlab.logs.load import load_log as load_log
+
+if not TYPE_CHECKING:  # a type checker sees the imports above
+    __getattr__ = lazy_exports(
+        __name__,
+        {
+            "RunLog": "impactlab.logs.load",
+            "find_logs": "impactlab.logs.load",
+            "load_log": "impactlab.logs.load",
+            "diff_logs": "impactlab.logs.diff",
+            "LogDiff": "impactlab.logs.diff",
+            "Tolerance": "impactlab.logs.diff",
+        },
+    )

@@ -35,7 +35,27 @@ def stale_files() -> list[str]:
     return [n for n in names if fresh.get(n) != committed.get(n)]
 
 
-if __name__ == "__main__":
+def main() -> int:
+    """Regenerate the committed bindings; one error line and exit 2 outside a checkout."""
+    if not any(SCHEMA_DIR.glob("*.proto")):
+        print(
+            f"impactlab.proto.generate: error: {SCHEMA_DIR}: no *.proto there: this regenerates "
+            "the bindings in a checkout of impactlab (schemas/); run it there",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        import grpc_tools  # noqa: F401
+    except ImportError:
+        print(
+            "impactlab.proto.generate: error: needs grpcio-tools (pip install -e '.[test]')",
+            file=sys.stderr,
+        )
+        return 2
     for path in generate(OUT_DIR):
         print(f"wrote {path.relative_to(REPO_ROOT)}")
-    sys.exit(0)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

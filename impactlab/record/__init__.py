@@ -23,21 +23,25 @@ from impactlab.packages import callable_package, lazy_exports
 if TYPE_CHECKING:
     from impactlab.executors.base import Executor
     from impactlab.progress import Progress
-    from impactlab.record.job import PlannedRun
-    from impactlab.record.results import RecordResult
+    from impactlab.record.contact_pairs import calibrated_pairs as calibrated_pairs
+    from impactlab.record.job import PlannedRun as PlannedRun
+    from impactlab.record.recorder import record_runs as record_runs
+    from impactlab.record.results import RecordedRun as RecordedRun
+    from impactlab.record.results import RecordResult as RecordResult
 
 Inputs = str | Path | Mapping[str, Any] | Sequence[Any]
 
-__getattr__ = lazy_exports(
-    __name__,
-    {
-        "PlannedRun": "impactlab.record.job",
-        "RecordedRun": "impactlab.record.results",
-        "RecordResult": "impactlab.record.results",
-        "calibrated_pairs": "impactlab.record.contact_pairs",
-        "record_runs": "impactlab.record.recorder",
-    },
-)
+if not TYPE_CHECKING:  # a type checker sees the imports above
+    __getattr__ = lazy_exports(
+        __name__,
+        {
+            "PlannedRun": "impactlab.record.job",
+            "RecordedRun": "impactlab.record.results",
+            "RecordResult": "impactlab.record.results",
+            "calibrated_pairs": "impactlab.record.contact_pairs",
+            "record_runs": "impactlab.record.recorder",
+        },
+    )
 
 
 def _items(inputs: Inputs) -> list[Any]:
