@@ -141,7 +141,8 @@ class LogHeader:
     """Everything a log holds besides its rows: the run, its pairs, its scene and its model.
 
     `clearance` lists, per body with a clearance channel, the names of the surfaces its
-    distances are measured to, in value order.
+    distances are measured to, in value order. `meshes`: the triangles (m, 3, 3) of the
+    geoms' meshes by attachment name (`impactlab.logs.geoms`).
     """
 
     run: RunMeta
@@ -149,6 +150,7 @@ class LogHeader:
     geoms: Sequence[GeomShape]
     model_xml: str
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
+    meshes: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

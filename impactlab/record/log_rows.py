@@ -82,7 +82,9 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         for b in inst.bodies
         if inst.clearance_of(b.name)
     ]
-    return LogHeader(run, [c.meta for c in inst.contacts], inst.geoms, inst.xml, clearance)
+    return LogHeader(
+        run, [c.meta for c in inst.contacts], inst.geoms, inst.xml, clearance, inst.meshes
+    )
 
 
 def integrator_name(model: mujoco.MjModel) -> str:

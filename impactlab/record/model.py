@@ -22,6 +22,7 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.spec import RunSpec
 
 SENSOR_PREFIX = "impactlab:"
@@ -95,6 +96,7 @@ class InstrumentedModel:
     clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
+    meshes: dict[str, np.ndarray] = field(default_factory=dict)  # triangles by attachment name
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -272,18 +274,20 @@ def instrument(
         for g1, g2, num in pairs
     ]
     key = None if keyframe is None else int(model.key(keyframe).id)
+    geoms, meshes = describe_geoms(model, [b.body_id for b in bodies])
     return InstrumentedModel(
         model=model,
         xml=xml,
         bodies=bodies,
         contacts=contacts,
-        geoms=_geom_shapes(model),
+        geoms=geoms,
         energy_adr=adr("e_potential"),
         keyframe=key,
         surfaces=surfaces,
         clearances=channels(clearance_plan),
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
+        meshes=meshes,
     )
 
 
@@ -365,20 +369,3 @@ def _contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int
         types = {int(model.geom_type[g1]), int(model.geom_type[g2])}
         pairs.append((g1, g2, 1 if types <= {int(t) for t in simple} else 4))
     return pairs
-
-
-def _geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:
-    names = {
-        int(v): k.removeprefix("mjGEOM_").lower() for k, v in mujoco.mjtGeom.__members__.items()
-    }
-    return [
-        GeomShape(
-            name=model.geom(g).name,
-            body=model.body(model.geom_bodyid[g]).name,
-            type=names.get(int(model.geom_type[g]), "unknown"),
-            size=tuple(float(x) for x in model.geom_size[g]),
-            pos=tuple(float(x) for x in model.geom_pos[g]),
-            rgba=tuple(float(x) for x in model.geom_rgba[g]),
-        )
-        for g in range(model.ngeom)
-    ]
