@@ -9,7 +9,8 @@ files:
   `{name, body, model_body, type, size, pos, quat, rgba, group, mesh}`. `body` is the body
   the geom is drawn on: its own body when that body's pose is logged (`/bodies/<body>/state`),
   else its nearest ancestor whose pose is logged, else `world` (a static geom, at its fixed
-  world pose). `pos` (m) and `quat` (w, x, y, z) place the geom in that body's frame;
+  world pose). `pos` (m) and `quat` (w, x, y, z) place the geom in the frame whose pose
+  `/bodies/<body>/state` logs (the body's centre of mass and principal axes);
   `model_body` is the geom's own body in the model. `type` is MuJoCo's (plane, sphere, capsule,
   ellipsoid, cylinder, box, mesh, hfield, sdf) and `size` MuJoCo's three numbers (half sizes,
   radius and half length, ...; a height field: its x and y half sizes and elevation top).

@@ -35,6 +35,7 @@ from impactlab.logs.decode import (
     fixed_frame,
     loose_payloads,
 )
+from impactlab.logs.geoms import SCENE_METADATA
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS
 from impactlab.logs.metadata import ANALYSIS_KEYS, MetadataCheck, check_channels, check_metadata
 from impactlab.logs.reader import read_mcap
@@ -96,6 +97,8 @@ class RunLog:
         checked: the metadata checked against its schema and the channels
             (`impactlab.logs.metadata`): typed values, and the problem of each bad key. The
             properties below read it, so a bad value reads as unknown.
+        scene: the `impactlab.scene` record as stored (the geom table, `logs.geoms`; empty
+            in logs written before it was recorded).
     """
 
     path: Path
@@ -109,6 +112,7 @@ class RunLog:
     problems: list[str] = field(default_factory=list)
     checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
+    scene: dict[str, str] = field(default_factory=dict)
 
     @property
     def experiment(self) -> str:
@@ -365,4 +369,5 @@ def load_log(path: str | Path) -> RunLog:
         problems=problems,
         checked=checked,
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
+        scene=dict(raw.metadata.get(SCENE_METADATA, {})),
     )

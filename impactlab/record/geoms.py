@@ -3,8 +3,10 @@
 See `impactlab.logs.geoms` for what the log holds. Each geom is placed on the body it is
 drawn on: its own body when that body's pose is logged, else the nearest ancestor whose pose
 is logged, else the world (static geoms, and bodies welded to the world, at their fixed world
-pose). Its pose relative to that body is taken from MuJoCo's kinematics at the model's
-reference configuration (qpos0): exact for geoms welded to the body they are drawn on.
+pose). Its pose is relative to the frame whose pose the log holds for that body (its
+inertial frame: centre of mass and principal axes) and is taken from MuJoCo's kinematics at
+the model's reference configuration (qpos0): exact for geoms welded to the body they are
+drawn on.
 """
 
 from __future__ import annotations
@@ -80,9 +82,11 @@ def _drawn_on(model: mujoco.MjModel, body: int, with_pose: set[int]) -> int:
 def _relative_pose(
     data: mujoco.MjData, g: int, frame: int
 ) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    """The geom's position and orientation (w, x, y, z) in the frame of body `frame`."""
-    rot = data.xmat[frame].reshape(3, 3)
-    pos = rot.T @ (data.geom_xpos[g] - data.xpos[frame])
+    """The geom's position and orientation (w, x, y, z) in the frame the log gives the pose
+    of for body `frame`: its inertial frame (centre of mass, principal axes), which the
+    recorder's `FRAMEPOS`/`FRAMEQUAT` sensors on the body measure."""
+    rot = data.ximat[frame].reshape(3, 3)
+    pos = rot.T @ (data.geom_xpos[g] - data.xipos[frame])
     mat = rot.T @ data.geom_xmat[g].reshape(3, 3)
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, mat.reshape(-1))
