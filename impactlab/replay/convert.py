@@ -333,7 +333,10 @@ def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Seque
         rec.send_columns(
             f"{prefix}/events/contacts",
             indexes=[_times(np.array([e.t_ns for e in events], np.int64))],
-            columns=rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
+            columns=[
+                *rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
+                *rr.AnyValues.columns(details=[e.details for e in events]),
+            ],
         )
     if not run.events.is_empty():
         levels = [LOG_LEVELS.get(level, level) for level in run.events["level"].to_list()]
