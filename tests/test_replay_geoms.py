@@ -362,3 +362,221 @@ def test_foxglove_scene_has_the_same_entities_and_tf_is_stamped(models, name):
     np.testing.assert_array_equal(stamps, np.repeat(times[:, None], stamps.shape[1], axis=1))
     children = {x.child_frame_id for x in tf[0][1].transforms}
     assert {e.frame_id for e in scene.entities} - {"world"} <= children
+
+
+# --- the viewer draws the model ---------------------------------------------------------------
+#
+# The native viewer (`rerun FILE.rrd`) cannot start on a machine without a GPU here: with
+# Mesa's llvmpipe (OpenGL) wgpu reports no R32Float render target, which the viewer needs,
+# and no Vulkan software driver (lavapipe) is installed. The same viewer built for the web,
+# which the `rerun` binary of rerun-sdk serves (`--serve-web`), renders in Chromium with its
+# software GPU (SwiftShader); Chromium runs on an Xvfb display and `import` (ImageMagick)
+# takes the screenshot.
+
+VIEWER_TOOLS = ("Xvfb", "chromium", "import")
+MODEL_HUES = {"torso (cyan)": 180.0, "legs (orange)": 30.0, "foot (magenta)": 300.0}
+SCREEN = (1600, 1000)
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _free_display() -> int:
+    for n in range(140, 400):
+        if not Path(f"/tmp/.X11-unix/X{n}").exists() and not Path(f"/tmp/.X{n}-lock").exists():
+            return n
+    raise RuntimeError("no free X display number")
+
+
+def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str, int]:
+    """Pixels of each model colour's hue (within 12 degrees, saturated, not dark) in the
+    region (x0, y0, x1, y1 as fractions of the screen) of a screenshot."""
+    import matplotlib.colors
+    import matplotlib.image
+
+    image = matplotlib.image.imread(png)[..., :3]
+    h, w = image.shape[:2]
+    x0, y0, x1, y1 = region
+    crop = image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
+    hsv = matplotlib.colors.rgb_to_hsv(crop)
+    vivid = (hsv[..., 1] > 0.45) & (hsv[..., 2] > 0.25)
+    out = {}
+    for name, hue in MODEL_HUES.items():
+        d = np.abs((hsv[..., 0] * 360 - hue + 180) % 360 - 180)
+        out[name] = int(np.count_nonzero(vivid & (d < 12)))
+    return out
+
+
+def _serve_folder(folder: Path):
+    """An HTTP server of `folder` on a free port (with CORS, for the web viewer), in a thread."""
+    import functools
+    import http.server
+    import threading
+
+    class Handler(http.server.SimpleHTTPRequestHandler):
+        def end_headers(self) -> None:
+            self.send_header("Access-Control-Allow-Origin", "*")
+            super().end_headers()
+
+        def log_message(self, *args: object) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(
+        ("127.0.0.1", 0), functools.partial(Handler, directory=str(folder))
+    )
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server
+
+
+def screenshot_replay(
+    rrd: Path,
+    png: Path,
+    *,
+    region: tuple[float, float, float, float] = (0.0, 0.05, 0.6, 0.55),
+    wait_s: float = 240.0,
+    enough: int = 150,
+) -> dict[str, int]:
+    """Open `rrd` in the Rerun viewer (web build, Chromium on Xvfb) and screenshot the screen
+    until each model colour covers `enough` pixels of `region` (the 3D view of the replay's
+    layout) or `wait_s` passes; returns the last counts."""
+    import os
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+    import urllib.parse
+    import urllib.request
+
+    missing = [t for t in VIEWER_TOOLS if shutil.which(t) is None]
+    assert not missing, (
+        f"the viewer test needs {', '.join(missing)} (apt: xvfb chromium imagemagick)"
+    )
+    rerun_exe = Path(sys.executable).with_name("rerun")
+    display, web = _free_display(), _free_port()
+    env = {**os.environ, "DISPLAY": f":{display}"}
+    procs: list[subprocess.Popen] = []
+    counts: dict[str, int] = {}
+    files = _serve_folder(rrd.parent)
+
+    def start(args: list[str], **kw) -> None:
+        out = subprocess.DEVNULL
+        procs.append(subprocess.Popen(args, stdout=out, stderr=out, start_new_session=True, **kw))
+
+    try:
+        start(["Xvfb", f":{display}", "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24"])
+        start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web)])
+        start_by = time.monotonic() + 30
+        while True:
+            try:
+                urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=2).close()
+                break
+            except OSError:
+                assert time.monotonic() < start_by, "the web viewer did not start"
+                time.sleep(0.5)
+        source = f"http://127.0.0.1:{files.server_address[1]}/{rrd.name}"
+        url = f"http://127.0.0.1:{web}/?url={urllib.parse.quote(source, safe='')}"
+        browser = [
+            "chromium",
+            "--no-sandbox",
+            "--no-first-run",
+            f"--user-data-dir={png.parent / 'chromium-profile'}",
+            "--use-angle=swiftshader",
+            "--enable-unsafe-swiftshader",
+            "--ignore-gpu-blocklist",
+            "--kiosk",
+            "--window-position=0,0",
+            f"--window-size={SCREEN[0]},{SCREEN[1]}",
+        ]
+        start([*browser, url], env=env)
+        deadline = time.monotonic() + wait_s
+        while time.monotonic() < deadline:
+            time.sleep(5)
+            shot = ["import", "-window", "root", str(png)]
+            if subprocess.run(shot, env=env, capture_output=True).returncode != 0:
+                continue
+            counts = hue_pixels(png, region)
+            if min(counts.values()) >= enough:
+                time.sleep(5)  # let it settle, then the picture kept
+                subprocess.run(shot, env=env, capture_output=True)
+                counts = hue_pixels(png, region)
+                break
+    finally:
+        files.shutdown()
+        for proc in reversed(procs):
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+                proc.wait(timeout=10)
+            except ProcessLookupError:
+                pass
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+    return counts
+
+
+def test_the_viewer_draws_the_articulated_model(models, tmp_path):
+    """Not an empty or sphere-only view: the torso's, legs' and foot's colours cover pixels
+    of the 3D view (a sphere-only replay shows none of those hues)."""
+    log, _ = models["walker"]
+    rrd = tmp_path / "walker.rrd"
+    replay_logs([log], out=rrd, analysis_dir=None)
+    png = tmp_path / "walker.png"
+    counts = screenshot_replay(rrd, png)
+    assert counts and min(counts.values()) >= 150, counts
+
+
+DROP = """
+name = "layout_drop"
+[options]
+timestep = 0.0005
+[bodies.ball]
+radius = 0.1
+mass = 1.0
+pos = [0.0, 0.0, 0.5]
+[stop]
+max_time = 0.6
+"""
+
+
+def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
+    """Every plot path of the shipped layout names a channel of a handout drop and a field
+    its messages have, with values that change (a drop that bounces)."""
+    import json
+    from importlib.resources import files
+
+    layout = json.loads((files("impactlab.replay") / "foxglove-layout.json").read_text())
+    spec = tmp_path / "drop.toml"
+    spec.write_text(DROP)
+    (result,) = record_runs(plan([spec]), tmp_path / "logs")
+    with open(result.path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        messages = defaultdict(list)
+        for _, channel, _, decoded in reader.iter_decoded_messages():
+            messages[channel.topic].append(decoded)
+    paths = [
+        p["value"]
+        for key, c in layout["configById"].items()
+        if key.startswith("Plot!")
+        for p in c["paths"]
+    ]
+    assert {p.split(".")[0] for p in paths} >= {"/energy", "/bodies/ball/state"}
+    for path in paths:
+        topic, *fields = path.split(".")
+        assert topic in messages, path
+        values = []
+        for msg in messages[topic]:
+            value = msg
+            for field in fields:
+                name, _, index = field.partition("[")
+                value = getattr(value, name)
+                if index:
+                    value = value[int(index.rstrip("]"))]
+            values.append(float(value))
+        assert np.ptp(values) > 0, path
+    assert layout["configById"]["RosOut!events"]["topicToRender"] in messages
+    assert "/scene" in layout["configById"]["3D!impactlab"]["topics"]
