@@ -580,3 +580,57 @@ def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
         assert np.ptp(values) > 0, path
     assert layout["configById"]["RosOut!events"]["topicToRender"] in messages
     assert "/scene" in layout["configById"]["3D!impactlab"]["topics"]
+
+
+def test_a_damaged_geom_table_loses_only_the_bad_rows():
+    """The table is untrusted: a row of the wrong shape, an unknown type, a colour out of
+    range or a missing or cut mesh is one problem each; the other rows are kept."""
+    import json
+
+    from impactlab.logs.geoms import encode_stl
+
+    good = {
+        "name": "a",
+        "body": "world",
+        "type": "box",
+        "size": [1, 1, 1],
+        "pos": [0, 0, 0],
+        "quat": [1, 0, 0, 0],
+        "rgba": [1, 0, 0, 1],
+        "group": 0,
+        "mesh": None,
+    }
+    tri = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]]], dtype=float)
+    rows = [
+        good,
+        {**good, "name": "b", "type": "teapot"},
+        {**good, "name": "c", "size": [1, "x", 1]},
+        {**good, "name": "d", "rgba": [2, 0, 0, 1]},
+        {**good, "name": "e", "type": "mesh", "mesh": "meshes/gone.stl"},
+        {**good, "name": "f", "type": "mesh", "mesh": "meshes/cut.stl"},
+        {**good, "name": "g", "type": "mesh", "mesh": "meshes/ok.stl", "pos": [0, 0, float("nan")]},
+        {**good, "name": "h", "type": "mesh", "mesh": "meshes/ok.stl"},
+        "not an object",
+    ]
+    stl = encode_stl(tri)
+    scene = read_scene(
+        {"geoms": json.dumps(rows)}, {"meshes/ok.stl": stl, "meshes/cut.stl": stl[:-10]}
+    )
+    assert [g.name for g in scene.geoms] == ["a", "h"]
+    assert len(scene.problems) == len(rows) - 2
+    np.testing.assert_allclose(scene.meshes["meshes/ok.stl"], tri)
+    assert read_scene({"geoms": "{not json"}, {}).problems == ["impactlab.scene geoms: not JSON"]
+
+
+def test_diff_compares_meshes_within_float32_precision():
+    from impactlab.logs.diff_meta import compare_attachments
+    from impactlab.logs.diff_result import EXACT
+    from impactlab.logs.geoms import encode_stl
+
+    tri = np.random.default_rng(1).normal(size=(20, 3, 3))
+    a = {"meshes/m.stl": encode_stl(tri)}
+    rounded = {"meshes/m.stl": encode_stl(tri * (1 + 1e-7))}  # another CPU's last bit
+    moved = {"meshes/m.stl": encode_stl(tri + 1e-4)}
+    assert rounded["meshes/m.stl"] != a["meshes/m.stl"]
+    assert compare_attachments(a, rounded, tolerance=EXACT)[0].equal
+    assert not compare_attachments(a, moved, tolerance=EXACT)[0].equal

@@ -33,7 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-SCENE_METADATA = "impactlab.scene"
+from impactlab.logs import format as logformat
+
+SCENE_METADATA = logformat.SCENE_METADATA
 STL_MEDIA_TYPE = "model/stl"
 STL_HEADER = b"impactlab mesh: binary STL, metres, in the geom's frame".ljust(80, b" ")
 STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
