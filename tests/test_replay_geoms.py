@@ -634,3 +634,24 @@ def test_diff_compares_meshes_within_float32_precision():
     assert rounded["meshes/m.stl"] != a["meshes/m.stl"]
     assert compare_attachments(a, rounded, tolerance=EXACT)[0].equal
     assert not compare_attachments(a, moved, tolerance=EXACT)[0].equal
+
+
+def test_tf_stamps_of_every_varint_length_decode_as_their_log_time():
+    """Seconds and nanoseconds of 0 to 5 varint bytes (proto3 omits zeros), two bodies."""
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+    from impactlab.logs.messages import stamped_transforms
+
+    parts = [0, 1, 127, 128, 16_383, 16_384, 2_097_152, 268_435_456, 999_999_999]
+    seconds = [0, 1, 200, 20_000, 3_000_000, 9_000_000_000]
+    t = np.array(sorted(s * 1_000_000_000 + n for s in seconds for n in parts), dtype=np.int64)
+    poses = np.random.default_rng(2).normal(size=(t.size, 14))
+    seen = np.zeros(t.size, bool)
+    for rows, payloads in stamped_transforms(("a", "b"), t, poses):
+        for row, payload in zip(rows, payloads, strict=True):
+            msg = FrameTransforms.FromString(payload.tobytes())
+            assert [x.timestamp.ToNanoseconds() for x in msg.transforms] == [t[row]] * 2
+            assert [x.child_frame_id for x in msg.transforms] == ["a", "b"]
+            assert msg.transforms[1].rotation.z == poses[row, 13]
+            seen[row] = True
+    assert seen.all()
