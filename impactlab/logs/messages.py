@@ -138,8 +138,10 @@ def stamped_transforms(
     sec, nanos = t // 1_000_000_000, t % 1_000_000_000
     ls, ln = _varint_length(sec), _varint_length(nanos)
     out = []
-    for a, b in sorted(set(zip(ls.tolist(), ln.tolist(), strict=True))):
-        rows = np.flatnonzero((ls == a) & (ln == b))
+    key = ls * 8 + ln
+    for k in np.unique(key).tolist():
+        a, b = divmod(k, 8)
+        rows = np.flatnonzero(key == k)
         probe = ((1 << (7 * a - 7)) if a else 0, (1 << (7 * b - 7)) if b else 0)
         layout = transforms(bodies, probe)
         payloads = layout.encode(poses[rows])
