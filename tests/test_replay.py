@@ -110,6 +110,11 @@ def _texts(chunks: dict[str, list], path: str) -> list[str]:
     return [t[0] for b in chunks.get(path, []) for t in b.column("TextLog:text").to_pylist()]
 
 
+def _details(chunks: dict[str, list], path: str) -> list[str]:
+    """The details of each event, logged beside its text (shown in the selection panel)."""
+    return [t[0] for b in chunks.get(path, []) for t in b.column("details").to_pylist()]
+
+
 def _reference_intervals(run: RunLog) -> tuple[int, int]:
     """Impacts and releases: runs of consecutive logged steps with contact (plain loop)."""
     t = next(iter(run.bodies.values()))["t_ns"].to_list()
@@ -181,9 +186,16 @@ def test_log_events_carry_velocities(logs: dict[str, Path], tmp_path: Path) -> N
     rrd = tmp_path / "drop.rrd"
     replay_logs([logs["drop"]], out=rrd, analysis_dir=None)
     run = load_log(logs["drop"])
-    first = _texts(_read(rrd), f"{run_prefix(run.run_id)}/events/contacts")[0]
+    chunks = _read(rrd)
+    path = f"{run_prefix(run.run_id)}/events/contacts"
+    first = _texts(chunks, path)[0]
     v_in = float(first.split("v_in = ")[1].split(" ")[0])
     assert v_in == pytest.approx(-math.sqrt(2 * 9.81 * 0.9), rel=0.01)
+    release, details = _texts(chunks, path)[1], _details(chunks, path)[1]
+    assert release.startswith("release plane-ball: e = ")
+    v_out = float(details.split("v_out = ")[1].split(" ")[0])
+    e = float(release.split("e = ")[1])
+    assert e == pytest.approx(-v_out / float(details.split("v_in = ")[1].split(" ")[0]), rel=1e-2)
 
 
 def test_analysis_numbers_in_event_texts(logs: dict[str, Path], tmp_path: Path) -> None:
@@ -208,7 +220,14 @@ def test_analysis_numbers_in_event_texts(logs: dict[str, Path], tmp_path: Path) 
     path = f"{run_prefix(run.run_id)}/events/contacts"
     texts = _texts(chunks, path)
     assert len(texts) == 3  # two impacts, one release (the second has none)
-    assert "e_velocity = 0.91" in texts[0] and "apex_m = 0.75" in texts[0]
+    assert texts == [  # short, one line each; every number one click away
+        "impact bounce 1 plane-ball: e_velocity = 0.91",
+        "release bounce 1 plane-ball: e_velocity = 0.91",
+        "impact bounce 2 plane-ball: e_velocity = 0.88",
+    ]
+    details = _details(chunks, path)
+    assert details[0] == "bounce = 1, e_velocity = 0.91, apex_m = 0.75"
+    assert all(len(t) <= 60 and "\n" not in t for t in texts)
     np.testing.assert_array_equal(
         _times_ns(chunks[path]), run.bodies["ball"]["t_ns"].to_numpy()[[100, 120, 400]]
     )

@@ -1,7 +1,8 @@
 """The log format, the one contract between the stages: one MCAP file per run.
 
 Owns: topics, schema names and metadata keys (`format`), the fixed-layout protobuf codec
-(`codec`, `messages`), writing (`chunks`, `writer`, `scene`), reading (`reader` walks the
+(`codec`, `messages`), writing (`chunks`, `writer`, `scene`;
+`geoms`: the geom table and meshes that draw the model), reading (`reader` walks the
 records, `load` decodes them into polars frames, damaged logs included), whether a log is
 complete (`status`), `info` and `diff`.
 

@@ -145,7 +145,8 @@ class LogHeader:
     """Everything a log holds besides its rows: the run, its pairs, its scene and its model.
 
     `clearance` lists, per body with a clearance channel, the names of the surfaces its
-    distances are measured to, in value order.
+    distances are measured to, in value order. `meshes`: the triangles (m, 3, 3) of the
+    geoms' meshes by attachment name (`impactlab.logs.geoms`).
     """
 
     run: RunMeta
@@ -155,6 +156,7 @@ class LogHeader:
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
     joint_energy: bool = False  # whether rows carry `joint_energy` (`/energy/joints`)
     attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
+    meshes: Mapping[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

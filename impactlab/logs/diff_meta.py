@@ -156,6 +156,9 @@ def compare_attachments(
         if da == db or (ta is not None and tb is not None and same_text(ta, tb, tolerance)):
             out.append(AttachmentDiff(name, True, size_a, size_b))
             continue
+        if name.endswith(".stl") and _same_stl(da, db, tolerance):
+            out.append(AttachmentDiff(name, True, size_a, size_b))
+            continue
         la = (ta if ta is not None else da.decode(errors="replace")).splitlines()
         lb = (tb if tb is not None else db.decode(errors="replace")).splitlines()
         line = next(
@@ -178,6 +181,24 @@ def compare_attachments(
             )
         )
     return out
+
+
+def _same_stl(a: bytes, b: bytes, tolerance: Tolerance) -> bool:
+    """Two STL meshes with the same triangles within the tolerance, widened to float32's
+    precision (2^-22 relative: two float32 roundings of values that differ in their last
+    float64 bits, as across CPUs)."""
+    import numpy as np
+
+    from impactlab.logs.geoms import decode_stl
+
+    try:
+        ta, tb = decode_stl(a), decode_stl(b)
+    except ValueError:
+        return False
+    rtol = max(tolerance.rtol, 2.0**-22)
+    return ta.shape == tb.shape and bool(
+        np.all(np.abs(ta - tb) <= tolerance.atol + rtol * np.maximum(np.abs(ta), np.abs(tb)))
+    )
 
 
 def _text(data: bytes) -> str | None:

@@ -12,15 +12,19 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /energy                     | impactlab.Energy        | every logged step                   |
 | /energy/joints              | impactlab.Energy        | every logged step (models with      |
 |                             |                         | rotor inertia or springs)           |
-| /tf                         | foxglove.FrameTransforms| every logged step                   |
-| /scene                      | foxglove.SceneUpdate    | once, at t = 0                      |
+| /tf                         | foxglove.FrameTransforms| every logged step (each transform   |
+|                             |                         | stamped with the log time)          |
+| /scene                      | foxglove.SceneUpdate    | once, at t = 0: every visible geom  |
 | /events                     | foxglove.Log            | at the end (outcome, warnings)      |
 
 Metadata records: `impactlab.run` right after the header (what the run is: spec, sweep,
 versions, bodies), `impactlab.outcome` at the end (how it ended), so a truncated log still
 says what it was and, by lacking the outcome, that it is incomplete. Attachment `model.xml`:
 the compiled MJCF, whose keyframe `initial` holds the initial state (a user's model: its text
-with includes inlined); `model.mjb` too for a model that reads mesh or texture files.
+with includes inlined); `model.mjb` too for a model that reads mesh or texture files. What
+draws the model without MuJoCo: the metadata record `impactlab.scene` (the geom table) and
+the STL attachments `meshes/<mesh>.stl`, `hfields/<hfield>.stl` (`impactlab.logs.geoms`,
+added to format 1).
 """
 
 from __future__ import annotations
@@ -49,6 +53,7 @@ ENERGY_SCHEMA = "impactlab.Energy"
 RUN_METADATA = "impactlab.run"
 OUTCOME_METADATA = "impactlab.outcome"
 MODEL_ATTACHMENT = "model.xml"
+SCENE_METADATA = "impactlab.scene"  # the geom table (impactlab.logs.geoms), added to format 1
 
 # keys of the run metadata record
 RUN_KEYS = (

@@ -37,6 +37,7 @@ from impactlab.logs.decode import (
     fixed_frame,
     loose_payloads,
 )
+from impactlab.logs.geoms import SCENE_METADATA
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS
 from impactlab.logs.metadata import ANALYSIS_KEYS, MetadataCheck, check_channels, check_metadata
 from impactlab.logs.reader import read_mcap
@@ -106,6 +107,8 @@ class RunLog:
         checked: the metadata checked against its schema and the channels
             (`impactlab.logs.metadata`): typed values, and the problem of each bad key. The
             properties below read it, so a bad value reads as unknown.
+        scene: the `impactlab.scene` record as stored (the geom table, `logs.geoms`; empty
+            in logs written before it was recorded).
     """
 
     path: Path
@@ -121,6 +124,7 @@ class RunLog:
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
     joint_energy: pl.DataFrame = field(default_factory=lambda: empty_frame(ENERGY_FIELDS, ""))
     contact_work: pl.DataFrame = field(default_factory=lambda: empty_contact_work(""))
+    scene: dict[str, str] = field(default_factory=dict)
 
     @property
     def experiment(self) -> str:
@@ -397,4 +401,5 @@ def load_log(path: str | Path) -> RunLog:
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
         joint_energy=empty_frame(ENERGY_FIELDS, run_id) if joint_energy is None else joint_energy,
         contact_work=pl.concat(work_frames) if work_frames else empty_contact_work(run_id),
+        scene=dict(raw.metadata.get(SCENE_METADATA, {})),
     )

@@ -5,7 +5,8 @@ Value orders:
 - Energy: kinetic potential total.
 - Clearance: one distance per surface, in the order of the channel's `surfaces`.
 - ContactPoint: the fields of `impactlab.ContactPoint` in number order (`POINT_FIELDS`).
-- FrameTransforms: per body tx ty tz, qw qx qy qz.
+- FrameTransforms: per body tx ty tz, qw qx qy qz; each transform's timestamp is the message's
+  log time (`stamped_transforms`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from functools import cache
 
+import numpy as np
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
 from impactlab.logs import format as logformat
@@ -71,12 +73,15 @@ def contact(geom1: str, geom2: str, body1: str, body2: str, points: int) -> Temp
 
 
 @cache
-def transforms(bodies: tuple[str, ...]) -> Template:
-    """Layout of `foxglove.FrameTransforms`, world -> each body, no per-transform timestamp."""
+def transforms(bodies: tuple[str, ...], stamp: tuple[int, int] = (0, 0)) -> Template:
+    """Layout of `foxglove.FrameTransforms`, world -> each body, every transform stamped with
+    `stamp` (seconds, nanos): the payloads of other stamps whose varints have the same lengths
+    differ only in the stamp's bytes (`stamped_transforms`)."""
 
     def setter(msg, values):
         for i, name in enumerate(bodies):
             tf = msg.transforms.add()
+            tf.timestamp.seconds, tf.timestamp.nanos = stamp
             tf.parent_frame_id = logformat.WORLD_FRAME
             tf.child_frame_id = name
             v = values[7 * i : 7 * i + 7]
@@ -84,3 +89,95 @@ def transforms(bodies: tuple[str, ...]) -> Template:
             tf.rotation.w, tf.rotation.x, tf.rotation.y, tf.rotation.z = v[3:7]
 
     return Template.learn(FrameTransforms, setter, 7 * len(bodies))
+
+
+def _varint_length(v: np.ndarray) -> np.ndarray:
+    """Bytes of each non-negative value's protobuf varint; 0 for 0 (proto3 omits the field)."""
+    bits = np.zeros(v.shape, np.int64)
+    nz = v > 0
+    bits[nz] = np.floor(np.log2(v[nz].astype(np.float64))).astype(np.int64) + 1
+    bits[nz & (v >= (1 << 53))] = 64  # beyond float precision: count exactly below
+    length = (bits + 6) // 7
+    big = np.flatnonzero(bits == 64)
+    length[big] = [len(_varint(int(x))) for x in v[big]]
+    return length
+
+
+def _varint(x: int) -> bytes:
+    out = bytearray()
+    while True:
+        out.append((x & 0x7F) | (0x80 if x > 0x7F else 0))
+        x >>= 7
+        if not x:
+            return bytes(out)
+
+
+def _varint_bytes(v: np.ndarray, n: int) -> np.ndarray:
+    """Each value's varint of exactly n bytes, (len(v), n) uint8."""
+    v = v.astype(np.uint64)
+    shifts = (7 * np.arange(n)).astype(np.uint64)
+    out = ((v[:, None] >> shifts) & np.uint64(0x7F)).astype(np.uint8)
+    out[:, : n - 1] |= 0x80
+    return out
+
+
+def stamped_transforms(
+    bodies: tuple[str, ...], t_ns: np.ndarray, poses: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """`foxglove.FrameTransforms` payloads whose transforms carry their row's time.
+
+    Args:
+        t_ns: row times, ns, (n,) (non-negative).
+        poses: per row and body tx ty tz qw qx qy qz, (n, 7 nbody).
+
+    Returns:
+        (row indices, payloads (k, L) uint8) per group of rows whose stamps' varints have
+        the same lengths (a handful: the layout is otherwise fixed).
+    """
+    t = np.asarray(t_ns, np.int64)
+    sec, nanos = t // 1_000_000_000, t % 1_000_000_000
+    ls, ln = _varint_length(sec), _varint_length(nanos)
+    out = []
+    key = ls * 8 + ln
+    for k in np.unique(key).tolist():
+        a, b = divmod(k, 8)
+        rows = np.flatnonzero(key == k)
+        probe = ((1 << (7 * a - 7)) if a else 0, (1 << (7 * b - 7)) if b else 0)
+        layout = transforms(bodies, probe)
+        payloads = layout.encode(poses[rows])
+        if a or b:
+            stamp = np.concatenate(
+                [
+                    np.full((rows.size, 1 if a else 0), 0x08, np.uint8),
+                    _varint_bytes(sec[rows], a),
+                    np.full((rows.size, 1 if b else 0), 0x10, np.uint8),
+                    _varint_bytes(nanos[rows], b),
+                ],
+                axis=1,
+            )
+            for at in _stamp_offsets(bodies, probe, stamp.shape[1]):
+                payloads[:, at : at + stamp.shape[1]] = stamp
+        out.append((rows, payloads))
+    return out
+
+
+@cache
+def _stamp_offsets(bodies: tuple[str, ...], probe: tuple[int, int], size: int) -> tuple[int, ...]:
+    """Where each transform's stamp bytes lie in the payload of `transforms(bodies, probe)`:
+    the bytes that change when the stamp does: the probe (the smallest values of their varint
+    lengths) and the largest values of the same lengths differ in their first byte."""
+    a = transforms(bodies, probe).template
+    other = (
+        (probe[0] << 7) - 1 if probe[0] else 0,
+        min((probe[1] << 7) - 1, 999_999_999) if probe[1] else 0,
+    )
+    b = transforms(bodies, other).template
+    differ = np.flatnonzero(a != b)
+    starts = []
+    for i in differ.tolist():
+        if not starts or i >= starts[-1] + size:
+            starts.append(i)
+    # the stamp starts one byte before its first changed byte (the field tag)
+    offsets = tuple(s - 1 for s in starts)
+    assert len(offsets) == len(bodies), "FrameTransforms layout changed"
+    return offsets

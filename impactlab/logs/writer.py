@@ -31,6 +31,7 @@ from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.chunks import Block, ChunkWriter
 from impactlab.logs.content import LogHeader, LogRows, Outcome, PairMeta
+from impactlab.logs.geoms import SCENE_METADATA, STL_MEDIA_TYPE, encode_stl, scene_record
 from impactlab.logs.scene import scene_update
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.version import __version__
@@ -73,6 +74,15 @@ class LogWriter:
         )
         writer = self._out.writer
         writer.add_metadata(logformat.RUN_METADATA, header.run.record())
+        writer.add_metadata(SCENE_METADATA, scene_record(header.geoms, header.meshes))
+        for name, triangles in header.meshes.items():  # first: a cut log still draws the model
+            writer.add_attachment(
+                create_time=0,
+                log_time=0,
+                name=name,
+                media_type=STL_MEDIA_TYPE,
+                data=encode_stl(triangles),
+            )
         channels = self._channels = _Channels(writer)
         self._scene = channels.add(logformat.SCENE_TOPIC, SceneUpdate)
         self._bodies = [
@@ -107,7 +117,8 @@ class LogWriter:
         )
         self._tf = channels.add(logformat.TF_TOPIC, FrameTransforms)
         self._events = channels.add(logformat.EVENTS_TOPIC, Log)
-        self._tf_layout = messages.transforms(tuple(b.name for b in header.run.bodies))
+        self._tf_bodies = tuple(b.name for b in header.run.bodies)
+        self._tf_layout = messages.transforms(self._tf_bodies, (1 << 27, 1 << 27))  # its size
         row_bytes = (
             len(self._bodies) * messages.body_state().size
             + messages.energy().size * (2 if header.joint_energy else 1)
@@ -116,7 +127,7 @@ class LogWriter:
             + 200
         )
         self.rows_per_chunk = max(1, CHUNK_BYTES // row_bytes)
-        scene = scene_update(header.geoms).SerializeToString()
+        scene = scene_update(header.geoms, header.meshes).SerializeToString()
         self._scene_payload: np.ndarray | None = np.frombuffer(scene, np.uint8)[None]
         self._buffer: list[LogRows] = []
         self._buffered = 0
@@ -161,7 +172,8 @@ class LogWriter:
         if self._joint_energy is not None and rows.joint_energy is not None:
             blocks.append(Block(self._joint_energy, t, rows.joint_energy, messages.energy()))
         poses = rows.bodies[:, :, :7].reshape(len(t), -1)
-        blocks.append(Block(self._tf, t, poses, self._tf_layout))
+        for rows_tf, payloads in messages.stamped_transforms(self._tf_bodies, t, poses):
+            blocks.append(Block(self._tf, t[rows_tf], payloads))
         self._out.write_chunk(blocks)
 
     def finish(self, outcome: Outcome, contact_work: Sequence[np.ndarray] = ()) -> Path:

@@ -58,7 +58,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         )
         for b in inst.bodies
     ]
-    plane = [g for g in inst.geoms if g.type == "plane" and g.body == "world"]
+    plane = [g for g in inst.geoms if g.type == "plane" and g.model_body == "world"]
     run = RunMeta(
         experiment=info.experiment,
         description=info.description,
@@ -91,6 +91,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         inst.xml,
         clearance,
         attachments=inst.attachments,
+        meshes=inst.meshes,
         joint_energy=inst.joints is not None,
     )
 

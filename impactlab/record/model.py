@@ -25,6 +25,7 @@ from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_ener
 from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
 from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks at import)
+from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.spec import RunSpec
 
 # contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
@@ -105,6 +106,7 @@ class InstrumentedModel:
     joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
     attachments: tuple[tuple[str, str, bytes], ...] = ()  # more files for the log (name, type)
     inputs: tuple[tuple[str, str], ...] = ()  # (file, SHA-256) the model reads besides its own
+    meshes: dict[str, np.ndarray] = field(default_factory=dict)  # triangles by attachment name
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -313,12 +315,13 @@ def instrument(
         for g1, g2, num in pairs
     ]
     key = None if keyframe is None else int(model.key(keyframe).id)
+    geoms, meshes = describe_geoms(model, [b.body_id for b in bodies])
     return InstrumentedModel(
         model=model,
         xml=xml,
         bodies=bodies,
         contacts=contacts,
-        geoms=_geom_shapes(model),
+        geoms=geoms,
         energy_adr=adr("e_potential"),
         keyframe=key,
         surfaces=surfaces,
@@ -326,6 +329,7 @@ def instrument(
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
         joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
+        meshes=meshes,
     )
 
 
@@ -372,20 +376,3 @@ def _distance_sensors(
         if names:
             plan.append((model.body(b).name, other, names))
     return plan
-
-
-def _geom_shapes(model: mujoco.MjModel) -> list[GeomShape]:
-    names = {
-        int(v): k.removeprefix("mjGEOM_").lower() for k, v in mujoco.mjtGeom.__members__.items()
-    }
-    return [
-        GeomShape(
-            name=model.geom(g).name,
-            body=model.body(model.geom_bodyid[g]).name,
-            type=names.get(int(model.geom_type[g]), "unknown"),
-            size=tuple(float(x) for x in model.geom_size[g]),
-            pos=tuple(float(x) for x in model.geom_pos[g]),
-            rgba=tuple(float(x) for x in model.geom_rgba[g]),
-        )
-        for g in range(model.ngeom)
-    ]

@@ -4,8 +4,9 @@ Entities of a run (P = ``/runs/<run_id>``), all on the duration timeline ``sim_t
 
 | entity                                 | what                                            |
 |----------------------------------------|-------------------------------------------------|
-| P/world/plane                          | the plane (static Boxes3D), when there is one   |
-| P/world/bodies/<body>                  | pose (Transform3D); children: sphere, marker    |
+| P/world/static/<geom>                  | static geoms, the ground (`replay.geoms`)       |
+| P/world/bodies/<body>                  | pose (Transform3D); children: its geoms, a      |
+|                                        | ball's spin marker (`replay.geoms`)             |
 | P/world/trails/<body>                  | centre positions (Points3D; the view shows the  |
 |                                        | last `TRAIL_S` seconds)                         |
 | P/world/velocity/<body>                | velocity arrow, length = v * `VELOCITY_ARROW_S` |
@@ -28,15 +29,15 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
+from impactlab.logs.geoms import ModelScene
 from impactlab.logs.load import RunLog
 from impactlab.logs.scene import BODY_PALETTE
 from impactlab.replay.events import Event, normal_kinematics, pairs
+from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene
 
 TIMELINE = "sim_time"
 TRAIL_S = 0.25
 VELOCITY_ARROW_S = 0.1
-PLANE_THICKNESS_M = 0.001
-MARKER_COLOR = (255, 255, 255)
 CONTACT_COLOR = (255, 200, 0)
 IMPACT_COLOR = (230, 30, 30)
 RELEASE_COLOR = (30, 160, 30)
@@ -78,9 +79,10 @@ def log_run(
     """
     prefix = run_prefix(run.run_id)
     t_ns = time_base(run)
-    logged = LoggedRun(run.run_id, prefix, list(run.bodies), bounds=scene_bounds(run))
+    scene = model_scene(run)
+    logged = LoggedRun(run.run_id, prefix, list(run.bodies), bounds=scene_bounds(run, scene))
     rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    _log_plane(rec, run, prefix, logged.bounds)
+    log_model(rec, run, scene, prefix, logged.bounds, body_colors(run))
     _log_bodies(rec, run, prefix, t_ns)
     _log_contacts(rec, run, prefix, t_ns)
     logged.families = _log_series(rec, run, prefix, t_ns, events, label)
@@ -89,15 +91,21 @@ def log_run(
     return logged
 
 
-def scene_bounds(run: RunLog) -> tuple[np.ndarray, np.ndarray]:
-    """Corners (m, (3,) each) of the box every body's surface stays in, plane level included."""
+def scene_bounds(run: RunLog, scene: ModelScene | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (m, (3,) each) of the box every body's surface stays in, plane level and the
+    static geoms (but planes) included."""
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
     info = run.body_info
+    extents = geom_extents(scene) if scene is not None else {}
     for name, frame in run.bodies.items():
         pos = frame.select("x", "y", "z").to_numpy()
-        r = (info[name].radius if name in info else None) or 0.0
+        r = extents.get(name) or (info[name].radius if name in info else None) or 0.0
         if pos.size:
             lo, hi = np.minimum(lo, pos.min(axis=0) - r), np.maximum(hi, pos.max(axis=0) + r)
+    for g in scene.geoms if scene is not None else ():
+        if g.body == "world" and g.type != "plane" and g.visible:
+            r = extents.get("world", 0.0) if g.mesh else float(np.linalg.norm(g.size))
+            lo, hi = np.minimum(lo, np.asarray(g.pos) - r), np.maximum(hi, np.asarray(g.pos) + r)
     if run.plane_z is not None:
         lo[2], hi[2] = min(lo[2], run.plane_z), max(hi[2], run.plane_z)
     if not np.all(np.isfinite(lo)):
@@ -141,38 +149,8 @@ def _rgb(rgba: object, default: Sequence[float]) -> tuple[int, int, int]:
     return tuple(round(255 * float(c)) for c in values[:3])  # type: ignore[index,return-value]
 
 
-def _size(value: object, default: Sequence[float]) -> np.ndarray:
-    """A plane's half sizes (x, y) in m from the spec; `default` unless two positive numbers."""
-    ok = (
-        isinstance(value, list)
-        and len(value) >= 2
-        and all(isinstance(v, int | float) and 0 < v < 1e6 for v in value[:2])
-    )
-    return np.asarray((value if ok else default)[:2], dtype=float)  # type: ignore[index]
-
-
-def _log_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
-    """The plane, cut to 0.5 m around where the bodies go (within its real size)."""
-    if run.plane_z is None:
-        return
-    plane = run.spec.get("plane") or {}
-    size = _size(plane.get("size"), [5.0, 5.0])
-    reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
-    sx, sy = np.minimum(size, reach + 0.5)
-    rec.log(
-        f"{prefix}/world/plane",
-        rr.Boxes3D(
-            half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
-            centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
-            colors=[_rgb(plane.get("rgba"), [0.8, 0.8, 0.8])],
-            fill_mode="solid",
-        ),
-        static=True,
-    )
-
-
 def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndarray) -> None:
-    """Pose, sphere with a surface marker, trail points and velocity arrow of each body."""
+    """Pose, trail points and velocity arrow of each body (its geoms: `replay.geoms`)."""
     times = _times(t_ns)
     colors = body_colors(run)
     info = run.body_info
@@ -180,38 +158,11 @@ def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndar
         state = frame.select("x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz").to_numpy()
         pos, quat_xyzw, vel = state[:, :3], state[:, 3:7], state[:, 7:]
         radius = (info[name].radius if name in info else None) or 0.05
-        body = f"{prefix}/world/bodies/{rr.escape_entity_path_part(name)}"
+        body = body_path(prefix, name)
         rec.send_columns(
             body,
             indexes=[times],
             columns=rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw),
-        )
-        rec.log(
-            f"{body}/sphere",
-            rr.Ellipsoids3D(
-                half_sizes=[[radius] * 3],
-                colors=[colors[name]],
-                fill_mode="densewireframe",
-                labels=[name],
-                show_labels=False,
-            ),
-            static=True,
-        )
-        # A solid dot on the surface and a spoke to it: the body's spin is visible.
-        rec.log(
-            f"{body}/marker",
-            rr.Ellipsoids3D(
-                centers=[[0.0, 0.0, radius]],
-                half_sizes=[[radius * 0.18] * 3],
-                colors=[MARKER_COLOR],
-                fill_mode="solid",
-            ),
-            static=True,
-        )
-        rec.log(
-            f"{body}/spoke",
-            rr.LineStrips3D([[[0.0, 0.0, 0.0], [0.0, 0.0, radius]]], colors=[MARKER_COLOR]),
-            static=True,
         )
         part = rr.escape_entity_path_part(name)
         trail = f"{prefix}/world/trails/{part}"
@@ -382,7 +333,10 @@ def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Seque
         rec.send_columns(
             f"{prefix}/events/contacts",
             indexes=[_times(np.array([e.t_ns for e in events], np.int64))],
-            columns=rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
+            columns=[
+                *rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
+                *rr.AnyValues.columns(details=[e.details for e in events]),
+            ],
         )
     if not run.events.is_empty():
         levels = [LOG_LEVELS.get(level, level) for level in run.events["level"].to_list()]

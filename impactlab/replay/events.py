@@ -43,7 +43,9 @@ class Event:
         t_ns: its simulation time, ns.
         kind: ``impact`` or ``release``.
         pair: the bodies, when known.
-        text: what the event log shows.
+        text: what the event log shows: one short line.
+        details: every number behind it (the analysis row's, the log's velocities), shown
+            one click away (the event's `details` in the viewer's selection panel).
     """
 
     step: int
@@ -51,6 +53,7 @@ class Event:
     kind: str
     pair: Pair | None
     text: str
+    details: str = ""
 
 
 @dataclass(frozen=True)
@@ -132,13 +135,24 @@ def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
     events = []
     for iv in contact_intervals(run, t_ns):
         who = iv.pair.name
-        events.append(
-            Event(iv.start, int(t_ns[iv.start]), "impact", iv.pair, f"impact {who}: {_v(iv)}")
-        )
+        text = f"impact {who}: v_in = {iv.v_in_mps:.3g} m/s"
+        events.append(Event(iv.start, int(t_ns[iv.start]), "impact", iv.pair, text, _v(iv)))
         if iv.release is not None:
-            text = f"release {who}: {_v(iv, out=True)}"
-            events.append(Event(iv.release, int(t_ns[iv.release]), "release", iv.pair, text))
+            details = _v(iv, out=True)
+            e = _e(iv)
+            text = f"release {who}: " + (
+                f"e = {e:.3g}" if e is not None else f"v_out = {iv.v_out_mps:.3g} m/s"
+            )
+            events.append(
+                Event(iv.release, int(t_ns[iv.release]), "release", iv.pair, text, details)
+            )
     return sorted(events, key=lambda e: e.step)
+
+
+def _e(iv: Interval) -> float | None:
+    if iv.v_out_mps is None or iv.v_in_mps == 0:
+        return None
+    return -iv.v_out_mps / iv.v_in_mps
 
 
 def _v(iv: Interval, *, out: bool = False) -> str:
@@ -201,18 +215,35 @@ def analysis_events(
         iv = min(intervals, key=lambda i: abs(i.start - impact), default=None)
         iv = iv if iv is not None and abs(iv.start - impact) <= 2 else None
         pair = iv.pair if iv is not None else only
-        who = f"{table.removesuffix('s')} {pair.name if pair else ''}".rstrip()
+        kind = table.removesuffix("s")
+        number = row.get(kind)
+        who = f"{kind}{f' {number}' if isinstance(number, int) else ''}"
+        who = f"{who} {pair.name if pair else ''}".rstrip()
         numbers = _numbers(row)
+        headline = _headline(row)
         extra = f"; log: {_v(iv)}" if iv else ""
-        events.append(
-            Event(impact, int(t_ns[impact]), "impact", pair, f"impact {who}: {numbers}{extra}")
-        )
+        text = f"impact {who}" + (f": {headline}" if headline else "")
+        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, numbers + extra))
         if row.get("release_t_s") is not None:
             release = _nearest_step(t_ns, row["release_t_s"])
             extra = f"; log: {_v(iv, out=True)}" if iv else ""
-            text = f"release {who}: {numbers}{extra}"
-            events.append(Event(release, int(t_ns[release]), "release", pair, text))
+            text = f"release {who}" + (f": {headline}" if headline else "")
+            events.append(
+                Event(release, int(t_ns[release]), "release", pair, text, numbers + extra)
+            )
     return sorted(events, key=lambda e: e.step)
+
+
+HEADLINE_COLUMNS = ("e_velocity", "e_measured", "e")
+"""The analysis column an event's short text shows (the first present), its restitution."""
+
+
+def _headline(row: Mapping[str, object]) -> str:
+    for key in HEADLINE_COLUMNS:
+        value = row.get(key)
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            return f"{key} = {value:.3g}"
+    return ""
 
 
 def _nearest_step(t_ns: np.ndarray, t_s: float) -> int:

@@ -112,7 +112,7 @@ def write_recording(runs: Sequence[RunLog], path: Path, *, tables: dict | None =
     rec = _recording(runs)
     try:
         rec.set_sinks(rr.FileSink(str(tmp)))
-        _log_all(rec, runs, tables)
+        _log_all(rec, runs, tables, active=True)
         rec.disconnect()
         if not tmp.is_file() or tmp.stat().st_size == 0:
             raise OSError(f"the recording {tmp} was not written")
@@ -144,15 +144,21 @@ def _recording(runs: Sequence[RunLog]) -> rr.RecordingStream:
     return rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
 
 
-def _log_all(rec: rr.RecordingStream, runs: Sequence[RunLog], tables: dict | None) -> None:
-    """Every run, the recording's name and the default blueprint; flushed."""
+def _log_all(
+    rec: rr.RecordingStream, runs: Sequence[RunLog], tables: dict | None, *, active: bool = False
+) -> None:
+    """Every run, the recording's name and the blueprint; flushed.
+
+    The blueprint is the default, and with `active` (files) also the active one: the web
+    viewer shows only an active blueprint; a viewer streamed to keeps the layout it has.
+    """
     ids = [run.run_id for run in runs]
     rec.send_recording_name(ids[0] if len(ids) == 1 else f"{len(ids)} runs")
     logged = [
         log_run(rec, run, events_for(run, time_base(run), tables), label=label)
         for run, label in zip(runs, run_labels(runs), strict=True)
     ]
-    rec.send_blueprint(replay_blueprint(logged), make_active=False, make_default=True)
+    rec.send_blueprint(replay_blueprint(logged), make_active=active, make_default=True)
     rec.flush()
 
 

@@ -1,0 +1,201 @@
+"""Draw the model in a Rerun recording from the log alone: every geom at its size and colour.
+
+The log's geom table (`impactlab.logs.geoms`) places each geom on the body it is drawn on.
+Each visible geom (MuJoCo's default groups 0-2) is one static entity: its pose relative to
+that body (a static `Transform3D`) and its shape (`Boxes3D`, `Ellipsoids3D`, `Capsules3D`,
+`Cylinders3D`, `Mesh3D`), under the body's entity, whose pose changes over time:
+
+| entity                                  | what                                          |
+|-----------------------------------------|-----------------------------------------------|
+| P/world/bodies/<body>/geoms/<geom>      | a geom of a body whose pose is logged         |
+| P/world/static/<geom>                   | a static geom (the world's, or welded to it)  |
+| P/world/bodies/<body>/marker, .../spoke | a ball's spin marker (bodies with a radius)   |
+
+A ball's sphere is drawn as a dense wireframe (its spin shows through), every other geom
+solid; a plane is a thin box cut to 0.5 m around where the bodies go. Logs written before the
+table was recorded get the former drawing: a sphere per ball and the spec's plane.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import rerun as rr
+
+from impactlab.logs.geoms import ModelScene, read_scene
+from impactlab.logs.load import RunLog
+from impactlab.logs.reader import read_attachments
+from impactlab.logs.scene import INFINITE_PLANE_HALF_M, PLANE_THICKNESS_M
+
+MARKER_COLOR = (255, 255, 255)
+PLANE_MARGIN_M = 0.5
+
+
+def model_scene(run: RunLog) -> ModelScene:
+    """The log's geoms and meshes (the file is read again for its mesh attachments)."""
+    needs_meshes = '"mesh": "' in run.scene.get("geoms", "")
+    return read_scene(run.scene, read_attachments(run.path) if needs_meshes else {})
+
+
+def body_path(prefix: str, body: str) -> str:
+    """The entity of a body, whose transform follows the body's logged pose."""
+    return f"{prefix}/world/bodies/{rr.escape_entity_path_part(body)}"
+
+
+def rgba255(rgba: Sequence[float]) -> tuple[int, ...]:
+    """0-255 colour of an rgba in 0..1."""
+    return tuple(round(255 * float(c)) for c in rgba)
+
+
+def geom_extents(scene: ModelScene) -> dict[str, float]:
+    """Per body a geom is drawn on (`world` included, planes left out), the largest distance
+    from its frame's origin a point of its geoms reaches, m."""
+    out: dict[str, float] = {}
+    for g in scene.geoms:
+        if g.type == "plane" or not g.visible:
+            continue
+        if g.mesh is not None and g.mesh in scene.meshes:
+            reach = float(np.max(np.linalg.norm(scene.meshes[g.mesh], axis=-1), initial=0.0))
+        else:
+            reach = float(np.linalg.norm(g.size))
+        out[g.body] = max(out.get(g.body, 0.0), float(np.linalg.norm(g.pos)) + reach)
+    return out
+
+
+def log_model(
+    rec: rr.RecordingStream,
+    run: RunLog,
+    scene: ModelScene,
+    prefix: str,
+    bounds: tuple[np.ndarray, np.ndarray],
+    colors: dict[str, tuple[int, int, int]],
+) -> None:
+    """Every visible geom of the log's table (or, for older logs, each ball's sphere and the
+    spec's plane), and each ball's spin marker; all static."""
+    info = run.body_info
+    balls = {name: info[name].radius for name in run.bodies if name in info and info[name].radius}
+    if scene.geoms:
+        for geom in scene.geoms:
+            if not geom.visible or (geom.body != "world" and geom.body not in run.bodies):
+                continue
+            if geom.body == "world":
+                path = f"{prefix}/world/static/{rr.escape_entity_path_part(geom.name)}"
+            else:
+                path = (
+                    f"{body_path(prefix, geom.body)}/geoms/{rr.escape_entity_path_part(geom.name)}"
+                )
+            w, x, y, z = geom.quat
+            rec.log(
+                path, rr.Transform3D(translation=geom.pos, quaternion=[x, y, z, w]), static=True
+            )
+            ball = geom.type == "sphere" and geom.body in balls and not any(geom.pos)
+            shape = _shape(geom, scene, bounds, wireframe=ball)
+            if shape is not None:
+                rec.log(path, shape, static=True)
+    else:
+        _log_old_plane(rec, run, prefix, bounds)
+        for name, radius in balls.items():
+            rec.log(
+                f"{body_path(prefix, name)}/sphere",
+                rr.Ellipsoids3D(
+                    half_sizes=[[radius] * 3],
+                    colors=[colors[name]],
+                    fill_mode="densewireframe",
+                    labels=[name],
+                    show_labels=False,
+                ),
+                static=True,
+            )
+    for name, radius in balls.items():  # a solid dot on the surface and a spoke: the spin
+        body = body_path(prefix, name)
+        rec.log(
+            f"{body}/marker",
+            rr.Ellipsoids3D(
+                centers=[[0.0, 0.0, radius]],
+                half_sizes=[[radius * 0.18] * 3],
+                colors=[MARKER_COLOR],
+                fill_mode="solid",
+            ),
+            static=True,
+        )
+        rec.log(
+            f"{body}/spoke",
+            rr.LineStrips3D([[[0.0, 0.0, 0.0], [0.0, 0.0, radius]]], colors=[MARKER_COLOR]),
+            static=True,
+        )
+
+
+def _shape(geom, scene: ModelScene, bounds, *, wireframe: bool):
+    """The Rerun archetype of one geom in its own frame; None for a type it cannot draw."""
+    a, b, c = geom.size
+    color = [rgba255(geom.rgba)]
+    common = {"colors": color, "labels": [geom.name], "show_labels": False}
+    fill = "densewireframe" if wireframe else "solid"
+    if geom.type == "box":
+        return rr.Boxes3D(half_sizes=[[a, b, c]], fill_mode=fill, **common)
+    if geom.type == "plane":
+        reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]]))) + PLANE_MARGIN_M
+        half = [min(s if s > 0 else INFINITE_PLANE_HALF_M, reach) for s in (a, b)]
+        return rr.Boxes3D(
+            half_sizes=[[*half, PLANE_THICKNESS_M / 2]],
+            centers=[[0.0, 0.0, -PLANE_THICKNESS_M / 2]],
+            fill_mode="solid",
+            **common,
+        )
+    if geom.type in ("sphere", "ellipsoid"):
+        radii = [a, a, a] if geom.type == "sphere" else [a, b, c]
+        return rr.Ellipsoids3D(half_sizes=[radii], fill_mode=fill, **common)
+    if geom.type == "capsule":
+        return rr.Capsules3D(
+            lengths=[2 * b], radii=[a], translations=[[0.0, 0.0, -b]], fill_mode=fill, **common
+        )
+    if geom.type == "cylinder":
+        return rr.Cylinders3D(lengths=[2 * b], radii=[a], fill_mode=fill, **common)
+    if geom.mesh is not None and geom.mesh in scene.meshes:  # mesh, hfield
+        tri = scene.meshes[geom.mesh]
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1, keepdims=True)
+        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+        return rr.Mesh3D(
+            vertex_positions=tri.reshape(-1, 3),
+            vertex_normals=np.repeat(normal, 3, axis=0),
+            albedo_factor=color[0],
+        )
+    return None
+
+
+def _log_old_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
+    """The plane of a log without a geom table, from the spec (grey 0.8 by default)."""
+    if run.plane_z is None:
+        return
+    plane = run.spec.get("plane") or {}
+    size = _numbers(plane.get("size"), [5.0, 5.0], 2)
+    rgba = _numbers(plane.get("rgba"), [0.8, 0.8, 0.8, 1.0], 4, unit=True)
+    reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
+    sx, sy = np.minimum(size, reach + PLANE_MARGIN_M)
+    rec.log(
+        f"{prefix}/world/plane",
+        rr.Boxes3D(
+            half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
+            centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
+            colors=[rgba255(rgba)[:3]],
+            fill_mode="solid",
+        ),
+        static=True,
+    )
+
+
+def _numbers(value: object, default: list[float], n: int, *, unit: bool = False) -> list[float]:
+    """n numbers from the spec (each in 0..1 when `unit`, else in (0, 1e6)); else `default`."""
+    ok = (
+        isinstance(value, list)
+        and len(value) >= n
+        and all(
+            isinstance(v, int | float)
+            and not isinstance(v, bool)
+            and ((0.0 <= v <= 1.0) if unit else (0 < v < 1e6))
+            for v in value[:n]
+        )
+    )
+    return [float(v) for v in (value if ok else default)[:n]]  # type: ignore[index]
