@@ -22,6 +22,8 @@ from google.protobuf.message import DecodeError
 from impactlab.errors import LogError
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
+from impactlab.logs.bodies import BodyInfo as BodyInfo  # re-exported: readers import it here
+from impactlab.logs.bodies import SurfaceInfo as SurfaceInfo
 from impactlab.logs.decode import (
     body_state_values,
     decode_clearance,
@@ -52,34 +54,6 @@ DATA_SCHEMAS = frozenset(
         logformat.CONTACT_WORK_SCHEMA,
     }
 )
-
-
-@dataclass(frozen=True)
-class BodyInfo:
-    """A free body as the log's metadata describes it (kg, kg m^2 principal, m).
-
-    `rest_height_m`: the lowest height of its centre of mass above a flat surface it touches
-    (older logs: the radius of a sphere, else None); `shape`: its collision geoms' types.
-    """
-
-    name: str
-    mass: float
-    inertia: tuple[float, float, float]
-    radius: float | None
-    rest_height_m: float | None = None
-    shape: str = ""
-    geoms: tuple[str, ...] = ()
-    motion: str = "free"  # "free": ballistic between contacts, or "articulated"; older: free
-
-
-@dataclass(frozen=True)
-class SurfaceInfo:
-    """A ground surface as the log's metadata describes it (see `logs.content.SurfaceMeta`)."""
-
-    name: str
-    type: str
-    level_m: float
-    distance: bool
 
 
 @dataclass

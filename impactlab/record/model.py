@@ -21,11 +21,11 @@ from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
 from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
 from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks at import)
-from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.spec import RunSpec
 
 # contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
