@@ -1,4 +1,5 @@
-"""Impact and release events of a run: from the analysis tables when given, else from the log.
+"""Impact and release events of a run: from the analysis tables when given, else from the log
+(a release's e then from the recorder's contact work: the analysis' e_energy).
 
 A contact interval is a run of consecutive logged steps on which a pair of bodies touches.
 Its impact is the first step in contact, its release the first step after it without contact
@@ -131,17 +132,20 @@ def contact_intervals(run: RunLog, t_ns: np.ndarray) -> list[Interval]:
 
 
 def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
-    """Impact and release events derived from the log's contacts, with v_in, v_out and e."""
+    """Impact and release events derived from the log's contacts, with the centres' v_in and
+    v_out; a release's e is the energetic coefficient from the work the recorder summed over
+    the contact's every step (the log's `/contact_work`, the analysis' e_energy), never a
+    ratio of the centres' velocities (wrong for a turning body; logs without the work: none)."""
     events = []
     for iv in contact_intervals(run, t_ns):
         who = iv.pair.name
         text = f"impact {who}: v_in = {iv.v_in_mps:.3g} m/s"
         events.append(Event(iv.start, int(t_ns[iv.start]), "impact", iv.pair, text, _v(iv)))
         if iv.release is not None:
-            details = _v(iv, out=True)
-            e = _e(iv)
+            work = _work(run, iv, t_ns)
+            details = _v(iv, out=True) + (work[1] if work else "")
             text = f"release {who}: " + (
-                f"e = {e:.3g}" if e is not None else f"v_out = {iv.v_out_mps:.3g} m/s"
+                f"e = {work[0]:.3g} (energy)" if work else f"v_out = {iv.v_out_mps:.3g} m/s"
             )
             events.append(
                 Event(iv.release, int(t_ns[iv.release]), "release", iv.pair, text, details)
@@ -149,18 +153,33 @@ def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
     return sorted(events, key=lambda e: e.step)
 
 
-def _e(iv: Interval) -> float | None:
-    if iv.v_out_mps is None or iv.v_in_mps == 0:
+def _work(run: RunLog, iv: Interval, t_ns: np.ndarray) -> tuple[float, str] | None:
+    """The energetic e of an interval and its numbers, from the recorded contacts of its pair
+    that start after the logged step before it and no later than its last one."""
+    work = run.contact_work
+    if work.is_empty():
         return None
-    return -iv.v_out_mps / iv.v_in_mps
+    a, b = iv.pair.first, iv.pair.second
+    lo = int(t_ns[iv.start - 1]) if iv.start > 0 else -1
+    mine = work.filter(
+        (
+            ((pl.col("body1") == a) & (pl.col("body2") == b))
+            | ((pl.col("body1") == b) & (pl.col("body2") == a))
+        )
+        & (pl.col("start_ns") > lo)
+        & (pl.col("start_ns") <= int(t_ns[iv.end]))
+    )
+    w_c, w_r = mine["work_compression_J"].sum(), mine["work_restitution_J"].sum()
+    if mine.is_empty() or mine["open"].any() or not w_c < 0:
+        return None
+    e = float(np.sqrt(w_r / -w_c))
+    return e, f", e_energy = {e:.4g} (work {w_c:.4g} J in, {w_r:.4g} J out)"
 
 
 def _v(iv: Interval, *, out: bool = False) -> str:
     text = f"v_in = {iv.v_in_mps:.4g} m/s"
     if out and iv.v_out_mps is not None:
         text += f", v_out = {iv.v_out_mps:.4g} m/s"
-        if iv.v_in_mps != 0:
-            text += f", e = {-iv.v_out_mps / iv.v_in_mps:.4g}"
     return text
 
 
