@@ -13,7 +13,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -257,17 +256,10 @@ def _describe(model, data, ids, gravity, free, names) -> ModelPair:
 
 def pair_element(pair: ModelPair, params: ContactParams) -> str:
     """The ``<pair>`` element: the calibrated solref/solimp and the geoms' own friction."""
-    a = params.mjcf_attributes()
-    attrs = [
-        f"geom1={quoteattr(pair.geom1)}",
-        f"geom2={quoteattr(pair.geom2)}",
-        f'condim="{pair.condim}"',
-        'friction="' + " ".join(f"{x:g}" for x in pair.friction) + '"',
-    ]
+    extra = ['friction="' + " ".join(f"{x:g}" for x in pair.friction) + '"']
     if pair.margin or pair.gap:
-        attrs += [f'margin="{pair.margin!r}"', f'gap="{pair.gap!r}"']
-    attrs += [f'solref="{a["solref"]}"', f'solimp="{a["solimp"]}"']
-    return "<pair " + " ".join(attrs) + "/>"
+        extra += [f'margin="{pair.margin!r}"', f'gap="{pair.gap!r}"']
+    return params.mjcf_pair(pair.geom1, pair.geom2, condim=pair.condim, extra=extra)
 
 
 def check_tuned(path: Path, pairs: Sequence[tuple[ModelPair, ContactParams]]) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from xml.sax.saxutils import quoteattr
 
@@ -66,10 +67,12 @@ class ContactParams:
             "solimp": " ".join(repr(float(x)) for x in self.solimp),
         }
 
-    def mjcf_pair(self, geom1: str, geom2: str) -> str:
-        """An MJCF ``<pair>`` element that gives the pair of geoms this contact (frictionless)."""
+    def mjcf_pair(
+        self, geom1: str, geom2: str, *, condim: int = 1, extra: Sequence[str] = ()
+    ) -> str:
+        """The one MJCF ``<pair>`` builder: the pair of geoms with this contact (frictionless
+        with condim 1), `extra` attributes (e.g. ``friction="1 0.005 0.0001"``) before it."""
         a = self.mjcf_attributes()
-        return (
-            f'<pair geom1={quoteattr(geom1)} geom2={quoteattr(geom2)} condim="1" '
-            f'solref="{a["solref"]}" solimp="{a["solimp"]}"/>'
-        )
+        attrs = [f"geom1={quoteattr(geom1)}", f"geom2={quoteattr(geom2)}", f'condim="{condim}"']
+        attrs += [*extra, f'solref="{a["solref"]}"', f'solimp="{a["solimp"]}"']
+        return "<pair " + " ".join(attrs) + "/>"

@@ -155,12 +155,7 @@ def mjcf_from_spec(run: RunSpec) -> str:
     pairs = calibrated_pairs(run)
     if pairs:
         lines.append("  <contact>")
-        for pair in pairs:
-            attrs = pair.params.mjcf_attributes()
-            lines.append(
-                f'    <pair geom1="{pair.geom1}" geom2="{pair.geom2}" condim="1" '
-                f'solref="{attrs["solref"]}" solimp="{attrs["solimp"]}"/>'
-            )
+        lines += [f"    {pair.params.mjcf_pair(pair.geom1, pair.geom2)}" for pair in pairs]
         lines.append("  </contact>")
     qpos = " ".join(_fmt((*b.pos, 1.0, 0.0, 0.0, 0.0)) for b in run.bodies)
     qvel = " ".join(_fmt((*b.vel, *b.angvel)) for b in run.bodies)
