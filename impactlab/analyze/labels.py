@@ -6,32 +6,10 @@ at z = 3 m". The hash stays in the report's details table only.
 
 from __future__ import annotations
 
-import re
-
 import polars as pl
 
 from impactlab.analyze.studies import study_parameters, with_parameters
-
-_AXES = "xyz"
-_UNITS = {"pos": "m", "vel": "m/s", "mass": "kg", "radius": "m", "size": "m"}
-
-
-def parameter_words(key: str, value: object) -> str:
-    """One sweep parameter in words and units, e.g. `ball.pos[2]` = 3 -> "ball at z = 3 m"."""
-    shown = f"{value:g}" if isinstance(value, float) else str(value)
-    match = re.fullmatch(r"(?:bodies\.)?(\w+)\.(pos|vel)\[(\d)\]", key)
-    if match:
-        body, what, axis = match.groups()
-        if what == "pos":
-            return f"{body} released at {_AXES[int(axis)]} = {shown} m"
-        return f"{body} v{_AXES[int(axis)]} = {shown} m/s"
-    match = re.fullmatch(r"(?:bodies\.)?(\w+)\.(mass|radius)", key)
-    if match:
-        body, what = match.groups()
-        return f"{body} {what} = {shown} {_UNITS[what]}"
-    if key.startswith("contact."):
-        return f"{key.removeprefix('contact.')} = {shown}"
-    return f"{key} = {shown}"
+from impactlab.logs.labels import parameter_words
 
 
 def run_labels(runs: pl.DataFrame) -> dict[str, str]:

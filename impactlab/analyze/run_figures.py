@@ -9,23 +9,8 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.analysis import RunAnalysis
-from impactlab.analyze.labels import parameter_words
+from impactlab.logs.labels import sweep_words
 from impactlab.text import file_part
-
-
-def sweep_words(sweep: dict) -> str:
-    """A run's sweep point in words and units ("ball released at z = 3 m"); "" for none.
-
-    A swept vector shows its non-zero components (all of them when every one is zero).
-    """
-    words = []
-    for key, value in sweep.items():
-        if isinstance(value, list | tuple):
-            shown = [i for i, x in enumerate(value) if x] or list(range(len(value)))
-            words += [parameter_words(f"{key}[{i}]", value[i]) for i in shown]
-        else:
-            words.append(parameter_words(key, value))
-    return ", ".join(words)
 
 
 def contact_words(contact: dict) -> str:

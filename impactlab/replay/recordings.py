@@ -15,6 +15,7 @@ import rerun as rr
 
 from impactlab.errors import ImpactlabError, LogError
 from impactlab.files import OutputError, check_writable, temporary_path
+from impactlab.logs.labels import sweep_words
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 from impactlab.replay.blueprint import replay_blueprint
@@ -163,19 +164,13 @@ def _log_all(
 
 
 def run_labels(runs: Sequence[RunLog]) -> list[str]:
-    """Series name prefixes: none for one run; the sweep point for runs of one experiment
-    (`solimp=0.5_0.95_0.001: `); the run id otherwise."""
+    """Series name prefixes: none for one run; the sweep point in words for runs of one
+    experiment (`ball released at z = 3 m: `, as the report labels them); the run id
+    otherwise."""
     if len(runs) < 2:
         return [""]
     if len({run.experiment for run in runs}) == 1 and all(run.sweep for run in runs):
-        labels = [
-            " ".join(
-                f"{key.rsplit('.', 1)[-1]}="
-                + ("_".join(f"{v:g}" for v in value) if isinstance(value, list) else f"{value}")
-                for key, value in run.sweep.items()
-            )
-            for run in runs
-        ]
+        labels = [sweep_words(run.sweep) for run in runs]
         if len(set(labels)) == len(labels):
             return [f"{label}: " for label in labels]
     return [f"{run.run_id}: " for run in runs]
