@@ -112,12 +112,14 @@ class ProcessExecutor:
                     self._give_up()
                     yield from _here(fn, items, todo)
                     return
-                for worker in pool:
-                    if worker.task is None and todo:
-                        yield from self._send(worker, todo, fn, items)
+                yield from self._feed(todo, fn, items)
+                if not any(w.task is not None for w in pool):
+                    continue  # every send failed: those workers are gone, start others
                 ready = wait([w.conn for w in pool] + [w.process.sentinel for w in pool])
-                for worker in [w for w in pool if w.conn in ready or w.process.sentinel in ready]:
-                    yield from self._hear(worker, todo)
+                news = [w for w in pool if w.conn in ready or w.process.sentinel in ready]
+                done = [o for worker in news for o in self._hear(worker, todo)]
+                done.extend(self._feed(todo, fn, items))  # before the caller takes the outcomes
+                yield from done
         finally:
             for worker in [w for w in pool if w.task is not None]:  # stopped early: stop them
                 _stop(worker.process)
@@ -146,15 +148,23 @@ class ProcessExecutor:
         self._failed_starts += 1
         self._last_problem = problem
 
+    def _feed(
+        self, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
+    ) -> Iterator[TaskOutcome[R]]:
+        """Give each idle worker its next task (a task that cannot be pickled fails here)."""
+        for worker in list(self._pool or []):
+            if worker.task is None and todo:
+                yield from self._send(worker, todo, fn, items)
+
     def _send(
         self, worker: _Worker, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
     ) -> Iterator[TaskOutcome[R]]:
-        """Give the next task to an idle worker (a task that cannot be pickled fails here)."""
         index = todo.popleft()
         try:
             worker.conn.send((index, fn, items[index]))
         except (BrokenPipeError, ConnectionError):  # the worker is gone: the task waits
             todo.appendleft(index)
+            yield from self._lost(worker, todo)
             return
         except Exception as exc:  # the function or the item cannot be pickled
             yield TaskOutcome(index, error=describe_error(exc))
