@@ -13,6 +13,7 @@ import subprocess
 import sys
 import textwrap
 import time
+import types
 from pathlib import Path
 
 import psutil
@@ -279,3 +280,24 @@ def test_workers_that_cannot_be_created_run_the_tasks_here(monkeypatch, caplog):
     assert [o.value for o in outcomes] == [("a", os.getpid()), ("b", os.getpid())]
     assert len(caplog.messages) == 1
     assert "cannot start worker processes (BlockingIOError: [Errno 11]" in caplog.messages[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# tasks that cannot travel
+
+
+def test_a_task_that_cannot_be_sent_or_loaded_fails_alone():
+    """A function that cannot be pickled here, or not unpickled in the worker (its module
+    exists only in this process), fails its own items with the reason; the others run."""
+    only_here = types.ModuleType("impactlab_test_only_here")
+    exec("def twice(x):\n    return 2 * x\n", only_here.__dict__)
+    sys.modules[only_here.__name__] = only_here
+    try:
+        with ProcessExecutor(workers=2, min_items=1) as ex:
+            sent = sorted(ex.map(only_here.twice, [1, 2, 3]), key=lambda o: o.index)
+            assert all(o.error.startswith("ModuleNotFoundError: ") for o in sent), sent
+            local = sorted(ex.map(lambda x: x, [1, 2]), key=lambda o: o.index)
+            assert all("pickle" in o.error.lower() for o in local), local
+            assert [o.value[0] for o in ex.map(die_on, ["ok"])] == ["ok"]
+    finally:
+        del sys.modules[only_here.__name__]

@@ -26,6 +26,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
+from multiprocessing.reduction import ForkingPickler
 from typing import Any, TypeVar
 
 from impactlab.executors.base import (
@@ -161,13 +162,15 @@ class ProcessExecutor:
     ) -> Iterator[TaskOutcome[R]]:
         index = todo.popleft()
         try:
-            worker.conn.send((index, fn, items[index]))
-        except (BrokenPipeError, ConnectionError):  # the worker is gone: the task waits
-            todo.appendleft(index)
-            yield from self._lost(worker, todo)
-            return
+            payload = bytes(ForkingPickler.dumps((fn, items[index])))
         except Exception as exc:  # the function or the item cannot be pickled
             yield TaskOutcome(index, error=describe_error(exc))
+            return
+        try:
+            worker.conn.send((index, payload))
+        except ConnectionError:  # the worker is gone: the task waits for another
+            todo.appendleft(index)
+            yield from self._lost(worker, todo)
             return
         worker.task, worker.started = index, False
 

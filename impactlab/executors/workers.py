@@ -23,10 +23,8 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Callable
 from multiprocessing.connection import Connection
 from multiprocessing.reduction import ForkingPickler
-from typing import Any
 
 from impactlab.executors.base import describe_error
 
@@ -67,35 +65,36 @@ def _unwind(signum: int, frame: object) -> None:
 
 
 def serve(conn: Connection, parent: int) -> None:
-    """A worker's life: take (index, fn, item) from `conn`, run it, send the outcome back,
-    until the pipe closes or None arrives."""
+    """A worker's life: take (index, pickled (fn, item)) from `conn`, say it started, run it,
+    send the outcome back; until the pipe closes or None arrives."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
         signal.signal(signal.SIGTERM, _unwind)
         die_with_parent(parent)
         conn.send((READY, os.getpid()))
         while (task := _receive(conn)) is not None:
-            index, fn, item = task
+            index, payload = task
             conn.send((STARTED, index))
             if os.environ.get(TEST_SIGKILL_TASK) == str(index):
                 os.kill(os.getpid(), signal.SIGKILL)
-            conn.send_bytes(_run(index, fn, item))
-    except (KeyboardInterrupt, BrokenPipeError):  # SIGTERM, or the parent is gone
+            conn.send_bytes(_run(index, payload))
+    except (KeyboardInterrupt, ConnectionError):  # SIGTERM, or the parent is gone
         raise SystemExit(EXIT_TERMINATED) from None
 
 
-def _receive(conn: Connection) -> tuple[int, Callable[[Any], Any], Any] | None:
+def _receive(conn: Connection) -> tuple[int, bytes] | None:
     try:
         return conn.recv()
     except EOFError:  # the parent closed the pipe (or died)
         return None
 
 
-def _run(index: int, fn: Callable[[Any], Any], item: Any) -> bytes:
-    """(index, value, error, wall time) of `fn(item)`, pickled (a value that cannot be
-    pickled is the task's failure)."""
+def _run(index: int, payload: bytes) -> bytes:
+    """(index, value, error, wall time) of the task, pickled: a function or item that cannot
+    be unpickled here, or a value that cannot be pickled, is the task's failure."""
     start = time.perf_counter()
     try:
+        fn, item = ForkingPickler.loads(payload)
         value = fn(item)
         return ForkingPickler.dumps((index, value, None, time.perf_counter() - start))
     except Exception as exc:  # one failed item never stops the others
