@@ -9,6 +9,7 @@ import errno
 import logging
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
@@ -163,6 +164,26 @@ def test_workers_die_with_a_killed_parent(logs, tmp_path):
     for p in left:  # leave no orphan behind, even when the test fails
         p.kill()
     assert [p.pid for p in left] == []
+
+
+ASK_DEATH_SIGNAL = """
+import ctypes, os, sys
+from impactlab.executors.workers import die_with_parent
+die_with_parent(os.getppid() if sys.argv[1] == "right" else os.getppid() + 1)
+got = ctypes.c_int()
+ctypes.CDLL(None).prctl(2, ctypes.byref(got))  # PR_GET_PDEATHSIG
+print(got.value)
+"""
+
+
+def test_a_worker_asks_for_its_parents_death_and_checks_its_pid():
+    """The start of a worker: the kernel will send it SIGTERM when its parent dies, and a
+    parent already gone (another pid than the one it was given) stops it at once."""
+    run = [sys.executable, "-c", ASK_DEATH_SIGNAL]
+    right = subprocess.run([*run, "right"], capture_output=True, text=True, check=True)
+    assert int(right.stdout) == signal.SIGTERM
+    wrong = subprocess.run([*run, "wrong"], capture_output=True, text=True)
+    assert wrong.returncode == 128 + signal.SIGTERM and wrong.stdout == "", wrong.stderr
 
 
 # ---------------------------------------------------------------------------------------------
