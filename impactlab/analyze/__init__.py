@@ -76,6 +76,8 @@ def analyze(
         LogError: no input names a log.
         OutputError: `out` cannot be written.
         ValueError: figures or report asked for without `out`.
+        ExecutorError: executor="processes" reached again while a worker imports the script
+            (no `if __name__ == "__main__":` guard); the message says so.
     """
     from impactlab.analyze.job import run_analysis
     from impactlab.executors.choose import executor_for

@@ -24,8 +24,9 @@ def make_executor(name: str = "local", address: str | None = None) -> Executor:
 
         return RayExecutor(address=address)
     if name == "processes":
-        from impactlab.executors.processes import ProcessExecutor
+        from impactlab.executors.processes import ProcessExecutor, refuse_in_worker_start
 
+        refuse_in_worker_start()  # a script without the __main__ guard, imported by a worker
         return ProcessExecutor()
     return LocalExecutor()
 

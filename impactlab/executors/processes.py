@@ -5,26 +5,53 @@ in whatever state they are), so each pays the import of what its function needs 
 half a second); a batch smaller than `min_items` therefore runs here, one item after the
 other, as the local executor would, unless the workers are up already. Functions and items
 must be picklable (module-level functions, plain data), as for Ray.
+
+Each worker holds one task at a time (`impactlab.executors.workers`). So a worker that dies
+(killed, out of memory) fails only the task it had started, with the reason ("worker process
+died (signal SIGKILL)"); it is replaced, and the tasks not yet started go on as if nothing
+happened. Workers die with this process, however it ends. When no worker process can be
+started at all, the tasks run here, in one process, after a one-line warning. A script that
+reaches this executor again while a worker imports it (no `if __name__ == "__main__":` guard)
+is an `ExecutorError` saying so.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import multiprocessing
 import os
-import time
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+from multiprocessing.process import BaseProcess
+from multiprocessing.reduction import ForkingPickler
 from typing import Any, TypeVar
 
 from impactlab.executors.base import (
     PROCESS_MIN_ITEMS,
+    ExecutorError,
     LocalExecutor,
     TaskOutcome,
     describe_error,
 )
+from impactlab.executors.workers import (
+    EXIT_MAIN_GUARD,
+    MAIN_GUARD_HINT,
+    READY,
+    STARTED,
+    death,
+    importing_main,
+    serve,
+)
 
 R = TypeVar("R")
+
+MAX_FAILED_STARTS = 3  # workers in a row that die before they are up: run the rest here
+STOP_SECONDS = 5.0  # how long `close` waits for a worker to stop before it kills it
+
+log = logging.getLogger("impactlab")
 
 
 def available_cpus() -> int:
@@ -35,10 +62,22 @@ def available_cpus() -> int:
         return os.cpu_count() or 1
 
 
-def _timed(fn: Callable[[Any], R], item: Any) -> tuple[R, float]:
-    """Run `fn(item)` in a worker; its value and wall time."""
-    start = time.perf_counter()
-    return fn(item), time.perf_counter() - start
+def refuse_in_worker_start() -> None:
+    """Stop a worker process whose start (importing the caller's script again) has reached
+    the executor: the parent then raises the `__main__`-guard error (see the workers)."""
+    if importing_main():
+        raise SystemExit(EXIT_MAIN_GUARD)
+
+
+@dataclass(eq=False)
+class _Worker:
+    """One worker process, its end of the pipe, and the task it holds."""
+
+    process: BaseProcess
+    conn: Connection
+    ready: bool = False  # it said it is up
+    task: int | None = None  # the index of the item sent to it
+    started: bool = False  # it said it took that task
 
 
 class ProcessExecutor:
@@ -49,7 +88,10 @@ class ProcessExecutor:
     def __init__(self, workers: int | None = None, min_items: int = PROCESS_MIN_ITEMS) -> None:
         self.workers = max(1, workers or available_cpus())
         self.min_items = min_items
-        self._pool: ProcessPoolExecutor | None = None
+        self._pool: list[_Worker] | None = None  # None: no worker started (or all stopped)
+        self._failed_starts = 0
+        self._no_workers = False  # no worker process could be started here
+        self._last_problem = ""
 
     @property
     def slots(self) -> int:
@@ -57,46 +99,177 @@ class ProcessExecutor:
 
     def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
         """Yield one outcome per item as it finishes (here, in order, for a small batch)."""
-        if self.workers < 2 or (len(items) < self.min_items and self._pool is None):
+        refuse_in_worker_start()
+        small = len(items) < self.min_items and self._pool is None
+        if not items or self.workers < 2 or small or self._no_workers:
             yield from LocalExecutor().map(fn, items)
             return
-        pool = self._start(min(self.workers, len(items)))
-        futures: dict[Future, int] = {pool.submit(_timed, fn, it): i for i, it in enumerate(items)}
+        pool = self._pool = self._pool or []
+        todo = deque(range(len(items)))
         try:
-            while futures:
-                done, _ = wait(futures, return_when=FIRST_COMPLETED)
-                for future in done:
-                    i = futures.pop(future)  # its value is freed once the caller drops it
-                    yield self._outcome(future, i)
-                del done
+            while todo or any(w.task is not None for w in pool):
+                self._grow(min(self.workers, len(items)), todo)
+                if not pool:  # no worker can start: the rest here
+                    self._give_up()
+                    yield from _here(fn, items, todo)
+                    return
+                yield from self._feed(todo, fn, items)
+                if not any(w.task is not None for w in pool):
+                    continue  # every send failed: those workers are gone, start others
+                ready = wait([w.conn for w in pool] + [w.process.sentinel for w in pool])
+                news = [w for w in pool if w.conn in ready or w.process.sentinel in ready]
+                done = [o for worker in news for o in self._hear(worker, todo)]
+                done.extend(self._feed(todo, fn, items))  # before the caller takes the outcomes
+                yield from done
         finally:
-            for future in futures:
-                future.cancel()
+            for worker in [w for w in pool if w.task is not None]:  # stopped early: stop them
+                _stop(worker.process)
+                self._drop(worker)
 
-    @staticmethod
-    def _outcome(future: Future, i: int) -> TaskOutcome:
+    def _grow(self, size: int, todo: deque[int]) -> None:
+        """Start workers up to `size` while there are tasks to give them."""
+        pool = self._pool if self._pool is not None else []
+        while todo and len(pool) < size and self._failed_starts < MAX_FAILED_STARTS:
+            try:
+                pool.append(_start())
+            except OSError as exc:  # no process, pipe or memory to be had
+                self._failed_start(describe_error(exc))
+
+    def _give_up(self) -> None:
+        """No worker could start: say so once; this executor runs its tasks here from now."""
+        if not self._no_workers:
+            self._no_workers = True
+            log.warning(
+                "impactlab: warning: cannot start worker processes (%s); running the tasks "
+                "here, in one process",
+                self._last_problem,
+            )
+
+    def _failed_start(self, problem: str) -> None:
+        self._failed_starts += 1
+        self._last_problem = problem
+
+    def _feed(
+        self, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
+    ) -> Iterator[TaskOutcome[R]]:
+        """Give each idle worker its next task (a task that cannot be pickled fails here)."""
+        for worker in list(self._pool or []):
+            if worker.task is None and todo:
+                yield from self._send(worker, todo, fn, items)
+
+    def _send(
+        self, worker: _Worker, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
+    ) -> Iterator[TaskOutcome[R]]:
+        index = todo.popleft()
         try:
-            value, wall = future.result()
-        except BrokenProcessPool:
-            return TaskOutcome(i, error="a worker process died (killed or out of memory)")
-        except Exception as exc:  # one failed item never stops the others
-            return TaskOutcome(i, error=describe_error(exc))
-        return TaskOutcome(i, value=value, wall_s=wall)
+            payload = bytes(ForkingPickler.dumps((fn, items[index])))
+        except Exception as exc:  # the function or the item cannot be pickled
+            yield TaskOutcome(index, error=describe_error(exc))
+            return
+        try:
+            worker.conn.send((index, payload))
+        except ConnectionError:  # the worker is gone: the task waits for another
+            todo.appendleft(index)
+            yield from self._lost(worker, todo)
+            return
+        worker.task, worker.started = index, False
 
-    def _start(self, workers: int) -> ProcessPoolExecutor:
-        if self._pool is None:
-            context = multiprocessing.get_context("spawn")
-            self._pool = ProcessPoolExecutor(max_workers=workers, mp_context=context)
-        return self._pool
+    def _hear(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome]:
+        """Take one message from a worker whose pipe or process has news."""
+        try:
+            message = worker.conn.recv() if worker.conn.poll() else None
+        except (EOFError, ConnectionError):
+            message = None
+        except Exception as exc:  # its value cannot be unpickled here
+            if worker.task is not None:
+                yield TaskOutcome(worker.task, error=describe_error(exc))
+                worker.task = None
+            return
+        if message is None:  # the pipe closed or the process ended: it died
+            yield from self._lost(worker, todo)
+        elif message[0] == READY:
+            worker.ready = True
+            self._failed_starts = 0
+        elif message[0] == STARTED:
+            worker.started = True
+        else:
+            index, value, error, wall = message
+            worker.task = None
+            yield TaskOutcome(index, value=value, error=error, wall_s=wall)
+
+    def _lost(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome]:
+        """A worker died: its started task fails with the reason, one not started waits."""
+        worker.process.join()
+        code = worker.process.exitcode
+        self._drop(worker)
+        if not worker.ready:
+            if code == EXIT_MAIN_GUARD:
+                raise ExecutorError(MAIN_GUARD_HINT)
+            self._failed_start(death(code))
+        if worker.task is None:
+            return
+        if worker.started:
+            yield TaskOutcome(worker.task, error=death(code))
+        else:
+            todo.appendleft(worker.task)
+
+    def _drop(self, worker: _Worker) -> None:
+        if self._pool is not None and worker in self._pool:
+            self._pool.remove(worker)
+        worker.conn.close()
+        worker.process.join()
 
     def close(self) -> None:
-        """Stop the workers (cancelling what has not started)."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+        """Stop the workers (a task still running is stopped with SIGTERM)."""
+        pool, self._pool = self._pool or [], None
+        for worker in pool:
+            with contextlib.suppress(OSError):
+                worker.conn.send(None)
+            if worker.task is not None:
+                worker.process.terminate()
+        for worker in pool:
+            _stop(worker.process, terminate=False)
+            worker.conn.close()
 
     def __enter__(self) -> ProcessExecutor:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _start() -> _Worker:
+    """Spawn one worker process and connect to it."""
+    context = multiprocessing.get_context("spawn")
+    here, there = context.Pipe()
+    process = context.Process(
+        target=serve, args=(there, os.getpid()), name="impactlab-worker", daemon=True
+    )
+    try:
+        process.start()
+    except BaseException:
+        here.close()
+        raise
+    finally:
+        there.close()  # the worker's end: its copy is in the worker now
+    return _Worker(process, here)
+
+
+def _stop(process: BaseProcess, *, terminate: bool = True) -> None:
+    """Wait for a worker to end (after SIGTERM when `terminate`); SIGKILL if it takes long."""
+    if terminate:
+        process.terminate()
+    process.join(STOP_SECONDS)
+    if process.is_alive():
+        process.kill()
+        process.join()
+
+
+def _here(
+    fn: Callable[[Any], R], items: Sequence[Any], todo: deque[int]
+) -> Iterator[TaskOutcome[R]]:
+    """The tasks left in `todo` run in this process."""
+    left = list(todo)
+    todo.clear()
+    for outcome in LocalExecutor().map(fn, [items[i] for i in left]):
+        yield TaskOutcome(left[outcome.index], outcome.value, outcome.error, outcome.wall_s)

@@ -1,0 +1,114 @@
+"""The worker processes of the processes executor: each is fed one task at a time on its own
+pipe, so the parent always knows which task a worker holds.
+
+A worker is spawned (a fresh interpreter, not a fork) and talks to its parent over one
+`multiprocessing.Pipe`: it says `READY` once up, `STARTED` when it takes a task, then sends
+the task's outcome. No queue, lock or semaphore is shared, so the workers need no POSIX
+semaphores (no `/dev/shm`), and a worker that dies takes only its own task with it.
+
+A worker never outlives its parent: on Linux the kernel sends it SIGTERM when the parent dies
+(`prctl(PR_SET_PDEATHSIG)`, whatever killed the parent, SIGKILL included; set when the worker
+starts, and the parent's pid is checked after it, in case the parent died first); everywhere,
+an idle worker exits when its pipe closes. SIGTERM unwinds the worker's task like Ctrl-C (its
+`finally` and `with` blocks run: temporary files are removed); Ctrl-C itself is left to the
+parent, which stops the workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import multiprocessing
+import os
+import signal
+import sys
+import time
+from multiprocessing.connection import Connection
+from multiprocessing.reduction import ForkingPickler
+
+from impactlab.executors.base import describe_error
+
+READY = "ready"
+STARTED = "started"
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal a process gets when its parent dies
+EXIT_TERMINATED = 128 + signal.SIGTERM  # a worker stopped by SIGTERM (its parent gone)
+EXIT_MAIN_GUARD = 87  # a worker whose start ran the caller's script into the executor again
+MAIN_GUARD_HINT = (
+    "the processes executor starts each worker by importing your script again, and the "
+    "script starts the work when imported: put the call under "
+    '`if __name__ == "__main__":` (or use executor="local")'
+)
+TEST_SIGKILL_TASK = "IMPACTLAB_TEST_SIGKILL_TASK"
+"""For tests only: the worker given the task of this index kills itself (SIGKILL)."""
+
+
+def importing_main() -> bool:
+    """Whether this process is a spawned child still importing its parent's main module (a
+    script without the `__main__` guard reaching the executor again; multiprocessing's own
+    check, `spawn._check_not_importing_main`, reads the same flag)."""
+    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
+
+
+def die_with_parent(parent: int) -> None:
+    """Have the kernel send this process SIGTERM when its parent dies (Linux), and stop now
+    if the parent is already gone."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != parent:  # it died before the request took effect
+        raise SystemExit(EXIT_TERMINATED)
+
+
+def _unwind(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def serve(conn: Connection, parent: int) -> None:
+    """A worker's life: take (index, pickled (fn, item)) from `conn`, say it started, run it,
+    send the outcome back; until the pipe closes or None arrives."""
+    try:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
+        signal.signal(signal.SIGTERM, _unwind)
+        die_with_parent(parent)
+        conn.send((READY, os.getpid()))
+        while (task := _receive(conn)) is not None:
+            index, payload = task
+            conn.send((STARTED, index))
+            if os.environ.get(TEST_SIGKILL_TASK) == str(index):
+                os.kill(os.getpid(), signal.SIGKILL)
+            conn.send_bytes(_run(index, payload))
+    except (KeyboardInterrupt, ConnectionError):  # SIGTERM, or the parent is gone
+        raise SystemExit(EXIT_TERMINATED) from None
+
+
+def _receive(conn: Connection) -> tuple[int, bytes] | None:
+    try:
+        return conn.recv()
+    except EOFError:  # the parent closed the pipe (or died)
+        return None
+
+
+def _run(index: int, payload: bytes) -> bytes:
+    """(index, value, error, wall time) of the task, pickled: a function or item that cannot
+    be unpickled here, or a value that cannot be pickled, is the task's failure."""
+    start = time.perf_counter()
+    try:
+        fn, item = ForkingPickler.loads(payload)
+        value = fn(item)
+        return ForkingPickler.dumps((index, value, None, time.perf_counter() - start))
+    except Exception as exc:  # one failed item never stops the others
+        return ForkingPickler.dumps((index, None, describe_error(exc), time.perf_counter() - start))
+
+
+def death(exitcode: int | None) -> str:
+    """Why a worker process ended, for its task's failure: "worker process died (signal
+    SIGKILL)"."""
+    if exitcode is not None and exitcode < 0:
+        try:
+            how = f"signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            how = f"signal {-exitcode}"
+    else:
+        how = f"exit code {exitcode}"
+    return f"worker process died ({how})"
