@@ -13,7 +13,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import load_log
 
 K = 1.0e5

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from test_analyze_bounces import schwager_poeschel
 
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import load_log
 from impactlab.physics import collision_after
 

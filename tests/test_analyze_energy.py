@@ -9,8 +9,8 @@ import polars as pl
 import pytest
 from test_analyze_bounces import DROP_SPEC, DT, RADIUS, Z0, G
 
-from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.energy import body_energy
+from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.measure.energy import body_energy
 from impactlab.logs.load import BodyInfo, load_log
 
 

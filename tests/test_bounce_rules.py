@@ -14,8 +14,8 @@ import pytest
 from test_analyze_bounces import DROP_SPEC, G
 
 import impactlab
-from impactlab.analyze import answers
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.report import answers
 from impactlab.cli import main
 from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log

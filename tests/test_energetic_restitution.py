@@ -14,8 +14,8 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.bounces import E_ABOVE_ONE
+from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.measure.bounces import E_ABOVE_ONE
 from impactlab.cli import main
 from impactlab.logs.load import load_log
 

@@ -1,4 +1,4 @@
-"""Figures are drawn again only when what they show changed (`impactlab.analyze.figure_cache`):
+"""Figures are drawn again only when what they show changed (`impactlab.analyze.report.figure_cache`):
 a second analysis of the same logs into the same folder copies every figure, a changed
 input, a changed figure code or a foreign PNG of the same name is drawn."""
 
@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from impactlab.analyze import figure_cache
-from impactlab.analyze import figures as drawing
 from impactlab.analyze.job import run_analysis
+from impactlab.analyze.report import figure_cache
+from impactlab.analyze.report import figures as drawing
 
 GOLDEN = Path(__file__).parent / "golden" / "logs"
 DRAWERS = (

@@ -31,7 +31,7 @@ from markdown_it import MarkdownIt
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from impactlab.analyze import html as page_html
+from impactlab.analyze.report import html as page_html
 from impactlab.logs import format as logformat
 
 TITLE = "Impact lab: analysis report"
@@ -282,7 +282,7 @@ def test_only_figures_inside_the_folder_are_embedded(tmp_path):
     )
     (tmp_path / "report.md").write_text(markdown)
     code = (
-        "import sys, pathlib; from impactlab.analyze import html as page\n"
+        "import sys, pathlib; from impactlab.analyze.report import html as page\n"
         "page.MAX_FIGURE_BYTES = 100\n"
         "text = pathlib.Path(sys.argv[1]).read_text()\n"
         "pathlib.Path(sys.argv[3]).write_text(page.report_html(text, pathlib.Path(sys.argv[2])))"

@@ -186,6 +186,29 @@ def test_only_the_command_line_imports_the_top_package():
     assert back == []
 
 
+ANALYZE_LAYERS = ("measure", "tables", "report")
+"""The analysis' layers in the data's order: each imports only the layers before it, and none
+imports the job modules at the package's top (job, batch, write, publish, view)."""
+
+
+@pytest.mark.parametrize("layer", ANALYZE_LAYERS)
+def test_analyze_layers_import_only_the_layers_before_them(layer: str):
+    mine = f"impactlab.analyze.{layer}"
+    allowed = {f"impactlab.analyze.{x}" for x in ANALYZE_LAYERS[: ANALYZE_LAYERS.index(layer) + 1]}
+    bad = []
+    for module, imported in GRAPH.items():
+        if module != mine and not module.startswith(mine + "."):
+            continue
+        for m in imported:
+            if not m.startswith("impactlab.analyze"):
+                continue
+            if m == "impactlab.analyze" or not any(
+                m == a or m.startswith(a + ".") for a in allowed
+            ):
+                bad.append(f"{module} -> {m}")
+    assert not bad, bad
+
+
 def test_base_modules_import_no_stage():
     for base in BASE:
         name = f"impactlab.{base}"

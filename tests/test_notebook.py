@@ -17,7 +17,7 @@ import rerun as rr
 from nbclient import NotebookClient
 
 import impactlab
-from impactlab.analyze.tables import AnalysisResult
+from impactlab.analyze.tables.combine import AnalysisResult
 from impactlab.progress import ConsoleProgress, ProgressEvent, in_notebook, reporter
 from impactlab.replay.notebook import NotebookReplay, Recordings
 

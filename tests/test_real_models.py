@@ -17,8 +17,8 @@ import numpy as np
 import polars as pl
 import pytest
 
-from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.bounces import E_ABOVE_ONE
+from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.measure.bounces import E_ABOVE_ONE
 from impactlab.cli import main
 from impactlab.logs.load import RunLog, load_log
 

@@ -23,7 +23,7 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.errors import LogError
 from impactlab.logs.info import describe

@@ -21,7 +21,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.errors import LogError
 from impactlab.logs import format as logformat

@@ -126,7 +126,7 @@ def test_the_manifest_never_names_a_file_outside_the_folder(tmp_path, capsys, lo
 
 ZYGOTE = """
 import json, os, signal, sys, time
-import impactlab.analyze.job, impactlab.analyze.figures, impactlab.analyze.run_figures
+import impactlab.analyze.job, impactlab.analyze.report.figures, impactlab.analyze.report.run_figures
 from impactlab.cli import main
 for line in sys.stdin:
     request = json.loads(line)

@@ -18,7 +18,7 @@ import pytest
 import rerun as rr
 
 from impactlab import cli
-from impactlab.analyze.analysis import analyze_run
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import RunLog, load_log
 from impactlab.record import plan, record_runs
 from impactlab.replay import recordings

@@ -8,7 +8,7 @@ import re
 import pytest
 
 from impactlab.analyze.job import run_analysis
-from impactlab.analyze.labels import parameter_words
+from impactlab.analyze.tables.labels import parameter_words
 
 DROP = """
 name = "swept_drop"
@@ -141,7 +141,7 @@ def test_every_figure_has_labelled_axes_with_units(record_spec, tmp_path, monkey
     """Axis labels read back from the figure objects as they are saved: each says what it
     shows and in which unit (or that it is a ratio such as e); study-drop's x axis is the drop
     height in m, not a spec path."""
-    import impactlab.analyze.figures as figures
+    import impactlab.analyze.report.figures as figures
 
     seen: dict[str, list[tuple[str, str]]] = {}
     save = figures.save_figure

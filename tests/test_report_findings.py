@@ -16,11 +16,16 @@ from pathlib import Path
 import polars as pl
 import pytest
 
-from impactlab.analyze import answers
-from impactlab.analyze import findings as F
-from impactlab.analyze.handout import as_written_section
-from impactlab.analyze.headline import collision_line, energy_line, restitution_line, study_line
-from impactlab.analyze.report import build_report
+from impactlab.analyze.report import answers
+from impactlab.analyze.report import findings as F
+from impactlab.analyze.report.handout import as_written_section
+from impactlab.analyze.report.headline import (
+    collision_line,
+    energy_line,
+    restitution_line,
+    study_line,
+)
+from impactlab.analyze.report.markdown import build_report
 from impactlab.cli import main
 
 G, M, DT = 9.81, 1.0, 0.001

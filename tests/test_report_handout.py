@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import polars as pl
 
-from impactlab.analyze.handout import as_written_section
-from impactlab.analyze.headline import rest_line
+from impactlab.analyze.report.handout import as_written_section
+from impactlab.analyze.report.headline import rest_line
 
 RUNS = pl.DataFrame(
     {
@@ -67,7 +67,7 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
 
 
 def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
-    from impactlab.analyze.run_figures import contact_words, sweep_words
+    from impactlab.analyze.report.run_figures import contact_words, sweep_words
 
     assert contact_words({"restitution": 0.8, "solref": [0.02, 1.0]}) == "restitution = 0.8"
     raw = {"restitution": None, "solref": [0.02, 1.0], "solimp": [0.9, 0.95, 0.001]}
@@ -81,7 +81,7 @@ def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
 
 
 def test_restitution_figure_draws_each_experiments_target(monkeypatch, tmp_path):
-    from impactlab.analyze import figures
+    from impactlab.analyze.report import figures
 
     seen = []
     monkeypatch.setattr(figures, "save_figure", lambda fig, path: seen.append(fig) or path)

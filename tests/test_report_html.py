@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from matplotlib import image
 
-from impactlab.analyze.html import CSP, report_html
 from impactlab.analyze.job import run_analysis
+from impactlab.analyze.report.html import CSP, report_html
 
 GOLDEN = Path(__file__).parent / "golden" / "logs"
 CHECK = """<script>

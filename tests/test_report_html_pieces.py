@@ -11,7 +11,7 @@ import pytest
 from markdown_it import MarkdownIt
 from mdit_py_plugins.anchors import anchors_plugin
 
-from impactlab.analyze import html as page
+from impactlab.analyze.report import html as page
 from impactlab.text import md_text
 
 

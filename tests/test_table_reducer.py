@@ -9,10 +9,10 @@ import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze import tables as tables_module
-from impactlab.analyze.analysis import analyze_run
-from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN, decimate
-from impactlab.analyze.tables import TableReducer
+from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.tables import combine as tables_module
+from impactlab.analyze.tables.combine import TableReducer
+from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN, decimate
 from impactlab.logs.load import load_log
 
 GOLDEN = Path(__file__).resolve().parent / "golden" / "logs"

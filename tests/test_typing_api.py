@@ -85,7 +85,7 @@ def test_mistakes_are_type_errors(mypy_output):
     assert 'bad.py:5: error: Unexpected keyword argument "figurez" for "analyze"' in errors
     assert 'bad.py:6: error: Unexpected keyword argument "overides" for "record"' in errors
     assert 'bad.py:7: error: Module has no attribute "recrod"' in errors
-    assert 'bad.py:8: error: Argument "out" to "replay" has incompatible type' in errors
+    assert 'bad.py:8: error: No overload variant of "replay" matches argument types' in errors
     assert len(mypy_output["bad.py"]) == 4
 
 

@@ -22,12 +22,12 @@ from typing import TYPE_CHECKING
 from impactlab.packages import callable_package, lazy_exports
 
 if TYPE_CHECKING:
-    from impactlab.analyze.analysis import RunAnalysis as RunAnalysis
-    from impactlab.analyze.analysis import analyze_run as analyze_run
-    from impactlab.analyze.analysis import analyze_runs as analyze_runs
-    from impactlab.analyze.html import write_report_html as write_report_html
     from impactlab.analyze.job import run_analysis as run_analysis
-    from impactlab.analyze.tables import AnalysisResult as AnalysisResult
+    from impactlab.analyze.measure.analysis import RunAnalysis as RunAnalysis
+    from impactlab.analyze.measure.analysis import analyze_run as analyze_run
+    from impactlab.analyze.measure.analysis import analyze_runs as analyze_runs
+    from impactlab.analyze.report.html import write_report_html as write_report_html
+    from impactlab.analyze.tables.combine import AnalysisResult as AnalysisResult
     from impactlab.executors.base import Executor
     from impactlab.progress import Progress
 
@@ -35,12 +35,12 @@ if not TYPE_CHECKING:  # a type checker sees the imports above
     __getattr__ = lazy_exports(
         __name__,
         {
-            "AnalysisResult": "impactlab.analyze.tables",
-            "RunAnalysis": "impactlab.analyze.analysis",
-            "analyze_run": "impactlab.analyze.analysis",
-            "analyze_runs": "impactlab.analyze.analysis",
+            "AnalysisResult": "impactlab.analyze.tables.combine",
+            "RunAnalysis": "impactlab.analyze.measure.analysis",
+            "analyze_run": "impactlab.analyze.measure.analysis",
+            "analyze_runs": "impactlab.analyze.measure.analysis",
             "run_analysis": "impactlab.analyze.job",
-            "write_report_html": "impactlab.analyze.html",
+            "write_report_html": "impactlab.analyze.report.html",
         },
     )
 

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis, analyze_runs
-from impactlab.analyze.outputs import with_decimated_energy
-from impactlab.analyze.run_figures import run_figures
-from impactlab.analyze.tables import TableReducer
+from impactlab.analyze.measure.analysis import RunAnalysis, analyze_runs
+from impactlab.analyze.report.run_figures import run_figures
+from impactlab.analyze.tables.combine import TableReducer
+from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.errors import LogError
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.logs.load import RunLog, load_log

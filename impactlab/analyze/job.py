@@ -13,7 +13,7 @@ from pathlib import Path
 
 from impactlab.analyze.batch import analyze_logs
 from impactlab.analyze.publish import publish, staged
-from impactlab.analyze.tables import AnalysisResult, TableReducer
+from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
 from impactlab.analyze.write import write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable

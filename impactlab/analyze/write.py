@@ -8,14 +8,14 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze import answers
-from impactlab.analyze.analysis import RunAnalysis
-from impactlab.analyze.html import write_report_html
-from impactlab.analyze.outputs import ENERGY_ROWS_PER_RUN
-from impactlab.analyze.report import build_report
-from impactlab.analyze.run_figures import run_label
-from impactlab.analyze.studies import study_parameters
-from impactlab.analyze.tables import AnalysisResult
+from impactlab.analyze.measure.analysis import RunAnalysis
+from impactlab.analyze.report import answers
+from impactlab.analyze.report.html import write_report_html
+from impactlab.analyze.report.markdown import build_report
+from impactlab.analyze.report.run_figures import run_label
+from impactlab.analyze.tables.combine import AnalysisResult
+from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
+from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
 from impactlab.files import write_json, write_parquet, write_text
 from impactlab.text import file_part
@@ -119,8 +119,8 @@ def summary_figures(
     """Draw the figures over many runs (bounce decay, restitution, studies), by kind; those
     whose inputs did not change are copied from `previous`, the others drawn in the
     executor's workers when it has some (`figure_cache.draw_all`)."""
-    from impactlab.analyze import figures
-    from impactlab.analyze.figure_cache import draw_all, figure_key
+    from impactlab.analyze.report import figures
+    from impactlab.analyze.report.figure_cache import draw_all, figure_key
 
     jobs: list[tuple[str, Path, str, Callable[[], Path]]] = []  # kind, path, key, draw
 

@@ -13,7 +13,7 @@ time discretisation with a table per integrator (``restitution_table*.json``) co
 an exact numpy emulation of ``mj_step`` for this contact (the tests check it against MuJoCo).
 
 Without gravity e does not depend on the impact speed. With gravity (a ball on a fixed surface)
-the e measured surface to surface (as ``impactlab.analyze.bounces`` does) is lower than the
+the e measured surface to surface (as ``impactlab.analyze.measure.bounces`` does) is lower than the
 zero-gravity e by about ``2 zeta g / (w0 v)``: after the force lets go the ball is still inside
 the floor and gravity slows it on the way out. Over a range of impact speeds [v_lo, v_hi] that
 shift changes by ``2 zeta g / w0 (1 / v_lo - 1 / v_hi)``. The designer centres it across the

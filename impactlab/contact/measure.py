@@ -18,7 +18,7 @@ from impactlab.contact.params import ContactParams
 class ImpactMeasurement:
     """One impact measured in MuJoCo (normal components; ball 1 moves towards ball 2 / floor).
 
-    Measured surface to surface, as the analysis stage does (``impactlab.analyze.bounces``).
+    Measured surface to surface, as the analysis stage does (``impactlab.analyze.measure.bounces``).
 
     Attributes:
         restitution: -(relative normal velocity after) / (relative normal velocity before).

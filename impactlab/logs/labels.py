@@ -1,6 +1,6 @@
 """A run's sweep point in words and units, one scheme for every stage that labels runs.
 
-The report's tables and figures (`impactlab.analyze.labels`, `run_figures`) and the replay's
+The report's tables and figures (`impactlab.analyze.tables.labels`, `run_figures`) and the replay's
 series names (`impactlab.replay.recordings`) all read "ball released at z = 3 m", never a
 hash or the spec's dotted keys.
 """

@@ -16,13 +16,37 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal, overload
 
 from impactlab.packages import callable_package
 
 if TYPE_CHECKING:
     from impactlab.progress import Progress
     from impactlab.replay.notebook import NotebookReplay
+
+
+@overload
+def replay(
+    logs: str | Path | Sequence[str | Path],
+    *,
+    out: str | Path | None = None,
+    analysis: str | Path | None = None,
+    progress: Progress | None = None,
+    verbose: bool = False,
+    notebook: Literal[False] = False,
+) -> list[Path]: ...
+
+
+@overload
+def replay(
+    logs: str | Path | Sequence[str | Path],
+    *,
+    out: None = None,
+    analysis: str | Path | None = None,
+    progress: Progress | None = None,
+    verbose: bool = False,
+    notebook: Literal[True],
+) -> NotebookReplay: ...
 
 
 def replay(

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from impactlab.analyze.studies import study_parameters, with_parameters
+from impactlab.analyze.tables.studies import study_parameters, with_parameters
 from impactlab.logs.labels import parameter_words
 
 

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis
-from impactlab.analyze.outputs import with_decimated_energy
-from impactlab.analyze.studies import studies, with_parameters
+from impactlab.analyze.measure.analysis import RunAnalysis
+from impactlab.analyze.tables.decimate import with_decimated_energy
+from impactlab.analyze.tables.studies import studies, with_parameters
 
 
 @dataclass
@@ -46,13 +46,13 @@ class AnalysisResult:
         return 1 if self.failed else 0
 
     def __repr__(self) -> str:
-        from impactlab.analyze.view import analysis_repr
+        from impactlab.analyze.tables.view import analysis_repr
 
         return analysis_repr(self)
 
     def _repr_html_(self) -> str:
-        """A small table for notebooks: one row per run (`impactlab.analyze.view`)."""
-        from impactlab.analyze.view import analysis_html
+        """A small table for notebooks: one row per run (`impactlab.analyze.tables.view`)."""
+        from impactlab.analyze.tables.view import analysis_html
 
         return analysis_html(self)
 

@@ -9,7 +9,7 @@ bodies, from `body` to `other`, as logged). Rows are numbered over the run's log
 the same way. A raw interval reaching the last row is `open`.
 
 Raw intervals separated by no visible flight are merged into one contact
-(`impactlab.analyze.impacts.merge_chatter`).
+(`impactlab.analyze.measure.impacts.merge_chatter`).
 """
 
 from __future__ import annotations

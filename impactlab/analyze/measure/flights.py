@@ -4,7 +4,7 @@ Flight j of a body is the run of logged rows after its j-th contact with any gro
 (flight 0: before the first) and before the next. Its apex is the logged row where the
 centre of mass is highest along -gravity, refined ballistically: the height above a surface
 at the true apex is c + w^2 / (2 g), c the clearance at that row and w = v_up - g h its
-velocity along -gravity (h as in `impactlab.analyze.impacts`), unless the flight begins
+velocity along -gravity (h as in `impactlab.analyze.measure.impacts`), unless the flight begins
 descending (a release at rest: the apex is its first row). It is measured above the
 surface the body left (`apex_after_m`) and the one it lands on next (`apex_before_m`).
 
@@ -21,9 +21,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.contacts import state_blocks
-from impactlab.analyze.ground import Ground
-from impactlab.analyze.impacts import RK4
+from impactlab.analyze.measure.contacts import state_blocks
+from impactlab.analyze.measure.ground import Ground
+from impactlab.analyze.measure.impacts import RK4
 from impactlab.logs.load import RunLog
 
 APEX_TURN_FRACTION = 1e-3
@@ -109,7 +109,7 @@ def flight_rows(
 ) -> pl.DataFrame | None:
     """The logged rows of each body of each run outside its ground contacts, by run, body
     and row: (run_id, body, flight, row, t_s, z_up (centre height along -gravity), w
-    (velocity along -gravity minus g h, h as in `impactlab.analyze.impacts`),
+    (velocity along -gravity minus g h, h as in `impactlab.analyze.measure.impacts`),
     surface_before, c_before, surface_after, c_after (the surfaces around the flight and the
     clearances to them), g (|gravity|)); None when there are none.
 

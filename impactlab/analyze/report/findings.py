@@ -15,6 +15,7 @@ from typing import Any
 
 import polars as pl
 
+from impactlab.physics import SEMI_IMPLICIT  # MuJoCo's semi-implicit integrators
 from impactlab.text import md_text
 
 MOMENTUM_CONSERVED_REL = 1e-6
@@ -35,12 +36,6 @@ the swept parameter."""
 APPROACH_FRACTION = 0.1
 """A sweep approaches the elastic answer when its closest v1' is within this fraction of
 |v1'_elastic|."""
-
-SEMI_IMPLICIT = ("Euler", "implicit", "implicitfast")
-"""MuJoCo's integrators that advance positions with the velocity after the step: in a free
-flight under gravity g each step loses m g^2 dt^2 / 2, so a flight of T seconds loses
-m g^2 dt T / 2 (checked with MuJoCo: all three give the same energy to 1e-15). RK4 follows
-the parabola exactly and has no such drift."""
 
 DRIFT_FACTOR = 2.0
 """A flight's energy drift is explained by the integrator when it has the predicted sign and

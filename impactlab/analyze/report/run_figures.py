@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.logs.labels import sweep_words
 from impactlab.text import file_part
 
@@ -66,7 +66,7 @@ def run_figures(
     made: list[tuple[str, Path]] = []
     if not draws_own_figures(*a.run.sweep_point):
         return made
-    from impactlab.analyze.figure_cache import drawn, figure_key
+    from impactlab.analyze.report.figure_cache import drawn, figure_key
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
     title = run_title(a)
@@ -108,6 +108,6 @@ def run_figures(
 def _draw(name: str, *args, **kwargs) -> Path:
     """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
     copied unchanged from the last analysis needs none)."""
-    from impactlab.analyze import figures
+    from impactlab.analyze.report import figures
 
     return getattr(figures, name)(*args, **kwargs)

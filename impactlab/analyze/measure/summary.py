@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.findings import SEMI_IMPLICIT
 from impactlab.logs.load import RunLog
+from impactlab.physics import SEMI_IMPLICIT
 
 EMPTY_ENERGY = {"e0": None, "e1": None, "mujoco_diff_max": None}
 EMPTY_PHASES = {

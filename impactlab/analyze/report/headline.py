@@ -10,7 +10,7 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.analyze import findings as F
+from impactlab.analyze.report import findings as F
 from impactlab.text import file_part, md_code, md_link, md_text
 
 RUBRIC = (

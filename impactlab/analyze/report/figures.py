@@ -11,7 +11,7 @@ import matplotlib.ticker
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.bounces import TURNING
+from impactlab.analyze.measure.bounces import TURNING
 from impactlab.plotting import plt, save_figure
 
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled

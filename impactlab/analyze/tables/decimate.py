@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.analysis import RunAnalysis
+from impactlab.analyze.measure.analysis import RunAnalysis
 
 ENERGY_ROWS_PER_RUN = 4000
 """The energy table keeps at most about this many rows per body and run (every k-th step)."""

@@ -1,6 +1,6 @@
 """Impact and release speeds at the contact point, exact across logging gaps; chatter merged.
 
-For each raw contact interval (`impactlab.analyze.contacts`):
+For each raw contact interval (`impactlab.analyze.measure.contacts`):
 
 - **The contact point** is a point of the body: the body's deepest point where it touches
   at the first row in contact (for the impact) and at the last (for the release: the mean
@@ -40,9 +40,9 @@ from dataclasses import dataclass
 import numpy as np
 import polars as pl
 
-from impactlab.analyze import kinematics as k
-from impactlab.analyze.contacts import PAIR, logged_interval_s
-from impactlab.analyze.ground import Ground
+from impactlab.analyze.measure import kinematics as k
+from impactlab.analyze.measure.contacts import PAIR, logged_interval_s
+from impactlab.analyze.measure.ground import Ground
 from impactlab.logs.load import RunLog
 
 RK4 = "RK4"

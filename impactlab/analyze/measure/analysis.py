@@ -9,14 +9,14 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.bounces import bounces, no_bounce_rows
-from impactlab.analyze.collisions import (
+from impactlab.analyze.measure.bounces import bounces, no_bounce_rows
+from impactlab.analyze.measure.collisions import (
     COLLISION_SCHEMA,
     collisions,
     no_collision_rows,
     with_surroundings,
 )
-from impactlab.analyze.contacts import (
+from impactlab.analyze.measure.contacts import (
     contact_rows,
     logged_interval_s,
     per_run,
@@ -24,12 +24,12 @@ from impactlab.analyze.contacts import (
     state_blocks,
     states_long,
 )
-from impactlab.analyze.energy import run_energies
-from impactlab.analyze.flights import flight_rows, flights
-from impactlab.analyze.ground import Ground, references, run_ground
-from impactlab.analyze.impacts import approach_and_release, merge_chatter
-from impactlab.analyze.phases import energy_phases
-from impactlab.analyze.summary import headlines, summary_row
+from impactlab.analyze.measure.energy import run_energies
+from impactlab.analyze.measure.flights import flight_rows, flights
+from impactlab.analyze.measure.ground import Ground, references, run_ground
+from impactlab.analyze.measure.impacts import approach_and_release, merge_chatter
+from impactlab.analyze.measure.phases import energy_phases
+from impactlab.analyze.measure.summary import headlines, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 

@@ -25,7 +25,11 @@ from impactlab.files import atomic_path
 
 KEY = "impactlab-figure-key"
 """The PNG text entry holding the figure's key."""
-CODE = ("impactlab.analyze.figures", "impactlab.analyze.run_figures", "impactlab.plotting")
+CODE = (
+    "impactlab.analyze.report.figures",
+    "impactlab.analyze.report.run_figures",
+    "impactlab.plotting",
+)
 """The modules whose source draws the figures (part of every key)."""
 
 

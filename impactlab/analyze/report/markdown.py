@@ -8,10 +8,10 @@ from typing import Any
 
 import polars as pl
 
-from impactlab.analyze import answers, findings
-from impactlab.analyze.handout import as_written_section
-from impactlab.analyze.headline import headline
-from impactlab.analyze.labels import run_labels, with_labels
+from impactlab.analyze.report import answers, findings
+from impactlab.analyze.report.handout import as_written_section
+from impactlab.analyze.report.headline import headline
+from impactlab.analyze.tables.labels import run_labels, with_labels
 from impactlab.text import md_code, md_link, md_text
 
 METHOD = """\

@@ -2,13 +2,13 @@
 the centre's velocity).
 
 A bounce is a contact of a body with a surface that is an impact (the body arrives faster
-than v_min, see `impactlab.analyze.impacts`) or is followed by a visible flight; contacts at
+than v_min, see `impactlab.analyze.measure.impacts`) or is followed by a visible flight; contacts at
 rest, sliding or rolling, chatter included, are one resting contact and no bounce. Bounce n
 (1-based) counts per body and surface. v_in < 0 and v_out > 0 are the normal velocities of
 the contact point at the moments the surfaces meet and part (ballistic extrapolation across
 logging gaps), e_velocity = -v_out / v_in. Heights are the body's clearance above the surface
 (its lowest point): apex_before_m is the apex of the flight that ends in this bounce,
-apex_m that of the flight after it (`impactlab.analyze.flights`), e_apex = sqrt(apex_m /
+apex_m that of the flight after it (`impactlab.analyze.measure.flights`), e_apex = sqrt(apex_m /
 apex_before_m), apex_predicted_m = v_out^2 / (2 g_n) with g_n gravity along the normal.
 Quantities a bounce does not define are left empty and the `note` says why.
 
@@ -96,7 +96,7 @@ def bounces(
         work: the runs' `RunLog.contact_work` (none: e_energy is empty).
         contacts: the merged ground contacts (`merge_chatter` of kind "ground"), with the
             per-body contact index `contact` (0-based, over every surface).
-        flights: `impactlab.analyze.flights.flights` of the run.
+        flights: `impactlab.analyze.measure.flights.flights` of the run.
         gravity_n: gravity along the release normal towards the surface (m/s^2), an
             expression over `contacts`.
 

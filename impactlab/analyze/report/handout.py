@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from impactlab.analyze import findings as F
+from impactlab.analyze.report import findings as F
 from impactlab.text import md_text
 
 PAIRS = (

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from impactlab.analyze import findings as F
+from impactlab.analyze.report import findings as F
 from impactlab.text import md_code, md_text
 
 E_CONSTANT_SPREAD = F.E_CONSTANT_SPREAD
