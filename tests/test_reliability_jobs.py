@@ -86,7 +86,7 @@ def test_unstable_run_in_a_sweep(tmp_path, capsys):
     (bad,) = [name for name, o in outcomes.items() if o["outcome"] == "unstable"]
     assert "solref=0.02_0.003" in bad
     assert "energy grew" in outcomes[bad]["reason"]
-    assert f"warning: {Path(bad).stem}: unstable: energy grew" in stdout
+    assert f"warning: {Path(bad).stem}: unstable: MuJoCo's energy grew" in stdout
     for name, o in outcomes.items():
         if name != bad:
             assert o["outcome"] == "completed" and o["reason"] == "time limit 1 s"
