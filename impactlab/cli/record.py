@@ -26,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=[],
         metavar="PATH=VALUE",
         help="override a spec field, e.g. --set ball.mass=2, or an MJCF model's run options "
-        "(stop.*, logging.*), e.g. --set logging.every=10 (repeatable; VALUE is TOML)",
+        "(stop.*, logging.*, keyframe), e.g. --set logging.every=10 or --set keyframe=home "
+        "(the model's keyframe the run starts from) (repeatable; VALUE is TOML)",
     )
     rec.add_argument(
         "--duration",
