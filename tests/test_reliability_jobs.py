@@ -22,6 +22,7 @@ from impactlab.cli import main
 from impactlab.logs import writer as writer_module
 from impactlab.logs.load import load_log
 from impactlab.record import plan, record_runs
+from impactlab.record import recorder as recorder_module
 from impactlab.record import simulate as simulate_module
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -240,17 +241,21 @@ def test_batching_does_not_change_the_logs(tmp_path):
 
 
 @pytest.mark.parametrize("where", ["parent is a file", "under /proc"])
-def test_unwritable_target_fails_before_simulating(tmp_path, capsys, where):
+def test_unwritable_target_fails_before_simulating(tmp_path, capsys, monkeypatch, where):
     spec = spec_file(tmp_path, "long", dt=0.0001, max_time=30.0)  # ~seconds of simulation
     blocker = tmp_path / "file.txt"
     blocker.write_text("not a folder")
     out = blocker / "logs" if where == "parent is a file" else Path("/proc/impactlab-test/logs")
-    start = time.perf_counter()
+
+    def forbidden(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated before checking the output folder")
+
+    for name in ("record_forked", "record_batches", "record_on"):  # every way to simulate
+        monkeypatch.setattr(recorder_module, name, forbidden)
+    monkeypatch.setattr(simulate_module, "simulate", forbidden)
     code = main(["record", str(spec), "-o", str(out)])
-    elapsed = time.perf_counter() - start
     err = capsys.readouterr().err
     assert code == 2
-    assert elapsed < 1.0
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"impactlab: error: {out}: cannot write")
     assert not out.exists()
