@@ -19,7 +19,7 @@ from impactlab.analyze import batch as batch_module
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
 from impactlab.analyze.measure import analysis as analysis_module
 from impactlab.analyze.measure.analysis import RunAnalysis, analyze_run, analyze_runs
-from impactlab.analyze.measure.contacts import with_rows
+from impactlab.analyze.measure.contact_intervals import with_rows
 from impactlab.analyze.tables import decimate as outputs
 from impactlab.errors import LogError
 from impactlab.logs.load import load_log
