@@ -164,6 +164,7 @@ separation = 0.01
 """
 
 
+@pytest.mark.slow
 def test_runs_of_every_kind_together(record_spec):
     """No ground and no contact, a ball resting from the start (no bounce, with the reason),
     a collision that never happens (its reason row), with bounces and collisions."""

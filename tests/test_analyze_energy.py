@@ -41,6 +41,7 @@ def drop(record_spec):
     return analyze_run(load_log(path))
 
 
+@pytest.mark.slow
 def test_resting_reference_and_initial_energy(drop):
     """Potential energy is zero at the contact height: E(0) = m g (z0 - r) + m v0^2 / 2."""
     total = drop.energy.filter(pl.col("body") == "total").sort("t_ns")

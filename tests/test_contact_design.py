@@ -69,6 +69,7 @@ def test_rk4_emulation_matches_mj_step():
     assert traj[-1, 1] > 0.0  # it bounced
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integrator", ["implicit", "implicitfast"])
 def test_implicit_integrators_step_this_contact_as_euler(integrator):
     """A free ball has no velocity-dependent passive or actuator force: MuJoCo's implicit
@@ -82,6 +83,7 @@ def test_implicit_integrators_step_this_contact_as_euler(integrator):
     assert C.INTEGRATORS == ("Euler", "implicit", "implicitfast", "RK4")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])
 def test_fast_evaluation_is_the_emulation(integrator):
     """The closed-form force phase gives the stepped emulation's numbers, grip and all."""
@@ -108,6 +110,7 @@ RANGE_CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("e", "r", "speeds", "integrator"), RANGE_CASES)
 def test_range_design_predicted_within_tolerance(e, r, speeds, integrator):
     """Over the range, every impact (64 step phases at 7 speeds, the step emulation) is
@@ -131,6 +134,7 @@ def test_range_design_predicted_within_tolerance(e, r, speeds, integrator):
     assert p.max_penetration_m <= 0.02 * r
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("e", "r", "speeds", "integrator"),
     [(0.3, 0.1, (0.5, 3.0), "Euler"), (0.7, 0.2, (0.5, 4.0), "RK4"), (0.9, 0.03, (1.0, 6.0), "implicit")],

@@ -71,6 +71,7 @@ def assert_complete(path: Path) -> None:
 # unstable physics
 
 
+@pytest.mark.slow
 def test_unstable_run_in_a_sweep(tmp_path, capsys):
     """The handout's positive solref with a tiny damping ratio pumps energy into the ball: that
     run stops as unstable, is named on the console, and the job exits 1; the others complete."""
@@ -156,6 +157,7 @@ SLOW_SWEEP = '[logging]\nevery = 10\n[sweep]\n"ball.mass" = [{}]'.format(
 )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=str)
 def test_interrupted_job(tmp_path, capsys, sig):
     """Kill a recording process once its first log is complete: every *.mcap left is complete
@@ -200,6 +202,7 @@ def test_interrupted_job(tmp_path, capsys, sig):
         assert_complete(log)
 
 
+@pytest.mark.slow
 def test_overwrite_reruns_everything(tmp_path, capsys):
     spec = spec_file(tmp_path, "again", max_time=0.2, extra='[sweep]\n"ball.mass" = [1.0, 2.0]')
     out = tmp_path / "logs"

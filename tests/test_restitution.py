@@ -64,6 +64,7 @@ def test_unreachable_targets_raise_with_floor(bad: object) -> None:
     assert issubclass(R.ContactModelError, ValueError)
 
 
+@pytest.mark.slow
 def test_table_is_up_to_date(capsys: pytest.CaptureFixture[str]) -> None:
     assert table.main(["--check"]) == 0
 
