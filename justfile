@@ -6,9 +6,13 @@ python := env_var_or_default("PYTHON", "python")
 lab out="lab-output":
     {{python}} -m impactlab lab -o {{out}}
 
-# Run the test suite (what CI runs).
+# Run the fast tier of the tests (everything not marked slow).
 test *args:
     {{python}} -m pytest {{args}}
+
+# Run both tiers, the whole suite (what CI runs).
+test-all *args:
+    {{python}} -m pytest -m "slow or not slow" {{args}}
 
 # Lint, format check and the public API's type check (mypy, [tool.mypy] in pyproject.toml).
 lint:

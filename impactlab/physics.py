@@ -1,6 +1,7 @@
 """Analytic formulas the measurements are compared against (numbers or polars expressions).
 
-See shared physics notes: free flight, apex heights and the 1D collision with restitution e.
+Free flight, apex heights and the 1D collision with restitution e; where the analysis uses
+them: docs/analysis.md (and docs/contact-model.md for the contact itself).
 """
 
 from __future__ import annotations

@@ -68,3 +68,23 @@ def collect_lines():
         return progress
 
     return make
+
+
+@pytest.fixture
+def count_calls(monkeypatch):
+    """`count_calls((module, name), ...)`: wrap each function so that its calls are counted in
+    the returned dict (by name); a test asserts work done as counts, never as seconds."""
+
+    def wrap(*targets: tuple[object, str]) -> dict[str, int]:
+        calls: dict[str, int] = {}
+        for module, name in targets:
+            original = getattr(module, name)
+
+            def counted(*args, _name=name, _original=original, **kwargs):
+                calls[_name] = calls.get(_name, 0) + 1
+                return _original(*args, **kwargs)
+
+            monkeypatch.setattr(module, name, counted)
+        return calls
+
+    return wrap

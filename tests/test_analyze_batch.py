@@ -19,7 +19,7 @@ from impactlab.analyze import batch as batch_module
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
 from impactlab.analyze.measure import analysis as analysis_module
 from impactlab.analyze.measure.analysis import RunAnalysis, analyze_run, analyze_runs
-from impactlab.analyze.measure.contacts import with_rows
+from impactlab.analyze.measure.contact_intervals import with_rows
 from impactlab.analyze.tables import decimate as outputs
 from impactlab.errors import LogError
 from impactlab.logs.load import load_log
@@ -164,6 +164,7 @@ separation = 0.01
 """
 
 
+@pytest.mark.slow
 def test_runs_of_every_kind_together(record_spec):
     """No ground and no contact, a ball resting from the start (no bounce, with the reason),
     a collision that never happens (its reason row), with bounces and collisions."""

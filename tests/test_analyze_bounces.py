@@ -65,6 +65,7 @@ def test_closed_form_value():
     assert schwager_poeschel(0.1) == pytest.approx(0.7441, abs=5e-5)
 
 
+@pytest.mark.slow
 def test_free_flight_matches_parabola(drop):
     """Before the first contact z(t) = z0 + v0 t - g t^2 / 2, up to semi-implicit Euler.
 

@@ -49,6 +49,7 @@ def hit(record_spec):
     return analyze_run(load_log(path))
 
 
+@pytest.mark.slow
 def test_momentum_conserved(hit):
     row = hit.collisions.row(0, named=True)
     assert row["complete"]

@@ -38,6 +38,7 @@ def _not_impactlab_mcap(path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_outputs_written(logs, tmp_path):
     out = tmp_path / "results"
     result = run_analysis([logs["drop"], logs["hit"], logs["miss"]], out)
@@ -64,6 +65,7 @@ def test_outputs_written(logs, tmp_path):
     assert "restitution-vs-speed.png" in pngs
 
 
+@pytest.mark.slow
 def test_bad_inputs(logs, tmp_path, capsys):
     """Not MCAP, truncated, no impactlab channels, missing: one line each; exit 1; rest analyzed."""
     bad = tmp_path / "bad"
@@ -112,6 +114,7 @@ def test_no_logs_found(tmp_path, capsys):
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.slow
 def test_analysis_does_not_import_mujoco(logs, tmp_path):
     code = (
         "import sys\n"
@@ -145,6 +148,7 @@ max_time = 0.5
 """
 
 
+@pytest.mark.slow
 def test_sweep_without_a_complete_bounce_still_reports(record_spec, tmp_path):
     """A drop sweep cut before any rebound: the report says so instead of failing."""
     logs = record_spec("early_stop", NO_BOUNCE_SWEEP)

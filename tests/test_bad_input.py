@@ -143,6 +143,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("case", "text", "args", "words"), CASES, ids=[c[0] for c in CASES])
 def test_bad_spec(tmp_path, capsys, case, text, args, words):
     spec = tmp_path / "spec.toml"

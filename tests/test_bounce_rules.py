@@ -52,6 +52,7 @@ def pairs(record_spec):
     return analyze_run(load_log(path))
 
 
+@pytest.mark.slow
 def test_each_ball_keeps_its_own_e(pairs):
     """Two balls side by side, per-pair targets 0.42 and 0.88: each ball's e is its own
     target (within 0.01 above 0.5 m/s, where the calibrated contact holds it) and never mixed."""
@@ -71,6 +72,7 @@ def test_each_ball_keeps_its_own_e(pairs):
     assert "2 body-surface pairs" in pairs.summary["note"]
 
 
+@pytest.mark.slow
 def test_chatter_at_rest_is_one_resting_contact(pairs):
     """Ball a comes to rest: its contact flickers on and off at micrometres per second; that is
     one resting contact (still open at the end), not dozens of bounces with e = -1."""
@@ -85,11 +87,13 @@ def test_chatter_at_rest_is_one_resting_contact(pairs):
     np.testing.assert_allclose(flights["apex_m"], flights["apex_predicted_m"], rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_no_collision_note_for_balls_that_were_not_meant_to_collide(pairs):
     assert pairs.collisions.is_empty()
     assert "collision" not in pairs.summary["note"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("extra", [(), ("ball.angvel=[3.0, 40.0, 7.0]", "contact.condim=3")])
 def test_e_does_not_depend_on_the_logging_rate(record_spec, extra):
     """The same toss logged every 1, 7 and 25 steps: the same e, impact speeds and apexes
@@ -153,6 +157,7 @@ def test_resting_rolling_and_sliding_balls_make_no_bounce(record_spec, v, w):
     assert a.summary["mujoco_diff_max_J"] < 1e-9
 
 
+@pytest.mark.slow
 def test_a_ball_at_rest_on_the_plane_is_analyzed_with_figures(tmp_path, capsys):
     """`free_fall.toml --set ball.pos=[0,0,0.1]`: analyze with figures and report, no traceback."""
     spec = Path(__file__).parents[1] / "experiments" / "free_fall.toml"

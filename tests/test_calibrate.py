@@ -98,6 +98,7 @@ def _row(table: pl.DataFrame, **where) -> dict:
     return rows.row(0, named=True)
 
 
+@pytest.mark.slow
 def test_grid_is_complete(table):
     counts = dict(table.group_by("kind").len().iter_rows())
     assert counts == {"plane": 16, "ball": 16, "lowspeed": 3}
@@ -106,6 +107,7 @@ def test_grid_is_complete(table):
     assert table["steps_per_contact"].min() > 15
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("e", "v", "m"), PLANE_CASES)
 def test_plane_restitution(table, e, v, m):
     r = _row(table, kind="plane", target=e, speed_mps=v, m1_kg=m)
@@ -114,6 +116,7 @@ def test_plane_restitution(table, e, v, m):
     assert abs(r["e_measured"] - e) <= E_TOL, r["note"]
 
 
+@pytest.mark.slow
 def test_plane_gravity_shift_is_compensated(table):
     """Gravity lowers the surface-to-surface e by about 2 zeta g / (w0 v), up to 4x the
     tolerance on this grid; the calibration compensates it at the design speed."""
@@ -125,6 +128,7 @@ def test_plane_gravity_shift_is_compensated(table):
     assert plane["error"].abs().max() <= E_TOL
 
 
+@pytest.mark.slow
 def test_plane_mass_independent(table):
     plane = table.filter(pl.col("kind") == "plane")
     spread = plane.group_by("target", "speed_mps").agg(
@@ -133,6 +137,7 @@ def test_plane_mass_independent(table):
     assert spread["d"].max() < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("e", "v", "m1", "m2"), BALL_CASES)
 def test_collision(table, e, v, m1, m2):
     r = _row(table, kind="ball", target=e, speed_mps=v, m1_kg=m1, m2_kg=m2)
@@ -147,6 +152,7 @@ def test_collision(table, e, v, m1, m2):
     assert r["penetration_frac"] <= PEN_FRAC
 
 
+@pytest.mark.slow
 def test_low_speed_gravity_dependence(table):
     """Below the design speed (a contact for one speed) e falls; the surface emulation
     predicts it to 0.002.
@@ -169,6 +175,7 @@ def test_low_speed_gravity_dependence(table):
     assert 0.46 < measured[0.3] < 0.49
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("speed", [0.3])
 def test_low_speed_release_velocity_is_not_what_is_measured(table, speed):
     """The velocity when the force lets go overestimates e: the ball still climbs out of the
@@ -178,6 +185,7 @@ def test_low_speed_release_velocity_is_not_what_is_measured(table, speed):
     assert r["e_pred_release"] - r["e_measured"] > 0.005
 
 
+@pytest.mark.slow
 def test_run_calibration_writes_everything(tmp_path):
     tiny = Grid(
         name="tiny",
@@ -234,6 +242,7 @@ def test_command_line_options():
         choose_grid(quick=True, speeds=[-1.0])
 
 
+@pytest.mark.slow
 def test_multi_bounce_every_bounce_in_range_meets_the_target(multi, recorded):
     """Every bounce whose impact speed is in its contact's speed range, from the logs."""
     points = recorded[0]
@@ -254,6 +263,7 @@ def test_multi_bounce_every_bounce_in_range_meets_the_target(multi, recorded):
     assert set(multi["integrator"]) == {"Euler", "RK4", "implicitfast"}
 
 
+@pytest.mark.slow
 def test_multi_bounce_default_range_covers_every_bounce_above_the_floor(multi, recorded):
     """The default range (from the stop rule's bounces, floored at 0.5 m/s) holds every
     logged bounce above 0.5 m/s."""
@@ -268,6 +278,7 @@ def test_multi_bounce_default_range_covers_every_bounce_above_the_floor(multi, r
     assert not rows.filter(pl.col("v_in_mps") < 0.49)["in_range"].any()
 
 
+@pytest.mark.slow
 def test_multi_bounce_below_the_range_is_predicted(multi):
     """Below the range gravity lowers e, and the designer's step emulation predicts it: the
     measurement lies in the predicted band, at the mean to a few 1e-3."""
@@ -289,6 +300,7 @@ def test_multi_bounce_grids_are_declared():
     assert integrators == {"Euler", "RK4", "implicitfast"}
 
 
+@pytest.mark.slow
 def test_calibrate_twice_into_one_folder(tmp_path):
     """`impactlab calibrate` run again into the same folder reuses the logs and writes the
     same report and tables (the quick grid cut to one target, speed and mass: 13 runs)."""

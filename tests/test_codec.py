@@ -57,6 +57,7 @@ def logs(tmp_path_factory) -> list[Path]:
     return [r.path for r in record_runs(runs, out)]
 
 
+@pytest.mark.slow
 def test_loader_equals_the_official_reader(logs):
     for path in logs:
         run = load_log(path)
@@ -105,6 +106,7 @@ def test_loader_reads_files_of_the_official_writer():
     assert run.partial  # no impactlab metadata
 
 
+@pytest.mark.slow
 def test_chunk_writer_output_passes_the_official_summary_checks(logs):
     for path in logs:
         with open(path, "rb") as stream:

@@ -72,6 +72,7 @@ def test_alone_prints_parameters_prediction_and_pair(capsys):
     assert doc["solref"][0] == -doc["stiffness"] and doc["integrator"] == "Euler"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])
 def test_snippet_in_plain_mujoco_holds_e_at_every_bounce(capsys, integrator):
     """The printed <pair>, pasted into a model, simulated by MuJoCo alone (the implicitfast
@@ -92,6 +93,7 @@ def test_snippet_in_plain_mujoco_holds_e_at_every_bounce(capsys, integrator):
     assert max(abs(e - 0.8) for _, e in in_range) <= 0.005, in_range
 
 
+@pytest.mark.slow
 def test_too_coarse_prints_the_best_and_the_timestep_needed(capsys):
     code, out, err = run_cli(capsys, *ALONE, "--timestep", "5e-4")
     assert code == 1 and not err
@@ -117,6 +119,7 @@ def write_ball(tmp_path: Path, *, dt: float = 1e-5, integrator: str = "implicitf
     return path
 
 
+@pytest.mark.slow
 def test_model_is_written_back_with_a_calibrated_pair_and_nothing_else(tmp_path, capsys):
     model = write_ball(tmp_path)
     out_path = tmp_path / "tuned.xml"

@@ -162,6 +162,7 @@ def test_bad_contact_fields_name_the_field(changes, field, words):
     assert field in str(info.value)
 
 
+@pytest.mark.slow
 def test_each_pair_holds_its_own_target_in_a_recording(tmp_path):
     """Two balls on one plane, one hit at 5.2 m/s: each pair is designed for its own speeds
     and table, and holds its e and penetration bound in the logs (every step logged)."""

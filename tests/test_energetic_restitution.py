@@ -51,6 +51,7 @@ def cube(tmp_path_factory) -> tuple[pl.DataFrame, pl.DataFrame]:
     return bounces(root, 1), bounces(root, 5)
 
 
+@pytest.mark.slow
 def test_a_turning_cube_leaves_faster_than_it_came_but_returns_less_energy(cube):
     rows, _ = cube
     fast = rows.filter(pl.col("e_velocity") > 1)

@@ -66,6 +66,7 @@ def test_an_explicit_folder_without_specs_says_where_they_are(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module", ["impactlab.golden", "impactlab.proto.generate"])
 def test_checkout_tools_fail_in_one_line_outside_a_checkout(module, tmp_path, monkeypatch, capsys):
     """Installed from a wheel there is no tests/golden/ or schemas/: one line, exit 2."""

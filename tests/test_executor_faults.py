@@ -27,6 +27,8 @@ from impactlab.executors.processes import ProcessExecutor
 from impactlab.executors.workers import TEST_SIGKILL_TASK
 from impactlab.logs.load import require_logs
 
+pytestmark = pytest.mark.slow  # workers and parents killed (SIGKILL)
+
 ROOT = Path(__file__).resolve().parents[1]
 SIGKILLED = "worker process died (signal SIGKILL)"
 SWEEP = """

@@ -10,11 +10,14 @@ import sys
 from pathlib import Path
 
 import polars as pl
+import pytest
 from polars.testing import assert_frame_equal
 
 from impactlab.analyze.job import run_analysis
 from impactlab.executors.choose import make_executor
 from impactlab.executors.processes import ProcessExecutor
+
+pytestmark = pytest.mark.slow  # spawned worker processes
 
 GOLDEN = Path(__file__).parent / "golden" / "logs"
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")

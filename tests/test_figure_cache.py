@@ -13,6 +13,8 @@ from impactlab.analyze.job import run_analysis
 from impactlab.analyze.report import figure_cache
 from impactlab.analyze.report import figures as drawing
 
+pytestmark = pytest.mark.slow  # figures drawn in worker processes
+
 GOLDEN = Path(__file__).parent / "golden" / "logs"
 DRAWERS = (
     "energy_figure",

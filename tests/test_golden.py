@@ -77,6 +77,7 @@ def test_golden_logs_exist_and_are_small():
     assert {p.name for p in LOGS_DIR.glob("*.mcap")} == {f"{g.name}.mcap" for g in GOLDENS}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("golden", GOLDENS, ids=IDS)
 def test_recording_reproduces_the_golden_log(golden: Golden, recorded):
     diff = compare_golden(golden.log_path, recorded[golden.name])
@@ -238,6 +239,7 @@ def test_a_changed_contact_parameter_fails_with_a_precise_message(tmp_path):
     assert "attachment model.xml: differs from line" in report
 
 
+@pytest.mark.slow
 def test_analysis_of_the_golden_logs_reproduces_the_golden_tables(tmp_path):
     from impactlab.golden import TABLE_ATOL, TABLE_RTOL, tables_match
 

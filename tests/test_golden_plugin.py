@@ -18,6 +18,8 @@ import impactlab.record.recorder  # imported here: pytester's in-process runs wo
 # numpy and MuJoCo's extension modules again and fail (they load once per process)
 from impactlab.testing.golden_physics import PhysicsTolerance, compare_physics
 
+pytestmark = pytest.mark.slow  # the golden plugin's pytest runs
+
 pytest_plugins = ["pytester"]
 
 ROOT = Path(__file__).resolve().parents[1]

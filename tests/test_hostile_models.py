@@ -140,6 +140,7 @@ def test_a_pair_given_twice_is_refused(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_line_ends_and_encoding_are_kept(tmp_path, capsys):
     text = '<?xml version="1.0" encoding="ISO-8859-1"?>\n<!-- café au lait -->\n'
     text += ONE.format(body="b")
@@ -288,6 +289,7 @@ NAMES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(NAMES))
 def test_generated_names_do_not_clash(case, tmp_path, capsys):
     from impactlab.logs.load import load_log
@@ -341,6 +343,7 @@ def test_a_body_named_like_the_plane_or_the_world_is_one_line(name, tmp_path, ca
     assert not (tmp_path / "logs").exists()
 
 
+@pytest.mark.slow
 def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
     import polars as pl
 
@@ -400,6 +403,7 @@ def test_diff_in_the_python_api(tmp_path, capsys):
 BOUND = re.compile(r"timestep <= ([0-9.e+-]+) s")
 
 
+@pytest.mark.slow
 def test_the_timestep_a_refusal_names_is_accepted_as_printed(tmp_path, capsys):
     args = ["contact", "--restitution", "0.3", "--radius", "0.12", "--speed", "0.5..6"]
     code, out, _ = cli(capsys, *args, "--timestep", "1e-5")

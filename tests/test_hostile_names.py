@@ -34,6 +34,8 @@ from mcap.writer import Writer
 from impactlab.analyze.report import html as page_html
 from impactlab.logs import format as logformat
 
+pytestmark = pytest.mark.slow  # headless Chromium, figures and Markdown of every hostile name
+
 TITLE = "Impact lab: analysis report"
 SCRIPT_BODY = "<img src=x onerror=\"document.title='PWNED'\">"
 SCRIPT_FLOOR = "<script>document.title='PWNED'</script>"

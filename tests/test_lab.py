@@ -7,9 +7,12 @@ import json
 from pathlib import Path
 
 import polars as pl
+import pytest
 from polars.testing import assert_frame_equal
 
 from impactlab.cli import main
+
+pytestmark = pytest.mark.slow  # the whole lab
 
 DROP = """
 name = "tiny_drop"

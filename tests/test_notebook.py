@@ -21,6 +21,8 @@ from impactlab.analyze.tables.combine import AnalysisResult
 from impactlab.progress import ConsoleProgress, ProgressEvent, in_notebook, reporter
 from impactlab.replay.notebook import NotebookReplay, Recordings
 
+pytestmark = pytest.mark.slow  # a Jupyter kernel
+
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK = ROOT / "examples" / "quickstart.ipynb"
 RERUN = Path(sys.executable).parent / "rerun"

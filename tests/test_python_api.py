@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 import impactlab
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -18,6 +20,7 @@ def _examples() -> list[str]:
     return re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
 
 
+@pytest.mark.slow
 def test_the_documented_example_runs(tmp_path):
     example, *others = _examples()
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
@@ -39,6 +42,7 @@ def test_the_documented_example_runs(tmp_path):
         assert out.returncode == 0, out.stderr
 
 
+@pytest.mark.slow
 def test_nothing_prints_unless_asked(tmp_path, capfd):
     spec = tmp_path / "drop.toml"
     shutil.copy(ROOT / "experiments" / "free_fall.toml", spec)

@@ -24,6 +24,8 @@ from impactlab.executors.choose import RAY_INSTALL_HINT
 from impactlab.record import plan, record_runs
 from impactlab.record.tasks import task_groups
 
+pytestmark = pytest.mark.slow  # a local Ray cluster
+
 # Four short drops; solref [2, 1] is so soft that the ball sinks through the floor (unstable).
 SPEC = """
 name = "raysweep"

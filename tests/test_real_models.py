@@ -22,6 +22,8 @@ from impactlab.analyze.measure.bounces import E_ABOVE_ONE
 from impactlab.cli import main
 from impactlab.logs.load import RunLog, load_log
 
+pytestmark = pytest.mark.slow  # real robot models (dm_control)
+
 ENERGY_RTOL = 1e-6  # of the largest |MuJoCo total| of the run, at every logged step
 
 

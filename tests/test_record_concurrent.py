@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from impactlab.logs.load import load_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,6 +30,7 @@ max_time = 1.5
 """
 
 
+@pytest.mark.slow
 def test_two_jobs_on_one_sweep_and_folder(tmp_path):
     spec = tmp_path / "race.toml"
     spec.write_text(SPEC)

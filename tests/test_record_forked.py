@@ -133,6 +133,7 @@ def test_with_another_thread_running_it_records_in_one_process(tmp_path, monkeyp
     assert [r.status for r in result] == ["recorded"] * 3
 
 
+@pytest.mark.slow
 def test_sigterm_stops_the_workers_and_leaves_nothing(tmp_path):
     """SIGTERM to `impactlab record` while two workers write long runs: exit 130 within
     seconds, no log, no temporary file, no worker left running."""

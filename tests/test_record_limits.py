@@ -56,6 +56,7 @@ def test_a_run_too_long_is_refused(tmp_path, capsys, overrides, words):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_a_million_run_sweep_is_refused_without_expanding_it(tmp_path):
     """A 1000 x 1000 sweep: refused at once (it used to plan for minutes, memory growing)."""
     values = ", ".join(f"{1 + i}" for i in range(1000))

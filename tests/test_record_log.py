@@ -63,6 +63,7 @@ def bouncy_log(tmp_path_factory) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_channels_schemas_and_counts(bouncy_log):
     summary, msgs, _, _, header = read_all(bouncy_log)
     topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
@@ -88,6 +89,7 @@ def test_channels_schemas_and_counts(bouncy_log):
     assert counts["/scene"] == 1
 
 
+@pytest.mark.slow
 def test_timestamps_are_sim_time_and_strictly_increasing(bouncy_log):
     _, msgs, meta, _, _ = read_all(bouncy_log)
     for topic in ("/bodies/ball/state", "/energy", "/tf", "/contacts/plane/ball"):
@@ -100,6 +102,7 @@ def test_timestamps_are_sim_time_and_strictly_increasing(bouncy_log):
     assert state_times[-1] == (steps - 1) * 100_000
 
 
+@pytest.mark.slow
 def test_metadata_and_attachment_reproduce_the_run(bouncy_log):
     _, msgs, meta, attachments, _ = read_all(bouncy_log)
     run = meta[logformat.RUN_METADATA]
@@ -124,6 +127,7 @@ def test_metadata_and_attachment_reproduce_the_run(bouncy_log):
     assert states[4000].vz > 0  # past the first bounce
 
 
+@pytest.mark.slow
 def test_bounce_stop_ends_at_the_apex_after_the_last_bounce(bouncy_log):
     _, msgs, meta, _, _ = read_all(bouncy_log)
     assert meta[logformat.OUTCOME_METADATA]["reason"] == "apex after bounce 2"
@@ -135,6 +139,7 @@ def test_bounce_stop_ends_at_the_apex_after_the_last_bounce(bouncy_log):
     assert z[-1] - 0.1 == pytest.approx(e**4 * 0.5, rel=0.03)
 
 
+@pytest.mark.slow
 def test_contact_messages_carry_force_and_geometry(bouncy_log):
     _, msgs, _, _, _ = read_all(bouncy_log)
     contacts = [m for tp, _, m in msgs if tp == "/contacts/plane/ball"]
@@ -158,6 +163,7 @@ def test_contact_messages_carry_force_and_geometry(bouncy_log):
     assert max(c.points[0].penetration for c in contacts) > 0
 
 
+@pytest.mark.slow
 def test_free_flight_follows_the_parabola(bouncy_log):
     _, msgs, _, _, _ = read_all(bouncy_log)
     states = [(t / 1e9, m) for tp, t, m in msgs if tp == "/bodies/ball/state"]
@@ -178,6 +184,7 @@ def test_at_rest_stop(tmp_path):
     assert all(np.linalg.norm([m.vx, m.vy, m.vz]) < 1e-3 for m in last)
 
 
+@pytest.mark.slow
 def test_collision_stops_when_separated(tmp_path):
     (path,) = record_text(tmp_path, (EXPERIMENTS / "collision.toml").read_text())
     _, msgs, meta, _, _ = read_all(path)
@@ -191,6 +198,7 @@ def test_collision_stops_when_separated(tmp_path):
     assert b1[-1].vx + b2[-1].vx == pytest.approx(p0, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_handout_step3_as_written_warns(tmp_path, capsys):
     spec = EXPERIMENTS / "collision.toml"
     code = main(["record", str(spec), "--set", "stop.max_time=0.5", "-o", str(tmp_path)])
@@ -240,6 +248,7 @@ def _rerun() -> str:
     return str(exe) if exe.exists() else shutil.which("rerun") or "rerun"
 
 
+@pytest.mark.slow
 def test_rerun_converts_the_log_and_its_poses(bouncy_log, tmp_path):
     check = subprocess.run(
         [_rerun(), "mcap", "check", str(bouncy_log)], capture_output=True, text=True

@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from impactlab.logs.load import load_log
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,6 +52,7 @@ def _peak(tmp_path: Path, max_time: float) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_memory_does_not_grow_with_the_run(tmp_path):
     """A run of 200,001 logged steps peaks within 40 MB of one of 10,001 steps (keeping the
     rows would take about 150 MB more: 200,000 rows of 29 sensor values, then the log's
@@ -60,6 +63,7 @@ def test_memory_does_not_grow_with_the_run(tmp_path):
     assert long["peak_mb"] - short["peak_mb"] < 40, (short, long)
 
 
+@pytest.mark.slow
 def test_sigterm_stops_a_long_run_within_a_chunk(tmp_path):
     """One run of 10^7 steps (about a minute): SIGTERM once its log is being written ends the
     job within seconds, exit 130, and leaves no log and no temporary file."""
@@ -90,6 +94,7 @@ def test_sigterm_stops_a_long_run_within_a_chunk(tmp_path):
     assert list(out.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_a_streamed_log_equals_the_runs_rows(tmp_path):
     """Streaming keeps every row, in order, with the logging stride counted from step 0
     across chunk boundaries (chunks of 5000 steps, logging every 3rd step)."""

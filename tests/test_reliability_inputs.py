@@ -122,6 +122,7 @@ def special_files(tmp_path: Path) -> dict[str, Path]:
     return {"/dev/zero": Path("/dev/zero"), "fifo": fifo, "link to /dev/zero": zero, "socket": sock}
 
 
+@pytest.mark.slow
 def test_what_is_not_a_regular_file_is_refused(tmp_path):
     files = special_files(tmp_path)
     cases = [(command, name, path) for command in COMMANDS for name, path in files.items()]
@@ -176,6 +177,7 @@ BOMBS = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(BOMBS))
 def test_decompression_bombs_are_stopped_at_the_declared_size(tmp_path, kind):
     compression, inflated, declared = BOMBS[kind]
@@ -195,6 +197,7 @@ def test_decompression_bombs_are_stopped_at_the_declared_size(tmp_path, kind):
         assert grown < 100, f"{command} grew by {grown} MiB reading a {inflated >> 20} MiB bomb"
 
 
+@pytest.mark.slow
 def test_the_size_limit_is_documented_and_settable(tmp_path, capsys, monkeypatch):
     from impactlab.logs import writer
     from impactlab.record import plan, record_runs
@@ -325,6 +328,7 @@ def test_every_command_answers_every_conformance_file(tmp_path, capsys, conforma
 # odd folders and outputs
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["analyze", "replay"])
 def test_folders_without_logs(tmp_path, capsys, command, record_spec):
     """A folder named like a log, an empty folder, a pattern matching nothing: one line, exit 2,

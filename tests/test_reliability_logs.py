@@ -187,6 +187,7 @@ CUTS = [
 NO_DATA = {"empty", "inside magic", "magic only", "inside header record", "inside run metadata"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cut", CUTS)
 def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
     data = layout[0]
@@ -243,6 +244,7 @@ def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
     assert not list(tmp_path.rglob("*.partial"))
 
 
+@pytest.mark.slow
 def test_truncated_at_every_record_boundary(tmp_path, layout, reference):
     """Cut at each top-level record's start: load_log never fails on a cut after the first
     chunk, and always returns a prefix of the intact rows."""
@@ -273,6 +275,7 @@ def compressed_span(data: bytes, chunk) -> tuple[int, int]:
     return at + 8, at + 8 + size
 
 
+@pytest.mark.slow
 def test_corrupted_middle_chunk(tmp_path, capsys, intact, layout, reference):
     data, chunks, _ = layout
     k = len(chunks) // 2
@@ -446,6 +449,7 @@ def test_foreign_mcap(tmp_path, capsys, kind):
     assert "not an impactlab log" in stdout
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "options",
     [
@@ -566,6 +570,7 @@ def damage(draw, size: int):
     return cut, flips
 
 
+@pytest.mark.slow
 @settings(
     max_examples=60,
     deadline=None,

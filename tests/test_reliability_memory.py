@@ -11,7 +11,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from impactlab.record import plan, record_runs
+
+pytestmark = pytest.mark.slow  # peak memory of a 100,000-step analysis
 
 SPEC = """
 name = "long"

@@ -289,6 +289,7 @@ def test_metadata_contradicted_by_the_channels(tmp_path, records, intact, case):
         assert f"damaged:    metadata {key}: " in describe(path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["later half", "all"])
 def test_log_time_beyond_int64(tmp_path, capsys, records, intact, which):
     """log_time is unsigned 64-bit in MCAP: messages at >= 2^63 ns are skipped and named."""
@@ -320,6 +321,7 @@ def test_log_time_beyond_int64(tmp_path, capsys, records, intact, which):
 # the command line: one line naming the log and the key, the other logs analyzed
 
 
+@pytest.mark.slow
 def test_command_line_names_the_log_and_the_key(tmp_path, capsys, records, intact):
     soft = rewrite(records, tmp_path / "soft.mcap", meta={"sweep_index": "x"})
     hard = rewrite(records, tmp_path / "hard.mcap", meta={"timestep_s": "1e+300"})

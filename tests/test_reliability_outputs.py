@@ -95,6 +95,7 @@ def assert_consistent(out: Path, *, reports: tuple[str, ...] = ()) -> set[str]:
     return ours
 
 
+@pytest.mark.slow
 def test_rerun_with_fewer_logs_removes_what_it_does_not_write_again(tmp_path, capsys, logs):
     out = tmp_path / "results"
     assert main(["analyze", *map(str, logs), "-o", str(out)]) == 0

@@ -310,6 +310,7 @@ def _views(blueprint) -> list:
     return found
 
 
+@pytest.mark.slow
 def test_replay_with_the_analysis_of_a_collision_that_never_happened(tmp_path: Path) -> None:
     """Stopped before the balls meet (the handout's Step 3 as written): the analysis has a
     collision row without an impact time; the replay shows no impact event, and no error."""

@@ -519,6 +519,7 @@ def screenshot_replay(
     return counts
 
 
+@pytest.mark.slow
 def test_the_viewer_draws_the_articulated_model(models, tmp_path):
     """Not an empty or sphere-only view: the torso's, legs' and foot's colours cover pixels
     of the 3D view (a sphere-only replay shows none of those hues)."""

@@ -74,6 +74,7 @@ def _section(text: str, heading: str) -> str:
     return rest[: ends[0]] if ends else rest
 
 
+@pytest.mark.slow
 def test_rubric_then_answers_come_before_the_tables(report):
     headings = re.findall(r"^## (.+)$", report, re.M)
     assert headings[:3] == ["Rubric", "Answers", "Runs"]
@@ -92,6 +93,7 @@ def test_rubric_then_answers_come_before_the_tables(report):
     assert all(anchor in details for anchor in STEPS)
 
 
+@pytest.mark.slow
 def test_every_step_is_answered_with_a_number_a_figure_and_a_link(report):
     answers = _section(report, "## Answers")
     subsections = re.findall(r"^### (Step \d: .+) answer$", answers, re.M)
@@ -107,6 +109,7 @@ def test_every_step_is_answered_with_a_number_a_figure_and_a_link(report):
         assert f"(#{anchor})" in body
 
 
+@pytest.mark.slow
 def test_run_labels_are_words_and_units_and_hashes_stay_in_the_runs_table(report):
     before_runs = re.sub(r"\]\([^)]*\)", "]", report[: report.index("## Runs")])  # not file names
     assert not re.search(r"-[0-9a-f]{8}\b", before_runs)
@@ -137,6 +140,7 @@ def test_parameter_words(key, value, words):
 UNIT = re.compile(r"\((m|s|m/s|J|N|kg m/s|m; 0: at rest)\)|coefficient of restitution|e$|number")
 
 
+@pytest.mark.slow
 def test_every_figure_has_labelled_axes_with_units(record_spec, tmp_path, monkeypatch):
     """Axis labels read back from the figure objects as they are saved: each says what it
     shows and in which unit (or that it is a ratio such as e); study-drop's x axis is the drop

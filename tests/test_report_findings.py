@@ -357,6 +357,7 @@ def _mujoco_test_model() -> Path:
     return Path(mujoco.__file__).parent / "testdata" / "model.xml"
 
 
+@pytest.mark.slow
 def test_mujocos_test_model_is_analysed_and_a_good_run_beside_it_kept(tmp_path, capsys):
     """The model's eccentric collision between two free bodies once ended the analysis in a
     TypeError (exit 1, nothing written for any run of the batch)."""

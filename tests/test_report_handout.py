@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import polars as pl
+import pytest
 
 from impactlab.analyze.report.handout import as_written_section
 from impactlab.analyze.report.headline import rest_line
@@ -66,6 +67,7 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
     assert rest_line(ground.filter(pl.col("reason") != "bodies at rest")) == ""
 
 
+@pytest.mark.slow
 def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     from impactlab.analyze.report.run_figures import contact_words, sweep_words
 
@@ -80,6 +82,7 @@ def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     assert sweep_words({}) == ""
 
 
+@pytest.mark.slow
 def test_restitution_figure_draws_each_experiments_target(monkeypatch, tmp_path):
     from impactlab.analyze.report import figures
 

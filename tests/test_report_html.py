@@ -78,6 +78,7 @@ def test_images_are_embedded_and_headings_named_as_on_github(tmp_path):
     assert "Figures missing when this page was made" in page and "figures/gone.png" in page
 
 
+@pytest.mark.slow
 def test_report_html_opens_in_chromium_with_every_figure_and_link(results, tmp_path):
     page = results / "report.html"
     text = page.read_text(encoding="utf-8")

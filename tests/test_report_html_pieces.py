@@ -107,6 +107,7 @@ def test_pieces_render_as_the_whole_document(tmp_path, name):
     assert bool(slices) == (name in SLICED)  # only tables of the page between blank lines
 
 
+@pytest.mark.slow
 def test_page_memory_does_not_grow_with_the_rows(tmp_path):
     """The peak of rendering a table of 1,500 rows stays within a few times its output
     above that of 200 rows (one parse of the whole table would hold a token tree of

@@ -167,6 +167,7 @@ ABSURD = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     ("path", "value", "words"), ABSURD, ids=[f"{a[0]}-{a[2][:20]}" for a in ABSURD]
 )

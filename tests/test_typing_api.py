@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # mypy over the documented use
+
 ROOT = Path(__file__).resolve().parents[1]
 
 GOOD = """

@@ -61,6 +61,7 @@ def bouncy(name: str, shape: str, size: str, z: float, euler: str = "0 0 0") -> 
     return BOUNCY.format(name=name, shape=shape, size=size, z=z, euler=euler)
 
 
+@pytest.mark.slow
 def test_handout_ball_as_written(tmp_path, capsys):
     """`impactlab record ball.xml --duration 2` then `impactlab analyze`: 28.45 J at the start,
     heights from the plane (the issue saw 0 J, -28.45 J, apexes of -2.886 m)."""

@@ -139,7 +139,7 @@ def test_the_sdists_tests_run_from_it(dist, tmp_path):
     tests = ["test_golden.py", "test_examples.py", "test_schemas.py", "test_readme.py"]
     env = {**_env(), "PYTHONPATH": str(tree)}
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "slow or not slow"]
         + [f"tests/{t}" for t in tests],
         cwd=tree,
         env=env,

@@ -10,8 +10,9 @@ into the chunk; any other layout is checked and copied after one gather.
 from __future__ import annotations
 
 import numpy as np
+from mcap.opcode import Opcode
 
-OP_MESSAGE = 0x05
+OP_MESSAGE = int(Opcode.MESSAGE)
 MESSAGE_HEADER_SIZE = 1 + 8 + 2 + 4 + 8 + 8  # opcode, length, channel, sequence, two times
 
 _HEADER = np.dtype(

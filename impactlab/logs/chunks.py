@@ -6,8 +6,10 @@ few vectorised operations; the official writer still writes the header, schemas,
 metadata, attachments and the whole summary (statistics, chunk and summary indexes), so the
 files are what it would write, message records sorted by time inside each chunk.
 
-This relies on the internals of the pinned mcap version (name-mangled `Writer` attributes);
-`tests/test_chunks.py` reads every file back with the official reader and `rerun mcap check`.
+mcap has no public way to add a chunk built elsewhere: the writer's private state is reached
+only through `impactlab.logs.mcap_internals` (the mcap version it was written for, and a test
+that fails by name when it changes). `tests/test_chunks.py` reads every file back with the
+official reader and `rerun mcap check`.
 """
 
 from __future__ import annotations
@@ -20,13 +22,15 @@ from typing import IO
 import numpy as np
 import zstandard
 from isal.isal_zlib import crc32  # zlib's CRC-32, an order of magnitude faster
+from mcap.opcode import Opcode
 from mcap.records import Chunk, ChunkIndex
 from mcap.writer import CompressionType, Writer
 
 from impactlab.logs.codec import Template
+from impactlab.logs.mcap_internals import WriterInternals
 
-MESSAGE_OPCODE = 0x05
-MESSAGE_INDEX_OPCODE = 0x07
+MESSAGE_OPCODE = int(Opcode.MESSAGE)
+MESSAGE_INDEX_OPCODE = int(Opcode.MESSAGE_INDEX)
 MESSAGE_HEADER = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
@@ -73,6 +77,7 @@ class ChunkWriter:
     def __init__(self, stream: IO[bytes], *, library: str, profile: str = "") -> None:
         self.writer = Writer(stream, use_chunking=False, compression=CompressionType.ZSTD)
         self.writer.start(profile=profile, library=library)
+        self._internals = WriterInternals(self.writer)
         self._compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
 
     def write_chunk(self, blocks: Sequence[Block]) -> None:
@@ -84,9 +89,7 @@ class ChunkWriter:
         records, index = _records_dense(blocks) if dense else _records(blocks)
         times = np.concatenate([b.log_time for b in blocks])
         start, end = int(times.min()), int(times.max())
-        w = self.writer
-        stream = w._Writer__stream
-        w._Writer__flush()
+        w = self._internals
         compressed = self._compressor.compress(records)
         chunk = Chunk(
             compression="zstd",
@@ -96,10 +99,8 @@ class ChunkWriter:
             uncompressed_crc=crc32(records),
             uncompressed_size=records.nbytes,
         )
-        chunk_start = stream.tell()
-        chunk.write(w._Writer__record_builder)
-        chunk_length = w._Writer__record_builder.count
-        w._Writer__flush()
+        chunk_start, chunk_length = w.write_record(chunk)
+        stream = w.stream
         offsets: dict[int, int] = {}
         position = stream.tell()
         index_bytes = []
@@ -116,7 +117,7 @@ class ChunkWriter:
             position += len(record)
             index_bytes.append(record)
         stream.write(b"".join(index_bytes))
-        w._Writer__chunk_indices.append(
+        w.add_chunk_index(
             ChunkIndex(
                 message_start_time=start,
                 message_end_time=end,
@@ -129,7 +130,7 @@ class ChunkWriter:
                 uncompressed_size=records.nbytes,
             )
         )
-        stats = w._Writer__statistics
+        stats = w.statistics
         if stats.message_count == 0:
             stats.message_start_time = start
         stats.message_start_time = min(stats.message_start_time, start)

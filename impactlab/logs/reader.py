@@ -29,6 +29,7 @@ import numpy as np
 from isal.isal_zlib import crc32
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.records import Channel, Header, Metadata, Schema
 
 from impactlab.logs.bounded import (
@@ -42,9 +43,11 @@ from impactlab.logs.bounded import (
 from impactlab.logs.chunk_index import MESSAGE_HEADER_SIZE, OP_MESSAGE, add_pieces, checked_index
 
 MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER = 0x01
-OP_SCHEMA, OP_CHANNEL, OP_CHUNK, OP_MESSAGE_INDEX = 0x03, 0x04, 0x06, 0x07
-OP_ATTACHMENT, OP_METADATA, OP_DATA_END = 0x09, 0x0C, 0x0F
+OP_HEADER, OP_FOOTER = int(Opcode.HEADER), int(Opcode.FOOTER)
+OP_SCHEMA, OP_CHANNEL, OP_CHUNK = int(Opcode.SCHEMA), int(Opcode.CHANNEL), int(Opcode.CHUNK)
+OP_MESSAGE_INDEX = int(Opcode.MESSAGE_INDEX)
+OP_ATTACHMENT, OP_METADATA = int(Opcode.ATTACHMENT), int(Opcode.METADATA)
+OP_DATA_END = int(Opcode.DATA_END)
 CHUNK_OPS = frozenset({OP_SCHEMA, OP_CHANNEL, OP_MESSAGE})  # what a chunk may hold
 FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, summary offset start, CRC
 MAX_TIME_NS = (1 << 63) - 1  # the largest log_time the frames' signed nanoseconds hold
@@ -158,7 +161,7 @@ def read_mcap(
         if footer_at < end or bytes(buf[-len(MAGIC) :]) != MAGIC:
             raise _Damage("truncated after the data: the summary or footer is missing")
         summary = (
-            buf[footer_at] == 0x02
+            buf[footer_at] == OP_FOOTER
             and int.from_bytes(buf[footer_at + 9 : footer_at + 17], "little") != 0
         )
     except _Damage as exc:

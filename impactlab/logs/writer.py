@@ -259,13 +259,6 @@ class LogWriter:
             self.abort()
 
 
-def write_log(path: Path, header: LogHeader, rows: LogRows, outcome: Outcome) -> Path:
-    """Write a whole run at once (atomically). Returns `path`."""
-    with LogWriter(path, header) as writer:
-        writer.write(rows)
-        return writer.finish(outcome)
-
-
 class _Channels:
     """Registers each schema once and each topic once on an MCAP writer."""
 

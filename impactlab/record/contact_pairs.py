@@ -36,7 +36,7 @@ PLANE_GEOM = "plane"
 
 
 @dataclass(frozen=True)
-class PairContact:
+class CalibratedPair:
     """Calibrated contact of one geom pair (geom names as in the model)."""
 
     geom1: str
@@ -44,7 +44,7 @@ class PairContact:
     params: ContactParams
 
 
-def calibrated_pairs(run: RunSpec) -> list[PairContact]:
+def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     """Calibrated parameters for every pair with a target restitution (empty when none).
 
     Raises:
@@ -119,7 +119,7 @@ def calibrated_pairs(run: RunSpec) -> list[PairContact]:
             )
         except ContactModelError as exc:
             raise SpecError(run.source, field, str(exc)) from None
-        out.append(PairContact(geom1, body.name, params))
+        out.append(CalibratedPair(geom1, body.name, params))
     return out
 
 

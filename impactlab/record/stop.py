@@ -155,16 +155,16 @@ class _EnergyGain(_Rule):
     fraction: float
     timestep: float
     floor_J: float
-    e0: float | None = None
+    energy_start: float | None = None
     scale: float = 0.0
 
     def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
         potential, kinetic = rows[:, self.adr], rows[:, self.adr + 1]
         energy = kinetic + potential
-        if self.e0 is None:
-            self.e0 = float(energy[0])
+        if self.energy_start is None:
+            self.energy_start = float(energy[0])
             self.scale = max(float(kinetic[0] + abs(potential[0])), self.floor_J, 1e-6)
-        gain = energy - self.e0
+        gain = energy - self.energy_start
         bad = _first(gain > self.fraction * self.scale)
         if bad is None:
             return None

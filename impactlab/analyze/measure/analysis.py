@@ -16,20 +16,14 @@ from impactlab.analyze.measure.collisions import (
     no_collision_rows,
     with_surroundings,
 )
-from impactlab.analyze.measure.contacts import (
-    contact_rows,
-    logged_interval_s,
-    per_run,
-    raw_intervals,
-    state_blocks,
-    states_long,
-)
+from impactlab.analyze.measure.contact_intervals import contact_rows, raw_intervals
 from impactlab.analyze.measure.energy import run_energies
 from impactlab.analyze.measure.flights import flight_rows, flights
 from impactlab.analyze.measure.ground import Ground, references, run_ground
 from impactlab.analyze.measure.impacts import approach_and_release, merge_chatter
 from impactlab.analyze.measure.phases import energy_phases
-from impactlab.analyze.measure.summary import headlines, summary_row
+from impactlab.analyze.measure.states import logged_interval_s, per_run, state_blocks, states_long
+from impactlab.analyze.measure.summary import run_aggregates, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 
@@ -231,7 +225,7 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     bnc = _with_no_bounce_rows(parts, found, on_ground)
     bounces_of, phases_of = by_run(bnc), by_run(phases)
     body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
-    heads = headlines(total_all, phases, bnc)
+    aggregates = run_aggregates(total_all, phases, bnc)
     out = []
     for p in parts:
         run, rid = p.run, p.run.run_id
@@ -254,7 +248,7 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         mine_bounces = bounces_of.get(rid, bnc.clear())
         summary = summary_row(
             run,
-            headlines=heads,
+            aggregates=aggregates,
             states=p.states,
             collisions=col,
             ground=bool(p.ground.surfaces),

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.contacts import state_at
+from impactlab.analyze.measure.states import state_at
 from impactlab.logs.load import BodyInfo
 from impactlab.physics import collision_after
 

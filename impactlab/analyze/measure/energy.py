@@ -18,8 +18,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.contacts import state_blocks
 from impactlab.analyze.measure.ground import Ground, Reference
+from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")

@@ -21,9 +21,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.contacts import state_blocks
 from impactlab.analyze.measure.ground import Ground
 from impactlab.analyze.measure.impacts import RK4
+from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import RunLog
 
 APEX_TURN_FRACTION = 1e-3

@@ -1,6 +1,6 @@
 """Impact and release speeds at the contact point, exact across logging gaps; chatter merged.
 
-For each raw contact interval (`impactlab.analyze.measure.contacts`):
+For each raw contact interval (`impactlab.analyze.measure.contact_intervals`):
 
 - **The contact point** is a point of the body: the body's deepest point where it touches
   at the first row in contact (for the impact) and at the last (for the release: the mean
@@ -41,8 +41,9 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure import kinematics as k
-from impactlab.analyze.measure.contacts import PAIR, logged_interval_s
+from impactlab.analyze.measure.contact_intervals import PAIR
 from impactlab.analyze.measure.ground import Ground
+from impactlab.analyze.measure.states import logged_interval_s
 from impactlab.logs.load import RunLog
 
 RK4 = "RK4"

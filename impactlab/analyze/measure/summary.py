@@ -17,7 +17,7 @@ import polars as pl
 from impactlab.logs.load import RunLog
 from impactlab.physics import SEMI_IMPLICIT
 
-EMPTY_ENERGY = {"e0": None, "e1": None, "mujoco_diff_max": None}
+EMPTY_ENERGY = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
 EMPTY_PHASES = {
     "n_flights": 0,
     "drift_max": None,
@@ -41,7 +41,7 @@ EMPTY_BOUNCES = {
 
 
 @dataclass(frozen=True)
-class Headlines:
+class RunAggregates:
     """Per run (by run_id), the aggregates of its frames that its summary row needs."""
 
     energy: dict[str, dict[str, Any]]
@@ -57,7 +57,9 @@ class Headlines:
         )
 
 
-def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) -> Headlines:
+def run_aggregates(
+    total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame
+) -> RunAggregates:
     """The aggregates of every run in the frames, in one group-by each.
 
     Args:
@@ -66,8 +68,8 @@ def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) 
     """
     flight, contact = pl.col("kind") == "flight", pl.col("kind") == "contact"
     e = total.group_by("run_id", maintain_order=True).agg(
-        pl.col("total_J").first().alias("e0"),
-        pl.col("total_J").last().alias("e1"),
+        pl.col("total_J").first().alias("energy_start"),
+        pl.col("total_J").last().alias("energy_end"),
         pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
     )
     worst = pl.col("drift_J").filter(flight).abs()  # the flight with the largest |drift|
@@ -96,7 +98,7 @@ def headlines(total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame) 
         pl.col("e_apex").filter(good).mean().alias("e_apex_mean"),
         pl.col("note").filter(~bounced).alias("notes"),
     )
-    return Headlines(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
+    return RunAggregates(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
 
 
 def predicted_drift(run: RunLog, flight_s: float | None) -> float | None:
@@ -117,7 +119,7 @@ def predicted_drift(run: RunLog, flight_s: float | None) -> float | None:
 def summary_row(
     run: RunLog,
     *,
-    headlines: Headlines,
+    aggregates: RunAggregates,
     states: pl.DataFrame,
     collisions: pl.DataFrame,
     ground: bool,
@@ -126,11 +128,11 @@ def summary_row(
 
     Args:
         run: the decoded log; `states` and `collisions` are its analysis (`RunAnalysis`).
-        headlines: the aggregates of the run's energy, phases and bounces (`headlines`).
+        aggregates: the aggregates of the run's energy, phases and bounces (`run_aggregates`).
         ground: whether the run has ground surfaces.
     """
-    en, ph, bo = headlines.of(run.run_id)
-    e0, e1 = en["e0"], en["e1"]
+    en, ph, bo = aggregates.of(run.run_id)
+    energy_start, energy_end = en["energy_start"], en["energy_end"]
     single = bo["n_pairs"] == 1
     col = collisions.row(0, named=True) if collisions.height else None
     notes = [n for n in bo["notes"] if n]
@@ -140,7 +142,7 @@ def summary_row(
         )
     if col is not None and not col["complete"] and col["note"]:
         notes.append(col["note"])
-    scale = abs(e0) if e0 else None
+    scale = abs(energy_start) if energy_start else None
 
     def c(name: str) -> Any:
         return col[name] if col is not None else None
@@ -165,9 +167,9 @@ def summary_row(
         "n_bodies": len(run.bodies),
         "ground": ground,
         "sweep": "{}" if "sweep" in run.checked.problems else run.meta.get("sweep", "{}"),
-        "energy_initial_J": e0,
-        "energy_final_J": e1,
-        "energy_loss_frac": (e0 - e1) / e0 if e0 else None,
+        "energy_initial_J": energy_start,
+        "energy_final_J": energy_end,
+        "energy_loss_frac": (energy_start - energy_end) / energy_start if energy_start else None,
         "flight_drift_max_J": ph["drift_max"] if ph["n_flights"] else None,
         "flight_drift_max_rel": (ph["dev_max"] / scale) if ph["n_flights"] and scale else None,
         "flight_drift_J": ph["drift_worst"] if ph["n_flights"] else None,

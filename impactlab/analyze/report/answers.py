@@ -33,14 +33,14 @@ def energy_answer(runs: pl.DataFrame) -> list[str]:
 
 
 def _energy_sentence(r: dict) -> str:
-    e0, e1 = r["energy_initial_J"], r["energy_final_J"]
+    energy_start, energy_end = r["energy_initial_J"], r["energy_final_J"]
     contacts = r["contact_loss_sum_J"]
-    if not (F.defined(e0) and F.defined(e1)):
+    if not (F.defined(energy_start) and F.defined(energy_end)):
         end = "the energy at the end is not measured"
-    elif e1 > e0 and not F.negligible(e1 - e0, e0):
-        end = f"the energy gained is {F.of_initial(e1 - e0, e0)}"
+    elif energy_end > energy_start and not F.negligible(energy_end - energy_start, energy_start):
+        end = f"the energy gained is {F.of_initial(energy_end - energy_start, energy_start)}"
     else:
-        end = f"the energy gone is {F.of_initial(e0 - e1, e0)}"
+        end = f"the energy gone is {F.of_initial(energy_start - energy_end, energy_start)}"
     removed = ""
     if F.defined(contacts):
         removed = f"the contacts {'add' if contacts < 0 else 'remove'} {abs(contacts):.4g} J; "

@@ -66,9 +66,15 @@ def energy_line(runs: pl.DataFrame) -> str:
     else:
         drift_words = "no run has a flight phase to test conservation on"
     lost = [(r["energy_initial_J"], r.get("energy_final_J")) for r in rows]
-    lost = [(e0, e0 - e1) for e0, e1 in lost if F.defined(e0) and F.defined(e1)]
+    lost = [
+        (energy_start, energy_start - energy_end)
+        for energy_start, energy_end in lost
+        if F.defined(energy_start) and F.defined(energy_end)
+    ]
     readable = [
-        d / e0 * 100 for e0, d in lost if not F.negligible(e0) and abs(d / e0) <= F.PERCENT_MAX
+        d / energy_start * 100
+        for energy_start, d in lost
+        if not F.negligible(energy_start) and abs(d / energy_start) <= F.PERCENT_MAX
     ]
     other = len(lost) - len(readable)
     if readable:

@@ -14,100 +14,16 @@ Raw intervals separated by no visible flight are merged into one contact
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.measure.states import logged_interval_s, per_run
 from impactlab.logs.load import RunLog
-from impactlab.logs.messages import BODY_FIELDS
 
 PAIR = ("kind", "body", "other")
 """An interval's pair: kind "ground" (body on the surface `other`) or "body" (two bodies)."""
-
-
-def logged_interval_s(run: RunLog) -> float:
-    """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
-    return run.timestep_s * run.log_every
-
-
-def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr:
-    """A per-run number as an expression over the `run_id` column (run ids distinct)."""
-    mapping = {run.run_id: float(value(run)) for run in runs}
-    return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
-
-
-def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
-    """Every body's state of every run in one frame, and each run's logged rows.
-
-    Returns:
-        states: (run_id, body, row, t_ns, t_s, x .. wz), each run's rows together (in the
-            order of `runs`), by body and time; `row` numbers the run's distinct logged
-            times from 0.
-        rows: (run_id, t_ns, row) of each run's logged times.
-    """
-    frames, bodies, numbers, ids, times = [], [], [], [], []
-    for run in runs:
-        mine = [(name, _by_time(run.bodies[name])) for name in sorted(run.bodies)]
-        ts = [frame["t_ns"].to_numpy() for _, frame in mine]
-        logged = ts[0] if ts else np.zeros(0, dtype=np.int64)
-        if not all(_strictly_increasing(t) and np.array_equal(t, logged) for t in ts):
-            logged = np.unique(np.concatenate(ts))
-        for (name, frame), t in zip(mine, ts, strict=True):
-            frames.append(frame)
-            bodies.append(name)
-            numbers.append(np.searchsorted(logged, t).astype(np.int64))
-        ids.append(run.run_id)
-        times.append(logged.astype(np.int64))
-    run_ids = pl.Series("run_id", ids, dtype=pl.String)
-    sizes = [t.size for t in times]
-    rows = pl.DataFrame(
-        [
-            run_ids.gather(np.repeat(np.arange(len(ids)), sizes)),
-            pl.Series("t_ns", np.concatenate(times) if times else [], dtype=pl.Int64),
-            pl.Series(
-                "row", np.concatenate([np.arange(t.size) for t in times] or [[]]), dtype=pl.Int64
-            ),
-        ]
-    )
-    if not frames:
-        schema = {"run_id": pl.String, "body": pl.String, "row": pl.Int64, "t_ns": pl.Int64}
-        schema |= {"t_s": pl.Float64} | {c: pl.Float64 for c in BODY_FIELDS}
-        return pl.DataFrame(schema=schema), rows
-    names = pl.Series("body", bodies, dtype=pl.String)
-    which = np.repeat(np.arange(len(frames)), [frame.height for frame in frames])
-    states = pl.concat(frames).hstack(
-        [names.gather(which), pl.Series("row", np.concatenate(numbers), dtype=pl.Int64)]
-    )
-    return states.select("run_id", "body", "row", pl.exclude("run_id", "body", "row")), rows
-
-
-def state_blocks(states: pl.DataFrame) -> list[tuple[str, str, int, int]]:
-    """The (run_id, body, first row, end row) of each body's block of `states_long`."""
-    if not states.height:
-        return []
-    runs = states.select(pl.struct("run_id", "body").rle()).to_series().struct.unnest()
-    ends = np.cumsum(runs["len"].to_numpy())
-    keys = runs["value"].struct.unnest()
-    return [
-        (r, b, int(e - n), int(e))
-        for r, b, n, e in zip(
-            keys["run_id"].to_list(),
-            keys["body"].to_list(),
-            runs["len"].to_list(),
-            ends,
-            strict=True,
-        )
-    ]
-
-
-def _by_time(frame: pl.DataFrame) -> pl.DataFrame:
-    """A body's frame by time (as logged, unless a foreign log wrote it otherwise)."""
-    return frame if frame["t_ns"].is_sorted() else frame.sort("t_ns")
-
-
-def _strictly_increasing(t: np.ndarray) -> bool:
-    return bool(t.size < 2 or (t[1:] > t[:-1]).all())
 
 
 def contact_rows(
@@ -290,15 +206,3 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
         )
         .sort("run_id", "start_t_ns", *PAIR)
     )
-
-
-def state_at(states: pl.DataFrame, frame: pl.DataFrame, *, body: str, row: str, suffix: str):
-    """Join each row of `frame` with the state of the body named in column `body` at the row
-    number in column `row`; the state's columns get `suffix` (nulls where there is none)."""
-    cols = ["t_ns", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz"]
-    right = states.select(
-        pl.col("body").alias(body),
-        pl.col("row").alias(row),
-        *[pl.col(c).alias(c + suffix) for c in cols],
-    )
-    return frame.join(right, on=[body, row], how="left")
