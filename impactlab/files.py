@@ -11,7 +11,8 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterator
+import textwrap
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +78,24 @@ def write_bytes(path: Path, data: bytes) -> Path:
 def write_json(path: Path, document: Any) -> Path:
     """Write a JSON document atomically (indented; NaN and inf as null). Returns `path`."""
     return write_text(path, json.dumps(_finite(document), indent=2, default=str) + "\n")
+
+
+def write_json_stream(path: Path, document: dict, key: str, items: Iterable[Any]) -> Path:
+    """Write `document` with `items` as its first key `key`, as `write_json` would write
+    {key: list(items), **document}, but one item at a time (the list is never held).
+    Returns `path`."""
+    marker = f"impactlab-stream-{os.getpid()}"
+    text = json.dumps(_finite({key: marker, **document}), indent=2, default=str) + "\n"
+    head, tail = text.split(json.dumps(marker), 1)  # the first key's value: ours
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
+        stream.write(head + "[")
+        first = True
+        for item in items:
+            dumped = json.dumps(_finite(item), indent=2, default=str)
+            stream.write(("\n" if first else ",\n") + textwrap.indent(dumped, "    "))
+            first = False
+        stream.write(("]" if first else "\n  ]") + tail)
+    return path
 
 
 def write_parquet(frame: Any, path: Path) -> Path:
