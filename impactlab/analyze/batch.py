@@ -180,7 +180,7 @@ def analyze_logs(
     error entry with the task's reason.
     """
     tracker = Tracker("analyze", len(paths), progress)
-    items = [(Path(p), Path(p)) for p in paths]
+    items = [(p, p) for p in map(Path, paths)]  # one Path object per log, shared
     out: list[AnalyzedLog | None] = [None] * len(paths)
     ready = 0  # out[:ready] has gone through the reducer
 
