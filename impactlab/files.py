@@ -80,21 +80,33 @@ def write_json(path: Path, document: Any) -> Path:
     return write_text(path, json.dumps(_finite(document), indent=2, default=str) + "\n")
 
 
-def write_json_stream(path: Path, document: dict, key: str, items: Iterable[Any]) -> Path:
-    """Write `document` with `items` as its first key `key`, as `write_json` would write
-    {key: list(items), **document}, but one item at a time (the list is never held).
-    Returns `path`."""
-    marker = f"impactlab-stream-{os.getpid()}"
-    text = json.dumps(_finite({key: marker, **document}), indent=2, default=str) + "\n"
-    head, tail = text.split(json.dumps(marker), 1)  # the first key's value: ours
+def write_json_stream(path: Path, document: dict) -> Path:
+    """Write `document` as `write_json` would, where every iterator in it (a generator, not a
+    list) is written as a list one item at a time: a long list is never held. Returns `path`."""
+    streams: dict[str, Iterator[Any]] = {}
+
+    def mark(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: mark(v) for k, v in value.items()}
+        if isinstance(value, Iterator):
+            marker = f"impactlab-stream-{os.getpid()}-{len(streams)}"
+            streams[json.dumps(marker)] = value
+            return marker
+        return value
+
+    text = json.dumps(_finite(mark(document)), indent=2, default=str) + "\n"
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
-        stream.write(head + "[")
-        first = True
-        for item in items:
-            dumped = json.dumps(_finite(item), indent=2, default=str)
-            stream.write(("\n" if first else ",\n") + textwrap.indent(dumped, "    "))
-            first = False
-        stream.write(("]" if first else "\n  ]") + tail)
+        for marker, items in streams.items():
+            head, text = text.split(marker, 1)  # the markers' first places: ours, in order
+            stream.write(head + "[")
+            pad = " " * (len(head.rsplit("\n", 1)[-1]) - len(head.rsplit("\n", 1)[-1].lstrip()))
+            first = True
+            for item in items:
+                dumped = json.dumps(_finite(item), indent=2, default=str)
+                stream.write(("\n" if first else ",\n") + textwrap.indent(dumped, pad + "  "))
+                first = False
+            stream.write("]" if first else f"\n{pad}]")
+        stream.write(text)
     return path
 
 

@@ -128,9 +128,10 @@ def write_all(
         files.append(write_text(out / "report.md", text))
         del text
         files.append(write_report_html(out / "report.md"))
-    summary = {
+    summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
+        "runs": _rows(result.runs),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
-        "studies": {name: s.to_dicts() for name, s in result.studies.items()},
+        "studies": {name: _rows(s) for name, s in result.studies.items()},
         "study_parameters": params,
         "answers": {
             "energy": answers.energy_answer(result.runs),
@@ -141,8 +142,7 @@ def write_all(
         },
         "energy_table": stride_note,
     }
-    rows = _rows(result.runs)
-    files.append(write_json_stream(out / "summary.json", summary, "runs", rows))
+    files.append(write_json_stream(out / "summary.json", summary))
     return files
 
 
