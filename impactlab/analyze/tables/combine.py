@@ -181,13 +181,31 @@ class TableReducer:
 
 
 def _join(parts: list[Path], path: Path) -> Path:
-    """The parts as one Parquet file at `path`, streamed (no part is held whole); the parts
-    are removed. No parts: an empty table, as an empty frame is written."""
+    """The parts as one Parquet file at `path`, one row group per part, read and written one
+    part at a time (each cast to the schema of their diagonal, relaxed concatenation); the
+    parts are removed. No parts: an empty table, as an empty frame is written."""
     if not parts:
         return write_parquet(pl.DataFrame(), path)
-    scans = [pl.scan_parquet(p) for p in parts]
+    import pyarrow.parquet as pq
+
+    schema = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
+    schema = schema.collect_schema()
     with atomic_path(path) as tmp:
-        pl.concat(scans, how="diagonal_relaxed").sink_parquet(tmp, compression="zstd")
+        writer = None
+        try:
+            for part in parts:
+                frame = pl.read_parquet(part)
+                frame = frame.select(
+                    pl.col(n).cast(t) if n in frame.columns else pl.lit(None, t).alias(n)
+                    for n, t in schema.items()
+                )
+                table = frame.to_arrow()
+                if writer is None:
+                    writer = pq.ParquetWriter(tmp, table.schema, compression="zstd")
+                writer.write_table(table)
+        finally:
+            if writer is not None:
+                writer.close()
     for part in parts:
         part.unlink(missing_ok=True)
     with contextlib.suppress(OSError):
