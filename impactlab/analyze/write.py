@@ -12,13 +12,13 @@ import polars as pl
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report import answers
 from impactlab.analyze.report.html import write_report_html
-from impactlab.analyze.report.markdown import build_report
+from impactlab.analyze.report.markdown import report_parts
 from impactlab.analyze.report.run_figures import run_label
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
-from impactlab.files import write_json_stream, write_parquet, write_text
+from impactlab.files import atomic_path, write_json_stream, write_parquet
 from impactlab.text import file_part
 
 SUMMARY_SLICE = 1000
@@ -113,7 +113,7 @@ def write_all(
             figs.setdefault(kind, []).extend(paths)
     files += [p for ps in figs.values() for p in ps]
     if report:
-        text = build_report(
+        parts = report_parts(
             out_dir=out,
             runs=result.runs,
             bounces=bounces,
@@ -125,8 +125,8 @@ def write_all(
             failed=result.failed,
             energy_stride_note=stride_note,
         )
-        files.append(write_text(out / "report.md", text))
-        del text
+        files.append(write_lines(out / "report.md", parts))
+        del parts
         files.append(write_report_html(out / "report.md"))
     summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
         "runs": _rows(result.runs),
@@ -144,6 +144,14 @@ def write_all(
     }
     files.append(write_json_stream(out / "summary.json", summary))
     return files
+
+
+def write_lines(path: Path, parts: Sequence[str]) -> Path:
+    """Write `parts` joined by newlines, atomically, without joining them in memory."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
+        for i, part in enumerate(parts):
+            stream.write(f"\n{part}" if i else part)
+    return path
 
 
 def _rows(frame: pl.DataFrame) -> Iterator[dict]:
