@@ -68,8 +68,8 @@ class AnalysisResult:
     def table(self, name: str) -> pl.DataFrame:
         """The table `name` as a frame (read from its file when it was written)."""
         source = self.sources.get(name)
-        if isinstance(source, Path):
-            return pl.read_parquet(source)
+        if isinstance(source, Path):  # one chunk, not one per part (see `_cat`)
+            return pl.read_parquet(source).rechunk()
         return source if source is not None else pl.DataFrame()
 
     def scan(self, name: str) -> pl.LazyFrame:
