@@ -1,6 +1,7 @@
 """Benchmark: recording, decoding, analysis and replay, each against its baseline, in one run.
 
 Usage: python benchmarks/bench.py [--quick]   (or `just bench`)
+       python benchmarks/bench.py --scale [--runs 2000 20000] [--executors local processes]
 
 Every figure is measured here, on this machine, in this run:
 - record: a 64-run drop sweep with every step logged on every channel, against the same
@@ -10,7 +11,9 @@ Every figure is measured here, on this machine, in this run:
 - analyze: the whole analysis of the sweep, against the time it took to record it;
 - replay: a 100,000-step log converted to .rrd;
 - scale: 1x, 4x, 16x runs and steps, one thread against two, peak memory of each case
-  (each case runs in a fresh subprocess so its peak RSS is its own).
+  (each case runs in a fresh subprocess so its peak RSS is its own);
+- --scale: large sweeps of short runs recorded and analyzed end to end, time per run and
+  peak memory of the whole process tree (`benchmarks/scale.py`).
 """
 
 from __future__ import annotations
@@ -198,9 +201,19 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="16 runs instead of 64, no scale")
     parser.add_argument("--case", nargs="+", help=argparse.SUPPRESS)
+    parser.add_argument("--scale", action="store_true", help="only the large-sweep scale case")
+    parser.add_argument("--runs", type=int, nargs="+", default=[2000, 20000])
+    parser.add_argument("--executors", nargs="+", default=["local", "processes"])
     args = parser.parse_args()
     if args.case:
         return _run_case(args.case)
+    if args.scale:
+        import scale
+
+        print(f"machine: {_machine()}")
+        with tempfile.TemporaryDirectory(prefix="impactlab-scale-") as tmp:
+            scale.main(Path(tmp), __file__, args.runs, args.executors)
+        return 0
     runs = 16 if args.quick else 64
     with tempfile.TemporaryDirectory(prefix="impactlab-bench-") as tmp:
         folder = Path(tmp)
@@ -335,6 +348,9 @@ def _run_case(case: list[str]) -> int:
         result = _sweep_case(Path(case[1]), Path(case[2]), case[3])
     elif kind == "analyze":
         result = analyze_case(sorted(Path(case[1]).glob("*.mcap")), Path(case[2]))
+    elif kind == "tables":  # tables, summary.json and report of a folder of logs
+        logs = sorted(Path(case[1]).glob("*.mcap"))
+        result = analyze_case(logs, Path(case[2]), figures=False, executor=case[3])
     else:
         raise SystemExit(f"unknown case {kind}")
     children_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # workers

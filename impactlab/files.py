@@ -11,6 +11,7 @@ import json
 import math
 import os
 import tempfile
+import textwrap
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -77,6 +78,36 @@ def write_bytes(path: Path, data: bytes) -> Path:
 def write_json(path: Path, document: Any) -> Path:
     """Write a JSON document atomically (indented; NaN and inf as null). Returns `path`."""
     return write_text(path, json.dumps(_finite(document), indent=2, default=str) + "\n")
+
+
+def write_json_stream(path: Path, document: dict) -> Path:
+    """Write `document` as `write_json` would, where every iterator in it (a generator, not a
+    list) is written as a list one item at a time: a long list is never held. Returns `path`."""
+    streams: dict[str, Iterator[Any]] = {}
+
+    def mark(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: mark(v) for k, v in value.items()}
+        if isinstance(value, Iterator):
+            marker = f"impactlab-stream-{os.getpid()}-{len(streams)}"
+            streams[json.dumps(marker)] = value
+            return marker
+        return value
+
+    text = json.dumps(_finite(mark(document)), indent=2, default=str) + "\n"
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
+        for marker, items in streams.items():
+            head, text = text.split(marker, 1)  # the markers' first places: ours, in order
+            stream.write(head + "[")
+            pad = " " * (len(head.rsplit("\n", 1)[-1]) - len(head.rsplit("\n", 1)[-1].lstrip()))
+            first = True
+            for item in items:
+                dumped = json.dumps(_finite(item), indent=2, default=str)
+                stream.write(("\n" if first else ",\n") + textwrap.indent(dumped, pad + "  "))
+                first = False
+            stream.write("]" if first else f"\n{pad}]")
+        stream.write(text)
+    return path
 
 
 def write_parquet(frame: Any, path: Path) -> Path:

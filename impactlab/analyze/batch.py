@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,6 +42,8 @@ class AnalyzedLog:
     figures: list[tuple[str, Path]]
     error: tuple[str, str] | None = None
 
+
+_TAKEN = AnalyzedLog(None, [])  # a result handed to `collect` and dropped
 
 BATCH_LOGS = 64
 """At most this many logs are analyzed together (`analysis.analyze_runs`)."""
@@ -164,18 +166,21 @@ def analyze_logs(
     executor: Executor | None = None,
     progress: Progress | None = None,
     reducer: TableReducer | None = None,
+    collect: Callable[[AnalyzedLog], None] | None = None,
 ) -> list[AnalyzedLog]:
     """Analyze each log (and draw its own figures when `fig_dir` is given), in order of `paths`.
 
     `previous`: the figures of the last analysis into the same folder (see `analyze_one`).
     `reducer`: takes each run's tables, in order of `paths`, as soon as it can (the
-    analyses returned then keep only the run's metadata): memory flat in the number of logs.
+    analyses returned then keep only the run's metadata). `collect`: then receives each
+    result, in order of `paths`, and none is kept (the list returned is empty): with both,
+    memory holds the batches in flight, whatever the number of logs.
 
     A task that fails (not an unreadable log: that is an `AnalyzedLog.error`) gives an
     error entry with the task's reason.
     """
     tracker = Tracker("analyze", len(paths), progress)
-    items = [(Path(p), Path(p)) for p in paths]
+    items = [(p, p) for p in map(Path, paths)]  # one Path object per log, shared
     out: list[AnalyzedLog | None] = [None] * len(paths)
     ready = 0  # out[:ready] has gone through the reducer
 
@@ -185,7 +190,10 @@ def analyze_logs(
         _count(tracker, result)
         while ready < len(out) and (r := out[ready]) is not None:
             if reducer is not None and r.analysis is not None:
-                out[ready] = dataclasses.replace(r, analysis=reducer.take(r.analysis))
+                r = out[ready] = dataclasses.replace(r, analysis=reducer.take(r.analysis))
+            if collect is not None:
+                collect(r)
+                out[ready] = _TAKEN
             ready += 1
 
     if executor is None or executor.name == "local":
@@ -194,7 +202,7 @@ def analyze_logs(
                 group, _task([items[i] for i in group], fig_dir, previous), strict=True
             ):
                 done(i, result)  # slim at once
-        return [r for r in out if r is not None]
+        return [r for r in out if r is not None and r is not _TAKEN]
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
     task = functools.partial(
@@ -216,7 +224,7 @@ def analyze_logs(
         else:
             for i in group:
                 done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
-    return [r for r in out if r is not None]
+    return [r for r in out if r is not None and r is not _TAKEN]
 
 
 def _count(tracker: Tracker, result: AnalyzedLog | None) -> None:

@@ -11,10 +11,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from impactlab.analyze.batch import analyze_logs
+from impactlab.analyze.batch import AnalyzedLog, analyze_logs
 from impactlab.analyze.publish import publish, staged
 from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
-from impactlab.analyze.write import write_all
+from impactlab.analyze.write import RunBrief, brief, write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
 from impactlab.logs.load import require_logs
@@ -74,43 +74,61 @@ def _analysis(
     fig_dir = stage / "figures" if draw and stage is not None else None
     # the figures the last analysis published there: unchanged ones are copied, not drawn
     previous = out / "figures" if draw and out is not None else None
-    reducer = TableReducer()
-    done = analyze_logs(
+    # with a folder the tables are written as the batches finish (`TableReducer`): the
+    # driver keeps each run's brief and figure paths only, never its frames or metadata
+    reducer = TableReducer(folder=stage)
+    briefs: list[RunBrief] = []
+    run_figs: list[list[tuple[str, Path]]] = []
+    failed: list[tuple[str, str]] = []
+    partial: list[str] = []
+    count = 0
+
+    def collect(d: AnalyzedLog) -> None:
+        nonlocal count
+        if d.error is not None:
+            failed.append(d.error)
+        if d.analysis is None:
+            return
+        count += 1
+        if d.analysis.run.partial:
+            problems = "; ".join(d.analysis.run.problems)
+            partial.append(f"impactlab: warning: {d.analysis.run.path}: partial log ({problems})")
+        if draw:
+            briefs.append(brief(d.analysis))
+        if d.figures:
+            run_figs.append(d.figures)
+
+    analyze_logs(
         paths,
         fig_dir=fig_dir,
         previous=previous,
         executor=executor,
         progress=progress,
         reducer=reducer,
+        collect=collect,
     )
-    analyses = [d.analysis for d in done if d.analysis is not None]
-    run_figs = [d.figures for d in done if d.analysis is not None]
-    failed = [d.error for d in done if d.error is not None]
     for where, why in empty:
         say(progress, "analyze", f"impactlab: error: {where}: {why}", "error")
     failed = [*empty, *failed]
-    for a in analyses:
-        if a.run.partial:
-            problems = "; ".join(a.run.problems)
-            say(
-                progress,
-                "analyze",
-                f"impactlab: warning: {a.run.path}: partial log ({problems})",
-                "warning",
-            )
+    for line in partial:
+        say(progress, "analyze", line, "warning")
     result = reducer.result(out, failed)
-    if analyses and out is not None and stage is not None:
-        written = write_all(
-            result,
-            analyses,
-            run_figs,
-            out=stage,
-            figures=draw,
-            report=report,
-            previous=previous,
-            executor=executor,
-        )
-        result.files = publish(stage, out, written)
-        where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
-        say(progress, "analyze", f"{len(analyses)} run(s) analyzed, {len(failed)} failed; {where}")
+    if not count or out is None or stage is None:
+        if stage is not None:  # nothing analyzed: nothing is published
+            result.sources = {}
+        return result
+    written = write_all(
+        result,
+        briefs,
+        run_figs,
+        out=stage,
+        figures=draw,
+        report=report,
+        previous=previous,
+        executor=executor,
+    )
+    result.files = publish(stage, out, written)
+    result.sources = {name: out / f"{name}.parquet" for name in result.sources}
+    where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
+    say(progress, "analyze", f"{count} run(s) analyzed, {len(failed)} failed; {where}")
     return result

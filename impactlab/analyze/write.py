@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import polars as pl
@@ -11,21 +12,51 @@ import polars as pl
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report import answers
 from impactlab.analyze.report.html import write_report_html
-from impactlab.analyze.report.markdown import build_report
+from impactlab.analyze.report.markdown import report_parts
 from impactlab.analyze.report.run_figures import run_label
-from impactlab.analyze.tables.combine import AnalysisResult
+from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
-from impactlab.files import write_json, write_parquet, write_text
+from impactlab.files import atomic_path, write_json_stream, write_parquet
 from impactlab.text import file_part
 
-TABLES = ("runs", "bounces", "collisions", "energy", "phases")
+SUMMARY_SLICE = 1000
+"""summary.json lists the runs from slices of this many rows of the runs table."""
+
+
+@dataclass(frozen=True)
+class RunBrief:
+    """What the summary figures need of one run (a few strings and numbers, whatever its
+    length): its id, experiment, readable label, whether it has ground surfaces, the
+    restitution targets its spec asked for and its bodies' masses."""
+
+    run_id: str
+    experiment: str
+    label: str
+    grounded: bool
+    targets: tuple[float, ...]
+    masses: tuple[float, ...]
+
+
+def brief(a: RunAnalysis) -> RunBrief:
+    """The run's `RunBrief`."""
+    contact = a.run.spec.get("contact") or {}
+    asked = [contact.get("restitution")]
+    asked += [p.get("restitution") for p in (contact.get("pairs") or {}).values()]
+    return RunBrief(
+        run_id=a.run.run_id,
+        experiment=a.run.experiment,
+        label=run_label(a),
+        grounded=a.ground is not None and bool(a.ground.surfaces),
+        targets=tuple(float(e) for e in asked if isinstance(e, int | float)),
+        masses=tuple(info.mass for info in a.run.body_info.values()),
+    )
 
 
 def write_all(
     result: AnalysisResult,
-    analyses: Sequence[RunAnalysis],
+    briefs: Sequence[RunBrief],
     run_figs: Sequence[list[tuple[str, Path]]],
     *,
     out: Path,
@@ -36,9 +67,13 @@ def write_all(
 ) -> list[Path]:
     """Write the tables, summary.json and (when asked) the summary figures and report.md.
 
+    The bounces, collisions, energy and phases tables are in `out` already when the
+    analysis streamed them there (`AnalysisResult.sources`); the others are written here.
+    The report and summary read the small tables back once; the energy table is not read.
+
     Args:
         result: the tables.
-        analyses: every run's analysis (its metadata and small tables).
+        briefs: every run's `RunBrief` (for the summary figures; empty without figures).
         run_figs: each run's own figures, drawn already with its analysis.
         out: the output folder.
         figures: draw the summary figures (the runs' own are in `run_figs`).
@@ -51,8 +86,14 @@ def write_all(
     Returns:
         Every file written: tables, figures, report.md, summary.json.
     """
-    # the energy table is decimated already (`outputs.with_decimated_energy`)
-    files = [write_parquet(getattr(result, name), out / f"{name}.parquet") for name in TABLES]
+    files = [write_parquet(result.runs, out / "runs.parquet")]
+    for name in TABLES[1:]:
+        source = result.sources.get(name)
+        if isinstance(source, Path) and source.parent == out:
+            files.append(source)
+        else:
+            files.append(write_parquet(result.table(name), out / f"{name}.parquet"))
+    bounces, collisions, phases = (result.table(n) for n in ("bounces", "collisions", "phases"))
     params = {name: study_parameters(result.runs, name) for name in result.studies}
     stride_note = _stride_note(result)
     figs: dict[str, list[Path]] = {}
@@ -61,119 +102,141 @@ def write_all(
             figs.setdefault(kind, []).append(path)
     if figures:
         for kind, paths in summary_figures(
-            result, analyses, params, out / "figures", previous, executor
+            (bounces, collisions),
+            result.studies,
+            briefs,
+            params,
+            out / "figures",
+            previous,
+            executor,
         ).items():
             figs.setdefault(kind, []).extend(paths)
     files += [p for ps in figs.values() for p in ps]
     if report:
-        text = build_report(
+        parts = report_parts(
             out_dir=out,
             runs=result.runs,
-            bounces=result.bounces,
-            collisions=result.collisions,
-            phases=result.phases,
+            bounces=bounces,
+            collisions=collisions,
+            phases=phases,
             studies=result.studies,
             params=params,
             figures=figs,
             failed=result.failed,
             energy_stride_note=stride_note,
         )
-        files.append(write_text(out / "report.md", text))
+        files.append(write_lines(out / "report.md", parts))
+        del parts
         files.append(write_report_html(out / "report.md"))
-    summary = {
-        "runs": result.runs.to_dicts(),
+    summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
+        "runs": _rows(result.runs),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
-        "studies": {name: s.to_dicts() for name, s in result.studies.items()},
+        "studies": {name: _rows(s) for name, s in result.studies.items()},
         "study_parameters": params,
         "answers": {
             "energy": answers.energy_answer(result.runs),
-            "e_constant_across_bounces": answers.constancy_answer(result.runs, result.bounces),
+            "e_constant_across_bounces": answers.constancy_answer(result.runs, bounces),
             "e_against_drop_height": answers.height_answer(result.studies),
-            "collision": answers.collision_answer(result.collisions, result.runs),
+            "collision": answers.collision_answer(collisions, result.runs),
             "parameter_study": answers.study_answer(result.studies, params),
         },
         "energy_table": stride_note,
     }
-    files.append(write_json(out / "summary.json", summary))
+    files.append(write_json_stream(out / "summary.json", summary))
     return files
+
+
+def write_lines(path: Path, parts: Sequence[str]) -> Path:
+    """Write `parts` joined by newlines, atomically, without joining them in memory."""
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
+        for i, part in enumerate(parts):
+            stream.write(f"\n{part}" if i else part)
+    return path
+
+
+def _rows(frame: pl.DataFrame) -> Iterator[dict]:
+    """The frame's rows as dicts, SUMMARY_SLICE rows converted at a time."""
+    for start in range(0, frame.height, SUMMARY_SLICE):
+        yield from frame.slice(start, SUMMARY_SLICE).to_dicts()
 
 
 def _stride_note(result: AnalysisResult) -> str:
     rows, n_max = result.energy_logged
+    kept = result.scan("energy").select(pl.len()).collect().item()
     return (
         f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
         f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
-        f"{result.energy.height} of {rows} rows kept); figures and all quantities use every "
+        f"{kept} of {rows} rows kept); figures and all quantities use every "
         "logged step."
     )
 
 
 def summary_figures(
-    result: AnalysisResult,
-    analyses: Sequence[RunAnalysis],
+    tables: tuple[pl.DataFrame, pl.DataFrame],
+    studies: dict[str, pl.DataFrame],
+    briefs: Sequence[RunBrief],
     params: dict[str, list[str]],
     fig_dir: Path,
     previous: Path | None = None,
     executor: Executor | None = None,
 ) -> dict[str, list[Path]]:
-    """Draw the figures over many runs (bounce decay, restitution, studies), by kind; those
-    whose inputs did not change are copied from `previous`, the others drawn in the
-    executor's workers when it has some (`figure_cache.draw_all`)."""
+    """Draw the figures over many runs (bounce decay, restitution, studies) from the bounces
+    and collisions `tables`, by kind; those whose inputs did not change are copied from
+    `previous`, the others drawn in the executor's workers when it has some
+    (`figure_cache.draw_all`)."""
     from impactlab.analyze.report import figures
     from impactlab.analyze.report.figure_cache import draw_all, figure_key
 
+    all_bounces, collisions = tables
     jobs: list[tuple[str, Path, str, Callable[[], Path]]] = []  # kind, path, key, draw
 
     fig_dir.mkdir(parents=True, exist_ok=True)
-    by_exp: dict[str, list[RunAnalysis]] = {}
-    for a in analyses:
-        by_exp.setdefault(a.run.experiment, []).append(a)
+    by_exp: dict[str, list[RunBrief]] = {}
+    for b in briefs:
+        by_exp.setdefault(b.experiment, []).append(b)
     for exp, group in by_exp.items():
-        grounded = [a for a in group if a.ground is not None and a.ground.surfaces]
-        if grounded and _has_decay(result.bounces, [a.run.run_id for a in grounded]):
-            labels = {a.run.run_id: run_label(a) for a in grounded}
+        grounded = [b for b in group if b.grounded]
+        if grounded and _has_decay(all_bounces, [b.run_id for b in grounded]):
+            labels = {b.run_id: b.label for b in grounded}
             path = fig_dir / f"bounce-decay-{file_part(exp)}.png"
             title = f"Bounce height decay: {exp}"
-            key = figure_key("decay", result.bounces, labels, title)
+            key = figure_key("decay", all_bounces, labels, title)
             draw = functools.partial(
                 figures.bounce_decay_figure,
-                result.bounces,
+                all_bounces,
                 labels,
                 title=title,
                 path=path.absolute(),
             )
             jobs.append(("decay", path, key, draw))
-    has_e = (result.bounces.height and result.bounces["e_velocity"].drop_nulls().len()) or (
-        result.collisions.height and result.collisions["e_measured"].drop_nulls().len()
+    has_e = (all_bounces.height and all_bounces["e_velocity"].drop_nulls().len()) or (
+        collisions.height and collisions["e_measured"].drop_nulls().len()
     )
     if has_e:
-        labels = {a.run.run_id: run_label(a) for a in analyses}
+        labels = {b.run_id: b.label for b in briefs}
         bounces = (
-            result.bounces
-            if result.bounces.height
-            else pl.DataFrame(schema={"complete": pl.Boolean})
+            all_bounces if all_bounces.height else pl.DataFrame(schema={"complete": pl.Boolean})
         )
-        experiments = {a.run.run_id: a.run.experiment for a in analyses}
-        targets = _targets(analyses)
+        experiments = {b.run_id: b.experiment for b in briefs}
+        targets = _targets(briefs)
         path = fig_dir / "restitution-vs-speed.png"
-        key = figure_key("restitution", bounces, result.collisions, labels, experiments, targets)
+        key = figure_key("restitution", bounces, collisions, labels, experiments, targets)
         draw = functools.partial(
             figures.restitution_figure,
             bounces,
-            result.collisions,
+            collisions,
             labels,
             path=path.absolute(),
             experiments=experiments,
             targets=targets,
         )
         jobs.append(("restitution", path, key, draw))
-    for name, study in result.studies.items():
+    for name, study in studies.items():
         param = params[name][0]
         group = by_exp[name]
         if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
-            infos = list(group[0].run.body_info.values())
             path, title = fig_dir / f"study-{file_part(name)}.png", f"Parameter study: {name}"
-            m1, m2 = infos[0].mass, infos[1].mass
+            m1, m2 = group[0].masses[:2]
             key = figure_key("collision-study", study, param, title, m1, m2)
             draw = functools.partial(
                 figures.collision_study_figure,
@@ -208,14 +271,10 @@ def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
     return bool(done.height) and int(done.group_by("run_id", "body").len()["len"].max()) >= 2
 
 
-def _targets(analyses: Sequence[RunAnalysis]) -> dict[str, list[float]]:
+def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float]]:
     """experiment -> the restitution targets its specs asked for (none: not calibrated)."""
     out: dict[str, set[float]] = {}
-    for a in analyses:
-        contact = a.run.spec.get("contact") or {}
-        asked = [contact.get("restitution")]
-        asked += [p.get("restitution") for p in (contact.get("pairs") or {}).values()]
-        for e in asked:
-            if isinstance(e, int | float):
-                out.setdefault(a.run.experiment, set()).add(float(e))
+    for b in briefs:
+        if b.targets:
+            out.setdefault(b.experiment, set()).update(b.targets)
     return {name: sorted(es) for name, es in out.items()}

@@ -28,8 +28,8 @@ def _who(row: dict) -> str:
 def energy_answer(runs: pl.DataFrame) -> list[str]:
     """Is energy conserved in flight and lost at contacts? One sentence per run with a
     ground, its words chosen by `findings` from its numbers and its integrator."""
-    rows = [r for r in runs.filter(pl.col("ground")).iter_rows(named=True)]
-    return F.each([r for r in rows if r["energy_initial_J"] is not None], _energy_sentence)
+    rows = runs.filter(pl.col("ground")).iter_rows(named=True)  # one row at a time
+    return F.each((r for r in rows if r["energy_initial_J"] is not None), _energy_sentence)
 
 
 def _energy_sentence(r: dict) -> str:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import base64
 import html
 import re
+import shutil
 import stat
 from collections.abc import Iterator
 from pathlib import Path
@@ -26,7 +27,7 @@ from markdown_it.rules_core import StateCore
 from markdown_it.token import Token
 from mdit_py_plugins.anchors.index import slugify, unique_slug
 
-from impactlab.files import write_text
+from impactlab.files import atomic_path, temporary_path
 
 STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 2rem auto;
@@ -269,26 +270,24 @@ def _embed(tokens: list[Token], folder: Path) -> list[str]:
     return refused
 
 
-def report_html(markdown: str, folder: Path, title: str = "impactlab report") -> str:
-    """The Markdown `markdown` (whose relative paths are relative to `folder`) as one page.
-
-    It is parsed piece by piece (`_pieces`), so that no syntax tree of the whole report
-    exists at once: memory stays bounded by a section or a slice of a table, whatever the
-    number of runs.
-    """
+def _rendered(markdown: str, folder: Path, missing: list[str]) -> Iterator[str]:
+    """The page's body, piece by piece (`_pieces`); figures not found are added to
+    `missing`."""
     md = _parser()
     env: dict = {}
-    parts, missing = [], []
     for part, text in _pieces(markdown):
         plain = _plain_table(text) if part else None  # a slice of plain rows: written as is
         if plain is not None:
-            parts.append(_stitched(part, plain))
+            yield _stitched(part, plain)
             continue
         tokens = md.parse(text, env)
         missing += _embed(tokens, folder)
-        parts.append(_stitched(part, md.renderer.render(tokens, md.options, env)))
+        yield _stitched(part, md.renderer.render(tokens, md.options, env))
         del tokens
-    body = "".join(parts)
+
+
+def _frame(title: str, missing: list[str]) -> tuple[str, str]:
+    """The page before its body (with the note on missing figures) and after it."""
     note = ""
     if missing:
         items = "".join(f"<li>{html.escape(m)}</li>" for m in missing)
@@ -298,15 +297,47 @@ def report_html(markdown: str, folder: Path, title: str = "impactlab report") ->
         f'<meta http-equiv="Content-Security-Policy" content="{CSP}">\n'
         '<meta name="viewport" content="width=device-width, initial-scale=1">\n'
         f"<title>{html.escape(title)}</title>\n<style>{STYLE}</style>\n</head>\n"
-        f"<body>\n{note}{body}</body>\n</html>\n"
-    )
+        f"<body>\n{note}"
+    ), "</body>\n</html>\n"
+
+
+def report_html(markdown: str, folder: Path, title: str = "impactlab report") -> str:
+    """The Markdown `markdown` (whose relative paths are relative to `folder`) as one page.
+
+    It is parsed piece by piece (`_pieces`), so that no syntax tree of the whole report
+    exists at once: memory stays bounded by a section or a slice of a table, whatever the
+    number of runs.
+    """
+    missing: list[str] = []
+    body = "".join(_rendered(markdown, folder, missing))
+    head, tail = _frame(title, missing)
+    return head + body + tail
 
 
 def write_report_html(report_md: Path) -> Path:
-    """Write `report.html` beside `report_md` (atomically); returns its path."""
+    """Write `report.html` beside `report_md` (atomically); returns its path.
+
+    The body is written piece by piece into a temporary file, then the page around it: the
+    page is never held whole in memory.
+    """
     text = report_md.read_text(encoding="utf-8")
     first = next(
         (line for line in text.splitlines() if line.startswith("# ")), "# impactlab report"
     )
-    page = report_html(text, report_md.parent, title=first[2:].strip())
-    return write_text(report_md.with_suffix(".html"), page)
+    target = report_md.with_suffix(".html")
+    body = temporary_path(report_md.with_suffix(".body.html"))
+    missing: list[str] = []
+    try:
+        with open(body, "w", encoding="utf-8") as stream:
+            for piece in _rendered(text, report_md.parent, missing):
+                stream.write(piece)
+        del text
+        head, tail = _frame(first[2:].strip(), missing)
+        with atomic_path(target) as tmp, open(tmp, "w", encoding="utf-8") as out:
+            out.write(head)
+            with open(body, encoding="utf-8") as written:
+                shutil.copyfileobj(written, out)
+            out.write(tail)
+    finally:
+        body.unlink(missing_ok=True)
+    return target

@@ -96,7 +96,37 @@ def build_report(
     failed: Sequence[tuple[str, str]],
     energy_stride_note: str,
 ) -> str:
-    """The report's Markdown text.
+    """The report's Markdown text (`report_parts` joined by newlines)."""
+    return "\n".join(
+        report_parts(
+            out_dir=out_dir,
+            runs=runs,
+            bounces=bounces,
+            collisions=collisions,
+            phases=phases,
+            studies=studies,
+            params=params,
+            figures=figures,
+            failed=failed,
+            energy_stride_note=energy_stride_note,
+        )
+    )
+
+
+def report_parts(
+    *,
+    out_dir: Path,
+    runs: pl.DataFrame,
+    bounces: pl.DataFrame,
+    collisions: pl.DataFrame,
+    phases: pl.DataFrame,
+    studies: dict[str, pl.DataFrame],
+    params: dict[str, list[str]],
+    figures: dict[str, list[Path]],
+    failed: Sequence[tuple[str, str]],
+    energy_stride_note: str,
+) -> list[str]:
+    """The report's Markdown, in pieces to be joined by newlines (or written one by one).
 
     Args:
         figures: keyed "energy", "decay", "restitution", "collision", "study".
@@ -267,4 +297,4 @@ def build_report(
         "\n- `bounces.parquet`, `collisions.parquet`, `energy.parquet`, `phases.parquet`"
         "\n- `summary.json`: the runs, the studies and the answers\n- `figures/`\n"
     )
-    return "\n".join(out)
+    return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -11,6 +12,10 @@ import polars as pl
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.analyze.tables.studies import studies, with_parameters
+from impactlab.files import atomic_path, write_parquet
+
+TABLES = ("runs", "bounces", "collisions", "energy", "phases")
+"""The output tables, each written as `<name>.parquet`."""
 
 
 @dataclass
@@ -21,24 +26,58 @@ class AnalysisResult:
         out_dir: the output folder (None: nothing was written).
         runs: the runs table (one row per analyzed run, with sweep parameters and results).
         bounces, collisions, energy, phases: the other tables (energy decimated as written,
-            `outputs.decimate`).
+            `tables.decimate`). Held in memory when nothing was written; read from the
+            written Parquet file on each access when the analysis wrote a folder (`scan`
+            gives a lazy frame instead), so a result of any size holds no table.
         studies: per swept experiment, its study table.
         failed: (path, problem) of each input that could not be analyzed.
         files: every file written.
         energy_logged: rows of the energy table at full resolution, and the most of one body
-            in one run (the table keeps every k-th of them, `outputs.decimate`).
+            in one run (the table keeps every k-th of them, `tables.decimate`).
+        sources: each of the four tables, as a frame or the Parquet file it was written to.
     """
 
     out_dir: Path | None
     runs: pl.DataFrame
-    bounces: pl.DataFrame
-    collisions: pl.DataFrame
-    energy: pl.DataFrame
-    phases: pl.DataFrame
     studies: dict[str, pl.DataFrame]
     failed: list[tuple[str, str]] = field(default_factory=list)
     files: list[Path] = field(default_factory=list)
     energy_logged: tuple[int, int] = (0, 0)
+    sources: dict[str, pl.DataFrame | Path] = field(default_factory=dict, repr=False)
+
+    @property
+    def bounces(self) -> pl.DataFrame:
+        """One row per bounce of a body on a surface (see `sources`)."""
+        return self.table("bounces")
+
+    @property
+    def collisions(self) -> pl.DataFrame:
+        """One row per body-body contact (see `sources`)."""
+        return self.table("collisions")
+
+    @property
+    def energy(self) -> pl.DataFrame:
+        """Energy per body and the total, decimated as written (see `sources`)."""
+        return self.table("energy")
+
+    @property
+    def phases(self) -> pl.DataFrame:
+        """Flight and contact phases with their energy drift and loss (see `sources`)."""
+        return self.table("phases")
+
+    def table(self, name: str) -> pl.DataFrame:
+        """The table `name` as a frame (read from its file when it was written)."""
+        source = self.sources.get(name)
+        if isinstance(source, Path):  # one chunk, not one per part (see `_cat`)
+            return pl.read_parquet(source).rechunk()
+        return source if source is not None else pl.DataFrame()
+
+    def scan(self, name: str) -> pl.LazyFrame:
+        """The table `name` as a lazy frame (a scan of its file when it was written)."""
+        source = self.sources.get(name)
+        if isinstance(source, Path):
+            return pl.scan_parquet(source)
+        return (source if source is not None else pl.DataFrame()).lazy()
 
     @property
     def exit_code(self) -> int:
@@ -58,7 +97,8 @@ class AnalysisResult:
 
 
 REDUCE_EVERY = 64
-"""Runs whose frames are gathered before they are concatenated into the tables."""
+"""Runs whose frames are gathered before they are concatenated into the tables (or written
+as one part of each table's file)."""
 
 _TABLES = ("bounces", "collisions", "energy", "phases")
 
@@ -66,16 +106,23 @@ _TABLES = ("bounces", "collisions", "energy", "phases")
 class TableReducer:
     """The output tables, folded in run by run (`take`), then finished (`result`).
 
-    Every REDUCE_EVERY runs the frames taken are concatenated, so memory holds about the
-    tables' data rather than thousands of small frames: flat in the number of runs. The
-    tables are those one concatenation of every run's frames, in order, would give.
+    Every REDUCE_EVERY runs the frames taken are concatenated: kept in memory (the tables'
+    data rather than thousands of small frames), or, with `folder`, written there as one
+    Parquet part per table (`<table>/part-NNNNNN.parquet`) and dropped, so that memory holds
+    one batch of frames whatever the number of runs; `result` then joins each table's parts
+    into `folder/<table>.parquet` (a streaming polars scan). The runs table's rows are kept
+    (one small row per run, in columns). Either way the tables are those one concatenation
+    of every run's frames, in order, would give.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, folder: Path | None = None) -> None:
+        self.folder = folder
         self._pending: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._parts: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
+        self._files: dict[str, list[Path]] = {name: [] for name in _TABLES}
         self._summaries: list[dict] = []
-        self._rows = self._longest = 0
+        self._runs: list[pl.DataFrame] = []
+        self._taken = self._rows = self._longest = 0
 
     def take(self, a: RunAnalysis) -> RunAnalysis:
         """Take a run's tables; the analysis without them (its metadata stays)."""
@@ -88,33 +135,82 @@ class TableReducer:
         rows, longest = a.energy_logged
         self._rows += rows
         self._longest = max(self._longest, longest)
-        if len(self._summaries) % REDUCE_EVERY == 0:
+        self._taken += 1
+        if self._taken % REDUCE_EVERY == 0:
             self._reduce()
         empty = pl.DataFrame()
         return replace(a, energy=empty, phases=empty, bounces=empty, collisions=empty)
 
     def _reduce(self) -> None:
+        if self._summaries:
+            self._runs.append(pl.DataFrame(self._summaries, infer_schema_length=None))
+            self._summaries.clear()
         for name, frames in self._pending.items():
-            if frames:
-                self._parts[name].append(_cat(frames))
-                frames.clear()
+            if not frames:
+                continue
+            frame = _cat(frames)
+            frames.clear()
+            if self.folder is None:
+                self._parts[name].append(frame)
+                continue
+            part = self.folder / name / f"part-{len(self._files[name]):06d}.parquet"
+            part.parent.mkdir(parents=True, exist_ok=True)
+            self._files[name].append(write_parquet(frame, part))
 
     def result(self, out_dir: Path | None, failed: Sequence[tuple[str, str]]) -> AnalysisResult:
-        """The output tables of every run taken, with the sweep studies."""
+        """The output tables of every run taken, with the sweep studies; with `folder`, the
+        four tables are files there (`AnalysisResult.sources`), the parts removed."""
         self._reduce()
-        runs = pl.DataFrame(self._summaries, infer_schema_length=None)
+        runs = _cat(self._runs)
+        self._runs = [runs]
         runs = with_parameters(runs) if runs.height else runs
+        sources: dict[str, pl.DataFrame | Path] = {}
+        for name in _TABLES:
+            if self.folder is None:
+                sources[name] = _cat(self._parts[name])
+            else:
+                sources[name] = _join(self._files[name], self.folder / f"{name}.parquet")
         return AnalysisResult(
             out_dir=out_dir,
             runs=runs,
-            bounces=_cat(self._parts["bounces"]),
-            collisions=_cat(self._parts["collisions"]),
-            energy=_cat(self._parts["energy"]),
-            phases=_cat(self._parts["phases"]),
             studies=studies(runs) if runs.height else {},
             failed=list(failed),
             energy_logged=(self._rows, self._longest),
+            sources=sources,
         )
+
+
+def _join(parts: list[Path], path: Path) -> Path:
+    """The parts as one Parquet file at `path`, one row group per part, read and written one
+    part at a time (each cast to the schema of their diagonal, relaxed concatenation); the
+    parts are removed. No parts: an empty table, as an empty frame is written."""
+    if not parts:
+        return write_parquet(pl.DataFrame(), path)
+    import pyarrow.parquet as pq
+
+    schema = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
+    schema = schema.collect_schema()
+    with atomic_path(path) as tmp:
+        writer = None
+        try:
+            for part in parts:
+                frame = pl.read_parquet(part)
+                frame = frame.select(
+                    pl.col(n).cast(t) if n in frame.columns else pl.lit(None, t).alias(n)
+                    for n, t in schema.items()
+                )
+                table = frame.to_arrow()
+                if writer is None:
+                    writer = pq.ParquetWriter(tmp, table.schema, compression="zstd")
+                writer.write_table(table)
+        finally:
+            if writer is not None:
+                writer.close()
+    for part in parts:
+        part.unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        parts[0].parent.rmdir()
+    return path
 
 
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:

@@ -1,0 +1,115 @@
+"""Scale: large sweeps of short runs recorded and analyzed end to end (`bench.py --scale`).
+
+Each stage (record, then analyze: tables, summary.json and the report, no figures) runs in
+a fresh interpreter; its peak memory is that of the whole process tree (the stage's process
+and every child: record's forked workers, the analysis' worker processes), the sum of their
+resident memory sampled with psutil every 20 ms. Time per run is the stage's own time
+(without the interpreter's start) over the number of runs. The goals (issue 28): at 20,000
+runs, time per run within 1.2x and peak memory within 1.3x of those at 2,000.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+
+SAMPLE_S = 0.02
+GOAL_TIME, GOAL_MEMORY = 1.2, 1.3
+
+
+def tree_rss(process: psutil.Process) -> int:
+    """Resident bytes of the process and all its descendants (those alive now)."""
+    total = 0
+    for p in [process, *process.children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):  # ended between the listing and the reading
+            total += p.memory_info().rss
+    return total
+
+
+def run_sampled(argv: list[str]) -> tuple[dict, float]:
+    """Run a command, sampling its process tree's memory; its JSON result and peak MB."""
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, text=True)
+    watched = psutil.Process(proc.pid)
+    peak = 0
+    while proc.poll() is None:
+        with contextlib.suppress(psutil.Error):
+            peak = max(peak, tree_rss(watched))
+        time.sleep(SAMPLE_S)
+    out = proc.stdout.read() if proc.stdout else ""
+    if proc.returncode != 0:
+        raise SystemExit(f"{argv[3:]} failed with exit code {proc.returncode}")
+    return json.loads(out.strip().splitlines()[-1]), peak / 1e6
+
+
+def scale(folder: Path, bench: str, sizes: list[int], executors: list[str]) -> list[dict]:
+    """Record each size once, analyze it on each executor; one row per (size, executor)."""
+    from bench import write_spec
+
+    rows = []
+    for n in sizes:
+        spec = write_spec(folder, n, 0.05)
+        logs = folder / f"scale_logs_{n}"
+        rec, rec_mb = run_sampled([sys.executable, bench, "--case", "record", str(spec), str(logs)])
+        assert rec["runs"] == n, rec
+        for executor in executors:
+            out = folder / f"scale_results_{n}_{executor}"
+            ana, ana_mb = run_sampled(
+                [sys.executable, bench, "--case", "tables", str(logs), str(out), executor]
+            )
+            rows.append(
+                {
+                    "runs": n,
+                    "executor": executor,
+                    "record_ms": rec["seconds"] * 1e3 / n,
+                    "record_mb": rec_mb,
+                    "analyze_ms": ana["seconds"] * 1e3 / n,
+                    "analyze_mb": ana_mb,
+                }
+            )
+            _print_row(rows[-1])
+    return rows
+
+
+def _print_row(r: dict) -> None:
+    print(
+        f"  {r['runs']:>6} {r['executor']:>9} {r['record_ms']:>10.2f} {r['record_mb']:>10.0f} "
+        f"{r['analyze_ms']:>11.2f} {r['analyze_mb']:>11.0f}",
+        flush=True,
+    )
+
+
+def main(folder: Path, bench: str, sizes: list[int], executors: list[str]) -> None:
+    print(
+        "scale: sweeps of short runs (0.05 s, 101 steps) recorded, then analyzed (tables, "
+        "summary.json, report; no figures), each stage in a fresh interpreter; peak MB of "
+        "the whole process tree (sampled every 20 ms)"
+    )
+    print(
+        f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'record MB':>10} "
+        f"{'analyze ms':>11} {'analyze MB':>11}"
+    )
+    rows = scale(folder, bench, sizes, executors)
+    small, large = min(sizes), max(sizes)
+    if small == large:
+        return
+    print(
+        f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
+        f"{GOAL_MEMORY}):"
+    )
+    for executor in executors:
+        a = next(r for r in rows if r["runs"] == small and r["executor"] == executor)
+        b = next(r for r in rows if r["runs"] == large and r["executor"] == executor)
+        for stage in ("record", "analyze"):
+            t = b[f"{stage}_ms"] / a[f"{stage}_ms"]
+            m = b[f"{stage}_mb"] / a[f"{stage}_mb"]
+            verdict = "met" if t <= GOAL_TIME and m <= GOAL_MEMORY else "not met"
+            print(
+                f"    {stage:>7} ({executor}): time per run {t:.2f}x, peak memory {m:.2f}x: "
+                f"{verdict}"
+            )
