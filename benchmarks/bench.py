@@ -212,7 +212,8 @@ def main() -> int:
 
         print(f"machine: {_machine()}")
         with tempfile.TemporaryDirectory(prefix="impactlab-scale-") as tmp:
-            scale.main(Path(tmp), __file__, args.runs, args.executors)
+            specs = {n: write_spec(Path(tmp), n, 0.05) for n in sorted(set(args.runs))}
+            scale.main(Path(tmp), __file__, specs, args.executors)
         return 0
     runs = 16 if args.quick else 64
     with tempfile.TemporaryDirectory(prefix="impactlab-bench-") as tmp:

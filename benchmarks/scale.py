@@ -47,13 +47,11 @@ def run_sampled(argv: list[str]) -> tuple[dict, float]:
     return json.loads(out.strip().splitlines()[-1]), peak / 1e6
 
 
-def scale(folder: Path, bench: str, sizes: list[int], executors: list[str]) -> list[dict]:
-    """Record each size once, analyze it on each executor; one row per (size, executor)."""
-    from bench import write_spec
-
+def scale(folder: Path, bench: str, specs: dict[int, Path], executors: list[str]) -> list[dict]:
+    """Record each size's spec once, analyze it on each executor; one row per (size,
+    executor). `specs`: per number of runs, its sweep spec (written by bench.py)."""
     rows = []
-    for n in sizes:
-        spec = write_spec(folder, n, 0.05)
+    for n, spec in specs.items():
         logs = folder / f"scale_logs_{n}"
         rec, rec_mb = run_sampled([sys.executable, bench, "--case", "record", str(spec), str(logs)])
         assert rec["runs"] == n, rec
@@ -84,7 +82,7 @@ def _print_row(r: dict) -> None:
     )
 
 
-def main(folder: Path, bench: str, sizes: list[int], executors: list[str]) -> None:
+def main(folder: Path, bench: str, specs: dict[int, Path], executors: list[str]) -> None:
     print(
         "scale: sweeps of short runs (0.05 s, 101 steps) recorded, then analyzed (tables, "
         "summary.json, report; no figures), each stage in a fresh interpreter; peak MB of "
@@ -94,8 +92,8 @@ def main(folder: Path, bench: str, sizes: list[int], executors: list[str]) -> No
         f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'record MB':>10} "
         f"{'analyze ms':>11} {'analyze MB':>11}"
     )
-    rows = scale(folder, bench, sizes, executors)
-    small, large = min(sizes), max(sizes)
+    rows = scale(folder, bench, specs, executors)
+    small, large = min(specs), max(specs)
     if small == large:
         return
     print(

@@ -168,8 +168,10 @@ class _Batch:
             )
             joints = a.request.inst.joints
             if joints is not None:  # its rotor and spring energy, as two more columns
-                before = np.concatenate([first_state[None], states[i, :nstep]])
-                rows = np.hstack([rows, joints.terms(before[steps - self.step0], rows)])
+                local = steps - self.step0  # the state before step k: after step k - 1
+                before = states[i, np.maximum(local - 1, 0)]
+                before[local == 0] = first_state
+                rows = np.hstack([rows, joints.terms(before, rows)])
             t_ns = steps * self.dt_ns
             if t_ns.size:
                 a.logged += t_ns.size

@@ -83,34 +83,9 @@ def image(path: Path, out_dir: Path, alt: str) -> str:
     return f"![{md_text(alt)}]({md_link(path.relative_to(out_dir).as_posix())})\n"
 
 
-def build_report(
-    *,
-    out_dir: Path,
-    runs: pl.DataFrame,
-    bounces: pl.DataFrame,
-    collisions: pl.DataFrame,
-    phases: pl.DataFrame,
-    studies: dict[str, pl.DataFrame],
-    params: dict[str, list[str]],
-    figures: dict[str, list[Path]],
-    failed: Sequence[tuple[str, str]],
-    energy_stride_note: str,
-) -> str:
-    """The report's Markdown text (`report_parts` joined by newlines)."""
-    return "\n".join(
-        report_parts(
-            out_dir=out_dir,
-            runs=runs,
-            bounces=bounces,
-            collisions=collisions,
-            phases=phases,
-            studies=studies,
-            params=params,
-            figures=figures,
-            failed=failed,
-            energy_stride_note=energy_stride_note,
-        )
-    )
+def build_report(**parts: Any) -> str:
+    """The report's Markdown text: `report_parts` (the same keywords) joined by newlines."""
+    return "\n".join(report_parts(**parts))
 
 
 def report_parts(
