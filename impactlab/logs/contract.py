@@ -207,7 +207,7 @@ def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     """`contact_targets`, `geom_contact` and `separation_m` as a format-1 log's spec gives them
     (its `contact`, `plane`, `bodies` and `stop` tables; a user's model has none but `stop`)."""
     stop = spec.get("stop") or {}
-    separation = stop.get("separation")
+    separation: Any = stop.get("separation")
     out: dict[str, Any] = {
         "separation_m": float(separation) if real(separation, 1e-300, MAX_SEPARATION_M) else None,
         "contact_targets": (),
@@ -218,11 +218,12 @@ def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
         return out  # a user's model: its geoms' contact is in model.xml only
     solref, solimp = contact.get("solref", SPEC_SOLREF), contact.get("solimp", SPEC_SOLIMP)
     if all(
-        isinstance(v, list | tuple) and all(real(x, -1e300, 1e300) for x in v)
-        for v in (solref, solimp)
+        isinstance(v, list | tuple) and n <= len(v) <= m and all(real(x, -1e300, 1e300) for x in v)
+        for v, n, m in ((solref, 2, 2), (solimp, 3, 5))
     ):
         out["geom_contact"] = GeomContact(tuple(map(float, solref)), tuple(map(float, solimp)))
-    pairs = contact.get("pairs") if isinstance(contact.get("pairs"), dict) else {}
+    pairs: Any = contact.get("pairs")
+    pairs = pairs if isinstance(pairs, dict) else {}
     names = list(bodies)
     candidates = (
         [(PLANE_GEOM, b) for b in names] if (spec.get("plane") or {}).get("enabled", True) else []
@@ -230,7 +231,8 @@ def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
     candidates += list(itertools.combinations(names, 2))
     targets = []
     for geom1, geom2 in candidates:  # as the recorder of format 1 paired them
-        own = pairs.get("/".join(sorted((geom1, geom2)))) or {}
+        own = pairs.get("/".join(sorted((geom1, geom2))))
+        own = own if isinstance(own, dict) else {}
         e = _pick(own.get("restitution"), contact.get("restitution"))
         if not real(e, 0.0, 1.0):
             continue
