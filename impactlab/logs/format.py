@@ -18,7 +18,8 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /events                     | foxglove.Log            | at the end (outcome, warnings)      |
 
 Metadata records: `impactlab.run` right after the header (what the run is: spec, sweep,
-versions, bodies), `impactlab.outcome` at the end (how it ended), so a truncated log still
+versions, bodies; and since format 2 what the stages read instead of the spec, declared in
+`impactlab.logs.contract`), `impactlab.outcome` at the end (how it ended), so a truncated log still
 says what it was and, by lacking the outcome, that it is incomplete. Attachment `model.xml`:
 the compiled MJCF, whose keyframe `initial` holds the initial state (a user's model: its text
 with includes inlined); `model.mjb` too for a model that reads mesh or texture files. What
