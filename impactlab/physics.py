@@ -19,8 +19,28 @@ def collision_after(m1: X, m2: X, v1: X, v2: X, e: X | float) -> tuple[X, X]:
     return (p + m2 * e * (v2 - v1)) / total, (p + m1 * e * (v1 - v2)) / total  # type: ignore[operator]
 
 
+RK4 = "RK4"
 SEMI_IMPLICIT = ("Euler", "implicit", "implicitfast")
 """MuJoCo's integrators that advance positions with the velocity after the step: in a free
 flight under gravity g each step loses m g^2 dt^2 / 2, so a flight of T seconds loses
 m g^2 dt T / 2 (checked with MuJoCo: all three give the same energy to 1e-15). RK4 follows
 the parabola exactly and has no such drift."""
+INTEGRATORS = ("Euler", RK4, "implicit", "implicitfast")
+"""MuJoCo's integrators as MJCF spells them (the log's `integrator` key)."""
+
+
+def half_step_s(integrator: str, timestep_s: float) -> float:
+    """How far, in s, the logged positions of a free flight lag the parabola of its velocities.
+
+    MuJoCo's semi-implicit integrators advance the position with the velocity after the
+    step, which puts the parabola through the logged positions half a step late: dt / 2.
+    RK4 follows the parabola: 0.
+
+    Raises:
+        ValueError: `integrator` is not one of `INTEGRATORS`.
+    """
+    if integrator == RK4:
+        return 0.0
+    if integrator in SEMI_IMPLICIT:
+        return timestep_s / 2
+    raise ValueError(f"unknown integrator {integrator!r} (one of {', '.join(INTEGRATORS)})")

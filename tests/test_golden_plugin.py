@@ -12,7 +12,7 @@ import pytest
 
 import impactlab
 import impactlab.analyze.job
-import impactlab.record.job
+import impactlab.record.planner
 import impactlab.record.recorder  # imported here: pytester's in-process runs would import
 
 # numpy and MuJoCo's extension modules again and fail (they load once per process)

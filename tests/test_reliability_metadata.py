@@ -53,6 +53,7 @@ ANALYSIS_KEYS = (  # docs/log-format.md
     "integrator",
     "ground",
     "static_potential_J",
+    "half_step_s",
 )
 FREE_TEXT = {
     "impactlab_version",
@@ -65,7 +66,7 @@ FREE_TEXT = {
 }
 # values of the wrong type or out of range, per kind of key (any string is a valid free text)
 BAD = {
-    "log_format_version": ["2", "", "1.0"],
+    "log_format_version": ["3", "", "1.0", "2.0"],
     "run_id": ["", "   "],
     "spec": ["7", '"x"', "[1, 2]", "{", '{"bodies": [1]}', '{"contact": 3}', "[" * 3000],
     "sweep": ["7", "null", "[]", "{"],
@@ -96,6 +97,15 @@ BAD = {
         '[{"name": "floor", "type": "plane", "level_m": 0.0, "distance": "yes"}]',
     ],
     "static_potential_J": ["x", "", "nan", "1e300"],
+    "contact_targets": [
+        "x",
+        "{}",
+        '[{"geom1": "plane"}]',
+        '[{"geom1": "a", "geom2": "b", "restitution": 2, "speed_range_mps": [1, 2]}]',
+    ],
+    "geom_contact": ["x", "[]", '{"solref": [1]}', '{"solref": [1, 2], "solimp": [1]}'],
+    "separation_m": ["x", "0", "-1", "nan"],
+    "half_step_s": ["x", "", "-1", "0.5", "0"],  # dt = 0.001 s with Euler: 0.0005 s
     "outcome": ["", "done", "COMPLETED"],
     "warnings": ["x", "[1]", '"a warning"', "{}"],
     "steps": ["x", "-1", "1.5", str(10**30)],

@@ -664,7 +664,7 @@ GOLDEN = Path(__file__).parent / "golden"
 def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):
     """Logs written before the geom table (the golden logs): each ball a sphere of its radius
     and colour, the spec's plane, as before."""
-    log = GOLDEN / "logs" / "drop_bounces.mcap"
+    log = GOLDEN / "format1" / "drop_restitution.mcap"
     run = load_log(log)
     assert not run.scene  # written before the table
     rrd = tmp_path / "old.rrd"

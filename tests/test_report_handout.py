@@ -70,13 +70,15 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
 @pytest.mark.slow
 def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     from impactlab.analyze.report.run_figures import contact_words, sweep_words
+    from impactlab.logs.contract import GeomContact, PairTarget
 
-    assert contact_words({"restitution": 0.8, "solref": [0.02, 1.0]}) == "restitution = 0.8"
-    raw = {"restitution": None, "solref": [0.02, 1.0], "solimp": [0.9, 0.95, 0.001]}
-    assert contact_words(raw) == "solref [0.02, 1.0], solimp [0.9, 0.95, 0.001]"
-    pairs = {"pairs": {"a/plane": {"restitution": 0.42}, "b/plane": {"restitution": 0.0}}}
-    assert contact_words(pairs) == "restitution a/plane = 0.42, b/plane = 0"
-    assert contact_words({}) == ""
+    raw = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001))
+    one = [PairTarget("plane", "a", 0.8, (1.0, 2.0)), PairTarget("plane", "b", 0.8, None)]
+    assert contact_words(one, raw) == "restitution = 0.8"
+    assert contact_words([], raw) == "solref [0.02, 1.0], solimp [0.9, 0.95, 0.001]"
+    pairs = [PairTarget("a", "plane", 0.42, None), PairTarget("b", "plane", 0.0, None)]
+    assert contact_words(pairs, None) == "restitution a/plane = 0.42, b/plane = 0"
+    assert contact_words([], None) == ""
     assert sweep_words({"bodies.ball.pos": [0.0, 0.0, 3.0]}) == "ball released at z = 3 m"
     assert sweep_words({"contact.restitution": 0.9}) == "restitution = 0.9"
     assert sweep_words({}) == ""

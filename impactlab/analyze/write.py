@@ -29,7 +29,7 @@ SUMMARY_SLICE = 1000
 class RunBrief:
     """What the summary figures need of one run (a few strings and numbers, whatever its
     length): its id, experiment, readable label, whether it has ground surfaces, the
-    restitution targets its spec asked for and its bodies' masses."""
+    restitution targets of its calibrated pairs and its bodies' masses."""
 
     run_id: str
     experiment: str
@@ -41,15 +41,12 @@ class RunBrief:
 
 def brief(a: RunAnalysis) -> RunBrief:
     """The run's `RunBrief`."""
-    contact = a.run.spec.get("contact") or {}
-    asked = [contact.get("restitution")]
-    asked += [p.get("restitution") for p in (contact.get("pairs") or {}).values()]
     return RunBrief(
         run_id=a.run.run_id,
         experiment=a.run.experiment,
         label=run_label(a),
         grounded=a.ground is not None and bool(a.ground.surfaces),
-        targets=tuple(float(e) for e in asked if isinstance(e, int | float)),
+        targets=tuple(sorted({t.restitution for t in a.run.contact_targets})),
         masses=tuple(info.mass for info in a.run.body_info.values()),
     )
 
@@ -272,7 +269,7 @@ def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
 
 
 def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float]]:
-    """experiment -> the restitution targets its specs asked for (none: not calibrated)."""
+    """experiment -> the restitution targets of its calibrated pairs (none: not calibrated)."""
     out: dict[str, set[float]] = {}
     for b in briefs:
         if b.targets:

@@ -39,7 +39,7 @@ from impactlab.contact import (
     restitution_spread,
 )
 from impactlab.errors import SpecError
-from impactlab.record import calibrated_pairs, plan
+from impactlab.record import plan
 
 BOUNCE_SPEED_MPS = 3.0
 LAST_SPEED_MPS = 0.15
@@ -115,7 +115,7 @@ def bounce_point(case: BounceCase) -> GridPoint:
                 raise ContactModelError(str(exc)) from None
             last = exc
             continue
-        (pair,) = calibrated_pairs(run.spec)
+        (pair,) = run.pairs  # as planned
         return GridPoint(
             name,
             "bounces",

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from impactlab.record.recorder import record_runs
 
     executor = make_executor(args)
-    from impactlab.record.job import plan
+    from impactlab.record.planner import plan
 
     runs = plan(
         args.inputs,

@@ -12,8 +12,10 @@ from typing import Any
 
 import numpy as np
 
+from impactlab.logs import contract
 from impactlab.logs import format as logformat
 from impactlab.logs.scene import GeomShape
+from impactlab.physics import half_step_s
 from impactlab.version import __version__
 
 
@@ -72,7 +74,12 @@ class PairMeta:
 
 @dataclass(frozen=True)
 class RunMeta:
-    """What the `impactlab.run` metadata record says (see `impactlab.logs.format.RUN_KEYS`)."""
+    """What the `impactlab.run` metadata record says (see `impactlab.logs.format.RUN_KEYS`).
+
+    The keys of format 2 (`impactlab.logs.contract`): `contact_targets` (the calibrated
+    pairs), `geom_contact` (the solref and solimp every geom shares, None: they differ),
+    `separation_m` (the separation stop rule, None: none); `half_step_s` is the integrator's.
+    """
 
     experiment: str
     description: str
@@ -92,6 +99,9 @@ class RunMeta:
     integrator: str = ""
     surfaces: Sequence[SurfaceMeta] = ()
     static_potential_J: float = 0.0
+    contact_targets: Sequence[contract.PairTarget] = ()
+    geom_contact: contract.GeomContact | None = None
+    separation_m: float | None = None
 
     def record(self) -> dict[str, str]:
         """The metadata record, every value a string."""
@@ -135,6 +145,12 @@ class RunMeta:
                 ]
             ),
             "static_potential_J": repr(float(self.static_potential_J)),
+            **contract.record_values(
+                self.contact_targets,
+                self.geom_contact,
+                self.separation_m,
+                half_step_s(self.integrator, self.timestep_s),
+            ),
         }
         assert tuple(meta) == logformat.RUN_KEYS
         return meta

@@ -18,7 +18,8 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /events                     | foxglove.Log            | at the end (outcome, warnings)      |
 
 Metadata records: `impactlab.run` right after the header (what the run is: spec, sweep,
-versions, bodies), `impactlab.outcome` at the end (how it ended), so a truncated log still
+versions, bodies; and since format 2 what the stages read instead of the spec, declared in
+`impactlab.logs.contract`), `impactlab.outcome` at the end (how it ended), so a truncated log still
 says what it was and, by lacking the outcome, that it is incomplete. Attachment `model.xml`:
 the compiled MJCF, whose keyframe `initial` holds the initial state (a user's model: its text
 with includes inlined); `model.mjb` too for a model that reads mesh or texture files. What
@@ -29,7 +30,8 @@ added to format 1).
 
 from __future__ import annotations
 
-LOG_FORMAT_VERSION = "1"
+LOG_FORMAT_VERSION = "2"
+READABLE_FORMATS = ("1", "2")  # format 1: the keys of format 2 derived (`logs.contract`)
 PROFILE = ""  # no MCAP well-known profile fits protobuf logs of a simulator
 ENCODING = "protobuf"
 
@@ -77,9 +79,16 @@ RUN_KEYS = (
     "integrator",  # MuJoCo's integrator (Euler, RK4, implicit, implicitfast)
     "ground",  # JSON [{name, type, level_m, distance}]: the static geoms bodies can land on
     "static_potential_J",  # MuJoCo's potential energy of the static bodies (a constant), J
+    "contact_targets",  # JSON [{geom1, geom2, restitution, speed_range_mps}]: calibrated pairs
+    "geom_contact",  # JSON {solref, solimp} every geom shares, or "" when they differ
+    "separation_m",  # the separation stop rule in m (a collision), or "" when there is none
+    "half_step_s",  # the integrator's half step: dt / 2 (semi-implicit), 0 (RK4), s
 )
 # keys added after format version 1 was first written; older logs lack them (compatible)
 RUN_KEYS_ADDED = ("integrator", "ground", "static_potential_J")
+# keys format 2 added: what the analysis reads instead of the spec (`impactlab.logs.contract`);
+# every format-2 log has them, and a format-1 log gets them derived from its spec
+RUN_KEYS_FORMAT_2 = ("contact_targets", "geom_contact", "separation_m", "half_step_s")
 # keys of the outcome metadata record
 OUTCOME_KEYS = (
     "outcome",  # completed | unstable

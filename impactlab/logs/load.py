@@ -24,6 +24,7 @@ from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.bodies import BodyInfo as BodyInfo  # re-exported: readers import it here
 from impactlab.logs.bodies import SurfaceInfo as SurfaceInfo
+from impactlab.logs.contract import GeomContact, PairTarget, optional_keys
 from impactlab.logs.decode import (
     body_state_values,
     decode_clearance,
@@ -155,9 +156,27 @@ class RunLog:
     @property
     def integrator(self) -> str:
         """MuJoCo's integrator ("Euler" for logs that do not say)."""
-        options = self.spec.get("options") or {}
-        spec = options.get("integrator") if isinstance(options, dict) else None
-        return self.checked.values.get("integrator") or spec or "Euler"
+        return self.checked.values.get("integrator") or "Euler"
+
+    @property
+    def half_step_s(self) -> float:
+        """The integrator's half step, s (`physics.half_step_s`); LogError when unknown."""
+        return float(self._known("half_step_s"))
+
+    @property
+    def contact_targets(self) -> tuple[PairTarget, ...]:
+        """The pairs calibrated to a target e, with their speed ranges (() when none)."""
+        return self.checked.values.get("contact_targets", ())
+
+    @property
+    def geom_contact(self) -> GeomContact | None:
+        """The contact parameters every geom shares (None: they differ, or unknown)."""
+        return self.checked.values.get("geom_contact")
+
+    @property
+    def separation_m(self) -> float | None:
+        """The separation stop rule, m: a collision was expected (None: no rule, unknown)."""
+        return self.checked.values.get("separation_m")
 
     @property
     def gravity(self) -> np.ndarray:
@@ -202,14 +221,13 @@ class RunLog:
 
         The masses, sizes, gravity, ground, timestep, logging stride and integrator must be
         known and agree with the channels: every energy, height and restitution depends on
-        them (keys older logs lack, `format.RUN_KEYS_ADDED`, may be missing).
+        them (keys older logs lack, `contract.optional_keys`, may be missing).
         """
+        optional = optional_keys(self.checked.values.get("log_format_version"))
         missing = [
             k
             for k in ANALYSIS_KEYS
-            if k not in self.meta
-            and k not in self.checked.problems
-            and k not in logformat.RUN_KEYS_ADDED
+            if k not in self.meta and k not in self.checked.problems and k not in optional
         ]
         if missing and not self.meta:
             return "no impactlab.run metadata: cannot analyze"

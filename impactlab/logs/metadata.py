@@ -8,23 +8,31 @@ that hold, typed, and one problem per key that does not. `check_channels` then c
 the metadata says with what the log holds (bodies, logged times, sweep point, steps).
 
 A problem on one of `ANALYSIS_KEYS` (masses, sizes, gravity, ground, timestep, logging stride,
-integrator, the static bodies' energy) makes every energy, height and restitution of the run
-untrustworthy: the analysis refuses that run and names the key. A problem on any other key is
-reported, the value is treated as unknown, and the run is analyzed. The keys added to format
-version 1 later (`format.RUN_KEYS_ADDED`) may be missing: older logs do not have them.
+integrator and its half step, the static bodies' energy) makes every energy, height and
+restitution of the run untrustworthy: the analysis refuses that run and names the key. A
+problem on any other key is reported, the value is treated as unknown, and the run is
+analyzed. The keys added to format version 1 later (`format.RUN_KEYS_ADDED`) may be missing:
+older logs do not have them. Logs of format 1 lack the keys of format 2 too
+(`format.RUN_KEYS_FORMAT_2`, declared in `impactlab.logs.contract`), whose values are derived
+there.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from impactlab.logs import contract
 from impactlab.logs import format as logformat
+from impactlab.logs.values import Invalid as Invalid  # re-exported: the parsers raise it
+from impactlab.logs.values import json_value as _json
+from impactlab.logs.values import number as _number
+from impactlab.logs.values import quote as _quote
+from impactlab.logs.values import real as _real
+from impactlab.physics import INTEGRATORS as INTEGRATORS  # the names the key accepts
 
 MAX_TIMESTEP_S = 10.0
 MIN_TIMESTEP_S = 1e-9  # log times are integer ns
@@ -36,7 +44,6 @@ MAX_INERTIA = 1e12  # kg m^2
 MAX_STEP_NS = 1 << 62  # timestep x log_every must stay far from int64 overflow
 MAX_ENERGY_J = 1e15
 OUTCOMES = ("completed", "unstable")
-INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 ANALYSIS_KEYS = (
     "timestep_s",
     "log_every",
@@ -46,11 +53,8 @@ ANALYSIS_KEYS = (
     "integrator",
     "ground",
     "static_potential_J",
+    "half_step_s",
 )
-
-
-class Invalid(ValueError):
-    """A metadata value that does not hold; the message says why."""
 
 
 @dataclass(frozen=True)
@@ -93,10 +97,9 @@ def _nonempty(value: str) -> str:
 
 
 def _version(value: str) -> str:
-    if value != logformat.LOG_FORMAT_VERSION:
-        raise Invalid(
-            f"{_quote(value)}: this impactlab reads log format {logformat.LOG_FORMAT_VERSION}"
-        )
+    if value not in logformat.READABLE_FORMATS:
+        readable = ", ".join(logformat.READABLE_FORMATS)
+        raise Invalid(f"{_quote(value)}: this impactlab reads log formats {readable}")
     return value
 
 
@@ -113,16 +116,6 @@ def _integer(low: int, high: int) -> Callable[[str], int]:
     return parse
 
 
-def _number(value: str, low: float, high: float) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise Invalid(f"{_quote(value)} is not a number") from None
-    if not math.isfinite(number) or not low <= number <= high:
-        raise Invalid(f"{_quote(value)} is out of range")
-    return number
-
-
 def _timestep(value: str) -> float:
     return _number(value, MIN_TIMESTEP_S, MAX_TIMESTEP_S)
 
@@ -131,13 +124,6 @@ def _plane_z(value: str) -> float | None:
     if value == "":
         return None  # no plane
     return _number(value, -MAX_MAGNITUDE, MAX_MAGNITUDE)
-
-
-def _json(value: str) -> Any:
-    try:
-        return json.loads(value)
-    except (ValueError, RecursionError):
-        raise Invalid(f"{_quote(value)} is not valid JSON") from None
 
 
 def _object(value: str) -> dict[str, Any]:
@@ -159,15 +145,6 @@ def _spec(value: str) -> dict[str, Any]:
         if not isinstance(parsed.get(name, {}), dict | None):
             raise Invalid(f"its {name} is not a table")
     return parsed
-
-
-def _real(value: Any, low: float, high: float) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(value)
-        and low <= value <= high
-    )
 
 
 def _gravity(value: str) -> tuple[float, float, float]:
@@ -265,11 +242,6 @@ def _outcome(value: str) -> str:
     return value
 
 
-def _quote(value: Any) -> str:
-    text = value if isinstance(value, str) else json.dumps(value)
-    return repr(text if len(text) <= 40 else text[:37] + "...")
-
-
 RUN, OUTCOME = logformat.RUN_METADATA, logformat.OUTCOME_METADATA
 KEYS: dict[str, Key] = {
     k.name: k
@@ -299,6 +271,7 @@ KEYS: dict[str, Key] = {
         Key("integrator", RUN, f"one of {', '.join(INTEGRATORS)}", _integrator),
         Key("ground", RUN, "JSON [{name, type, level_m, distance}]", _ground),
         Key("static_potential_J", RUN, f"number within ±{MAX_ENERGY_J:g} J", _energy),
+        *(Key(name, RUN, holds, parse) for name, holds, parse in contract.KEYS),
         Key("outcome", OUTCOME, f"one of {', '.join(OUTCOMES)}", _outcome),
         Key("reason", OUTCOME, "why the run ended", _text),
         Key("warnings", OUTCOME, "JSON list of sentences", _warnings),
@@ -314,13 +287,14 @@ def check_metadata(records: Mapping[str, Mapping[str, str]]) -> MetadataCheck:
     (the reader reports it: no run metadata, or no outcome record for an incomplete log).
     """
     values: dict[str, Any] = {}
+    optional = contract.optional_keys(records.get(RUN, {}).get("log_format_version"))
     problems: dict[str, str] = {}
     for key in KEYS.values():
         record = records.get(key.record)
         if record is None:
             continue
         if key.name not in record:
-            if key.name not in logformat.RUN_KEYS_ADDED:  # older logs lack those
+            if key.name not in optional:  # older logs lack those
                 problems[key.name] = f"missing from the {key.record} record"
             continue
         try:
@@ -335,6 +309,7 @@ def check_metadata(records: Mapping[str, Mapping[str, str]]) -> MetadataCheck:
     if dt is not None and every is not None and step_ns(dt) * every > MAX_STEP_NS:
         problems["log_every"] = f"{every} steps of {dt:g} s between logged rows is out of range"
         del values["log_every"]
+    contract.settle(values, problems)  # format 1: its keys derived
     return MetadataCheck(values, problems)
 
 

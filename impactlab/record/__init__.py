@@ -3,7 +3,7 @@
 Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`, `sweep`),
 an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
 `geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
-and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`job`
+and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`planner`
 plans, `work` estimates and refuses absurd jobs, `recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from impactlab.executors.base import Executor
     from impactlab.progress import Progress
     from impactlab.record.contact_pairs import calibrated_pairs as calibrated_pairs
-    from impactlab.record.job import PlannedRun as PlannedRun
+    from impactlab.record.planner import PlannedRun as PlannedRun
     from impactlab.record.recorder import record_runs as record_runs
     from impactlab.record.results import RecordedRun as RecordedRun
     from impactlab.record.results import RecordResult as RecordResult
@@ -35,7 +35,7 @@ if not TYPE_CHECKING:  # a type checker sees the imports above
     __getattr__ = lazy_exports(
         __name__,
         {
-            "PlannedRun": "impactlab.record.job",
+            "PlannedRun": "impactlab.record.planner",
             "RecordedRun": "impactlab.record.results",
             "RecordResult": "impactlab.record.results",
             "calibrated_pairs": "impactlab.record.contact_pairs",
@@ -70,7 +70,7 @@ def plan(
         SpecError: an input, override or option is wrong (the message names it).
         WorkError: the job is beyond the work limits (and not `allow_large`).
     """
-    from impactlab.record.job import plan as plan_runs
+    from impactlab.record.planner import plan as plan_runs
 
     return plan_runs(
         _items(inputs), overrides=overrides, duration=duration, allow_large=allow_large
@@ -114,8 +114,8 @@ def record(
     from impactlab.executors.choose import executor_for
     from impactlab.files import OutputError
     from impactlab.progress import reporter
-    from impactlab.record.job import PlannedRun
-    from impactlab.record.job import plan as plan_runs
+    from impactlab.record.planner import PlannedRun
+    from impactlab.record.planner import plan as plan_runs
     from impactlab.record.recorder import record_runs
 
     if not str(out).strip():

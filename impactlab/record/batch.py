@@ -17,9 +17,9 @@ from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
-from impactlab.record.job import PlannedRun
 from impactlab.record.log_rows import contact_work, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
+from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
 

@@ -8,7 +8,7 @@ import mujoco
 
 from impactlab.logs import format as logformat
 from impactlab.logs.status import complete_metadata
-from impactlab.record.job import PlannedRun
+from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 
 

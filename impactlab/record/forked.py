@@ -32,7 +32,7 @@ from typing import Any
 from impactlab.logs.writer import partial_path
 from impactlab.record.batch import LogWriteError, Report, Reuse, record_batches
 from impactlab.record.folder import log_path
-from impactlab.record.job import PlannedRun
+from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 
 DIED = "its worker process died (killed or out of memory)"

@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 
 from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
+from impactlab.logs.contract import GeomContact, PairTarget
 from impactlab.logs.messages import POINT_FIELDS
 from impactlab.record import geometry
 from impactlab.record.model import (
@@ -28,7 +29,11 @@ from impactlab.record.simulate import Ending
 
 @dataclass(frozen=True)
 class RunInfo:
-    """What the metadata record says about a run besides its model and trajectory."""
+    """What the metadata record says about a run besides its model and trajectory.
+
+    `contact_targets`: the calibrated pairs' targets (as planned); `separation_m`: the
+    separation stop rule (a collision), None without one.
+    """
 
     run_id: str
     experiment: str
@@ -40,6 +45,8 @@ class RunInfo:
     log_every: int
     sweep_index: int = 0
     sweep_size: int = 1
+    contact_targets: tuple[PairTarget, ...] = ()
+    separation_m: float | None = None
 
 
 def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
@@ -78,6 +85,9 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         integrator=integrator_name(model),
         surfaces=inst.surfaces,
         static_potential_J=inst.static_potential,
+        contact_targets=info.contact_targets,
+        geom_contact=shared_geom_contact(model),
+        separation_m=info.separation_m,
     )
     clearance = [
         (b.name, tuple(c.other for c in inst.clearance_of(b.name)))
@@ -94,6 +104,14 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         meshes=inst.meshes,
         joint_energy=inst.joints is not None,
     )
+
+
+def shared_geom_contact(model: mujoco.MjModel) -> GeomContact | None:
+    """The solref and solimp every geom of the model has (None: they differ)."""
+    solref, solimp = model.geom_solref, model.geom_solimp
+    if not model.ngeom or (solref != solref[0]).any() or (solimp != solimp[0]).any():
+        return None
+    return GeomContact(tuple(map(float, solref[0])), tuple(map(float, solimp[0])))
 
 
 def integrator_name(model: mujoco.MjModel) -> str:

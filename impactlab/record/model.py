@@ -10,6 +10,7 @@ bodies' shapes are described by `impactlab.record.geometry`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +21,7 @@ from impactlab.errors import SpecError
 from impactlab.logs.content import PairMeta, SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
-from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
 from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
@@ -125,8 +126,9 @@ class InstrumentedModel:
         return state
 
 
-def mjcf_from_spec(run: RunSpec) -> str:
-    """The MJCF text of a spec's model, with the handout's `<default><geom>` contact."""
+def mjcf_from_spec(run: RunSpec, pairs: Sequence[CalibratedPair] | None = None) -> str:
+    """The MJCF text of a spec's model, with the handout's `<default><geom>` contact and a
+    `<pair>` per calibrated pair (`pairs`, as planned; None: calibrated here)."""
     opt, con = run.options, run.contact
     lines = [
         f'<mujoco model="{run.experiment}">',
@@ -152,7 +154,8 @@ def mjcf_from_spec(run: RunSpec) -> str:
             "    </body>",
         ]
     lines.append("  </worldbody>")
-    pairs = calibrated_pairs(run)
+    if pairs is None:
+        pairs = calibrated_pairs(run)
     if pairs:
         lines.append("  <contact>")
         lines += [f"    {pair.params.mjcf_pair(pair.geom1, pair.geom2)}" for pair in pairs]
@@ -168,9 +171,11 @@ def _fmt(values: tuple[float, ...] | list[float]) -> str:
     return " ".join(repr(float(v)) for v in values)
 
 
-def model_from_spec(run: RunSpec) -> InstrumentedModel:
-    """Compile a spec's model with the recorder's sensors."""
-    xml = mjcf_from_spec(run)
+def model_from_spec(
+    run: RunSpec, pairs: Sequence[CalibratedPair] | None = None
+) -> InstrumentedModel:
+    """Compile a spec's model with the recorder's sensors (`pairs`: as `mjcf_from_spec`)."""
+    xml = mjcf_from_spec(run, pairs)
     return instrument(mujoco.MjSpec.from_string(xml), run.source, xml=xml, keyframe="initial")
 
 

@@ -13,7 +13,7 @@ from impactlab.progress import Progress, Tracker
 from impactlab.record.batch import BATCH_RUNS, record_batches
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.forked import can_fork, record_forked
-from impactlab.record.job import PlannedRun
+from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun, RecordResult
 from impactlab.record.tasks import count_run, record_on
 from impactlab.record.work import Work, check_space
@@ -33,7 +33,7 @@ def record_runs(
     """Record planned runs into `out_dir`, one log per run; reuse complete logs.
 
     Args:
-        runs: from `impactlab.record.job.plan`.
+        runs: from `impactlab.record.planner.plan`.
         out_dir: the output folder (created); on a cluster, a path every machine sees.
         executor: where the runs are simulated (default: here, on every core: the runs are
             shared among forked worker processes, one per core, each simulating batched

@@ -25,7 +25,8 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
+from impactlab.physics import INTEGRATORS as INTEGRATORS  # MuJoCo's, as MJCF spells them
+
 CONDIMS = (1, 3, 4, 6)
 MIN_TIMESTEP_S = 1e-9  # log times are whole nanoseconds
 MAX_TIME_S = 1e9  # log times are int64 nanoseconds (2^63 ns is 292 years)

@@ -19,8 +19,8 @@ from impactlab.executors.base import Executor
 from impactlab.progress import Tracker
 from impactlab.record.batch import record_batches
 from impactlab.record.folder import log_path, reusable
-from impactlab.record.job import PlannedRun
 from impactlab.record.model import model_from_spec
+from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 
 T = TypeVar("T")
@@ -36,7 +36,7 @@ def portable(run: PlannedRun) -> PlannedRun:
     (it pickles), so the workers need neither the MJCF file nor the spec file.
     """
     if run.spec is not None:
-        build = functools.partial(model_from_spec, run.spec)
+        build = functools.partial(model_from_spec, run.spec, run.pairs)
     else:
         build = functools.partial(_same, run.build())
     return dataclasses.replace(run, build=build)

@@ -29,11 +29,11 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
+from impactlab.logs.drawing import body_rgba
 from impactlab.logs.geoms import ModelScene
 from impactlab.logs.load import RunLog
-from impactlab.logs.scene import BODY_PALETTE
 from impactlab.replay.events import Event, normal_kinematics, pairs
-from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene
+from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene, rgba255
 
 TIMELINE = "sim_time"
 TRAIL_S = 0.25
@@ -130,23 +130,8 @@ def _times(t_ns: np.ndarray) -> rr.TimeColumn:
 
 
 def body_colors(run: RunLog) -> dict[str, tuple[int, int, int]]:
-    """Each body's colour (0-255 RGB) from the spec's rgba, else from the default palette."""
-    spec_bodies = run.spec.get("bodies", {})
-    return {
-        name: _rgb(spec_bodies.get(name, {}).get("rgba"), BODY_PALETTE[i % len(BODY_PALETTE)])
-        for i, name in enumerate(run.bodies)
-    }
-
-
-def _rgb(rgba: object, default: Sequence[float]) -> tuple[int, int, int]:
-    """0-255 RGB of an rgba list of numbers in [0, 1]; `default` when it is anything else."""
-    ok = (
-        isinstance(rgba, list)
-        and len(rgba) in (3, 4)
-        and all(isinstance(c, int | float) and 0.0 <= c <= 1.0 for c in rgba)
-    )
-    values = rgba if ok else default
-    return tuple(round(255 * float(c)) for c in values[:3])  # type: ignore[index,return-value]
+    """Each body's colour (0-255 RGB), as the log gives it (`impactlab.logs.drawing`)."""
+    return {name: rgba255(rgba)[:3] for name, rgba in body_rgba(run).items()}  # type: ignore[misc]
 
 
 def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndarray) -> None:

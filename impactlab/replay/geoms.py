@@ -13,7 +13,7 @@ that body (a static `Transform3D`) and its shape (`Boxes3D`, `Ellipsoids3D`, `Ca
 
 A ball's sphere is drawn as a dense wireframe (its spin shows through), every other geom
 solid; a plane is a thin box cut to 0.5 m around where the bodies go. Logs written before the
-table was recorded get the former drawing: a sphere per ball and the spec's plane.
+table was recorded get the former drawing: a sphere per ball and the plane its spec gave it.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 import rerun as rr
 
+from impactlab.logs.drawing import old_plane
 from impactlab.logs.geoms import ModelScene, read_scene
 from impactlab.logs.load import RunLog
 from impactlab.logs.reader import read_attachments
@@ -72,7 +73,7 @@ def log_model(
     colors: dict[str, tuple[int, int, int]],
 ) -> None:
     """Every visible geom of the log's table (or, for older logs, each ball's sphere and the
-    spec's plane), and each ball's spin marker; all static."""
+    plane its spec gave it), and each ball's spin marker; all static."""
     info = run.body_info
     balls = {name: info[name].radius for name in run.bodies if name in info and info[name].radius}
     if scene.geoms:
@@ -166,36 +167,19 @@ def _shape(geom, scene: ModelScene, bounds, *, wireframe: bool):
 
 
 def _log_old_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
-    """The plane of a log without a geom table, from the spec (grey 0.8 by default)."""
-    if run.plane_z is None:
+    """The plane of a log without a geom table (`impactlab.logs.drawing.old_plane`)."""
+    plane = old_plane(run)
+    if plane is None:
         return
-    plane = run.spec.get("plane") or {}
-    size = _numbers(plane.get("size"), [5.0, 5.0], 2)
-    rgba = _numbers(plane.get("rgba"), [0.8, 0.8, 0.8, 1.0], 4, unit=True)
     reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
-    sx, sy = np.minimum(size, reach + PLANE_MARGIN_M)
+    sx, sy = np.minimum(plane.half_size_m, reach + PLANE_MARGIN_M)
     rec.log(
         f"{prefix}/world/plane",
         rr.Boxes3D(
             half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
             centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
-            colors=[rgba255(rgba)[:3]],
+            colors=[rgba255(plane.rgba)[:3]],
             fill_mode="solid",
         ),
         static=True,
     )
-
-
-def _numbers(value: object, default: list[float], n: int, *, unit: bool = False) -> list[float]:
-    """n numbers from the spec (each in 0..1 when `unit`, else in (0, 1e6)); else `default`."""
-    ok = (
-        isinstance(value, list)
-        and len(value) >= n
-        and all(
-            isinstance(v, int | float)
-            and not isinstance(v, bool)
-            and ((0.0 <= v <= 1.0) if unit else (0 < v < 1e6))
-            for v in value[:n]
-        )
-    )
-    return [float(v) for v in (value if ok else default)[:n]]  # type: ignore[index]

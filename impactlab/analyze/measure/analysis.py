@@ -61,9 +61,8 @@ class RunAnalysis:
 
 
 def expects_collision(run: RunLog) -> bool:
-    """Whether the run was meant to bring two bodies together (a `stop.separation` rule)."""
-    stop = run.spec.get("stop")
-    return isinstance(stop, dict) and stop.get("separation") is not None
+    """Whether the run was meant to bring two bodies together (a separation stop rule)."""
+    return run.separation_m is not None
 
 
 def analyze_run(run: RunLog) -> RunAnalysis:

@@ -22,7 +22,6 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.ground import Ground
-from impactlab.analyze.measure.impacts import RK4
 from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import RunLog
 
@@ -212,7 +211,7 @@ def _vertical(run: RunLog) -> tuple[float, float, float, float, float]:
     """A run's unit vector against gravity, the velocity shift g h and |g|."""
     g = float(np.linalg.norm(run.gravity))
     up = -run.gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    w_shift = g * (0.0 if run.integrator == RK4 else run.timestep_s / 2)
+    w_shift = g * run.half_step_s
     return float(up[0]), float(up[1]), float(up[2]), w_shift, g
 
 

@@ -12,9 +12,10 @@ For each raw contact interval (`impactlab.analyze.measure.contact_intervals`):
   meet. The point's height above the surface's tangent plane (through the surface's side of
   the contact, half the penetration above the mean point) follows
   c(s) = c_b + (u + a h) s + a s^2 / 2, with a = g . n + n . (w x (w x r)) the point's
-  normal acceleration (gravity and the rotation's centripetal part) and h = dt / 2 for
-  MuJoCo's semi-implicit integrators (positions advance with the velocity after each step,
-  which puts the parabola through the logged positions half a step late), 0 for RK4. The
+  normal acceleration (gravity and the rotation's centripetal part) and h the log's
+  `half_step_s` (`physics.half_step_s`): dt / 2 for MuJoCo's semi-implicit integrators
+  (positions advance with the velocity after each step, which puts the parabola through the
+  logged positions half a step late), 0 for RK4. The
   meeting is its first root s* and the impact speed v_in = u + a (h + s*); the release, the
   same backwards from row a: v_out = u + a (h - s*). For a body that does not turn both are
   exact whatever the logging stride; for a turning body, to second order in the gap.
@@ -46,7 +47,6 @@ from impactlab.analyze.measure.ground import Ground
 from impactlab.analyze.measure.states import logged_interval_s
 from impactlab.logs.load import RunLog
 
-RK4 = "RK4"
 MIN_FLIGHT_ROWS = 10
 """A flight the analysis can see lasts at least this many logged intervals."""
 NEWTON_STEPS = 4
@@ -247,7 +247,7 @@ def approach_and_release(
     ids = raw["run_id"].to_list()
     mine = [by_id[r] for r in ids]
     gravity = np.array([run.gravity for run in mine], dtype=float).reshape(n_rows, 3)
-    h = np.array([0.0 if run.integrator == RK4 else run.timestep_s / 2 for run in mine])
+    h = np.array([run.half_step_s for run in mine])
     v_min = np.array(
         [
             MIN_FLIGHT_ROWS / 2 * float(np.linalg.norm(run.gravity)) * logged_interval_s(run)

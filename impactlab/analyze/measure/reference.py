@@ -25,7 +25,6 @@ import numpy as np
 import polars as pl
 
 from impactlab.logs.load import RunLog
-from impactlab.physics import SEMI_IMPLICIT
 
 
 def body_energy(run: RunLog, body: str) -> dict[str, np.ndarray]:
@@ -94,7 +93,7 @@ def ball_speeds(run: RunLog, contact: Contact) -> tuple[float | None, float | No
     radius = run.body_info[contact.body].radius
     assert radius is not None, "a ball: one sphere at its centre of mass"
     n, g = contact.normal, run.gravity
-    h = run.timestep_s / 2 if run.integrator in SEMI_IMPLICIT else 0.0
+    h = run.half_step_s
     level = _surface_level(run, contact)
 
     def speed(row: int, sign: float) -> float:

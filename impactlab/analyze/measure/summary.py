@@ -15,7 +15,6 @@ import numpy as np
 import polars as pl
 
 from impactlab.logs.load import RunLog
-from impactlab.physics import SEMI_IMPLICIT
 
 EMPTY_ENERGY = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
 EMPTY_PHASES = {
@@ -103,17 +102,14 @@ def run_aggregates(
 
 def predicted_drift(run: RunLog, flight_s: float | None) -> float | None:
     """The energy drift, J, the run's integrator gives its free bodies in a flight of
-    `flight_s`: -M g^2 dt T / 2 for MuJoCo's semi-implicit integrators (positions advance with
-    the new velocity), 0 for RK4 (exact on a parabola); None when not known."""
+    `flight_s`: -M g^2 h T with h the log's half step (`RunLog.half_step_s`), so -M g^2 dt T / 2
+    for MuJoCo's semi-implicit integrators (positions advance with the new velocity), 0 for
+    RK4 (exact on a parabola); None when the flight is not known."""
     if flight_s is None:
-        return None
-    if run.integrator == "RK4":
-        return 0.0
-    if run.integrator not in SEMI_IMPLICIT:
         return None
     mass = sum(info.mass for name, info in run.body_info.items() if name in run.bodies)
     g2 = float(np.dot(run.gravity, run.gravity))
-    return -0.5 * mass * g2 * run.timestep_s * flight_s
+    return -mass * g2 * run.half_step_s * flight_s
 
 
 def summary_row(

@@ -3,28 +3,27 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
+from impactlab.logs.contract import GeomContact, PairTarget
 from impactlab.logs.labels import sweep_words
 from impactlab.text import file_part
 
 
-def contact_words(contact: dict) -> str:
-    """What the contact is: the restitution asked for, per pair, or the raw solref/solimp."""
-    pairs = contact.get("pairs") or {}
-    asked = {name: p.get("restitution") for name, p in pairs.items() if isinstance(p, dict)}
-    if contact.get("restitution") is not None:
-        text = f"restitution = {contact['restitution']:g}"
-        extra = [f"{n} {e:g}" for n, e in asked.items() if e is not None]
-        return text + (f" ({', '.join(extra)})" if extra else "")
-    if any(e is not None for e in asked.values()):
-        return "restitution " + ", ".join(f"{n} = {e:g}" for n, e in asked.items() if e is not None)
-    if contact.get("solref") is not None or contact.get("solimp") is not None:
-        return f"solref {contact.get('solref')}, solimp {contact.get('solimp')}"
+def contact_words(targets: Sequence[PairTarget], shared: GeomContact | None) -> str:
+    """What the contact is: the calibrated pairs' target e (one number when they share it,
+    else per pair), or else the solref/solimp every geom shares; "" when neither is known."""
+    if len({t.restitution for t in targets}) == 1:
+        return f"restitution = {targets[0].restitution:g}"
+    if targets:
+        return "restitution " + ", ".join(f"{t.pair} = {t.restitution:g}" for t in targets)
+    if shared is not None:
+        return f"solref {list(shared.solref)}, solimp {list(shared.solimp)}"
     return ""
 
 
@@ -32,7 +31,7 @@ def run_title(a: RunAnalysis) -> str:
     """A figure title: experiment and sweep point in words, the contact, the timestep."""
     sweep = sweep_words(a.run.sweep)
     first = a.run.experiment + (f": {sweep}" if sweep else "")
-    contact = contact_words(a.run.spec.get("contact") or {})
+    contact = contact_words(a.run.contact_targets, a.run.geom_contact)
     second = ", ".join([*([contact] if contact else []), f"dt = {a.run.timestep_s:g} s"])
     return f"{first}\n{second}"
 

@@ -5,6 +5,7 @@ Everything is validated before the first simulation, so a wrong input writes not
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -13,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from impactlab.errors import SpecError
-from impactlab.record.contact_pairs import calibrated_pairs
+from impactlab.logs.contract import PairTarget
+from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.log_rows import RunInfo
 from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
@@ -30,7 +32,9 @@ MAX_READABLE_NAME = 160  # characters of a log's name before its hash
 class PlannedRun:
     """A run ready to simulate: its file name, metadata and how to build and stop it.
 
-    `spec` is the resolved spec (None for an MJCF model); `stop` the run's stop rules.
+    `spec` is the resolved spec (None for an MJCF model); `stop` the run's stop rules;
+    `pairs` the spec's calibrated contacts, computed once when it is planned (`build` and
+    the log's `contact_targets` take them from here).
     """
 
     info: RunInfo
@@ -39,6 +43,7 @@ class PlannedRun:
     max_time: float
     stop: Stop | None = None
     work: Work = field(default_factory=Work)  # at most (`impactlab.record.work`)
+    pairs: tuple[CalibratedPair, ...] = ()
 
 
 def plan(
@@ -122,7 +127,7 @@ def _point(run: PlannedRun) -> str:
 
 
 def _plan_spec(run: RunSpec) -> PlannedRun:
-    calibrated_pairs(run)  # contact targets fail now, before any run is simulated
+    pairs = tuple(calibrated_pairs(run))  # contact targets fail now, before any simulation
     digest = run.spec_hash
     info = RunInfo(
         run_id=run_name(run.experiment, run.sweep_values, digest),
@@ -135,10 +140,16 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
         log_every=run.log_every,
         sweep_index=run.sweep_index,
         sweep_size=run.sweep_size,
+        contact_targets=tuple(
+            PairTarget(p.geom1, p.geom2, p.params.restitution, p.params.speed_range_mps)
+            for p in pairs
+        ),
+        separation_m=run.stop.separation,
     )
     steps = run_steps(run.stop.max_time, run.options.timestep)
     work = Work.of_runs(1, steps, run.log_every, len(run.bodies))
-    return PlannedRun(info, lambda: model_from_spec(run), run, run.stop.max_time, run.stop, work)
+    build = functools.partial(model_from_spec, run, pairs)
+    return PlannedRun(info, build, run, run.stop.max_time, run.stop, work, pairs)
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
@@ -160,6 +171,7 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         sweep={},
         spec_hash=digest,
         log_every=options.log_every,
+        separation_m=options.stop.separation,
     )
     max_time = options.stop.max_time
     steps = run_steps(max_time, float(inst.model.opt.timestep))

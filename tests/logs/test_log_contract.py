@@ -1,0 +1,78 @@
+"""The keys of format 2 (`impactlab.logs.contract`): what the analysis reads instead of the spec.
+
+The recorder writes them from what it planned; a log of format 1 (the golden logs as they
+were before format 2: `tests/golden/format1/`) gets them derived from its spec, integrator and
+timestep, and reads and analyzes as its format-2 recording does.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from impactlab.analyze.measure.analysis import analyze_run, expects_collision
+from impactlab.logs import format as logformat
+from impactlab.logs.contract import GeomContact
+from impactlab.logs.load import load_log
+from impactlab.physics import INTEGRATORS, half_step_s
+
+GOLDEN = Path(__file__).resolve().parents[1] / "golden"
+DEFAULT_CONTACT = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0))  # the spec's
+
+
+def _pair(name: str):
+    """(format-1 log, format-2 log) of one golden run."""
+    return load_log(GOLDEN / "format1" / f"{name}.mcap"), load_log(GOLDEN / "logs" / f"{name}.mcap")
+
+
+def test_the_half_step_is_half_a_timestep_for_the_semi_implicit_integrators_only():
+    assert [half_step_s(i, 1e-3) for i in INTEGRATORS] == [5e-4, 0.0, 5e-4, 5e-4]
+    with pytest.raises(ValueError, match="unknown integrator 'Verlet'"):
+        half_step_s("Verlet", 1e-3)
+
+
+def test_a_format1_collision_gets_the_keys_of_format_2_derived_from_its_spec():
+    old, new = _pair("collision")
+    assert (old.meta["log_format_version"], new.meta["log_format_version"]) == ("1", "2")
+    assert not set(logformat.RUN_KEYS_FORMAT_2) & set(old.meta)  # written before format 2
+    assert set(logformat.RUN_KEYS_FORMAT_2) <= set(new.meta)
+    assert not old.partial and not new.partial, (old.problems, new.problems)
+    for run in (old, new):  # golden collision.toml: separation = 0.1, dt = 1e-4 s, Euler
+        assert run.separation_m == 0.1 and expects_collision(run)
+        assert run.half_step_s == pytest.approx(0.5e-4, rel=1e-12)
+        assert run.geom_contact == DEFAULT_CONTACT and run.contact_targets == ()
+    (a_old,), (a_new,) = (analyze_run(r).collisions.to_dicts() for r in (old, new))
+    for key in ("v1n_before_mps", "v2n_before_mps", "v1n_after_mps", "v2n_after_mps", "e_measured"):
+        assert a_old[key] == pytest.approx(a_new[key], rel=1e-9, abs=1e-12), key
+
+
+def test_a_format1_calibrated_drop_gets_its_target_without_the_unrecorded_speed_range():
+    old, new = _pair("drop_restitution")
+    assert not old.partial and old.unanalyzable() is None, old.problems
+    (o,), (n,) = old.contact_targets, new.contact_targets
+    assert (o.pair, o.restitution) == (n.pair, n.restitution) == ("plane/ball", 0.9)
+    assert o.speed_range_mps is None  # the experiment's default range: format 1 did not say
+    assert n.speed_range_mps is not None and 0 < n.speed_range_mps[0] <= n.speed_range_mps[1]
+    for run in (old, new):  # golden drop_restitution.toml: dt = 1e-5 s, Euler, no separation
+        assert run.separation_m is None and not expects_collision(run)
+        assert run.half_step_s == pytest.approx(0.5e-5, rel=1e-12)
+        assert run.geom_contact == DEFAULT_CONTACT
+
+
+def test_the_recorded_targets_are_the_planned_calibration():
+    from impactlab.record import plan
+
+    (run,) = plan([GOLDEN / "specs" / "drop_restitution.toml"])
+    (pair,) = run.pairs
+    (target,) = load_log(GOLDEN / "logs" / "drop_restitution.mcap").contact_targets
+    assert (target.geom1, target.geom2) == (pair.geom1, pair.geom2)
+    assert target.restitution == pair.params.restitution
+    assert target.speed_range_mps == pytest.approx(pair.params.speed_range_mps, rel=1e-12)
+
+
+def test_a_user_model_says_its_geoms_contact_and_no_separation():
+    run = load_log(GOLDEN / "logs" / "box_edge.mcap")  # box_edge.xml: <geom solref, solimp>
+    assert run.geom_contact is not None and run.geom_contact.solref == (-100000.0, -63.245553)
+    assert run.separation_m is None and run.contact_targets == ()
+    assert run.half_step_s == pytest.approx(run.timestep_s / 2, rel=1e-12)
