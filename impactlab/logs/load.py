@@ -103,12 +103,14 @@ class RunLog:
     @property
     def experiment(self) -> str:
         """The experiment's name ("" when unknown)."""
-        return self.checked.values.get("experiment", "")
+        experiment: str = self.checked.values.get("experiment", "")
+        return experiment
 
     @property
     def sweep(self) -> dict[str, Any]:
         """This run's sweep point: {dotted path: value} ({} when unknown)."""
-        return self.checked.values.get("sweep", {})
+        sweep: dict[str, Any] = self.checked.values.get("sweep", {})
+        return sweep
 
     @property
     def sweep_point(self) -> tuple[int, int]:
@@ -119,7 +121,8 @@ class RunLog:
     @property
     def spec(self) -> dict[str, Any]:
         """The resolved spec document the run was made from ({} when unknown)."""
-        return self.checked.values.get("spec", {})
+        spec: dict[str, Any] = self.checked.values.get("spec", {})
+        return spec
 
     @property
     def body_info(self) -> dict[str, BodyInfo]:
@@ -129,9 +132,9 @@ class RunLog:
             radius = b.get("radius")
             rest = b.get("rest_height_m", radius)  # older logs: spheres only
             shape = b.get("shape", "sphere" if radius is not None else "")
-            inertia = tuple(float(x) for x in b["inertia"])
+            ix, iy, iz = (float(x) for x in b["inertia"])
             geoms, motion = tuple(b.get("geoms", ())), b.get("motion", "free")
-            fields = (b["name"], float(b["mass"]), inertia, radius, rest, shape, geoms, motion)
+            fields = (b["name"], float(b["mass"]), (ix, iy, iz), radius, rest, shape, geoms, motion)
             out[b["name"]] = BodyInfo(*fields)
         return out
 
@@ -190,12 +193,14 @@ class RunLog:
     @property
     def outcome(self) -> str:
         """completed, unstable, or incomplete (no outcome record, or an unknown outcome)."""
-        return self.checked.values.get("outcome", "incomplete")
+        outcome: str = self.checked.values.get("outcome", "incomplete")
+        return outcome
 
     @property
     def warnings(self) -> list[str]:
         """The run's warnings, as recorded ([] when unknown)."""
-        return self.checked.values.get("warnings", [])
+        warnings: list[str] = self.checked.values.get("warnings", [])
+        return warnings
 
     def unanalyzable(self) -> str | None:
         """Why the analysis cannot trust this run's metadata, or None.
