@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -13,6 +14,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from impactlab.files import atomic_path
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 matplotlib.rcParams["text.parse_math"] = False  # a name with `$` is text, never mathtext
 
@@ -30,7 +34,7 @@ def png_text(text: dict[str, str]) -> Iterator[None]:
         _PNG_TEXT.reset(token)
 
 
-def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
+def save_figure(fig: Figure, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
     """Save as PNG under a temporary name, rename into place, close. Returns `path`.
 
     The layout is `tight_layout`, or with `tight_bbox` the saved box is cut to the artists
