@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 
 matplotlib.rcParams["text.parse_math"] = False  # a name with `$` is text, never mathtext
 
+__all__ = ["DPI", "plt", "png_text", "save_figure"]
+
 DPI = 110
 _PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
 
