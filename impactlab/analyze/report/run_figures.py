@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -13,7 +14,7 @@ from impactlab.logs.labels import sweep_words
 from impactlab.text import file_part
 
 
-def contact_words(contact: dict) -> str:
+def contact_words(contact: dict[str, Any]) -> str:
     """What the contact is: the restitution asked for, per pair, or the raw solref/solimp."""
     pairs = contact.get("pairs") or {}
     asked = {name: p.get("restitution") for name, p in pairs.items() if isinstance(p, dict)}
@@ -105,9 +106,10 @@ def run_figures(
     return made
 
 
-def _draw(name: str, *args, **kwargs) -> Path:
+def _draw(name: str, *args: Any, **kwargs: Any) -> Path:
     """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
     copied unchanged from the last analysis needs none)."""
     from impactlab.analyze.report import figures
 
-    return getattr(figures, name)(*args, **kwargs)
+    path: Path = getattr(figures, name)(*args, **kwargs)
+    return path
