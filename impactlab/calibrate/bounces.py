@@ -241,6 +241,11 @@ def summarize_bounces(frame: pl.DataFrame, points: Sequence[GridPoint]) -> dict[
     }
 
 
+def column_max(frame: pl.DataFrame, values: pl.Expr) -> float:
+    """The largest of `values` over `frame`, NaN left out; 0 when there is none."""
+    return float(frame.select(values.drop_nans().max()).item() or 0.0)
+
+
 def _largest(frame: pl.DataFrame, values: pl.Expr) -> float | None:
     """The largest of `values` over `frame`; None for no rows."""
     return float(frame.select(values.max()).item()) if frame.height else None

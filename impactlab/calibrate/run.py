@@ -29,7 +29,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze import AnalysisResult, run_analysis
-from impactlab.calibrate.bounces import all_points
+from impactlab.calibrate.bounces import all_points, column_max
 from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint
 from impactlab.contact import (
     RESTITUTION_TOLERANCE,
@@ -342,35 +342,30 @@ def summarize(points: pl.DataFrame) -> dict[str, Any]:
             "measured": int(f["e_measured"].is_not_nan().sum()),
             "max_abs_error": float(err.max().item()) if err.height else None,
             "mean_abs_error": float(err.mean().item()) if err.height else None,
-            "max_penetration_frac": _max(f, pl.col("penetration_frac").drop_nans()),
+            "max_penetration_frac": column_max(f, pl.col("penetration_frac")),
             "worst": _worst(f),
             "failures": f.filter(~pl.col("ok")).select(FAILURE_COLUMNS).to_dicts(),
         }
         if kind == "ball":
-            entry["max_velocity_error_rel"] = _max(f, pl.col("velocity_error_rel").drop_nans())
-            entry["max_momentum_rel_change"] = _max(f, pl.col("momentum_rel_change").drop_nans())
+            entry["max_velocity_error_rel"] = column_max(f, pl.col("velocity_error_rel"))
+            entry["max_momentum_rel_change"] = column_max(f, pl.col("momentum_rel_change"))
         out[kind] = entry
     low = points.filter(pl.col("kind") == "lowspeed")
     if low.height:
         out["lowspeed"] = {
             "runs": low.height,
             "design_speed_mps": float(low["design_speed_mps"][0]),
-            "max_abs_diff_release": _max(
-                low, (pl.col("e_measured") - pl.col("e_pred_release")).drop_nans().abs()
+            "max_abs_diff_release": column_max(
+                low, (pl.col("e_measured") - pl.col("e_pred_release")).abs()
             ),
-            "max_abs_diff_surface": _max(
-                low, (pl.col("e_measured") - pl.col("e_pred_surface")).drop_nans().abs()
+            "max_abs_diff_surface": column_max(
+                low, (pl.col("e_measured") - pl.col("e_pred_surface")).abs()
             ),
             "points": low.select(
                 "target", "speed_mps", "e_measured", "e_pred_release", "e_pred_surface"
             ).to_dicts(),
         }
     return out
-
-
-def _max(frame: pl.DataFrame, values: pl.Expr) -> float:
-    """The largest of `values` over `frame`; 0 when there is none."""
-    return float(frame.select(values.max()).item() or 0.0)
 
 
 def calibrate(
