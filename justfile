@@ -14,7 +14,7 @@ test *args:
 test-all *args:
     {{python}} -m pytest -m "slow or not slow" {{args}}
 
-# Lint, format check and the public API's type check (mypy, [tool.mypy] in pyproject.toml).
+# Lint, format check and the type check (mypy strict on the whole package, [tool.mypy] in pyproject.toml).
 lint:
     {{python}} -m ruff check .
     {{python}} -m ruff format --check .

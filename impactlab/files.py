@@ -80,7 +80,7 @@ def write_json(path: Path, document: Any) -> Path:
     return write_text(path, json.dumps(_finite(document), indent=2, default=str) + "\n")
 
 
-def write_json_stream(path: Path, document: dict) -> Path:
+def write_json_stream(path: Path, document: dict[str, Any]) -> Path:
     """Write `document` as `write_json` would, where every iterator in it (a generator, not a
     list) is written as a list one item at a time: a long list is never held. Returns `path`."""
     streams: dict[str, Iterator[Any]] = {}

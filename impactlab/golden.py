@@ -136,7 +136,7 @@ def golden_tolerance(golden: RunLog) -> Tolerance:
     fields: dict[str, float] = {}
     for topic, (frame, _, names) in channel_tables(golden).items():
         units = {n: unit_of(n) for n in names if unit_of(n)}
-        largest = {n: float(frame[n].abs().max() or 0.0) for n in units}
+        largest = {n: float(frame.select(pl.col(n).abs().max()).item() or 0.0) for n in units}
         channel_scale = max(largest.values(), default=0.0)
         for unit in set(units.values()):
             same = [n for n in units if units[n] == unit]
@@ -219,7 +219,8 @@ def table_changes(old: pl.DataFrame, new: pl.DataFrame) -> list[str]:
         if a.dtype.is_numeric() and b.dtype.is_numeric():
             became = int((a.is_null() & b.is_not_null()).sum())
             lost = int((a.is_not_null() & b.is_null()).sum())
-            diff = (a.cast(pl.Float64) - b.cast(pl.Float64)).abs().max()
+            change = pl.col(col).cast(pl.Float64) - pl.col(f"{col}__new").cast(pl.Float64)
+            diff = both.select(change.abs().max()).item()
             parts = [f"max |change| {diff:.3g}"] if diff else []
             parts += [f"{became} value(s) now measured"] if became else []
             parts += [f"{lost} value(s) now empty"] if lost else []

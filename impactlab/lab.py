@@ -13,12 +13,16 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from impactlab.errors import SpecError
 from impactlab.executors.base import Executor
 from impactlab.files import write_text
 from impactlab.progress import Progress, say
 from impactlab.text import md_link, md_text
+
+if TYPE_CHECKING:
+    from impactlab.calibrate import CalibrationResult
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -124,7 +128,7 @@ def _specs(experiments: Path | None, progress: Progress | None) -> list[Path]:
     return specs
 
 
-def _calibration_section(report: Path, result) -> str:
+def _calibration_section(report: Path, result: CalibrationResult) -> str:
     """The report's section on the calibration: summary and figures."""
     lines = [
         "",

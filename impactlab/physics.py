@@ -6,7 +6,7 @@ them: docs/analysis.md (and docs/contact-model.md for the contact itself).
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import Literal, TypeVar, get_args
 
 X = TypeVar("X")
 
@@ -25,8 +25,9 @@ SEMI_IMPLICIT = ("Euler", "implicit", "implicitfast")
 flight under gravity g each step loses m g^2 dt^2 / 2, so a flight of T seconds loses
 m g^2 dt T / 2 (checked with MuJoCo: all three give the same energy to 1e-15). RK4 follows
 the parabola exactly and has no such drift."""
-INTEGRATORS = ("Euler", RK4, "implicit", "implicitfast")
+Integrator = Literal["Euler", "RK4", "implicit", "implicitfast"]
 """MuJoCo's integrators as MJCF spells them (the log's `integrator` key)."""
+INTEGRATORS: tuple[str, ...] = get_args(Integrator)
 
 
 def half_step_s(integrator: str, timestep_s: float) -> float:

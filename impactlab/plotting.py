@@ -6,6 +6,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -14,7 +15,12 @@ import matplotlib.pyplot as plt
 
 from impactlab.files import atomic_path
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 matplotlib.rcParams["text.parse_math"] = False  # a name with `$` is text, never mathtext
+
+__all__ = ["DPI", "plt", "png_text", "save_figure"]
 
 DPI = 110
 _PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
@@ -30,7 +36,7 @@ def png_text(text: dict[str, str]) -> Iterator[None]:
         _PNG_TEXT.reset(token)
 
 
-def save_figure(fig, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
+def save_figure(fig: Figure, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
     """Save as PNG under a temporary name, rename into place, close. Returns `path`.
 
     The layout is `tight_layout`, or with `tight_bbox` the saved box is cut to the artists

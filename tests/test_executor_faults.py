@@ -25,7 +25,7 @@ from impactlab.analyze.batch import batches
 from impactlab.executors import processes
 from impactlab.executors.processes import ProcessExecutor
 from impactlab.executors.workers import TEST_SIGKILL_TASK
-from impactlab.logs.load import require_logs
+from impactlab.logs.inputs import require_logs
 
 pytestmark = pytest.mark.slow  # workers and parents killed (SIGKILL)
 

@@ -219,7 +219,11 @@ def analyze_logs(
         group = groups[outcome.index]
         if outcome.ok and outcome.value is not None and len(outcome.value) == len(group):
             for i, value in zip(group, outcome.value, strict=True):
-                figs = [(kind, Path(fig_dir) / path.name) for kind, path in value.figures]
+                figs = (
+                    [(kind, fig_dir / path.name) for kind, path in value.figures]
+                    if fig_dir is not None
+                    else value.figures
+                )
                 done(i, dataclasses.replace(value, figures=figs))
         else:
             for i in group:

@@ -17,7 +17,7 @@ from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
 from impactlab.analyze.write import RunBrief, brief, write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
-from impactlab.logs.load import require_logs
+from impactlab.logs.inputs import require_logs
 from impactlab.progress import Progress, say
 
 

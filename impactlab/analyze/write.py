@@ -6,6 +6,7 @@ import functools
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import polars as pl
 
@@ -151,7 +152,7 @@ def write_lines(path: Path, parts: Sequence[str]) -> Path:
     return path
 
 
-def _rows(frame: pl.DataFrame) -> Iterator[dict]:
+def _rows(frame: pl.DataFrame) -> Iterator[dict[str, Any]]:
     """The frame's rows as dicts, SUMMARY_SLICE rows converted at a time."""
     for start in range(0, frame.height, SUMMARY_SLICE):
         yield from frame.slice(start, SUMMARY_SLICE).to_dicts()
@@ -265,7 +266,9 @@ def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
     if bounces.is_empty() or "complete" not in bounces.columns:
         return False
     done = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(run_ids))
-    return bool(done.height) and int(done.group_by("run_id", "body").len()["len"].max()) >= 2
+    if done.is_empty():
+        return False
+    return int(done.group_by("run_id", "body").len()["len"].to_numpy().max()) >= 2
 
 
 def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float]]:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Sequence
+from typing import Any
 
 import polars as pl
 
@@ -211,7 +212,7 @@ def prediction_curves(points: Sequence[GridPoint], n: int = 24) -> pl.DataFrame:
     return pl.DataFrame(rows, schema=schema, orient="row")
 
 
-def summarize_bounces(frame: pl.DataFrame, points: Sequence[GridPoint]) -> dict | None:
+def summarize_bounces(frame: pl.DataFrame, points: Sequence[GridPoint]) -> dict[str, Any] | None:
     """Runs, bounces in and below the range, the worst of each, failures (JSON-ready)."""
     runs = [p for p in points if p.kind == "bounces"]
     if not runs:
@@ -228,22 +229,28 @@ def summarize_bounces(frame: pl.DataFrame, points: Sequence[GridPoint]) -> dict 
         "runs_without_bounces": sorted(p.name for p in runs if p.name not in measured),
         "bounces": frame.height,
         "in_range": inside.height,
-        "max_abs_error_in_range": float(inside["error"].abs().max()) if inside.height else None,
+        "max_abs_error_in_range": _largest(inside, pl.col("error").abs()),
         "worst_in_range": worst,
         "below_range": below.height,
-        "max_abs_diff_predicted_below": (
-            float((below["e_measured"] - below["e_predicted"]).abs().max())
-            if below.height
-            else None
+        "max_abs_diff_predicted_below": _largest(
+            below, (pl.col("e_measured") - pl.col("e_predicted")).abs()
         ),
-        "max_penetration_frac_in_range": (
-            float(inside["penetration_frac"].max()) if inside.height else None
-        ),
+        "max_penetration_frac_in_range": _largest(inside, pl.col("penetration_frac")),
         "failures": frame.filter(~pl.col("ok")).to_dicts() if frame.height else [],
     }
 
 
-def report_lines(frame: pl.DataFrame, summary: dict | None) -> list[str]:
+def column_max(frame: pl.DataFrame, values: pl.Expr) -> float:
+    """The largest of `values` over `frame`, NaN left out; 0 when there is none."""
+    return float(frame.select(values.drop_nans().max()).item() or 0.0)
+
+
+def _largest(frame: pl.DataFrame, values: pl.Expr) -> float | None:
+    """The largest of `values` over `frame`; None for no rows."""
+    return float(frame.select(values.max()).item()) if frame.height else None
+
+
+def report_lines(frame: pl.DataFrame, summary: dict[str, Any] | None) -> list[str]:
     """calibration.md's section on the multi-bounce drops."""
     if not summary or not frame.height:
         return []

@@ -86,11 +86,17 @@ class Grid:
         masses: Sequence[float] | None = None,
     ) -> Grid:
         """The grid with some lists replaced (the command line's --targets etc.)."""
-        changes = {}
-        for key, values in (("targets", targets), ("speeds", speeds), ("masses", masses)):
-            if values:
-                changes[key] = tuple(sorted(float(v) for v in values))
-        return replace(self, name=self.name + ("+custom" if changes else ""), **changes)
+
+        def given(values: Sequence[float] | None, default: tuple[float, ...]) -> tuple[float, ...]:
+            return tuple(sorted(float(v) for v in values)) if values else default
+
+        return replace(
+            self,
+            name=self.name + ("+custom" if targets or speeds or masses else ""),
+            targets=given(targets, self.targets),
+            speeds=given(speeds, self.speeds),
+            masses=given(masses, self.masses),
+        )
 
     @property
     def n_runs(self) -> int:

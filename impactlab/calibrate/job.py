@@ -66,11 +66,12 @@ def choose_grid(
         base = GRIDS[grid]
     else:
         base = GRIDS["quick" if quick else "full"]
-    for flag, values, ok, rule in (
+    checks: tuple[tuple[str, Sequence[float] | None, Callable[[float], bool], str], ...] = (
         ("--targets", targets, lambda e: RESTITUTION_FLOOR <= e <= 1.0, "in [0.1354, 1]"),
         ("--speeds", speeds, lambda v: 0.0 < v <= 100.0, "in (0, 100] m/s"),
         ("--masses", masses, lambda m: 0.0 < m <= 1e4, "in (0, 1e4] kg"),
-    ):
+    )
+    for flag, values, ok, rule in checks:
         bad = [x for x in values or () if not (math.isfinite(x) and ok(x))]
         if bad:
             raise SpecError(flag, "", f"{bad[0]!r} is out of range (must be {rule})")

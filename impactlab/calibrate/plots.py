@@ -2,24 +2,43 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import matplotlib.colors
 import numpy as np
 import polars as pl
+from matplotlib.lines import Line2D
 
 from impactlab.plotting import plt, save_figure
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.collections import PathCollection
+    from matplotlib.colors import Colormap, Normalize
 
 MARKERS = "osD^v<>p*h"
 TOLERANCE = 0.005
 
 
-def _scatter(ax, frame: pl.DataFrame, y: str, *, shape_col: str, shape_label, norm, cmap, dx):
+def _scatter(
+    ax: Axes,
+    frame: pl.DataFrame,
+    y: str,
+    *,
+    shape_col: str,
+    shape_label: Callable[[Any], str],
+    norm: Normalize,
+    cmap: Colormap,
+    dx: float,
+) -> PathCollection | None:
     """Points coloured by impact speed, one marker per value of `shape_col`, nudged apart in x."""
     shapes = sorted(frame[shape_col].unique().to_list())
     speeds = sorted(frame["speed_mps"].unique().to_list())
     n = len(speeds) * len(shapes)
-    sc = None
+    sc: PathCollection | None = None
     for i, value in enumerate(shapes):
         part = frame.filter(pl.col(shape_col) == value)
         slot = np.array([speeds.index(s) * len(shapes) + i for s in part["speed_mps"]])
@@ -53,7 +72,11 @@ def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
         (pl.col("m1_kg") / pl.col("m2_kg")).alias("ratio")
     )
     speeds = frame.filter(pl.col("kind").is_in(["plane", "ball"]))["speed_mps"]
-    lo, hi = (float(speeds.min()), float(speeds.max())) if speeds.len() else (1.0, 10.0)
+    lo, hi = (
+        (float(speeds.to_numpy().min()), float(speeds.to_numpy().max()))
+        if speeds.len()
+        else (1.0, 10.0)
+    )
     norm = matplotlib.colors.LogNorm(vmin=lo, vmax=max(hi, lo * 1.01))
     cmap = plt.get_cmap("viridis")
     fig, axes = plt.subplots(2, 2, figsize=(13, 9), squeeze=False, layout="constrained")
@@ -65,10 +88,17 @@ def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
         ax_e.axhspan(-TOLERANCE, TOLERANCE, color="tab:green", alpha=0.12, label="±0.005")
         ax_e.axhline(0.0, color="0.5", lw=1)
         if part.height:
-            kw = dict(shape_col=shape_col, shape_label=shape_label, norm=norm, cmap=cmap, dx=0.02)
-            sc = _scatter(ax_m, part, "e_measured", **kw) or sc
-            _scatter(ax_e, part, "error", **kw)
-            err = part["error"].abs().max()
+            scatter = functools.partial(
+                _scatter,
+                shape_col=shape_col,
+                shape_label=shape_label,
+                norm=norm,
+                cmap=cmap,
+                dx=0.02,
+            )
+            sc = scatter(ax_m, part, "e_measured") or sc
+            scatter(ax_e, part, "error")
+            err = part.select(pl.col("error").abs().max()).item()
             ax_m.set_title(f"{label}: {part.height} runs, max |error| {err:.4f}")
         else:
             ax_m.set_title(f"{label}: no runs")
@@ -122,10 +152,10 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
             )
     handles, labels = ax.get_legend_handles_labels()
     style = [
-        (plt.Line2D([], [], color="k", lw=1.6), "prediction at the surface (what is measured)"),
-        (plt.Line2D([], [], color="k", lw=1.2, ls="--"), "velocity at force release"),
-        (plt.Line2D([], [], color="k", lw=0.8, ls=":"), "target (design speed)"),
-        (plt.Line2D([], [], color="k", marker="o", ls=""), "measured (analysis of the logs)"),
+        (Line2D([], [], color="k", lw=1.6), "prediction at the surface (what is measured)"),
+        (Line2D([], [], color="k", lw=1.2, ls="--"), "velocity at force release"),
+        (Line2D([], [], color="k", lw=0.8, ls=":"), "target (design speed)"),
+        (Line2D([], [], color="k", marker="o", ls=""), "measured (analysis of the logs)"),
     ]
     ax.legend(
         handles + [h for h, _ in style], labels + [lab for _, lab in style], fontsize=8, loc="best"

@@ -131,6 +131,12 @@ def report(result: CalibrationResult, curves: pl.DataFrame, figures: Sequence[Pa
     s = result.summary
     t = result.timings
     main = pts.filter(pl.col("kind") != "lowspeed")
+    dt_lo, dt_hi, steps_lo, steps_hi = main.select(
+        pl.col("timestep_s").min().alias("dt_lo"),
+        pl.col("timestep_s").max().alias("dt_hi"),
+        pl.col("steps_per_contact").min().alias("steps_lo"),
+        pl.col("steps_per_contact").max().alias("steps_hi"),
+    ).row(0)
     lines = [
         f"# Restitution calibration ({g.name} grid)",
         "",
@@ -145,8 +151,7 @@ def report(result: CalibrationResult, curves: pl.DataFrame, figures: Sequence[Pa
         "+0.6 v and ball 2 at -0.4 v, masses (m1, m2) = "
         + ", ".join(f"({a:g}, {b:g})" for a, b in g.mass_pairs())
         + " kg. Timestep: the largest of 5e-5 .. 5e-7 s the restitution module accepts "
-        f"(here {main['timestep_s'].min():g} .. {main['timestep_s'].max():g} s, "
-        f"{main['steps_per_contact'].min():.0f} .. {main['steps_per_contact'].max():.0f} steps "
+        f"(here {dt_lo:g} .. {dt_hi:g} s, {steps_lo:.0f} .. {steps_hi:.0f} steps "
         "per contact).",
         "",
         f"Targets {', '.join(f'{x:g}' for x in g.targets)}; speeds "

@@ -23,12 +23,13 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
 
 from impactlab.analyze import AnalysisResult, run_analysis
-from impactlab.calibrate.bounces import all_points
+from impactlab.calibrate.bounces import all_points, column_max
 from impactlab.calibrate.grid import GRAVITY_MPS2, RADIUS_M, Grid, GridPoint
 from impactlab.contact import (
     RESTITUTION_TOLERANCE,
@@ -65,7 +66,7 @@ class CalibrationResult:
     out_dir: Path
     grid: Grid
     points: pl.DataFrame
-    summary: dict
+    summary: dict[str, Any]
     bounces: pl.DataFrame = field(default_factory=pl.DataFrame)
     files: list[Path] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
@@ -199,10 +200,12 @@ def _gravity_shift(p: GridPoint) -> float:
     return -2.0 * p.params.zeta * GRAVITY_MPS2 / (w0 * p.design_speed)
 
 
-def _measurement(p: GridPoint, run_id, bounces: pl.DataFrame, collisions: pl.DataFrame) -> dict:
+def _measurement(
+    p: GridPoint, run_id: str | None, bounces: pl.DataFrame, collisions: pl.DataFrame
+) -> dict[str, Any]:
     """The analysis stage's measurement of one point, and whether it meets the bounds."""
     nan = float("nan")
-    out = {
+    out: dict[str, Any] = {
         "e_measured": nan,
         "error": nan,
         "v_in_mps": nan,
@@ -318,7 +321,7 @@ FAILURE_COLUMNS = (
 )
 
 
-def _worst(frame: pl.DataFrame) -> dict | None:
+def _worst(frame: pl.DataFrame) -> dict[str, Any] | None:
     if frame.is_empty() or frame["error"].drop_nans().is_empty():
         return None
     row = frame.filter(pl.col("error").is_not_nan()).sort(pl.col("error").abs()).row(-1, named=True)
@@ -326,39 +329,37 @@ def _worst(frame: pl.DataFrame) -> dict | None:
     return {k: row[k] for k in keys}
 
 
-def summarize(points: pl.DataFrame) -> dict:
+def summarize(points: pl.DataFrame) -> dict[str, Any]:
     """Per kind: runs, max |error|, max penetration, worst point and failing points."""
-    out: dict = {}
+    out: dict[str, Any] = {}
     for kind in ("plane", "ball"):
         f = points.filter(pl.col("kind") == kind)
         if f.is_empty():
             continue
-        err = f["error"].drop_nans().abs()
+        err = f["error"].drop_nans().abs().to_frame()
         entry = {
             "runs": f.height,
             "measured": int(f["e_measured"].is_not_nan().sum()),
-            "max_abs_error": float(err.max()) if err.len() else None,
-            "mean_abs_error": float(err.mean()) if err.len() else None,
-            "max_penetration_frac": float(f["penetration_frac"].drop_nans().max() or 0.0),
+            "max_abs_error": float(err.max().item()) if err.height else None,
+            "mean_abs_error": float(err.mean().item()) if err.height else None,
+            "max_penetration_frac": column_max(f, pl.col("penetration_frac")),
             "worst": _worst(f),
             "failures": f.filter(~pl.col("ok")).select(FAILURE_COLUMNS).to_dicts(),
         }
         if kind == "ball":
-            entry["max_velocity_error_rel"] = float(f["velocity_error_rel"].drop_nans().max() or 0)
-            entry["max_momentum_rel_change"] = float(
-                f["momentum_rel_change"].drop_nans().max() or 0
-            )
+            entry["max_velocity_error_rel"] = column_max(f, pl.col("velocity_error_rel"))
+            entry["max_momentum_rel_change"] = column_max(f, pl.col("momentum_rel_change"))
         out[kind] = entry
     low = points.filter(pl.col("kind") == "lowspeed")
     if low.height:
         out["lowspeed"] = {
             "runs": low.height,
             "design_speed_mps": float(low["design_speed_mps"][0]),
-            "max_abs_diff_release": float(
-                (low["e_measured"] - low["e_pred_release"]).drop_nans().abs().max() or 0.0
+            "max_abs_diff_release": column_max(
+                low, (pl.col("e_measured") - pl.col("e_pred_release")).abs()
             ),
-            "max_abs_diff_surface": float(
-                (low["e_measured"] - low["e_pred_surface"]).drop_nans().abs().max() or 0.0
+            "max_abs_diff_surface": column_max(
+                low, (pl.col("e_measured") - pl.col("e_pred_surface")).abs()
             ),
             "points": low.select(
                 "target", "speed_mps", "e_measured", "e_pred_release", "e_pred_surface"

@@ -14,7 +14,7 @@ from pathlib import Path
 from impactlab.cli.options import add_executor_options, make_executor, path
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `analyze` subcommand."""
     p = sub.add_parser(
         "analyze",

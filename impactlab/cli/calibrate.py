@@ -10,7 +10,7 @@ from impactlab.cli.options import path
 GRID_RUNS = {"quick": 43, "medium": 181, "full": 551}  # checked against the grids by a test
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `calibrate` subcommand."""
     p = sub.add_parser(
         "calibrate",

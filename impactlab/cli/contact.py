@@ -8,12 +8,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Literal, overload
 
 INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")  # checked against contact by a test
 SOURCE = "impactlab contact"
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `contact` subcommand."""
     p = sub.add_parser(
         "contact",
@@ -72,6 +73,10 @@ def run(args: argparse.Namespace) -> int:
         raise SpecError(str(args.model) if args.model else SOURCE, "", str(exc)) from None
 
 
+@overload
+def _number(args: argparse.Namespace, name: str, required: Literal[True]) -> float: ...
+@overload
+def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None: ...
 def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None:
     from impactlab.contact import ContactModelError
     from impactlab.contact.tune import parse_number
@@ -107,7 +112,7 @@ def _alone(args: argparse.Namespace) -> int:
         timestep_s=_number(args, "timestep", required=True),
         speed_range_mps=parse_speeds(args.speed),
         integrator=args.integrator or "Euler",
-        gravity_mps2=9.81 if args.gravity is None else _number(args, "gravity"),
+        gravity_mps2=9.81 if args.gravity is None else _number(args, "gravity", required=True),
         max_penetration_m=_number(args, "max-penetration"),
         duration_s=_number(args, "duration"),
     )

@@ -25,7 +25,7 @@ from impactlab.text import terminal_text
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `diff` subcommand to the command line's subparsers."""
     p = sub.add_parser(
         "diff",

@@ -8,7 +8,7 @@ from pathlib import Path
 from impactlab.cli.options import path
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `examples` subcommand."""
     p = sub.add_parser(
         "examples",

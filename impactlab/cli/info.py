@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `info` subcommand."""
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
     info.add_argument("logs", nargs="+", type=Path, metavar="LOG")

@@ -9,7 +9,7 @@ from impactlab.cli.options import add_executor_options, make_executor, path
 from impactlab.text import terminal_text
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `lab` subcommand."""
     p = sub.add_parser(
         "lab",

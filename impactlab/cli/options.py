@@ -6,7 +6,7 @@ import argparse
 import math
 from pathlib import Path
 
-from impactlab.executors.base import PROCESS_MIN_ITEMS
+from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
 from impactlab.text import terminal_text
 
@@ -29,7 +29,7 @@ def add_executor_options(parser: argparse.ArgumentParser, default: str = "local"
     )
 
 
-def make_executor(args: argparse.Namespace):
+def make_executor(args: argparse.Namespace) -> Executor:
     """The executor the options ask for (checked before any work is done)."""
     from impactlab.executors.choose import make_executor as make
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from impactlab.cli.options import path
@@ -13,7 +14,7 @@ from impactlab.text import terminal_text
 DEFAULT_URL = "rerun+http://127.0.0.1:9876/proxy"
 
 
-def register(sub: argparse._SubParsersAction) -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `replay` subcommand to the command line's subparsers."""
     p = sub.add_parser(
         "replay",
@@ -55,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     import rerun as rr
 
     from impactlab.errors import ImpactlabError, LogError
-    from impactlab.logs.load import require_logs
+    from impactlab.logs.inputs import require_logs
     from impactlab.progress import console_progress
     from impactlab.replay.recordings import replay_logs
 
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
     for error in failed:
         print(terminal_text(f"impactlab: error: {error}"), file=sys.stderr)
-    sinks: list = []
+    sinks: list[Callable[[], rr.GrpcSink]] = []
     if args.spawn:
         rr.spawn(connect=False, executable_path=_rerun_executable())
         sinks.append(rr.GrpcSink)

@@ -126,14 +126,18 @@ def _ok(ev: Evaluation, integrator: str) -> bool:
     return ev.w0dt <= cap and ev.error <= PHASE_BUDGET
 
 
-def _try(e: float, w0: float, dt: float, speeds: np.ndarray, g: float, integrator: str):
+def _try(
+    e: float, w0: float, dt: float, speeds: np.ndarray, g: float, integrator: str
+) -> Evaluation | None:
     try:
         return evaluate(e, w0, dt, speeds, g, integrator)
     except ContactModelError:
         return None
 
 
-def _best(e, dt, speeds, g, integrator, w0_hi) -> Evaluation | None:
+def _best(
+    e: float, dt: float, speeds: np.ndarray, g: float, integrator: str, w0_hi: float
+) -> Evaluation | None:
     """The stiffness with the smallest predicted error at dt (golden section in log w0)."""
     cap = table(scheme_of(integrator)).w0dt_max
     w_hi = min(w0_hi * 4.0, cap / dt)
@@ -161,7 +165,15 @@ def _best(e, dt, speeds, g, integrator, w0_hi) -> Evaluation | None:
     return _try(e, math.exp(c if fc <= fd else d), dt, speeds, g, integrator)
 
 
-def _stiffest_ok(e, dt, speeds, g, integrator, soft: Evaluation, stiff_w0: float):
+def _stiffest_ok(
+    e: float,
+    dt: float,
+    speeds: np.ndarray,
+    g: float,
+    integrator: str,
+    soft: Evaluation,
+    stiff_w0: float,
+) -> Evaluation:
     """The stiffest w0 between soft.w0 (meets the target) and stiff_w0 (does not) that does."""
     lo, hi = soft.w0, stiff_w0
     best = soft
@@ -240,7 +252,7 @@ def design_contact(
             eased = _try(e, max(best_ev.w0, 0.97 * soft_ev.w0), dt, speeds, g, integrator)
             soft_ev = eased if eased is not None and _ok(eased, integrator) else soft_ev
             softer = params_from(soft_ev, e, (lo, hi), dt, g, integrator)
-    notes = ()
+    notes: tuple[str, ...] = ()
     if dt_max is not None and dt_max < 1e-7:
         notes = (f"the largest timestep that works, {dt_max:.3g} s, is impractically small",)
     return ContactDesign(

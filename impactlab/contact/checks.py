@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 
 class ContactModelError(ValueError):
@@ -49,7 +50,7 @@ def check_restitution(e: float) -> float:
     return e
 
 
-def bisect(f, lo: float, hi: float, tol: float = 1e-13) -> float:
+def bisect(f: Callable[[float], float], lo: float, hi: float, tol: float = 1e-13) -> float:
     flo = f(lo)
     if flo == 0.0:
         return lo

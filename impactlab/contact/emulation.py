@@ -42,18 +42,29 @@ def scheme_of(integrator: str) -> str:
         ) from None
 
 
-def _acceleration(y, u, b, gr, d):
+def _acceleration(
+    y: np.ndarray, u: np.ndarray, b: np.ndarray | float, gr: np.ndarray | float, d: float
+) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's contact rule: (acceleration, force on) at states (y, u)."""
     aref = -(b * u + y) / d
     force = (y < 0.0) & (aref > -gr)
     return np.where(force, d * aref + (1.0 - d) * -gr, -gr), force
 
 
-def step(y, u, h: float, b, gr, scheme: str, d: float = IMPEDANCE):
+def step(
+    y: np.ndarray,
+    u: np.ndarray,
+    h: float,
+    b: np.ndarray | float,
+    gr: np.ndarray | float,
+    scheme: str,
+    d: float = IMPEDANCE,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """One step of MuJoCo's integrator for this contact (units w0 = v_in = 1).
 
     Args:
         y, u: signed distance and normal velocity (arrays, broadcastable).
+        b, gr: arrays broadcastable with them, or scalars.
         h: w0 * timestep.
         b: 2 zeta.
         gr: g / (w0 v_in) (gravity towards the surface).
@@ -80,7 +91,7 @@ def step(y, u, h: float, b, gr, scheme: str, d: float = IMPEDANCE):
     return y_new, u_new, f1 | f2 | f3 | f4, f1 & f2 & f3 & f4
 
 
-def free_step_travel(h: float, gr, scheme: str):
+def free_step_travel(h: float, gr: np.ndarray, scheme: str) -> np.ndarray:
     """Distance one free-flight step covers towards the surface from velocity -1 (w0 = 1)."""
     return h * (1.0 + h * gr) if scheme == "euler" else h * (1.0 + 0.5 * h * gr)
 
@@ -140,7 +151,7 @@ def emulate_impact(
 
 
 def emulate_surface(
-    zeta,
+    zeta: float | np.ndarray,
     w0dt: float,
     phases: np.ndarray,
     gravity_ratio: float | np.ndarray = 0.0,

@@ -54,7 +54,8 @@ def _matrices(h: float, b: float, scheme: str) -> tuple[np.ndarray, list[np.ndar
 
 
 def _pushes(y: np.ndarray, u: np.ndarray, b: float, gr: np.ndarray, d: float) -> np.ndarray:
-    return (y < 0.0) & (b * u + y < d * gr)
+    pushes: np.ndarray = (y < 0.0) & (b * u + y < d * gr)
+    return pushes
 
 
 def impact_fast(
@@ -130,7 +131,8 @@ def impact_fast(
 
     def dist(k: np.ndarray) -> np.ndarray:
         kk = k * (k + 1.0) if scheme == "euler" else k * k
-        return y + h * k * u - a2 * kk
+        y_k: np.ndarray = y + h * k * u - a2 * kk
+        return y_k
 
     k = np.where((k > 1.0) & (dist(k - 1.0) >= 0.0), k - 1.0, k)
     k = np.where(dist(k) < 0.0, k + 1.0, k)

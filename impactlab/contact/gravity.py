@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Literal
+from typing import Literal, overload
 
 import numpy as np
 
@@ -23,8 +23,19 @@ _SHIFT_PHASES = (np.arange(16) + 0.5) / 16
 _SHIFT_W0DT_MIN = 0.01
 
 
+@overload
 def gravity_shift(
-    zeta: float, w0dt: float, gravity_ratio: float | Sequence[float], integrator: str = "Euler"
+    zeta: float, w0dt: float, gravity_ratio: float, integrator: str = "Euler"
+) -> float: ...
+@overload
+def gravity_shift(
+    zeta: float, w0dt: float, gravity_ratio: Sequence[float] | np.ndarray, integrator: str = "Euler"
+) -> np.ndarray: ...
+def gravity_shift(
+    zeta: float,
+    w0dt: float,
+    gravity_ratio: float | Sequence[float] | np.ndarray,
+    integrator: str = "Euler",
 ) -> float | np.ndarray:
     """Gravity's change of the surface-to-surface e at impact speeds (mean over phases).
 
@@ -124,10 +135,28 @@ def restitution_with_gravity(
     return _release_speed(zeta, z0, gr)
 
 
+@overload
 def surface_restitution(
     params: ContactParams,
     *,
-    impact_speed_mps: float | Sequence[float],
+    impact_speed_mps: float,
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> float: ...
+@overload
+def surface_restitution(
+    params: ContactParams,
+    *,
+    impact_speed_mps: Sequence[float] | np.ndarray,
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> np.ndarray: ...
+def surface_restitution(
+    params: ContactParams,
+    *,
+    impact_speed_mps: float | Sequence[float] | np.ndarray,
     gravity_mps2: float,
     timestep_s: float,
     phases: int = 64,
@@ -168,7 +197,7 @@ def surface_restitution(
 def restitution_spread(
     params: ContactParams,
     *,
-    impact_speed_mps: float | Sequence[float],
+    impact_speed_mps: float | Sequence[float] | np.ndarray,
     gravity_mps2: float,
     timestep_s: float,
     phases: int = 64,

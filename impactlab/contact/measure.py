@@ -6,12 +6,17 @@ Used by the tests and the calibration to check the designer against the simulato
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from impactlab.contact.checks import ContactModelError
 from impactlab.contact.params import ContactParams
+
+if TYPE_CHECKING:
+    import mujoco  # imported where used: `impactlab.contact` loads without it
 
 
 @dataclass(frozen=True)
@@ -66,7 +71,13 @@ gravity="0 0 0"/>
 solimp="{a["solimp"]}"/></contact></mujoco>"""
 
 
-def _measure(model, data, velocities, overlap, max_steps: int) -> ImpactMeasurement:
+def _measure(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    velocities: Callable[[mujoco.MjData], np.ndarray],
+    overlap: Callable[[mujoco.MjData], float],
+    max_steps: int,
+) -> ImpactMeasurement:
     """Step until the bodies overlap and part again; velocities just outside the overlap.
 
     As the analysis stage does: v_before is the state before the first overlapping one,
@@ -74,7 +85,9 @@ def _measure(model, data, velocities, overlap, max_steps: int) -> ImpactMeasurem
     """
     import mujoco
 
-    v_prev = v_before = v_after = None
+    v_prev: np.ndarray | None = None
+    v_before: np.ndarray | None = None
+    v_after: np.ndarray | None = None
     pen, steps = 0.0, 0
     for _ in range(max_steps):
         inside = overlap(data) > 0.0

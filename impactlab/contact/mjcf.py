@@ -13,6 +13,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from impactlab.contact.checks import ContactModelError
 from impactlab.contact.mjcf_files import included_files
 from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.contact.params import ContactParams
+
+if TYPE_CHECKING:
+    import mujoco  # imported where used: `impactlab.contact` loads without it
 
 
 @dataclass(frozen=True)
@@ -58,7 +62,7 @@ class ModelOptions:
     gravity: tuple[float, float, float]
 
 
-def load_model(path: Path):
+def load_model(path: Path) -> mujoco.MjModel:
     """Compile an MJCF file with MuJoCo.
 
     Raises:
@@ -79,7 +83,7 @@ def load_model(path: Path):
     return model
 
 
-def check_names(model) -> None:
+def check_names(model: mujoco.MjModel) -> None:
     """MuJoCo keeps names as the file's bytes; Python reads them as UTF-8.
 
     Raises:
@@ -98,7 +102,7 @@ def check_names(model) -> None:
         ) from None
 
 
-def asset_files(spec, path: Path) -> list[Path]:
+def asset_files(spec: mujoco.MjSpec, path: Path) -> list[Path]:
     """The mesh, texture, height-field and skin files a parsed model (`MjSpec`) reads, in
     the order MuJoCo lists them, each once (paths as MuJoCo resolves them; they may be
     missing)."""
@@ -159,20 +163,21 @@ def check_not_input(out: Path, model: Path) -> None:
             )
 
 
-def model_options(model) -> ModelOptions:
+def model_options(model: mujoco.MjModel) -> ModelOptions:
     """Timestep, integrator and gravity of a compiled model."""
     import mujoco
 
     integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
+    gx, gy, gz = (float(x) for x in model.opt.gravity)
     names = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
     return ModelOptions(
         timestep_s=float(model.opt.timestep),
         integrator=names.get(integrator, integrator),
-        gravity=tuple(float(x) for x in model.opt.gravity),
+        gravity=(gx, gy, gz),
     )
 
 
-def model_pairs(model, names: Sequence[tuple[str, str]]) -> list[ModelPair]:
+def model_pairs(model: mujoco.MjModel, names: Sequence[tuple[str, str]]) -> list[ModelPair]:
     """Describe the pairs (geom1, geom2) of a compiled model.
 
     Raises:
@@ -190,7 +195,7 @@ def model_pairs(model, names: Sequence[tuple[str, str]]) -> list[ModelPair]:
     }
     out = []
     for g1, g2 in names:
-        ids = []
+        ids: list[int] = []
         for name in (g1, g2):
             gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, name)
             if gid < 0:
@@ -203,7 +208,14 @@ def model_pairs(model, names: Sequence[tuple[str, str]]) -> list[ModelPair]:
     return out
 
 
-def _describe(model, data, ids, gravity, free, names) -> ModelPair:
+def _describe(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    ids: list[int],
+    gravity: np.ndarray,
+    free: set[int],
+    names: tuple[str, str],
+) -> ModelPair:
     import mujoco
 
     sphere, plane = int(mujoco.mjtGeom.mjGEOM_SPHERE), int(mujoco.mjtGeom.mjGEOM_PLANE)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import xml.parsers.expat
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from xml.sax.saxutils import quoteattr
 
 from impactlab.contact.checks import ContactModelError
@@ -21,18 +21,19 @@ class _Layout:
 
     root_end: int | None = None
     contact: tuple[int, int, bool] | None = None  # first top-level <contact>: start, end, empty
-    pairs: list[tuple[frozenset[str], int, int, dict]] | None = None  # geoms, span, attributes
+    pairs: list[tuple[frozenset[str], int, int, dict[str, str]]] = field(default_factory=list)
+    """Each <pair> in the first <contact>: its geoms, span (start, end) and attributes."""
 
 
 def _layout(raw: bytes) -> _Layout:
     parser = xml.parsers.expat.ParserCreate()
-    layout = _Layout(pairs=[])
-    stack: list[tuple[str, int, dict]] = []
+    layout = _Layout()
+    stack: list[tuple[str, int, dict[str, str]]] = []
 
-    def start(name, attrs):
+    def start(name: str, attrs: dict[str, str]) -> None:
         stack.append((name, parser.CurrentByteIndex, attrs))
 
-    def end(name):
+    def end(name: str) -> None:
         _, begin, attrs = stack.pop()
         here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
         head = tag_end(raw, begin)
@@ -87,7 +88,7 @@ def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]]) -> bytes:
     edits: list[tuple[int, int, bytes]] = []
     new: list[bytes] = []
     for g1, g2, element in elements:
-        match = [p for p in layout.pairs or () if p[0] == frozenset((g1, g2))]
+        match = [p for p in layout.pairs if p[0] == frozenset((g1, g2))]
         if match:
             _, start, stop, attrs = match[0]
             if attrs.get("geom1") == g2:  # keep the pair's order (the normal's direction)

@@ -131,7 +131,11 @@ def params_dict(p: ContactParams) -> dict[str, Any]:
 
 
 def design_dict(
-    design: ContactDesign, *, geom1: str = "GEOM1", geom2: str = "GEOM2", pair_element=None
+    design: ContactDesign,
+    *,
+    geom1: str = "GEOM1",
+    geom2: str = "GEOM2",
+    pair_element: str | None = None,
 ) -> dict[str, Any]:
     """The design as JSON-ready data (``impactlab contact --json``)."""
     p = design.params

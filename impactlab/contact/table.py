@@ -12,9 +12,10 @@ import argparse
 import functools
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -37,6 +38,19 @@ TABLE_PATHS = {
 TABLE_PATH = TABLE_PATHS["euler"]
 
 
+class TableDocument(TypedDict):
+    """A committed table as JSON: grids, and per node (zeta row, w0dt column) its numbers."""
+
+    generated_by: str
+    description: str
+    impedance: float
+    zeta: list[float]
+    w0dt: list[float]
+    delta: list[list[float]]
+    half: list[list[float]]
+    pen: list[list[float]]
+
+
 _TABLE_ZETA = np.linspace(0.0, 1.0, 41) ** 1.5
 
 
@@ -46,7 +60,7 @@ _TABLE_W0DT = np.geomspace(0.002, 0.3, 31)
 _TABLE_PHASES = np.linspace(0.0, 1.0, 257)[1:]
 
 
-def generate_table(scheme: str = "euler") -> dict:
+def generate_table(scheme: str = "euler") -> TableDocument:
     """Compute the discretisation table over (zeta, w0 * dt) with the mj_step emulation.
 
     For each node, over 256 contact-onset phases: ``delta`` = midrange of e minus the closed
@@ -171,7 +185,7 @@ def w0dt_max(e: float, budget: float = PHASE_BUDGET, scheme: str = "euler") -> f
         wh = float(math.exp(lw))
         _, half, _ = discrete(calibrated_zeta(e, wh, scheme), wh, scheme)
         if half > budget:
-            if prev_wh is None:
+            if prev_wh is None or prev_err is None:
                 return wh * budget / half
             t = (budget - prev_err) / (half - prev_err)
             return math.exp(math.log(prev_wh) + t * (lw - math.log(prev_wh)))
@@ -188,7 +202,7 @@ value on a rounding boundary may move by one unit of 1e-10. Far below what matte
 accuracy promised for e is 5e-3."""
 
 
-def table_difference(committed: dict, fresh: dict) -> str | None:
+def table_difference(committed: Mapping[str, Any], fresh: Mapping[str, object]) -> str | None:
     """What differs between two tables beyond the tolerances above, or None."""
     if set(committed) != set(fresh):
         return f"keys {sorted(committed)} != {sorted(fresh)}"

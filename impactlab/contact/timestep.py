@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 
 from impactlab.contact.calibration import evaluate, shift_speeds
 from impactlab.contact.checks import ContactModelError, positive
@@ -139,7 +140,9 @@ def round_down(value: float, digits: int = 3) -> float:
     return float(f"{units}e{scale}")
 
 
-def accepted_timestep(estimate: float, passes, *, digits: int = 3, tries: int = 40) -> float:
+def accepted_timestep(
+    estimate: float, passes: Callable[[float], bool], *, digits: int = 3, tries: int = 40
+) -> float:
     """The largest timestep of `digits` significant digits, at most `estimate`, at which
     `passes` (a design made for that timestep meets its target), stepping down one unit of
     the last digit at a time (the design's stiffness depends on the timestep, so the

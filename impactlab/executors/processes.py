@@ -174,7 +174,7 @@ class ProcessExecutor:
             return
         worker.task, worker.started = index, False
 
-    def _hear(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome]:
+    def _hear(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome[Any]]:
         """Take one message from a worker whose pipe or process has news."""
         try:
             message = worker.conn.recv() if worker.conn.poll() else None
@@ -197,7 +197,7 @@ class ProcessExecutor:
             worker.task = None
             yield TaskOutcome(index, value=value, error=error, wall_s=wall)
 
-    def _lost(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome]:
+    def _lost(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome[Any]]:
         """A worker died: its started task fails with the reason, one not started waits."""
         worker.process.join()
         code = worker.process.exitcode

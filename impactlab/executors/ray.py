@@ -95,7 +95,8 @@ class RayExecutor:
     def slots(self) -> int:
         """CPUs in the cluster (one task per CPU)."""
         self._connect()
-        return max(1, int(self._ray.cluster_resources().get("CPU", 1)))
+        resources = self._ray.cluster_resources()  # type: ignore[no-untyped-call]  # ray: no hints
+        return max(1, int(resources.get("CPU", 1)))
 
     def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
         """Yield one outcome per item as its task finishes."""
@@ -121,7 +122,7 @@ class RayExecutor:
             for ref in pending:  # the driver stopped early (error, Ctrl-C): stop the rest
                 ray.cancel(ref, force=True)
 
-    def _outcome(self, ref: Any, index: int, elapsed: float) -> TaskOutcome:
+    def _outcome(self, ref: Any, index: int, elapsed: float) -> TaskOutcome[Any]:
         ray = self._ray
         try:
             value, wall_s = ray.get(ref)

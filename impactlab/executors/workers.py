@@ -84,12 +84,13 @@ def serve(conn: Connection, parent: int) -> None:
 
 def _receive(conn: Connection) -> tuple[int, bytes] | None:
     try:
-        return conn.recv()
+        task: tuple[int, bytes] = conn.recv()
+        return task
     except EOFError:  # the parent closed the pipe (or died)
         return None
 
 
-def _run(index: int, payload: bytes) -> bytes:
+def _run(index: int, payload: bytes) -> memoryview:
     """(index, value, error, wall time) of the task, pickled: a function or item that cannot
     be unpickled here, or a value that cannot be pickled, is the task's failure."""
     start = time.perf_counter()

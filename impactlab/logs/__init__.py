@@ -21,8 +21,8 @@ if TYPE_CHECKING:
     from impactlab.logs.diff import LogDiff as LogDiff
     from impactlab.logs.diff import Tolerance as Tolerance
     from impactlab.logs.diff import diff_logs as diff_logs
+    from impactlab.logs.inputs import find_logs as find_logs
     from impactlab.logs.load import RunLog as RunLog
-    from impactlab.logs.load import find_logs as find_logs
     from impactlab.logs.load import load_log as load_log
 
 if not TYPE_CHECKING:  # a type checker sees the imports above

@@ -120,10 +120,14 @@ def decompress_chunk(
             f"the decompressed chunks exceed the limit of {_mib(max_log_bytes())} ({_HINT})"
         )
     budget[0] -= uncompressed_size
+    raw: bytes | memoryview
     try:
         if compression == "zstd":
             room = arena.take(uncompressed_size + 1) if arena is not None else None
-            raw = _zstd(data, uncompressed_size) if room is None else arena.zstd(data, room)
+            if arena is None or room is None:
+                raw = _zstd(data, uncompressed_size)
+            else:
+                raw = arena.zstd(data, room)
         elif compression == "lz4":
             decompressor = lz4.frame.LZ4FrameDecompressor()
             raw = decompressor.decompress(bytes(data), max_length=uncompressed_size + 1)

@@ -30,17 +30,20 @@ _SAME = np.dtype(  # op, length and channel (bytes 0-10 of a message record), in
 )
 
 
-def _records(raw: bytes, starts: np.ndarray, size: int) -> np.ndarray:
+def _records(raw: bytes | memoryview, starts: np.ndarray, size: int) -> np.ndarray:
     """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
     bytes), (n, size) uint8, gathered in one step."""
     if size == 0:
         return np.empty((len(starts), 0), dtype=np.uint8)
     row = np.dtype((np.void, size))
     whole = np.ndarray((len(raw) - size + 1,), dtype=row, buffer=raw, strides=(1,))
-    return whole[starts].view(np.uint8).reshape(len(starts), size)
+    gathered: np.ndarray = whole[starts].view(np.uint8).reshape(len(starts), size)
+    return gathered
 
 
-def checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
+def checked_index(
+    raw: bytes | memoryview, channel_id: int, pairs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int] | None:
     """(offsets, payload lengths, step) of one channel's indexed records in a chunk, or None
     unless every one is a whole message of `channel_id` at its indexed time.
 
@@ -90,7 +93,14 @@ def checked_index(raw: bytes, channel_id: int, pairs: np.ndarray):
     return (offsets, lengths, 0) if agrees else None
 
 
-def add_pieces(pieces: list, raw: bytes, times, starts, lengths, step: int) -> None:
+def add_pieces(
+    pieces: list[tuple[np.ndarray, np.ndarray | list[bytes]]],
+    raw: bytes | memoryview,
+    times: np.ndarray,
+    starts: np.ndarray,
+    lengths: np.ndarray,
+    step: int,
+) -> None:
     """A chunk's messages of one channel, one piece per payload length (in index order):
     read-only views into the chunk when evenly spaced (`step` > 0), else gathered."""
     size = int(lengths[0])

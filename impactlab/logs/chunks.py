@@ -63,6 +63,7 @@ class Block:
         """Payload bytes concatenated, (total,) uint8, and each payload's length, (n,)."""
         if self.layout is not None:
             n, size = len(self.log_time), self.layout.size
+            assert isinstance(self.payloads, np.ndarray)  # a layout's doubles, (n, k)
             return self.layout.encode(self.payloads).reshape(-1), np.full(n, size, np.int64)
         if isinstance(self.payloads, np.ndarray):
             n, size = self.payloads.shape
@@ -90,7 +91,7 @@ class ChunkWriter:
         times = np.concatenate([b.log_time for b in blocks])
         start, end = int(times.min()), int(times.max())
         w = self._internals
-        compressed = self._compressor.compress(records)
+        compressed = self._compressor.compress(records.data)
         chunk = Chunk(
             compression="zstd",
             data=compressed,
@@ -142,7 +143,7 @@ class ChunkWriter:
 
     def finish(self) -> None:
         """Write the summary and footer."""
-        self.writer.finish()
+        self.writer.finish()  # type: ignore[no-untyped-call]  # mcap: finish() has no hints
 
 
 def _records_dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
@@ -227,6 +228,7 @@ class _RecordLayout:
         segment.matrix()[:, offset : offset + self.size] = self.constant
         times = block.log_time[first : first + m]
         segment.numbers(offset + 15, 2, 8, np.int64)[:] = times[:, None]  # log, publish time
+        assert isinstance(block.payloads, np.ndarray)  # the dense path: fixed-size blocks
         payloads = block.payloads[first : first + m]
         if block.layout is None:
             segment.matrix()[:, offset + HEADER : offset + self.size] = payloads

@@ -14,11 +14,13 @@ import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TypeVar
 
 import numpy as np
 from google.protobuf.message import Message
 
-Setter = Callable[[Message, Sequence[float]], None]
+M = TypeVar("M", bound=Message)
+Setter = Callable[[M, Sequence[float]], None]
 
 
 @dataclass(frozen=True)
@@ -41,7 +43,7 @@ class Template:
         return int(self.template.size)
 
     @classmethod
-    def learn(cls, make: Callable[[], Message], setter: Setter, k: int) -> Template:
+    def learn(cls, make: Callable[[], M], setter: Setter[M], k: int) -> Template:
         """Learn the layout of `make()` with its k doubles set by `setter(msg, values)`."""
         sentinels = [1.0 + (i + 1) * 2.0**-20 + 2.0**-40 for i in range(k)]
         msg = make()

@@ -257,5 +257,5 @@ class LogRows:
             ],
             None
             if parts[0].joint_energy is None
-            else np.concatenate([p.joint_energy for p in parts]),  # type: ignore[misc]
+            else np.concatenate([p.joint_energy for p in parts]),
         )

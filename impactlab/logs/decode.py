@@ -38,7 +38,10 @@ def decode_fixed(
                 np.asarray([fallback(r) for r in rows], dtype=np.float64).reshape(len(t), -1).T
             )
         at += len(t)
-    t_all = pieces[0][0] if len(pieces) == 1 else np.concatenate([t for t, _ in pieces] or [[]])
+    if len(pieces) == 1:
+        t_all = pieces[0][0]
+    else:
+        t_all = np.concatenate([t for t, _ in pieces]) if pieces else np.empty(0, np.int64)
     t_all, v_all = t_all.astype(np.int64, copy=False), out.T
     if (np.diff(t_all) >= 0).all():
         return t_all, v_all
@@ -114,7 +117,9 @@ def _points(names: dict[str, str], size: int) -> int:
     return k + 1 if rest == 0 and k >= 0 else 0
 
 
-def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], values: np.ndarray):
+def _contact_frame(
+    run_id: str, t: np.ndarray, names: dict[str, str], values: np.ndarray
+) -> pl.DataFrame:
     """Frame of contacts with k points each: `values` (k * fields, n), a row per value."""
     per_point = len(POINT_FIELDS)
     k, n = values.shape[0] // per_point, len(t)
@@ -133,7 +138,7 @@ def _contact_frame(run_id: str, t: np.ndarray, names: dict[str, str], values: np
     return pl.DataFrame(columns)
 
 
-def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]):
+def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
     cols: dict[str, list[Any]] = defaultdict(list)
     for t, data in zip(t_ns.tolist(), payloads, strict=True):
         m = pb.Contact.FromString(data)
@@ -271,7 +276,9 @@ def _constant(value: str, n: int, name: str = "") -> pl.Series:
     return pl.Series(name, [value], dtype=pl.String).new_from_index(0, n)
 
 
-def fixed_frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
+def fixed_frame(
+    run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]
+) -> pl.DataFrame:
     columns = [
         _constant(run_id, len(t_ns), "run_id"),
         pl.Series("t_ns", t_ns, dtype=pl.Int64),

@@ -193,7 +193,7 @@ def compare_channel(
 def _missing(times: pl.DataFrame) -> Missing | None:
     if not times.height:
         return None
-    t = times["t_ns"]
+    t = times["t_ns"].to_numpy()
     return Missing(count=times.height, first_t_ns=int(t.min()), last_t_ns=int(t.max()))
 
 

@@ -241,7 +241,8 @@ class LogDiff:
             "attachments": [asdict(a) for a in self.attachments],
             "notes": list(self.notes),
         }
-        return _json_safe(data)
+        safe: dict[str, Any] = _json_safe(data)
+        return safe
 
 
 def fmt_t(t_ns: int | None) -> str:

@@ -185,10 +185,13 @@ def _geom(item: object) -> GeomShape:
 
     def numbers(key: str, n: int, default: Sequence[float] | None = None) -> tuple[float, ...]:
         value = item.get(key, default)
-        ok = isinstance(value, list | tuple) and len(value) == n
-        if not ok or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in value
+        if (
+            not isinstance(value, list | tuple)
+            or len(value) != n
+            or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value
+            )
         ):
             raise ValueError(f"{key} is not {n} finite numbers")
         return tuple(float(v) for v in value)

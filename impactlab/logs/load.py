@@ -10,7 +10,6 @@ damage; such a run is marked `partial`.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -104,12 +103,14 @@ class RunLog:
     @property
     def experiment(self) -> str:
         """The experiment's name ("" when unknown)."""
-        return self.checked.values.get("experiment", "")
+        experiment: str = self.checked.values.get("experiment", "")
+        return experiment
 
     @property
     def sweep(self) -> dict[str, Any]:
         """This run's sweep point: {dotted path: value} ({} when unknown)."""
-        return self.checked.values.get("sweep", {})
+        sweep: dict[str, Any] = self.checked.values.get("sweep", {})
+        return sweep
 
     @property
     def sweep_point(self) -> tuple[int, int]:
@@ -120,7 +121,8 @@ class RunLog:
     @property
     def spec(self) -> dict[str, Any]:
         """The resolved spec document the run was made from ({} when unknown)."""
-        return self.checked.values.get("spec", {})
+        spec: dict[str, Any] = self.checked.values.get("spec", {})
+        return spec
 
     @property
     def body_info(self) -> dict[str, BodyInfo]:
@@ -130,9 +132,9 @@ class RunLog:
             radius = b.get("radius")
             rest = b.get("rest_height_m", radius)  # older logs: spheres only
             shape = b.get("shape", "sphere" if radius is not None else "")
-            inertia = tuple(float(x) for x in b["inertia"])
+            ix, iy, iz = (float(x) for x in b["inertia"])
             geoms, motion = tuple(b.get("geoms", ())), b.get("motion", "free")
-            fields = (b["name"], float(b["mass"]), inertia, radius, rest, shape, geoms, motion)
+            fields = (b["name"], float(b["mass"]), (ix, iy, iz), radius, rest, shape, geoms, motion)
             out[b["name"]] = BodyInfo(*fields)
         return out
 
@@ -166,7 +168,7 @@ class RunLog:
     @property
     def contact_targets(self) -> tuple[PairTarget, ...]:
         """The pairs calibrated to a target e, with their speed ranges (() when none)."""
-        return self.checked.values.get("contact_targets", ())
+        return tuple(self.checked.values.get("contact_targets", ()))
 
     @property
     def geom_contact(self) -> GeomContact | None:
@@ -209,12 +211,14 @@ class RunLog:
     @property
     def outcome(self) -> str:
         """completed, unstable, or incomplete (no outcome record, or an unknown outcome)."""
-        return self.checked.values.get("outcome", "incomplete")
+        outcome: str = self.checked.values.get("outcome", "incomplete")
+        return outcome
 
     @property
     def warnings(self) -> list[str]:
         """The run's warnings, as recorded ([] when unknown)."""
-        return self.checked.values.get("warnings", [])
+        warnings: list[str] = self.checked.values.get("warnings", [])
+        return warnings
 
     def unanalyzable(self) -> str | None:
         """Why the analysis cannot trust this run's metadata, or None.
@@ -251,57 +255,6 @@ class RunLog:
             return self.checked.values[key]
         problem = self.checked.problems.get(key, "missing")
         raise LogError(str(self.path), f"damaged metadata: {key}: {problem}")
-
-
-class NoLogs(LogError):
-    """No input holds a log: a mistake in the command, nothing was done (exit code 2)."""
-
-    exit_code = 2
-
-
-def find_logs(
-    inputs: Sequence[str | Path], *, empty: list[tuple[str, str]] | None = None
-) -> list[Path]:
-    """Expand files, folders (their *.mcap files, recursively) and glob patterns, sorted, unique.
-
-    A folder named like a log (`x.mcap/`) is searched like any folder. Inputs that give no
-    log are added to `empty` as (input, why), when it is given.
-    """
-    out: list[Path] = []
-    for item in inputs:
-        path = Path(item)
-        if path.is_dir():
-            found = sorted(p for p in path.rglob("*.mcap") if not p.is_dir())
-            why = "a folder without .mcap logs"
-        elif any(c in str(item) for c in "*?["):
-            found = (
-                sorted(Path().glob(str(item)))
-                if not path.is_absolute()
-                else sorted(Path(path.anchor).glob(str(path.relative_to(path.anchor))))
-            )
-            found = [p for p in found if not p.is_dir()]
-            why = "matches no file"
-        else:
-            found, why = [path], ""
-        if not found and empty is not None:
-            empty.append((str(item), why))
-        out += found
-    return list(dict.fromkeys(out))
-
-
-def require_logs(inputs: Sequence[str | Path]) -> tuple[list[Path], list[tuple[str, str]]]:
-    """The logs the inputs name (`find_logs`), and the inputs that name none, with why.
-
-    Raises:
-        NoLogs: no input names a log (a folder without logs, a pattern matching nothing).
-    """
-    empty: list[tuple[str, str]] = []
-    paths = find_logs(inputs, empty=empty)
-    if not paths:
-        if len(empty) == 1:
-            raise NoLogs(*empty[0])
-        raise NoLogs(" ".join(map(str, inputs)) or "(no input)", "none of these holds a log")
-    return paths, empty
 
 
 def load_log(path: str | Path) -> RunLog:

@@ -11,11 +11,12 @@ Value orders:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import cache
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from google.protobuf.message import Message
 
 from impactlab.logs import format as logformat
 from impactlab.logs.codec import Template
@@ -26,8 +27,8 @@ ENERGY_FIELDS = ("kinetic", "potential", "total")
 POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields)
 
 
-def _set_fields(names: Sequence[str]):
-    def setter(msg, values):
+def _set_fields(names: Sequence[str]) -> Callable[[Message, Sequence[float]], None]:
+    def setter(msg: Message, values: Sequence[float]) -> None:
         for name, value in zip(names, values, strict=True):
             setattr(msg, name, value)
 
@@ -50,7 +51,7 @@ def energy() -> Template:
 def clearance(k: int) -> Template:
     """Layout of `impactlab.Clearance` with k distances."""
 
-    def setter(msg, values):
+    def setter(msg: pb.Clearance, values: Sequence[float]) -> None:
         msg.distance.extend(values)
 
     return Template.learn(pb.Clearance, setter, k)
@@ -61,10 +62,10 @@ def contact(geom1: str, geom2: str, body1: str, body2: str, points: int) -> Temp
     """Layout of `impactlab.Contact` for one geom pair with `points` contact points."""
     k = len(POINT_FIELDS)
 
-    def make():
+    def make() -> pb.Contact:
         return pb.Contact(geom1=geom1, geom2=geom2, body1=body1, body2=body2)
 
-    def setter(msg, values):
+    def setter(msg: pb.Contact, values: Sequence[float]) -> None:
         for i in range(points):
             point = msg.points.add()
             _set_fields(POINT_FIELDS)(point, values[i * k : (i + 1) * k])
@@ -78,7 +79,7 @@ def transforms(bodies: tuple[str, ...], stamp: tuple[int, int] = (0, 0)) -> Temp
     `stamp` (seconds, nanos): the payloads of other stamps whose varints have the same lengths
     differ only in the stamp's bytes (`stamped_transforms`)."""
 
-    def setter(msg, values):
+    def setter(msg: FrameTransforms, values: Sequence[float]) -> None:
         for i, name in enumerate(bodies):
             tf = msg.transforms.add()
             tf.timestamp.seconds, tf.timestamp.nanos = stamp
@@ -173,7 +174,7 @@ def _stamp_offsets(bodies: tuple[str, ...], probe: tuple[int, int], size: int) -
     )
     b = transforms(bodies, other).template
     differ = np.flatnonzero(a != b)
-    starts = []
+    starts: list[int] = []
     for i in differ.tolist():
         if not starts or i >= starts[-1] + size:
             starts.append(i)

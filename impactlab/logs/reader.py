@@ -81,6 +81,9 @@ class McapContent:
 
 
 _Damage = DamagedData
+_Chunk = bytes | memoryview  # a chunk's uncompressed records
+_Pending = tuple[_Chunk, dict[int, np.ndarray] | None, int]  # records, indexes, byte offset
+_Loose = dict[int, tuple[list[int], list[bytes]]]  # messages outside indexes, by channel
 
 
 def read_mcap(
@@ -109,9 +112,9 @@ def read_mcap(
     attachments: dict[str, int] = {}
     library = ""
     problems: list[str] = []
-    loose: dict[int, tuple[list[int], list[bytes]]] = defaultdict(lambda: ([], []))
+    loose: _Loose = defaultdict(lambda: ([], []))
     pos = 8
-    pending: tuple[bytes, dict[int, np.ndarray] | None, int] | None = None
+    pending: _Pending | None = None
     try:
         while pos < len(buf):
             if pos + 9 > len(buf):
@@ -200,7 +203,12 @@ def _signed_times(channels: dict[int, ChannelData], problems: list[str]) -> None
         )
 
 
-def _salvage(pending, schemas, channels, loose) -> None:
+def _salvage(
+    pending: _Pending | None,
+    schemas: dict[int, str],
+    channels: dict[int, ChannelData],
+    loose: _Loose,
+) -> None:
     """The messages of a complete chunk whose message indexes the damage cut off."""
     if pending is None:
         return
@@ -253,7 +261,9 @@ def _attachment_header(body: memoryview) -> tuple[str, int, int]:
     return name, at + 8, size
 
 
-def _definition(op: int, body, schemas: dict[int, str], channels: dict[int, ChannelData]):
+def _definition(
+    op: int, body: memoryview, schemas: dict[int, str], channels: dict[int, ChannelData]
+) -> None:
     """Register a Schema or Channel record."""
     if op == OP_SCHEMA:
         s = Schema.read(ReadDataStream(io.BytesIO(body)))
@@ -264,7 +274,12 @@ def _definition(op: int, body, schemas: dict[int, str], channels: dict[int, Chan
 
 
 def _gather(
-    pending, schemas, channels: dict[int, ChannelData], loose, skip_topics, problems: list[str]
+    pending: _Pending,
+    schemas: dict[int, str],
+    channels: dict[int, ChannelData],
+    loose: _Loose,
+    skip_topics: frozenset[str],
+    problems: list[str],
 ) -> None:
     """Add a chunk's messages to their channels, by its message indexes when it has them.
 
@@ -298,7 +313,9 @@ def _gather(
         add_pieces(channel.pieces, raw, times, offsets + MESSAGE_HEADER_SIZE, lengths, step)
 
 
-def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
+def _walk_chunk(
+    raw: _Chunk, schemas: dict[int, str], channels: dict[int, ChannelData], loose: _Loose
+) -> None:
     """Schemas, channels and messages of a chunk, record by record.
 
     Raises:
@@ -319,7 +336,7 @@ def _walk_chunk(raw: bytes, schemas, channels, loose) -> None:
         pos += 9 + length
 
 
-def _loose_message(body: memoryview, loose) -> None:
+def _loose_message(body: memoryview, loose: _Loose) -> None:
     if len(body) < MESSAGE_HEADER_SIZE - 9:
         raise _Damage("message record cut short")
     channel_id = int.from_bytes(body[0:2], "little")

@@ -10,6 +10,7 @@ binary STL models (`ModelPrimitive`, the same bytes as the log's mesh attachment
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
@@ -17,6 +18,14 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from impactlab.logs import format as logformat
 from impactlab.logs.geoms import STL_MEDIA_TYPE, GeomShape, encode_stl
+
+if TYPE_CHECKING:
+    from foxglove_schemas_protobuf.CubePrimitive_pb2 import CubePrimitive
+    from foxglove_schemas_protobuf.CylinderPrimitive_pb2 import CylinderPrimitive
+    from foxglove_schemas_protobuf.ModelPrimitive_pb2 import ModelPrimitive
+    from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
+
+    Primitive = CubePrimitive | CylinderPrimitive | ModelPrimitive | SpherePrimitive
 
 __all__ = ["BODY_PALETTE", "PLANE_THICKNESS_M", "GeomShape", "scene_update"]
 
@@ -60,7 +69,9 @@ def scene_update(
     return update
 
 
-def _pose(prim, geom: GeomShape, offset: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> None:
+def _pose(
+    prim: Primitive, geom: GeomShape, offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+) -> None:
     """Place a primitive at the geom's pose, shifted by `offset` in the geom's frame."""
     w, x, y, z = geom.quat
     rot = np.array(
@@ -76,7 +87,7 @@ def _pose(prim, geom: GeomShape, offset: tuple[float, float, float] = (0.0, 0.0,
     o.w, o.x, o.y, o.z = geom.quat
 
 
-def _color(prim, geom: GeomShape) -> None:
+def _color(prim: Primitive, geom: GeomShape) -> None:
     prim.color.r, prim.color.g, prim.color.b, prim.color.a = geom.rgba
 
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Sequence
-from functools import cache
 from pathlib import Path
 from typing import IO
 
@@ -266,7 +265,9 @@ class _Channels:
         self.writer = writer
         self.schemas: dict[str, int] = {}
 
-    def add(self, topic: str, message_type: type[Message], metadata: dict[str, str] | None = None):
+    def add(
+        self, topic: str, message_type: type[Message], metadata: dict[str, str] | None = None
+    ) -> int:
         name = message_type.DESCRIPTOR.full_name
         if name not in self.schemas:
             self.schemas[name] = self.writer.register_schema(
@@ -280,10 +281,15 @@ class _Channels:
         )
 
 
-@cache
+_SCHEMA_DATA: dict[str, bytes] = {}  # message type's full name -> its FileDescriptorSet
+
+
 def _schema_data(message_type: type[Message]) -> bytes:
     """The serialised FileDescriptorSet of a message type (built once per process)."""
-    return build_file_descriptor_set(message_type).SerializeToString()
+    name = message_type.DESCRIPTOR.full_name
+    if name not in _SCHEMA_DATA:
+        _SCHEMA_DATA[name] = build_file_descriptor_set(message_type).SerializeToString()
+    return _SCHEMA_DATA[name]
 
 
 def _contact_blocks(
@@ -300,10 +306,11 @@ def _contact_blocks(
     return blocks
 
 
-def _log_message(t_ns: int, level: int, text: str) -> bytes:
+def _log_message(t_ns: int, level: Log.Level.ValueType, text: str) -> bytes:
     msg = Log(level=level, message=text, name="impactlab")
     msg.timestamp.FromNanoseconds(int(t_ns))
-    return msg.SerializeToString()
+    payload: bytes = msg.SerializeToString()
+    return payload
 
 
 def remove_stale_partials(path: Path) -> None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -123,7 +124,10 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     return out
 
 
-def _pick(own, default):
+T = TypeVar("T")
+
+
+def _pick(own: T | None, default: T | None) -> T | None:
     return own if own is not None else default
 
 

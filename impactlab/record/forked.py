@@ -103,9 +103,10 @@ def record_forked(
         reported: set[str] = set()
         while pending:
             for conn in wait(list(pending)):
+                assert isinstance(conn, Connection)  # wait() hands back what it was given
                 process, share = pending[conn]
                 try:
-                    kind, value = conn.recv()  # type: ignore[union-attr]
+                    kind, value = conn.recv()
                 except EOFError:  # the worker is gone without saying it is done
                     del pending[conn]
                     process.join()
@@ -124,7 +125,8 @@ def record_forked(
                     on_run(value)
                 elif kind == "error":
                     written = sum(r.status == "recorded" for r in out)
-                    raise LogWriteError(*value, written)
+                    path, problem = value
+                    raise LogWriteError(path, problem, written)
                 elif kind == "bug":
                     raise RuntimeError(f"a record worker failed:\n{value}")
                 else:  # "done"

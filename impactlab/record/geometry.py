@@ -34,7 +34,8 @@ NO_DISTANCE_TYPES = frozenset({int(mujoco.mjtGeom.mjGEOM_HFIELD), int(mujoco.mjt
 
 def type_name(model: mujoco.MjModel, g: int) -> str:
     """The geom's type as a word: plane, sphere, box, mesh, ..."""
-    return mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
+    name: str = mujoco.mjtGeom(int(model.geom_type[g])).name
+    return name.removeprefix("mjGEOM_").lower()
 
 
 def can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
@@ -149,14 +150,16 @@ def support(
     else:  # plane, sdf
         extent = np.zeros(len(dirs))
     centre = data.geom_xpos[g] if origin is None else data.geom_xpos[g] - origin
-    return dirs @ centre + extent
+    reach: np.ndarray = dirs @ centre + extent
+    return reach
 
 
 def mesh_vertices(model: mujoco.MjModel, g: int) -> np.ndarray:
     """A mesh geom's vertices in the geom's frame, (n, 3)."""
     mesh = int(model.geom_dataid[g])
     start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
-    return np.asarray(model.mesh_vert[start : start + count], dtype=float)
+    vertices: np.ndarray = np.asarray(model.mesh_vert[start : start + count], dtype=float)
+    return vertices
 
 
 def mesh_face_normals(model: mujoco.MjModel, g: int) -> np.ndarray:
@@ -167,7 +170,8 @@ def mesh_face_normals(model: mujoco.MjModel, g: int) -> np.ndarray:
     v = mesh_vertices(model, g)
     normals = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
     length = np.linalg.norm(normals, axis=1)
-    return normals[length > 0] / length[length > 0, None]
+    unit: np.ndarray = normals[length > 0] / length[length > 0, None]
+    return unit
 
 
 def spread_directions(n: int = SPREAD_DIRECTIONS) -> np.ndarray:

@@ -34,7 +34,8 @@ def describe(
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
     with_pose = set(logged)
-    shapes, meshes = [], {}
+    shapes: list[GeomShape] = []
+    meshes: dict[str, np.ndarray] = {}
     for g in range(model.ngeom):
         frame = _drawn_on(model, int(model.geom_bodyid[g]), with_pose)
         pos, quat = _relative_pose(data, g, frame)
@@ -51,12 +52,13 @@ def describe(
         size = model.geom_size[g]
         if kind == "hfield" and model.geom_dataid[g] >= 0:
             size = model.hfield_size[int(model.geom_dataid[g])][:3]
+        sx, sy, sz = (float(x) for x in size)
         shapes.append(
             GeomShape(
                 name=model.geom(g).name,
                 body=model.body(frame).name if frame else "world",
                 type=kind,
-                size=tuple(float(x) for x in size),
+                size=(sx, sy, sz),
                 pos=pos,
                 rgba=geom_rgba(model, g),
                 quat=quat,
@@ -90,16 +92,24 @@ def _relative_pose(
     mat = rot.T @ data.geom_xmat[g].reshape(3, 3)
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, mat.reshape(-1))
-    return tuple(float(x) for x in pos), tuple(float(x) for x in quat)  # type: ignore[return-value]
+    x, y, z = (float(v) for v in pos)
+    qw, qx, qy, qz = (float(v) for v in quat)
+    return (x, y, z), (qw, qx, qy, qz)
 
 
 def geom_rgba(model: mujoco.MjModel, g: int) -> tuple[float, float, float, float]:
     """The geom's colour: its rgba, or its material's when it keeps the default colour."""
-    rgba = tuple(float(str(x)) for x in model.geom_rgba[g])  # float32: its shortest decimals
+    rgba = model.geom_rgba[g]
     mat = int(model.geom_matid[g])
-    if mat >= 0 and np.allclose(rgba, DEFAULT_RGBA):
-        rgba = tuple(float(str(x)) for x in model.mat_rgba[mat])
-    return rgba  # type: ignore[return-value]
+    if mat >= 0 and np.allclose(_decimals(rgba), DEFAULT_RGBA):
+        rgba = model.mat_rgba[mat]
+    red, green, blue, alpha = _decimals(rgba)
+    return red, green, blue, alpha
+
+
+def _decimals(values: np.ndarray) -> tuple[float, ...]:
+    """float32 values as floats of their shortest decimals."""
+    return tuple(float(str(x)) for x in values)
 
 
 def mesh_triangles(model: mujoco.MjModel, m: int) -> np.ndarray:
@@ -108,7 +118,8 @@ def mesh_triangles(model: mujoco.MjModel, m: int) -> np.ndarray:
     vert = np.asarray(model.mesh_vert[start : start + count], dtype=float)
     start, nface = int(model.mesh_faceadr[m]), int(model.mesh_facenum[m])
     faces = np.asarray(model.mesh_face[start : start + nface], dtype=int)
-    return vert[faces]
+    triangles: np.ndarray = vert[faces]
+    return triangles
 
 
 def hfield_triangles(model: mujoco.MjModel, h: int) -> np.ndarray:

@@ -81,7 +81,8 @@ def rotation_vector(q: np.ndarray, ref: np.ndarray) -> np.ndarray:
     angle = 2.0 * np.arctan2(sin, w)
     angle = np.where(angle > np.pi, angle - 2.0 * np.pi, angle)
     scale = np.divide(angle, sin, out=np.full_like(angle, 2.0), where=sin > 1e-15)
-    return v * scale[:, None]
+    rotation: np.ndarray = v * scale[:, None]
+    return rotation
 
 
 def sprung_tendons(model: mujoco.MjModel) -> list[int]:

@@ -56,7 +56,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         BodyMeta(
             name=b.name,
             mass=float(model.body_mass[b.body_id]),
-            inertia=tuple(float(x) for x in model.body_inertia[b.body_id]),
+            inertia=_xyz(model.body_inertia[b.body_id]),
             radius=b.radius,
             shape=b.shape,
             rest_height_m=b.rest_height,
@@ -76,7 +76,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         spec_hash=info.spec_hash,
         timestep_s=float(model.opt.timestep),
         log_every=info.log_every,
-        gravity=tuple(float(x) for x in geometry.gravity(model)),
+        gravity=_xyz(geometry.gravity(model)),
         bodies=bodies,
         plane_z=plane[0].pos[2] if plane else None,
         mujoco_version=mujoco.__version__,
@@ -114,9 +114,14 @@ def shared_geom_contact(model: mujoco.MjModel) -> GeomContact | None:
     return GeomContact(tuple(map(float, solref[0])), tuple(map(float, solimp[0])))
 
 
+def _xyz(values: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in values)
+    return x, y, z
+
+
 def integrator_name(model: mujoco.MjModel) -> str:
     """The model's integrator as MJCF spells it (Euler, RK4, implicit, implicitfast)."""
-    name = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
+    name: str = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
     return {"EULER": "Euler", "RK4": "RK4"}.get(name, name.lower())
 
 

@@ -12,7 +12,7 @@ errors into one `SpecError` naming the file and the field.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import (
     AfterValidator,
@@ -26,6 +26,7 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from impactlab.physics import INTEGRATORS as INTEGRATORS  # MuJoCo's, as MJCF spells them
+from impactlab.physics import Integrator
 
 CONDIMS = (1, 3, 4, 6)
 MIN_TIMESTEP_S = 1e-9  # log times are whole nanoseconds
@@ -77,7 +78,7 @@ def _name(value: str) -> str:
 Name = Annotated[str, Field(strict=True), AfterValidator(_name)]
 
 
-def _vector(lengths: tuple[int, ...]):
+def _vector(lengths: tuple[int, ...]) -> BeforeValidator:
     want = " or ".join(str(n) for n in lengths)
 
     def check(value: Any) -> Any:
@@ -88,9 +89,12 @@ def _vector(lengths: tuple[int, ...]):
     return BeforeValidator(check)
 
 
-def Vector(*lengths: int, item: Any = Number) -> Any:
-    """A list of numbers of one of `lengths` (a TOML array), validated item by item."""
-    return Annotated[tuple[item, ...], _vector(lengths)]
+# Lists of numbers of one of the given lengths (TOML arrays), validated item by item.
+Vector2 = Annotated[tuple[Number, ...], _vector((2,))]
+Vector3 = Annotated[tuple[Number, ...], _vector((3,))]
+Vector3or5 = Annotated[tuple[Number, ...], _vector((3, 5))]
+NonNegative3 = Annotated[tuple[NonNegative, ...], _vector((3,))]
+Rgba = Annotated[tuple[Fraction, ...], _vector((4,))]
 
 
 def short(value: Any, limit: int = 60) -> str:
@@ -110,8 +114,8 @@ class Options(Section):
     """Simulation options."""
 
     timestep: Annotated[Positive, unit("s")] = 0.002
-    integrator: Literal[INTEGRATORS] = "Euler"  # type: ignore[valid-type]
-    gravity: Annotated[Vector(3), unit("m/s^2")] = (0.0, 0.0, -9.81)
+    integrator: Integrator = "Euler"
+    gravity: Annotated[Vector3, unit("m/s^2")] = (0.0, 0.0, -9.81)
 
     @model_validator(mode="after")
     def _resolvable(self) -> Options:
@@ -130,7 +134,7 @@ def _speed_range(value: tuple[float, ...]) -> tuple[float, ...]:
     return value
 
 
-SpeedRange = Annotated[Vector(2), AfterValidator(_speed_range), unit("m/s")]
+SpeedRange = Annotated[Vector2, AfterValidator(_speed_range), unit("m/s")]
 
 
 class ContactTarget(Section):
@@ -192,9 +196,9 @@ class Contact(ContactTarget):
     """
 
     condim: Annotated[Integer, AfterValidator(_condim)] = 3
-    solref: Vector(2) = (0.02, 1.0)
-    solimp: Vector(3, 5) = (0.9, 0.95, 0.001, 0.5, 2.0)
-    friction: Vector(3, item=NonNegative) = (1.0, 0.005, 0.0001)
+    solref: Vector2 = (0.02, 1.0)
+    solimp: Vector3or5 = (0.9, 0.95, 0.001, 0.5, 2.0)
+    friction: NonNegative3 = (1.0, 0.005, 0.0001)
     allow_coarse_timestep: Flag = False
     pairs: dict[PairKey, PairContact] = Field(default_factory=dict)
 
@@ -224,8 +228,8 @@ class Plane(Section):
     """The ground plane at z = 0 (absent when `enabled` is false)."""
 
     enabled: Flag = True
-    size: Annotated[Vector(3, item=NonNegative), unit("m")] = (5.0, 5.0, 0.1)
-    rgba: Vector(4, item=Fraction) = (0.8, 0.8, 0.8, 1.0)
+    size: Annotated[NonNegative3, unit("m")] = (5.0, 5.0, 0.1)
+    rgba: Rgba = (0.8, 0.8, 0.8, 1.0)
 
 
 class BodySpec(Section):
@@ -233,10 +237,10 @@ class BodySpec(Section):
 
     radius: Annotated[Positive, unit("m")]
     mass: Annotated[Positive, unit("kg")]
-    pos: Annotated[Vector(3), unit("m")]
-    vel: Annotated[Vector(3), unit("m/s")] = (0.0, 0.0, 0.0)
-    angvel: Annotated[Vector(3), unit("rad/s")] = (0.0, 0.0, 0.0)
-    rgba: Vector(4, item=Fraction) | None = None  # None: a colour of the palette
+    pos: Annotated[Vector3, unit("m")]
+    vel: Annotated[Vector3, unit("m/s")] = (0.0, 0.0, 0.0)
+    angvel: Annotated[Vector3, unit("rad/s")] = (0.0, 0.0, 0.0)
+    rgba: Rgba | None = None  # None: a colour of the palette
 
     @model_validator(mode="after")
     def _massive(self) -> BodySpec:

@@ -22,7 +22,7 @@ import os
 import queue
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -275,7 +275,7 @@ def _ending(a: _Active, dt: float) -> Ending:
 
 def simulate(
     batches: Iterable[list[RunRequest]], *, threads: int | None = None, ahead: int = 2
-) -> Iterator[Piece]:
+) -> Generator[Piece, None, None]:
     """Simulate batches of runs and yield their logged rows chunk by chunk, as they come.
 
     The runs of a batch must share MuJoCo's size signature (e.g. points of one sweep) and
@@ -333,7 +333,7 @@ def simulate(
 
 def _chunks(
     batches: Iterable[list[RunRequest]], threads: int | None, stop: threading.Event
-) -> Iterator[list[Piece]]:
+) -> Generator[list[Piece], None, None]:
     """Each chunk's pieces of every batch in turn, until `stop` is set."""
     for requests in batches:
         if not requests:

@@ -13,12 +13,13 @@ import json
 import tomllib
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
+from pydantic_core import ErrorDetails
 
 from impactlab.errors import SpecError
 from impactlab.logs.scene import BODY_PALETTE
@@ -125,7 +126,9 @@ def merge_defaults(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
     return doc
 
 
-def _reject_unknown(given: Mapping[str, Any], known: Mapping[str, Any], section: str, src: str):
+def _reject_unknown(
+    given: Mapping[str, Any], known: Mapping[str, Any], section: str, src: str
+) -> None:
     unknown = sorted(set(given) - set(known), key=str)
     if unknown:
         names = ", ".join(known)
@@ -246,7 +249,7 @@ def plain_copy(value: Any) -> Any:
     return value
 
 
-_WORDS = {
+_WORDS: dict[str, Callable[[ErrorDetails], str]] = {
     "missing": lambda e: "is required",
     "float_type": lambda e: f"must be a number, got {short(e['input'])}",
     "int_type": lambda e: f"must be an integer, got {short(e['input'])}",
@@ -269,7 +272,7 @@ _WORDS = {
 def schema_error(exc: ValidationError, source: str) -> SpecError:
     """The first error of a schema validation as a `SpecError` naming the dotted field."""
     err = exc.errors(include_url=False)[0]
-    parts = []
+    parts: list[str] = []
     for key in err["loc"]:
         if isinstance(key, int):
             parts[-1] = f"{parts[-1]}[{key}]"  # an item of a list

@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from impactlab.record.geometry import gravity, up_vector
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.spec import Stop
+
+if TYPE_CHECKING:
+    import mujoco
 
 
 @dataclass
@@ -72,7 +76,7 @@ class _Bounces(_Rule):
         for b, (ccols, vcol) in enumerate(zip(self.contact_cols, self.vel_cols, strict=True)):
             if self.done_step[b] is not None:
                 continue
-            touching = (rows[:, ccols] > 0).any(axis=1)
+            touching = np.asarray((rows[:, ccols] > 0).any(axis=1))
             before = np.concatenate([[self.in_contact[b]], touching[:-1]])
             released = before & ~touching
             total = self.count[b] + np.cumsum(released)
@@ -176,7 +180,7 @@ class _EnergyGain(_Rule):
         return Verdict(step0 + bad, "unstable", reason)
 
 
-def energy_sources(model) -> list[str]:
+def energy_sources(model: mujoco.MjModel) -> list[str]:
     """What can feed a model's energy with no control input: actuators with a bias force
     (position or velocity servos), gravity compensation. Empty: the energy cannot grow."""
     sources = []

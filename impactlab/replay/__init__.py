@@ -78,7 +78,7 @@ def replay(
         ImpactlabError: `notebook` without rerun-notebook installed.
         ValueError: `notebook` with `out` (an inline replay writes no file: `.save(path)`).
     """
-    from impactlab.logs.load import require_logs
+    from impactlab.logs.inputs import require_logs
     from impactlab.progress import reporter, say
     from impactlab.replay.notebook import Recordings, notebook_replay
     from impactlab.replay.recordings import replay_logs

@@ -227,7 +227,12 @@ def _series(
 
 
 def _markers(
-    rec: rr.RecordingStream, path: str, t_ns: np.ndarray, values: np.ndarray, name: str, color
+    rec: rr.RecordingStream,
+    path: str,
+    t_ns: np.ndarray,
+    values: np.ndarray,
+    name: str,
+    color: Sequence[int],
 ) -> None:
     if t_ns.size == 0:
         return
@@ -312,7 +317,7 @@ def _normal_force(run: RunLog, t_ns: np.ndarray) -> dict[tuple[str, str], np.nda
     return out
 
 
-def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Sequence[Event]):
+def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Sequence[Event]) -> None:
     """Impact / release texts at P/events/contacts, the log's own events at P/events/log."""
     if events:
         rec.send_columns(

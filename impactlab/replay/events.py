@@ -169,7 +169,9 @@ def _work(run: RunLog, iv: Interval, t_ns: np.ndarray) -> tuple[float, str] | No
         & (pl.col("start_ns") > lo)
         & (pl.col("start_ns") <= int(t_ns[iv.end]))
     )
-    w_c, w_r = mine["work_compression_J"].sum(), mine["work_restitution_J"].sum()
+    w_c, w_r = mine.select(
+        pl.col("work_compression_J").sum(), pl.col("work_restitution_J").sum()
+    ).row(0)
     if mine.is_empty() or mine["open"].any() or not w_c < 0:
         return None
     e = float(np.sqrt(w_r / -w_c))

@@ -19,12 +19,13 @@ table was recorded get the former drawing: a sphere per ball and the plane its s
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Literal
 
 import numpy as np
 import rerun as rr
 
 from impactlab.logs.drawing import old_plane
-from impactlab.logs.geoms import ModelScene, read_scene
+from impactlab.logs.geoms import GeomShape, ModelScene, read_scene
 from impactlab.logs.load import RunLog
 from impactlab.logs.reader import read_attachments
 from impactlab.logs.scene import INFINITE_PLANE_HALF_M, PLANE_THICKNESS_M
@@ -75,7 +76,7 @@ def log_model(
     """Every visible geom of the log's table (or, for older logs, each ball's sphere and the
     plane its spec gave it), and each ball's spin marker; all static."""
     info = run.body_info
-    balls = {name: info[name].radius for name in run.bodies if name in info and info[name].radius}
+    balls = {n: r for n in run.bodies if n in info and (r := info[n].radius)}
     if scene.geoms:
         for geom in scene.geoms:
             if not geom.visible or (geom.body != "world" and geom.body not in run.bodies):
@@ -88,7 +89,9 @@ def log_model(
                 )
             w, x, y, z = geom.quat
             rec.log(
-                path, rr.Transform3D(translation=geom.pos, quaternion=[x, y, z, w]), static=True
+                path,
+                rr.Transform3D(translation=geom.pos, quaternion=rr.Quaternion(xyzw=[x, y, z, w])),
+                static=True,
             )
             ball = geom.type == "sphere" and geom.body in balls and not any(geom.pos)
             shape = _shape(geom, scene, bounds, wireframe=ball)
@@ -127,14 +130,26 @@ def log_model(
         )
 
 
-def _shape(geom, scene: ModelScene, bounds, *, wireframe: bool):
+def _shape(
+    geom: GeomShape,
+    scene: ModelScene,
+    bounds: tuple[np.ndarray, np.ndarray],
+    *,
+    wireframe: bool,
+) -> rr.AsComponents | None:
     """The Rerun archetype of one geom in its own frame; None for a type it cannot draw."""
     a, b, c = geom.size
     color = [rgba255(geom.rgba)]
-    common = {"colors": color, "labels": [geom.name], "show_labels": False}
-    fill = "densewireframe" if wireframe else "solid"
+    labels = [geom.name]
+    fill: Literal["densewireframe", "solid"] = "densewireframe" if wireframe else "solid"
     if geom.type == "box":
-        return rr.Boxes3D(half_sizes=[[a, b, c]], fill_mode=fill, **common)
+        return rr.Boxes3D(
+            half_sizes=[[a, b, c]],
+            fill_mode=fill,
+            colors=color,
+            labels=labels,
+            show_labels=False,
+        )
     if geom.type == "plane":
         reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]]))) + PLANE_MARGIN_M
         half = [min(s if s > 0 else INFINITE_PLANE_HALF_M, reach) for s in (a, b)]
@@ -142,17 +157,34 @@ def _shape(geom, scene: ModelScene, bounds, *, wireframe: bool):
             half_sizes=[[*half, PLANE_THICKNESS_M / 2]],
             centers=[[0.0, 0.0, -PLANE_THICKNESS_M / 2]],
             fill_mode="solid",
-            **common,
+            colors=color,
+            labels=labels,
+            show_labels=False,
         )
     if geom.type in ("sphere", "ellipsoid"):
         radii = [a, a, a] if geom.type == "sphere" else [a, b, c]
-        return rr.Ellipsoids3D(half_sizes=[radii], fill_mode=fill, **common)
+        return rr.Ellipsoids3D(
+            half_sizes=[radii], fill_mode=fill, colors=color, labels=labels, show_labels=False
+        )
     if geom.type == "capsule":
         return rr.Capsules3D(
-            lengths=[2 * b], radii=[a], translations=[[0.0, 0.0, -b]], fill_mode=fill, **common
+            lengths=[2 * b],
+            radii=[a],
+            translations=[[0.0, 0.0, -b]],
+            fill_mode=fill,
+            colors=color,
+            labels=labels,
+            show_labels=False,
         )
     if geom.type == "cylinder":
-        return rr.Cylinders3D(lengths=[2 * b], radii=[a], fill_mode=fill, **common)
+        return rr.Cylinders3D(
+            lengths=[2 * b],
+            radii=[a],
+            fill_mode=fill,
+            colors=color,
+            labels=labels,
+            show_labels=False,
+        )
     if geom.mesh is not None and geom.mesh in scene.meshes:  # mesh, hfield
         tri = scene.meshes[geom.mesh]
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -166,10 +198,12 @@ def _shape(geom, scene: ModelScene, bounds, *, wireframe: bool):
     return None
 
 
-def _log_old_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) -> None:
+def _log_old_plane(
+    rec: rr.RecordingStream, run: RunLog, prefix: str, bounds: tuple[np.ndarray, np.ndarray]
+) -> None:
     """The plane of a log without a geom table (`impactlab.logs.drawing.old_plane`)."""
-    plane = old_plane(run)
-    if plane is None:
+    plane, z = old_plane(run), run.plane_z
+    if plane is None or z is None:
         return
     reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
     sx, sy = np.minimum(plane.half_size_m, reach + PLANE_MARGIN_M)
@@ -177,7 +211,7 @@ def _log_old_plane(rec: rr.RecordingStream, run: RunLog, prefix: str, bounds) ->
         f"{prefix}/world/plane",
         rr.Boxes3D(
             half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
-            centers=[[0.0, 0.0, run.plane_z - PLANE_THICKNESS_M / 2]],
+            centers=[[0.0, 0.0, z - PLANE_THICKNESS_M / 2]],
             colors=[rgba255(plane.rgba)[:3]],
             fill_mode="solid",
         ),

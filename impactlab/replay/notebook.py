@@ -87,7 +87,7 @@ class NotebookReplay:
     def _ipython_display_(self) -> None:
         from IPython.display import display
 
-        display(self.viewer())
+        display(self.viewer())  # type: ignore[no-untyped-call]  # IPython: no hints
 
 
 def require_notebook() -> None:

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import rerun as rr
 
@@ -21,6 +22,9 @@ from impactlab.progress import Progress, Tracker
 from impactlab.replay.blueprint import replay_blueprint
 from impactlab.replay.convert import log_run, time_base
 from impactlab.replay.events import events_for, load_analysis
+
+if TYPE_CHECKING:
+    import polars as pl
 
 APPLICATION_ID = "impactlab"
 
@@ -102,7 +106,9 @@ def replay_logs(
     return written
 
 
-def write_recording(runs: Sequence[RunLog], path: Path, *, tables: dict | None = None) -> Path:
+def write_recording(
+    runs: Sequence[RunLog], path: Path, *, tables: Mapping[str, pl.DataFrame] | None = None
+) -> Path:
     """Write one recording of `runs` to `path` atomically, with the replay blueprint as default.
 
     Raises:
@@ -125,7 +131,9 @@ def write_recording(runs: Sequence[RunLog], path: Path, *, tables: dict | None =
     return path
 
 
-def stream_recording(runs: Sequence[RunLog], sink: rr.GrpcSink, *, tables=None) -> None:
+def stream_recording(
+    runs: Sequence[RunLog], sink: rr.GrpcSink, *, tables: Mapping[str, pl.DataFrame] | None = None
+) -> None:
     """Send the recording of `runs` to a viewer.
 
     Raises:
@@ -146,7 +154,11 @@ def _recording(runs: Sequence[RunLog]) -> rr.RecordingStream:
 
 
 def _log_all(
-    rec: rr.RecordingStream, runs: Sequence[RunLog], tables: dict | None, *, active: bool = False
+    rec: rr.RecordingStream,
+    runs: Sequence[RunLog],
+    tables: Mapping[str, pl.DataFrame] | None,
+    *,
+    active: bool = False,
 ) -> None:
     """Every run, the recording's name and the blueprint; flushed.
 

@@ -214,8 +214,11 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     total_all = pl.concat(totals)
     phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
     fl = flights(flight_rows(states, on_ground, runs, grounds))
-    g = [per_run(runs, lambda r, i=i: r.gravity[i]) for i in range(3)]
-    g_n = -(g[0] * pl.col("nx_out") + g[1] * pl.col("ny_out") + g[2] * pl.col("nz_out"))
+    g_n = -(
+        per_run(runs, lambda r: r.gravity[0]) * pl.col("nx_out")
+        + per_run(runs, lambda r: r.gravity[1]) * pl.col("ny_out")
+        + per_run(runs, lambda r: r.gravity[2]) * pl.col("nz_out")
+    )
     articulated = [
         (r.run_id, b) for r in runs for b, i in r.body_info.items() if i.motion != "free"
     ]
@@ -272,7 +275,7 @@ def _first_positions(states: pl.DataFrame) -> dict[str, dict[str, tuple[float, f
     """Per run and body, its first logged position (x, y, z)."""
     blocks = state_blocks(states)
     at = np.array([first for _, _, first, _ in blocks], dtype=np.int64)
-    xyz = [states[c].to_numpy()[at] for c in ("x", "y", "z")] if at.size else [[], [], []]
+    xyz = [states[c].to_numpy()[at] if at.size else np.empty(0) for c in ("x", "y", "z")]
     out: dict[str, dict[str, tuple[float, float, float]]] = {}
     for i, (r, b, _, _) in enumerate(blocks):
         out.setdefault(r, {})[b] = (float(xyz[0][i]), float(xyz[1][i]), float(xyz[2][i]))
@@ -321,7 +324,7 @@ def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
 
 def duration_s(states: pl.DataFrame) -> float:
     """Logged duration in s (0 when nothing was logged)."""
-    return float(states["t_s"].max() or 0.0) if states.height else 0.0
+    return float(states.select(pl.col("t_s").max()).item() or 0.0) if states.height else 0.0
 
 
 def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:

@@ -34,30 +34,32 @@ from __future__ import annotations
 
 import polars as pl
 
-BOUNCE_SCHEMA: dict[str, pl.DataType] = {
-    "run_id": pl.String,
-    "body": pl.String,
-    "surface": pl.String,
-    "bounce": pl.Int64,
-    "impact_t_s": pl.Float64,
-    "release_t_s": pl.Float64,
-    "duration_s": pl.Float64,
-    "v_in_mps": pl.Float64,
-    "v_out_mps": pl.Float64,
-    "e_velocity": pl.Float64,
-    "e_energy": pl.Float64,
-    "e_basis": pl.String,
-    "apex_before_m": pl.Float64,
-    "apex_m": pl.Float64,
-    "apex_predicted_m": pl.Float64,
-    "e_apex": pl.Float64,
-    "peak_force_N": pl.Float64,
-    "impulse_Ns": pl.Float64,
-    "max_penetration_m": pl.Float64,
-    "n_raw_contacts": pl.Int64,
-    "complete": pl.Boolean,
-    "note": pl.String,
-}
+BOUNCE_SCHEMA = pl.Schema(
+    {
+        "run_id": pl.String,
+        "body": pl.String,
+        "surface": pl.String,
+        "bounce": pl.Int64,
+        "impact_t_s": pl.Float64,
+        "release_t_s": pl.Float64,
+        "duration_s": pl.Float64,
+        "v_in_mps": pl.Float64,
+        "v_out_mps": pl.Float64,
+        "e_velocity": pl.Float64,
+        "e_energy": pl.Float64,
+        "e_basis": pl.String,
+        "apex_before_m": pl.Float64,
+        "apex_m": pl.Float64,
+        "apex_predicted_m": pl.Float64,
+        "e_apex": pl.Float64,
+        "peak_force_N": pl.Float64,
+        "impulse_Ns": pl.Float64,
+        "max_penetration_m": pl.Float64,
+        "n_raw_contacts": pl.Int64,
+        "complete": pl.Boolean,
+        "note": pl.String,
+    }
+)
 TURNING = (
     "the body turns in flight (its lowest point moves relative to its centre of mass), so "
     "apex heights do not measure e"

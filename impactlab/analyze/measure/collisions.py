@@ -27,50 +27,52 @@ CENTRAL_LEVER = 1e-6
 """An impact is central when the normal passes each centre of mass within this fraction of
 the contact point's distance from it."""
 
-COLLISION_SCHEMA: dict[str, pl.DataType] = {
-    "run_id": pl.String,
-    "body1": pl.String,
-    "body2": pl.String,
-    "collision": pl.Int64,
-    "m1_kg": pl.Float64,
-    "m2_kg": pl.Float64,
-    "impact_t_s": pl.Float64,
-    "release_t_s": pl.Float64,
-    "duration_s": pl.Float64,
-    "nx": pl.Float64,
-    "ny": pl.Float64,
-    "nz": pl.Float64,
-    **{
-        f"{v}{c}_{w}_mps": pl.Float64
-        for w in ("before", "after")
-        for v in ("v1", "v2")
-        for c in "xyz"
-    },
-    "v1n_before_mps": pl.Float64,
-    "v2n_before_mps": pl.Float64,
-    "v1n_after_mps": pl.Float64,
-    "v2n_after_mps": pl.Float64,
-    **{f"p{c}_{w}_Ns": pl.Float64 for w in ("before", "after") for c in "xyz"},
-    "momentum_rel_change": pl.Float64,
-    "ke_before_J": pl.Float64,
-    "ke_after_J": pl.Float64,
-    "ke_loss_J": pl.Float64,
-    "ke_loss_frac": pl.Float64,
-    "e_measured": pl.Float64,
-    "ke_loss_predicted_J": pl.Float64,
-    "v1n_after_e_mps": pl.Float64,
-    "v2n_after_e_mps": pl.Float64,
-    "v1n_after_elastic_mps": pl.Float64,
-    "v2n_after_elastic_mps": pl.Float64,
-    "v_after_inelastic_mps": pl.Float64,
-    "peak_force_N": pl.Float64,
-    "impulse_Ns": pl.Float64,
-    "max_penetration_m": pl.Float64,
-    "touched_by": pl.String,
-    "gravity_impulse_rel": pl.Float64,
-    "complete": pl.Boolean,
-    "note": pl.String,
-}
+COLLISION_SCHEMA = pl.Schema(
+    {
+        "run_id": pl.String,
+        "body1": pl.String,
+        "body2": pl.String,
+        "collision": pl.Int64,
+        "m1_kg": pl.Float64,
+        "m2_kg": pl.Float64,
+        "impact_t_s": pl.Float64,
+        "release_t_s": pl.Float64,
+        "duration_s": pl.Float64,
+        "nx": pl.Float64,
+        "ny": pl.Float64,
+        "nz": pl.Float64,
+        **{
+            f"{v}{c}_{w}_mps": pl.Float64
+            for w in ("before", "after")
+            for v in ("v1", "v2")
+            for c in "xyz"
+        },
+        "v1n_before_mps": pl.Float64,
+        "v2n_before_mps": pl.Float64,
+        "v1n_after_mps": pl.Float64,
+        "v2n_after_mps": pl.Float64,
+        **{f"p{c}_{w}_Ns": pl.Float64 for w in ("before", "after") for c in "xyz"},
+        "momentum_rel_change": pl.Float64,
+        "ke_before_J": pl.Float64,
+        "ke_after_J": pl.Float64,
+        "ke_loss_J": pl.Float64,
+        "ke_loss_frac": pl.Float64,
+        "e_measured": pl.Float64,
+        "ke_loss_predicted_J": pl.Float64,
+        "v1n_after_e_mps": pl.Float64,
+        "v2n_after_e_mps": pl.Float64,
+        "v1n_after_elastic_mps": pl.Float64,
+        "v2n_after_elastic_mps": pl.Float64,
+        "v_after_inelastic_mps": pl.Float64,
+        "peak_force_N": pl.Float64,
+        "impulse_Ns": pl.Float64,
+        "max_penetration_m": pl.Float64,
+        "touched_by": pl.String,
+        "gravity_impulse_rel": pl.Float64,
+        "complete": pl.Boolean,
+        "note": pl.String,
+    }
+)
 
 
 def _vec(prefix: str, suffix: str) -> list[pl.Expr]:
@@ -295,7 +297,8 @@ def no_collision_rows(
     names = [n for n in infos if n in set(states["body"].unique().to_list())]
     if len(names) < 2:
         return pl.DataFrame(schema=COLLISION_SCHEMA)
-    first, last = int(states["row"].min()), int(states["row"].max())
+    row = states["row"].to_numpy()
+    first, last = int(row.min()), int(row.max())
     rows = [
         {
             "run_id": run_id,

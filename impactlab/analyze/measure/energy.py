@@ -198,19 +198,20 @@ def run_energies(
         else:
             parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
             slow[r] = total_energy(parts, run.energy, shift, run.joint_energy)
-    totals = _totals(summed) | slow
-    totals = [totals[r] for r in spans]
+    by_run = _totals(summed) | slow
+    totals = [by_run[r] for r in spans]
     out = {}  # each run's bodies by name, the sum's rows (is_total) where "total" sorts
-    for (r, mine), total in zip(spans.items(), totals, strict=True):
+    for (r, mine), run_total in zip(spans.items(), totals, strict=True):
         frames = []
+        rest: pl.DataFrame | None = run_total  # the sum's rows, until they are placed
         for b in sorted(mine):
-            if b >= "total" and total is not None:  # the sum's rows before a body named total
-                frames.append(total.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
-                total = None
+            if b >= "total" and rest is not None:  # the sum's rows before a body named total
+                frames.append(rest.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
+                rest = None
             first, end = mine[b]
             frames.append(bodies.slice(first, end - first).with_columns(_NOT_TOTAL))
-        if total is not None:
-            frames.append(total.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
+        if rest is not None:
+            frames.append(rest.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
         out[r] = pl.concat(frames, how="diagonal").select(ENERGY_ORDER)
     by_time = {
         r: t if t["t_ns"].is_sorted() else t.sort("t_ns")

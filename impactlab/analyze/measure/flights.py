@@ -30,20 +30,22 @@ APEX_TURN_FRACTION = 1e-3
 fraction of the apex height turns too much for its apex to measure e (0.05 % of e)."""
 APEX_TURN_FLOOR_M = 1e-9
 """Offset changes below this (rounding) never count as turning."""
-FLIGHT_SCHEMA = {
-    "run_id": pl.String,
-    "body": pl.String,
-    "flight": pl.Int64,
-    "n_rows": pl.UInt32,
-    "surface_before": pl.String,
-    "surface_after": pl.String,
-    "apex_t_s": pl.Float64,
-    "apex_after_m": pl.Float64,
-    "apex_before_m": pl.Float64,
-    "reached": pl.Boolean,
-    "turning_after": pl.Boolean,
-    "turning_before": pl.Boolean,
-}
+FLIGHT_SCHEMA = pl.Schema(
+    {
+        "run_id": pl.String,
+        "body": pl.String,
+        "flight": pl.Int64,
+        "n_rows": pl.UInt32,
+        "surface_before": pl.String,
+        "surface_after": pl.String,
+        "apex_t_s": pl.Float64,
+        "apex_after_m": pl.Float64,
+        "apex_before_m": pl.Float64,
+        "reached": pl.Boolean,
+        "turning_after": pl.Boolean,
+        "turning_before": pl.Boolean,
+    }
+)
 
 
 def flights(rows: pl.DataFrame | None) -> pl.DataFrame:
@@ -147,7 +149,12 @@ def flight_rows(
     ):
         hits.setdefault((r, b), []).append((first, last, other))
     names: list[str | None] = [None]  # the surfaces' names
-    picks, flights_, surfaces_before, surfaces_after, c_before, c_after = [], [], [], [], [], []
+    picks: list[np.ndarray] = []  # per block: its kept rows, and their flights
+    flights_: list[np.ndarray] = []
+    surfaces_before: list[np.ndarray] = []  # per block: the surfaces' codes, the clearances
+    surfaces_after: list[np.ndarray] = []
+    c_before: list[tuple[np.ndarray, np.ndarray]] = []
+    c_after: list[tuple[np.ndarray, np.ndarray]] = []
     for r, b, start, end in blocks:
         mine = hits.get((r, b), [])
         row, t_ns = arrays["row"][start:end], arrays["t_ns"][start:end]

@@ -25,12 +25,14 @@ import polars as pl
 
 from impactlab.logs.load import RunLog, SurfaceInfo
 
-CLEARANCE_SCHEMA = {
-    "body": pl.String,
-    "surface": pl.String,
-    "t_ns": pl.Int64,
-    "clearance_m": pl.Float64,
-}
+CLEARANCE_SCHEMA = pl.Schema(
+    {
+        "body": pl.String,
+        "surface": pl.String,
+        "t_ns": pl.Int64,
+        "clearance_m": pl.Float64,
+    }
+)
 
 
 @dataclass(frozen=True)
@@ -61,13 +63,14 @@ class Ground:
             t0 = min(int(t[0]) for _, (t, _, _) in mine)
             at = [(s, c[0] if ok[0] else None) for s, (t, c, ok) in mine if t[0] == t0]
             unknown = [s for s, c in at if c is None]
-            return unknown[0] if unknown else min(at, key=lambda sc: sc[1])[0]
+            known = [(s, c) for s, c in at if c is not None]
+            return unknown[0] if unknown else min(known, key=lambda sc: sc[1])[0]
         return next(iter(self.surfaces)) if len(self.surfaces) == 1 else None
 
     @cached_property
     def _by_pair(self) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per (body, surface): its logged times (sorted), clearances and whether each is set."""
-        out = {}
+        out: dict[tuple[str, str], tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         c = self.clearance
         if not c.height:
             return out

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import polars as pl
@@ -46,6 +47,9 @@ from impactlab.analyze.measure.contact_intervals import PAIR
 from impactlab.analyze.measure.ground import Ground
 from impactlab.analyze.measure.states import logged_interval_s
 from impactlab.logs.load import RunLog
+
+if TYPE_CHECKING:
+    from polars._typing import PolarsDataType
 
 MIN_FLIGHT_ROWS = 10
 """A flight the analysis can see lasts at least this many logged intervals."""
@@ -88,7 +92,9 @@ class StateTable:
                 *(pairs[k].to_list() for k in ("run_id", "body", "code")), strict=True
             )
         }
-        self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
+        self.stride = (
+            float(states.select(pl.col("row").max()).item() or 0) + 2 if states.height else 1.0
+        )
         code = coded["code"].cast(pl.Float64).to_numpy()
         keys = code * self.stride + states["row"].to_numpy().astype(float)
         order = np.argsort(keys, kind="stable")
@@ -105,7 +111,8 @@ class StateTable:
                 for r, b in zip(runs, bodies, strict=True)
             ]
         )
-        return code * self.stride + rows.astype(float)
+        keys: np.ndarray = code * self.stride + rows.astype(float)
+        return keys
 
     def at(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> States:
         """The state of each body at each row (NaN where the log has none)."""
@@ -180,6 +187,7 @@ def contact_point(
     r_mat = k.rotate(at.q, k.rotate(contact.q, r_geo, inverse=True))
     c_mat, c_geo = k.dot(n, at.x + r_mat - surface), k.dot(n, at.x + r_geo - surface)
     if turns is None:
+        assert clearance is not None  # which point turns is read from the clearance
         nearer = np.abs(c_mat - clearance) <= np.abs(c_geo - clearance)
         turns = ~sphere & (np.isnan(clearance) | nearer)
     r = np.where(turns[:, None], r_mat, r_geo)
@@ -321,7 +329,7 @@ def approach_and_release(
         out[f"u{i + 1}_a"] = k.dot(n_in, speeds["out"][i].v)
     visible = ~open_ & np.isfinite(out["v_out_mps"]) & (out["v_out_mps"] > v_min)
 
-    def series(name: str, values: np.ndarray, dtype: pl.DataType = pl.Float64) -> pl.Series:
+    def series(name: str, values: np.ndarray, dtype: PolarsDataType = pl.Float64) -> pl.Series:
         column = pl.Series(name, np.where(np.isfinite(values), values, np.nan), nan_to_null=True)
         return column if dtype == pl.Float64 else column.cast(dtype)
 

@@ -13,7 +13,8 @@ import numpy as np
 
 def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise a . b, (n,)."""
-    return np.einsum("ij,ij->i", a, b)
+    out: np.ndarray = np.einsum("ij,ij->i", a, b)
+    return out
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -31,7 +32,8 @@ def rotate(q: np.ndarray, v: np.ndarray, *, inverse: bool = False) -> np.ndarray
     """
     u = -q[:, 1:] if inverse else q[:, 1:]
     t = 2 * cross(u, v)
-    return v + q[:, :1] * t + cross(u, t)
+    out: np.ndarray = v + q[:, :1] * t + cross(u, t)
+    return out
 
 
 def turn(r: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -40,7 +42,10 @@ def turn(r: np.ndarray, w: np.ndarray, s: np.ndarray) -> np.ndarray:
     axis = np.divide(w, size[:, None], out=np.zeros_like(w), where=size[:, None] > 0)
     angle = (size * s)[:, None]
     along = dot(axis, r)[:, None]
-    return r * np.cos(angle) + cross(axis, r) * np.sin(angle) + axis * along * (1 - np.cos(angle))
+    out: np.ndarray = (
+        r * np.cos(angle) + cross(axis, r) * np.sin(angle) + axis * along * (1 - np.cos(angle))
+    )
+    return out
 
 
 def first_root(c: np.ndarray, b: np.ndarray, a: np.ndarray) -> np.ndarray:

@@ -120,4 +120,4 @@ def _surface_level(run: RunLog, contact: Contact) -> float:
         & (pl.col("t_ns") == run.bodies[contact.body]["t_ns"][contact.first])
     ).row(0, named=True)
     point = np.array([rows["x"], rows["y"], rows["z"]])
-    return float(contact.normal @ point) + rows["penetration"] / 2
+    return float(contact.normal @ point) + float(rows["penetration"]) / 2

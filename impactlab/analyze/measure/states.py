@@ -57,7 +57,9 @@ def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
             run_ids.gather(np.repeat(np.arange(len(ids)), sizes)),
             pl.Series("t_ns", np.concatenate(times) if times else [], dtype=pl.Int64),
             pl.Series(
-                "row", np.concatenate([np.arange(t.size) for t in times] or [[]]), dtype=pl.Int64
+                "row",
+                np.concatenate([np.arange(t.size) for t in times]) if times else [],
+                dtype=pl.Int64,
             ),
         ]
     )
@@ -101,7 +103,9 @@ def _strictly_increasing(t: np.ndarray) -> bool:
     return bool(t.size < 2 or (t[1:] > t[:-1]).all())
 
 
-def state_at(states: pl.DataFrame, frame: pl.DataFrame, *, body: str, row: str, suffix: str):
+def state_at(
+    states: pl.DataFrame, frame: pl.DataFrame, *, body: str, row: str, suffix: str
+) -> pl.DataFrame:
     """Join each row of `frame` with the state of the body named in column `body` at the row
     number in column `row`; the state's columns get `suffix` (nulls where there is none)."""
     cols = ["t_ns", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz"]

@@ -16,8 +16,8 @@ import polars as pl
 
 from impactlab.logs.load import RunLog
 
-EMPTY_ENERGY = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
-EMPTY_PHASES = {
+EMPTY_ENERGY: dict[str, Any] = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
+EMPTY_PHASES: dict[str, Any] = {
     "n_flights": 0,
     "drift_max": None,
     "drift_worst": None,
@@ -26,7 +26,7 @@ EMPTY_PHASES = {
     "n_contacts": 0,
     "loss_sum": 0.0,
 }
-EMPTY_BOUNCES = {
+EMPTY_BOUNCES: dict[str, Any] = {
     "n_bounces": 0,
     "n_pairs": 0,
     "n_good": 0,
@@ -159,7 +159,9 @@ def summary_row(
         "timestep_s": run.timestep_s,
         "integrator": run.integrator,
         "log_every": run.log_every,
-        "duration_s": float(states["t_s"].max() or 0.0) if states.height else 0.0,
+        "duration_s": float(states.select(pl.col("t_s").max()).item() or 0.0)
+        if states.height
+        else 0.0,
         "n_bodies": len(run.bodies),
         "ground": ground,
         "sweep": "{}" if "sweep" in run.checked.problems else run.meta.get("sweep", "{}"),

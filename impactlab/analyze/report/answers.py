@@ -6,6 +6,8 @@ words are named constants in `findings`, so the words follow the numbers.
 
 from __future__ import annotations
 
+from typing import Any
+
 import polars as pl
 
 from impactlab.analyze.report import findings as F
@@ -19,7 +21,7 @@ def _f(x: float | None, fmt: str = ".3g") -> str:
     return format(x, fmt) if F.defined(x) else "n/a"
 
 
-def _who(row: dict) -> str:
+def _who(row: dict[str, Any]) -> str:
     """The run's readable label when the table has one (`labels.with_labels`), else its id."""
     return md_text(row["run"]) if row.get("run") else md_code(row["run_id"])
 
@@ -32,7 +34,12 @@ def energy_answer(runs: pl.DataFrame) -> list[str]:
     return F.each((r for r in rows if r["energy_initial_J"] is not None), _energy_sentence)
 
 
-def _energy_sentence(r: dict) -> str:
+def _spread(values: pl.Series) -> float:
+    """max - min of a column (nulls left out)."""
+    return float(values.to_frame().select(pl.all().max() - pl.all().min()).item())
+
+
+def _energy_sentence(r: dict[str, Any]) -> str:
     energy_start, energy_end = r["energy_initial_J"], r["energy_final_J"]
     contacts = r["contact_loss_sum_J"]
     if not (F.defined(energy_start) and F.defined(energy_end)):
@@ -51,7 +58,7 @@ def _energy_sentence(r: dict) -> str:
 def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
     """Is e constant across bounces? Asked of each body on each surface of each run: bodies
     with different contacts are never put in one answer."""
-    out = []
+    out: list[str] = []
     if bounces.is_empty() or "surface" not in bounces.columns:
         return out
     pairs = bounces.filter(pl.col("bounce").is_not_null()).select("run_id", "body", "surface")
@@ -66,7 +73,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls().drop_nans()
         who = f"{_who(mine.row(0, named=True))}, {md_text(body)} on {md_text(surface)}"
         if es.len() >= 2:
-            spread = float(es.max() - es.min())
+            spread = _spread(es)
             vals = ", ".join(f"{e:.3f}" for e in es)
             out.append(
                 f"{who}: across its {es.len()} complete bounces ({vals}) e is "
@@ -132,11 +139,11 @@ def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None)
     )
 
 
-def _pair(r: dict) -> str:
+def _pair(r: dict[str, Any]) -> str:
     return f"{md_text(r['body1'])}-{md_text(r['body2'])}"
 
 
-def _collision_sentence(r: dict, run: dict | None) -> str:
+def _collision_sentence(r: dict[str, Any], run: dict[str, Any] | None) -> str:
     if not r["complete"]:
         why = r["note"] or "incomplete (no state after the contact, or the bodies were not closing)"
         return f"{_who(r)} ({_pair(r)}): {md_text(why)}."
@@ -183,7 +190,7 @@ def study_answer(studies: dict[str, pl.DataFrame], params: dict[str, list[str]])
         es = rows["e_collision"]
         el1, el2 = rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]
         gap = F.elastic_gap(rows["v1n_after_mps"].to_list(), el1)
-        spread = float(es.max() - es.min())
+        spread = _spread(es)
         vals = ", ".join(
             f"{p:g}: e = {e:.3f} (v1' = {_f(a, '.3f')}, v2' = {_f(b, '.3f')})"
             for p, e, a, b in rows.select(

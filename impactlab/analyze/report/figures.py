@@ -6,6 +6,7 @@ Every function takes frames, a title and an output path, writes one PNG and retu
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import matplotlib.ticker
 import numpy as np
@@ -14,10 +15,13 @@ import polars as pl
 from impactlab.analyze.measure.bounces import TURNING
 from impactlab.plotting import plt, save_figure
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
 
 
-def _shade_contacts(ax, intervals: pl.DataFrame) -> None:
+def _shade_contacts(ax: Axes, intervals: pl.DataFrame) -> None:
     """Shade contact intervals, all in one artist (a resting ball has thousands of them)."""
     if not intervals.height:
         return
@@ -106,7 +110,7 @@ def bounce_decay_figure(
         if run_id not in drawn and legend:
             ax.plot([], [], "o-", label=f"{label}: no bounce with a measured apex")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
-    ax.set_xlim(-0.5, max(1, int(rows["bounce"].max() or 0)) + 0.5)
+    ax.set_xlim(-0.5, max(1, int(rows.select(pl.col("bounce").max()).item() or 0)) + 0.5)
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xlabel("bounce number (0: drop)")
     ax.set_ylabel("apex of the lowest point above the surface (m; 0: at rest)")
@@ -119,7 +123,7 @@ def bounce_decay_figure(
 
 def collision_figure(
     states: pl.DataFrame,
-    row: dict,
+    row: dict[str, Any],
     contacts: pl.DataFrame,
     *,
     title: str,
@@ -307,7 +311,7 @@ def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Pa
                 )
     ax.set_xlabel(x_label)
     ax.set_ylabel("coefficient of restitution e")
-    top = float(rows["e_velocity_first"].max() or 0)
+    top = float(rows.select(pl.col("e_velocity_first").max()).item() or 0)
     ax.set_ylim(-0.03 * max(0.2, top * 1.5), max(0.2, top * 1.5))
     ax.set_title(f"{title}\n(grey: impact speed at the first contact)")
     ax.grid(True, alpha=0.3)

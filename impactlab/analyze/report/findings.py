@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import Any, ParamSpec, TypeGuard, TypeVar
 
 import polars as pl
 
@@ -74,7 +74,7 @@ def method_line() -> str:
     )
 
 
-def defined(x: Any) -> bool:
+def defined(x: Any) -> TypeGuard[float]:
     """Whether `x` is a finite number (not None, NaN or infinite)."""
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
@@ -328,13 +328,17 @@ def guard_lines(what: str) -> Callable[[Callable[..., list[str]]], Callable[...,
     return wrap
 
 
-def guard_line(what: str) -> Callable[[Callable[..., str]], Callable[..., str]]:
+P = ParamSpec("P")
+Answer = TypeVar("Answer", str, str | None)
+
+
+def guard_line(what: str) -> Callable[[Callable[P, Answer]], Callable[P, Answer]]:
     """Decorate a headline builder (one answer): a fault becomes "Not answered" with `what`
     and the error instead of ending the whole analysis."""
 
-    def wrap(build: Callable[..., str]) -> Callable[..., str]:
+    def wrap(build: Callable[P, Answer]) -> Callable[P, Answer]:
         @functools.wraps(build)
-        def guarded(*args: Any, **kwargs: Any) -> str:
+        def guarded(*args: P.args, **kwargs: P.kwargs) -> Answer:
             try:
                 return build(*args, **kwargs)
             except WORDING_ERRORS as exc:

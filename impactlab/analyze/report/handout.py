@@ -72,10 +72,11 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
         by_run = {r["run_id"]: r for r in runs.to_dicts()}
         kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.to_dicts()]
         rels = done["momentum_rel_change"].drop_nulls()
+        top = rels.to_frame().max().item()
         momentum = (
-            f"momentum kept to {rels.max():.1g} (relative)"
+            f"momentum kept to {top:.1g} (relative)"
             if all(k == "conserved" for k in kinds)
-            else f"momentum changes by up to {rels.max():.2g} (relative)"
+            else f"momentum changes by up to {top:.2g} (relative)"
             if rels.len()
             else "momentum change not measured"
         )

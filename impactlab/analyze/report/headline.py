@@ -7,6 +7,7 @@ tables (or the reason there is none), the one figure that shows it and a link to
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import polars as pl
 
@@ -65,10 +66,10 @@ def energy_line(runs: pl.DataFrame) -> str:
         )
     else:
         drift_words = "no run has a flight phase to test conservation on"
-    lost = [(r["energy_initial_J"], r.get("energy_final_J")) for r in rows]
+    start_end = [(r["energy_initial_J"], r.get("energy_final_J")) for r in rows]
     lost = [
         (energy_start, energy_start - energy_end)
-        for energy_start, energy_end in lost
+        for energy_start, energy_end in start_end
         if F.defined(energy_start) and F.defined(energy_end)
     ]
     readable = [
@@ -98,7 +99,7 @@ def energy_line(runs: pl.DataFrame) -> str:
     )
 
 
-def _who(row: dict) -> str:
+def _who(row: dict[str, Any]) -> str:
     return f'"{md_text(row.get("run") or row["run_id"])}"'
 
 
@@ -126,7 +127,9 @@ def rest_line(ground: pl.DataFrame) -> str:
 
 
 @F.guard_line("Step 2")
-def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -> str:
+def restitution_line(
+    runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict[str, pl.DataFrame]
+) -> str:
     """Step 2 in two sentences: the spread of e across bounces, e against drop height."""
     out = []
     if not bounces.is_empty() and "complete" in bounces.columns:
@@ -137,7 +140,7 @@ def restitution_line(runs: pl.DataFrame, bounces: pl.DataFrame, studies: dict) -
             .filter(pl.col("n") >= 2)
         )
         if spread.height:
-            worst = float(spread["s"].max())
+            worst = float(spread.select(pl.col("s").max()).item())
             within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
             pairs = f"{spread.height} body-surface pair(s) with two or more complete bounces"
             out.append(
@@ -209,7 +212,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
 
 
 @F.guard_line("Step 4")
-def study_line(studies: dict, params: dict[str, list[str]]) -> str:
+def study_line(studies: dict[str, pl.DataFrame], params: dict[str, list[str]]) -> str:
     """Step 4 in one or two sentences: per collision sweep, e's span and the elastic gap."""
     out = []
     for name, study in studies.items():

@@ -19,6 +19,7 @@ import shutil
 import stat
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
@@ -274,7 +275,7 @@ def _rendered(markdown: str, folder: Path, missing: list[str]) -> Iterator[str]:
     """The page's body, piece by piece (`_pieces`); figures not found are added to
     `missing`."""
     md = _parser()
-    env: dict = {}
+    env: dict[str, Any] = {}
     for part, text in _pieces(markdown):
         plain = _plain_table(text) if part else None  # a slice of plain rows: written as is
         if plain is not None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import polars as pl
@@ -104,9 +105,10 @@ def run_figures(
     return made
 
 
-def _draw(name: str, *args, **kwargs) -> Path:
+def _draw(name: str, *args: Any, **kwargs: Any) -> Path:
     """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
     copied unchanged from the last analysis needs none)."""
     from impactlab.analyze.report import figures
 
-    return getattr(figures, name)(*args, **kwargs)
+    path: Path = getattr(figures, name)(*args, **kwargs)
+    return path

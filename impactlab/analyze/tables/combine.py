@@ -6,6 +6,7 @@ import contextlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import polars as pl
 
@@ -120,7 +121,7 @@ class TableReducer:
         self._pending: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._parts: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._files: dict[str, list[Path]] = {name: [] for name in _TABLES}
-        self._summaries: list[dict] = []
+        self._summaries: list[dict[str, Any]] = []
         self._runs: list[pl.DataFrame] = []
         self._taken = self._rows = self._longest = 0
 
@@ -188,8 +189,8 @@ def _join(parts: list[Path], path: Path) -> Path:
         return write_parquet(pl.DataFrame(), path)
     import pyarrow.parquet as pq
 
-    schema = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
-    schema = schema.collect_schema()
+    parts_frame = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
+    schema = parts_frame.collect_schema()
     with atomic_path(path) as tmp:
         writer = None
         try:

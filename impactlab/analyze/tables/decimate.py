@@ -38,7 +38,7 @@ def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
     blocks = _body_key(a.energy).rle()
     lengths = blocks.struct.field("len").to_numpy().astype(np.int64)
     if len(set(blocks.struct.field("value").to_list())) != lengths.size:  # not by body
-        longest = int(a.energy.group_by("body", "is_total").len()["len"].max())
+        longest = int(a.energy.group_by("body", "is_total").len()["len"].to_numpy().max())
         energy = a.energy if longest <= ENERGY_ROWS_PER_RUN else decimate(a.energy)
         return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
     longest = int(lengths.max())

@@ -9,9 +9,12 @@ parameters, its results.
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import polars as pl
+
+if TYPE_CHECKING:
+    from polars._typing import PolarsDataType
 
 BOUNCE_RESULTS = (
     "drop_height_m",
@@ -72,7 +75,7 @@ def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
     return pl.DataFrame(columns, schema=schema, strict=False)
 
 
-def _dtype(column: list[Any]) -> pl.DataType:
+def _dtype(column: list[Any]) -> PolarsDataType:
     present = [c for c in column if c is not None]
     if present and all(isinstance(c, int | float) and not isinstance(c, bool) for c in present):
         return pl.Float64
