@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import polars as pl
 import pytest
+from paths import GOLDEN
 from polars.testing import assert_frame_equal
 
 from impactlab.analyze import batch as batch_module
@@ -24,7 +24,6 @@ from impactlab.analyze.tables import decimate as outputs
 from impactlab.errors import LogError
 from impactlab.logs.load import load_log
 
-GOLDEN = Path(__file__).resolve().parent / "golden"
 LOGS = sorted((GOLDEN / "logs").glob("*.mcap"))
 FRAMES = ("states", "intervals", "energy", "phases", "bounces", "collisions")
 

@@ -3,8 +3,7 @@ of every run's frames, with the energy table decimated as it is written."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
+import paths
 import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
@@ -15,7 +14,7 @@ from impactlab.analyze.tables.combine import TableReducer
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN, decimate
 from impactlab.logs.load import load_log
 
-GOLDEN = Path(__file__).resolve().parent / "golden" / "logs"
+GOLDEN = paths.GOLDEN / "logs"
 
 
 @pytest.fixture(scope="module")

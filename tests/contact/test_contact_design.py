@@ -1,6 +1,6 @@
 """The designer over a speed range and per integrator, checked against MuJoCo itself.
 
-Accuracy from recorded logs, bounce by bounce, is in tests/test_calibrate.py (the multi-bounce
+Accuracy from recorded logs, bounce by bounce, is in tests/calibrate/test_calibrate.py (the multi-bounce
 case); this module checks the pieces: the step emulations against `mj_step` for every
 integrator, the fast evaluation against the emulation, the predicted worst case over a range
 against single impacts measured in plain MuJoCo, the timestep advice, and the errors.

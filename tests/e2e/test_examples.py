@@ -6,16 +6,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from impactlab.cli import main
 from impactlab.examples import example_specs, packaged_experiments
 from impactlab.lab import _specs
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def test_the_packaged_specs_are_the_repositorys():
-    """In a checkout they are experiments/ itself; in a wheel, copies of it (tests/test_wheel.py)."""
+    """In a checkout they are experiments/ itself; in a wheel, copies of it (tests/e2e/test_wheel.py)."""
     names = [p.name for p in example_specs()]
     assert names == sorted(p.name for p in (ROOT / "experiments").glob("*.toml"))
     assert "drop_restitution.toml" in names

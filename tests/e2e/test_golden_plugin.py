@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import re
 import tomllib
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 import impactlab
 import impactlab.analyze.job
@@ -22,7 +22,6 @@ pytestmark = pytest.mark.slow  # the golden plugin's pytest runs
 
 pytest_plugins = ["pytester"]
 
-ROOT = Path(__file__).resolve().parents[1]
 PLUGIN = "impactlab.testing.pytest_plugin"
 
 # experiments/drop_restitution.toml, shortened: one drop from 1 m, two bounces (0.9 s simulated)

@@ -15,6 +15,7 @@ import nbformat
 import pytest
 import rerun as rr
 from nbclient import NotebookClient
+from paths import ROOT
 
 import impactlab
 from impactlab.analyze.tables.combine import AnalysisResult
@@ -23,7 +24,6 @@ from impactlab.replay.notebook import NotebookReplay, Recordings
 
 pytestmark = pytest.mark.slow  # a Jupyter kernel
 
-ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOK = ROOT / "examples" / "quickstart.ipynb"
 RERUN = Path(sys.executable).parent / "rerun"
 WIDGET = "application/vnd.jupyter.widget-view+json"

@@ -12,13 +12,12 @@ import os
 import runpy
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 pytestmark = pytest.mark.slow  # mypy over the documented use
 
-ROOT = Path(__file__).resolve().parents[1]
 
 GOOD = """
 from pathlib import Path

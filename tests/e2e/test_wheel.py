@@ -21,10 +21,10 @@ import zipfile
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 pytestmark = pytest.mark.slow
 
-ROOT = Path(__file__).resolve().parents[1]
 ALONE = [
     "contact",
     "--restitution",
@@ -117,7 +117,8 @@ def test_the_sdist_holds_what_the_tests_need(dist):
         "LICENSE",
         "requirements.lock",
         "tests/conftest.py",
-        "tests/test_wheel.py",
+        "tests/paths.py",
+        "tests/e2e/test_wheel.py",
         "tests/golden/specs/drop_restitution.toml",
         "tests/golden/logs/drop_restitution.mcap",
         "tests/golden/results/bounces.parquet",
@@ -136,7 +137,12 @@ def test_the_sdists_tests_run_from_it(dist, tmp_path):
     with tarfile.open(sdist) as tar:
         tar.extractall(tmp_path, filter="data")
     (tree,) = tmp_path.glob("impactlab-*")
-    tests = ["test_golden.py", "test_examples.py", "test_schemas.py", "test_readme.py"]
+    tests = [
+        "e2e/test_golden.py",
+        "e2e/test_examples.py",
+        "logs/test_schemas.py",
+        "e2e/test_readme.py",
+    ]
     env = {**_env(), "PYTHONPATH": str(tree)}
     done = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-m", "slow or not slow"]

@@ -20,6 +20,7 @@ from pathlib import Path
 import psutil
 import pytest
 from executor_tasks import MARKER, die_on, serve_after_a_failed_start
+from paths import ROOT
 
 from impactlab.analyze.batch import batches
 from impactlab.executors import processes
@@ -29,7 +30,6 @@ from impactlab.logs.load import require_logs
 
 pytestmark = pytest.mark.slow  # workers and parents killed (SIGKILL)
 
-ROOT = Path(__file__).resolve().parents[1]
 SIGKILLED = "worker process died (signal SIGKILL)"
 SWEEP = """
 name = "faults"

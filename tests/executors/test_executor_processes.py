@@ -7,8 +7,8 @@ import os
 import shutil
 import subprocess
 import sys
-from pathlib import Path
 
+import paths
 import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
@@ -19,7 +19,7 @@ from impactlab.executors.processes import ProcessExecutor
 
 pytestmark = pytest.mark.slow  # spawned worker processes
 
-GOLDEN = Path(__file__).parent / "golden" / "logs"
+GOLDEN = paths.GOLDEN / "logs"
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 
 

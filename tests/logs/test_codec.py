@@ -10,6 +10,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from mcap_protobuf.writer import Writer as ProtobufWriter
+from paths import EXPERIMENTS
 
 from impactlab.logs import messages
 from impactlab.logs.codec import Template
@@ -17,8 +18,6 @@ from impactlab.logs.load import load_log
 from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import plan, record_runs
-
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 
 def test_template_round_trip_matches_the_library():

@@ -5,15 +5,15 @@ thread."""
 from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import numpy as np
+import paths
 
 from impactlab.logs.bounded import Arena
 from impactlab.logs.load import load_log
 from impactlab.logs.reader import read_mcap
 
-GOLDEN = sorted((Path(__file__).parent / "golden" / "logs").glob("*.mcap"))
+GOLDEN = sorted((paths.GOLDEN / "logs").glob("*.mcap"))
 
 
 def snapshot(run) -> list[np.ndarray]:

@@ -6,15 +6,13 @@ from __future__ import annotations
 
 import re
 import tomllib
-from pathlib import Path
 
 import mujoco
 import pytest
+from paths import ROOT
 
 from impactlab.errors import ImpactlabError
 from impactlab.record.mujoco_version import MINIMUM, require_mujoco, version_tuple
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.mark.parametrize(

@@ -7,13 +7,11 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from impactlab.logs.load import load_log
-
-ROOT = Path(__file__).resolve().parents[1]
 
 SPEC = """
 name = "race"

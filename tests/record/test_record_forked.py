@@ -13,12 +13,11 @@ import time
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from impactlab.progress import ProgressEvent
 from impactlab.record import forked, plan, record_runs
 from impactlab.record.forked import DIED, can_fork, shares
-
-ROOT = Path(__file__).resolve().parents[1]
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 

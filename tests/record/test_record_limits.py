@@ -6,16 +6,14 @@ from __future__ import annotations
 import subprocess
 import sys
 from collections import namedtuple
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 import impactlab
 from impactlab.cli import main
 from impactlab.files import OutputError
 from impactlab.record import work
-
-ROOT = Path(__file__).resolve().parents[1]
 
 GOOD = """
 name = "t"

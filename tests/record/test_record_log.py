@@ -13,12 +13,11 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
+from paths import EXPERIMENTS
 
 from impactlab.cli import main
 from impactlab.logs import format as logformat
 from impactlab.record import plan, record_runs
-
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 BOUNCY = """
 name = "bouncy"

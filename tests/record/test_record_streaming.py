@@ -11,10 +11,9 @@ import time
 from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 from impactlab.logs.load import load_log
-
-ROOT = Path(__file__).resolve().parents[1]
 
 SPEC = """
 name = "long"

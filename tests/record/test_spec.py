@@ -5,11 +5,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from paths import EXPERIMENTS
 
 from impactlab.errors import SpecError
 from impactlab.record.sweep import load_runs, parse_override
-
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 BASE = """
 name = "t"

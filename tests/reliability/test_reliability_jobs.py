@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from paths import ROOT
 
 from impactlab.cli import main
 from impactlab.logs import writer as writer_module
@@ -24,8 +25,6 @@ from impactlab.logs.load import load_log
 from impactlab.record import plan, record_runs
 from impactlab.record import recorder as recorder_module
 from impactlab.record import simulate as simulate_module
-
-ROOT = Path(__file__).resolve().parents[1]
 
 DROP = """
 name = "{name}"
@@ -228,7 +227,7 @@ def test_batching_does_not_change_the_logs(tmp_path):
     """Serial (one run at a time, one thread) and batched (4 runs, 2 threads) recordings of the
     same spec file give byte-identical logs. Byte for byte holds because both are recorded on
     the same machine in the same process; across machines logs agree numerically only (see
-    tests/test_golden.py)."""
+    tests/e2e/test_golden.py)."""
     sweep = '[sweep]\n"ball.pos" = [[0.0, 0.0, 0.3], [0.1, 0.0, 0.4], [0.0, 0.2, 0.5], [0.0, 0.0, 0.6], [0.3, 0.0, 0.7]]'
     spec = spec_file(tmp_path, "same", max_time=0.8, extra=sweep)
     runs = plan([spec])

@@ -333,7 +333,7 @@ def test_damaged_message_index_is_recovered(tmp_path, layout, reference):
 def test_damaged_metadata_is_named_and_the_rest_still_read(tmp_path, capsys, layout):
     """Metadata carry no CRC: a value that no longer parses is named (log and key). The
     masses are needed for the analysis, which refuses that log; diff, replay and info still
-    read it. Every key and kind of damage: tests/test_reliability_metadata.py."""
+    read it. Every key and kind of damage: tests/reliability/test_reliability_metadata.py."""
     data = layout[0]
     at = data.rindex(b'"mass"')  # in the bodies record (the spec's comes first)
     broken = bytearray(data)

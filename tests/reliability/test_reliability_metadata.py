@@ -20,6 +20,7 @@ import polars as pl
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from paths import ROOT
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
@@ -189,7 +190,7 @@ def test_the_schema_declares_every_key_the_format_has():
     assert set(metadata.KEYS) == set(KEYS)
     assert set(metadata.ANALYSIS_KEYS) == set(ANALYSIS_KEYS)
     assert {k for k in KEYS if k not in FREE_TEXT} == set(BAD)  # every typed key has cases
-    doc = (Path(__file__).parents[1] / "docs" / "log-format.md").read_text()
+    doc = (ROOT / "docs" / "log-format.md").read_text()
     for key in metadata.KEYS.values():  # the documented table is the schema
         needed = "needed" if key.name in ANALYSIS_KEYS else ""
         assert f"| `{key.name}` | `{key.record}` | {key.holds} | {needed} |" in doc, key.name

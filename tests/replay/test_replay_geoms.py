@@ -18,6 +18,7 @@ import pytest
 import rerun as rr
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
+from paths import GOLDEN
 
 from impactlab.logs.geoms import SCENE_METADATA, decode_stl, read_scene
 from impactlab.logs.load import load_log
@@ -656,9 +657,6 @@ def test_tf_stamps_of_every_varint_length_decode_as_their_log_time():
             assert msg.transforms[1].rotation.z == poses[row, 13]
             seen[row] = True
     assert seen.all()
-
-
-GOLDEN = Path(__file__).parent / "golden"
 
 
 def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):

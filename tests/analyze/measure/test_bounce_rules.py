@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import math
 import shutil
-from pathlib import Path
 
 import numpy as np
 import polars as pl
 import pytest
+from paths import GOLDEN, ROOT
 from test_analyze_bounces import DROP_SPEC, G
 
 import impactlab
@@ -19,8 +19,6 @@ from impactlab.analyze.report import answers
 from impactlab.cli import main
 from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log
-
-GOLDEN = Path(__file__).parent / "golden"
 
 PAIRS = """
 name = "pairs"
@@ -160,7 +158,7 @@ def test_resting_rolling_and_sliding_balls_make_no_bounce(record_spec, v, w):
 @pytest.mark.slow
 def test_a_ball_at_rest_on_the_plane_is_analyzed_with_figures(tmp_path, capsys):
     """`free_fall.toml --set ball.pos=[0,0,0.1]`: analyze with figures and report, no traceback."""
-    spec = Path(__file__).parents[1] / "experiments" / "free_fall.toml"
+    spec = ROOT / "experiments" / "free_fall.toml"
     logs, results = tmp_path / "logs", tmp_path / "results"
     assert (
         main(

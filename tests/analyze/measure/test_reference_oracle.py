@@ -9,13 +9,12 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 import pytest
+from paths import GOLDEN
 
 from impactlab.analyze.measure import reference
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.logs.load import RunLog, load_log
-
-GOLDEN = Path(__file__).parent / "golden"
 
 DROP = """
 name = "oracle_drop"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import paths
 import pytest
 
 from impactlab.analyze.job import run_analysis
@@ -15,7 +16,7 @@ from impactlab.analyze.report import figures as drawing
 
 pytestmark = pytest.mark.slow  # figures drawn in worker processes
 
-GOLDEN = Path(__file__).parent / "golden" / "logs"
+GOLDEN = paths.GOLDEN / "logs"
 DRAWERS = (
     "energy_figure",
     "collision_figure",

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import polars as pl
 import pytest
+from paths import GOLDEN
 
 from impactlab.analyze.report import answers
 from impactlab.analyze.report import findings as F
@@ -365,7 +366,7 @@ def test_mujocos_test_model_is_analysed_and_a_good_run_beside_it_kept(tmp_path, 
     assert model.is_file(), model
     logs = tmp_path / "logs"
     assert main(["record", str(model), "--duration", "0.5", "-o", str(logs)]) == 0
-    golden = Path(__file__).parent / "golden" / "logs" / "collision.mcap"
+    golden = GOLDEN / "logs" / "collision.mcap"
     shutil.copyfile(golden, logs / golden.name)
     out = tmp_path / "results"
     assert main(["analyze", str(logs), "-o", str(out)]) == 0
@@ -399,7 +400,7 @@ def test_one_runs_failing_sentence_does_not_cost_the_batch_its_results(tmp_path,
         return real(row)
 
     monkeypatch.setattr(F, "drift_finding", failing)
-    logs = Path(__file__).parent / "golden" / "logs"
+    logs = GOLDEN / "logs"
     out = tmp_path / "results"
     result = run_analysis([logs], out, figures=False)
     assert result.exit_code == 0

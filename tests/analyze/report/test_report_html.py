@@ -13,13 +13,14 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 import numpy as np
+import paths
 import pytest
 from matplotlib import image
 
 from impactlab.analyze.job import run_analysis
 from impactlab.analyze.report.html import CSP, report_html
 
-GOLDEN = Path(__file__).parent / "golden" / "logs"
+GOLDEN = paths.GOLDEN / "logs"
 CHECK = """<script>
 window.addEventListener("load", () => {
   const ids = new Set([...document.querySelectorAll("[id]")].map((e) => e.id));
