@@ -14,6 +14,7 @@ import polars as pl
 import pytest
 from paths import GOLDEN
 from polars.testing import assert_frame_equal
+from specs import collision, drop, toml
 
 from impactlab.analyze import batch as batch_module
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
@@ -116,51 +117,19 @@ def test_a_missing_file_in_a_batch_is_its_own_error(tmp_path):
     assert results[1].error[0] == str(gone)
 
 
-FALL = """
-name = "batch_fall"
-[options]
-timestep = 0.001
-gravity = [0.0, 0.0, -9.81]
-[plane]
-enabled = false
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.2
-"""
-REST = """
-name = "batch_rest"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.1]
-[stop]
-max_time = 0.2
-"""
-MISS = """
-name = "batch_miss"
-[options]
-timestep = 0.001
-gravity = [0.0, 0.0, 0.0]
-[plane]
-enabled = false
-[bodies.ball1]
-radius = 0.1
-mass = 1.0
-pos = [-1.0, 0.0, 1.0]
-vel = [1.0, 0.0, 0.0]
-[bodies.ball2]
-radius = 0.1
-mass = 1.0
-pos = [1.0, 0.0, 1.0]
-[stop]
-max_time = 0.1
-separation = 0.01
-"""
+FALL = toml(drop("batch_fall", gravity=[0.0, 0.0, -9.81], plane=False, max_time=0.2))
+REST = toml(drop("batch_rest", z=0.1, max_time=0.2))
+MISS = toml(
+    collision(
+        "batch_miss",
+        names=("ball1", "ball2"),
+        x=1.0,
+        z=1.0,
+        vel=(1.0, 0.0),
+        max_time=0.1,
+        separation=0.01,
+    )
+)
 
 
 @pytest.mark.slow
@@ -228,38 +197,36 @@ def test_runs_whose_frames_do_not_stack_are_analyzed_each_alone(alone):
         same(a, b)
 
 
-BOUNCE = """
-name = "{name}"
-[options]
-timestep = 0.0005
-integrator = "{integrator}"
-gravity = [{gx}, 0.0, {gz}]
-[contact]
-condim = 1
-solref = [0.01, 0.1]
-[bodies.ball]
-radius = 0.05
-mass = {mass}
-pos = [0.0, 0.0, 0.4]
-vel = [0.3, 0.0, 0.0]
-[stop]
-max_time = 1.2
-bounces = 2
-[logging]
-every = {every}
-"""
+def bounce(name: str, integrator: str, g: tuple[float, float], mass: float, every: int) -> str:
+    """A ball tossed sideways 0.4 m up, gravity (g_x, g_z) in m/s^2: two bounces."""
+    return toml(
+        drop(
+            name,
+            z=0.4,
+            radius=0.05,
+            mass=mass,
+            vel=[0.3, 0.0, 0.0],
+            timestep=0.0005,
+            integrator=integrator,
+            gravity=[g[0], 0.0, g[1]],
+            contact={"condim": 1, "solref": [0.01, 0.1]},
+            max_time=1.2,
+            bounces=2,
+            every=every,
+        )
+    )
 
 
 def test_runs_of_different_physics_together(record_spec):
     """Gravity (tilted, weaker), integrators and logging strides differ per run: each run's
     own are used in the batch (the impact speeds, v_min, apexes depend on them)."""
     cases = [
-        dict(name="batch_euler", integrator="Euler", gx=0.0, gz=-9.81, mass=1.0, every=1),
-        dict(name="batch_rk4", integrator="RK4", gx=0.0, gz=-9.81, mass=2.0, every=3),
-        dict(name="batch_moon", integrator="implicitfast", gx=0.0, gz=-1.62, mass=1.0, every=2),
-        dict(name="batch_tilt", integrator="Euler", gx=2.0, gz=-9.6, mass=0.5, every=1),
+        dict(name="batch_euler", integrator="Euler", g=(0.0, -9.81), mass=1.0, every=1),
+        dict(name="batch_rk4", integrator="RK4", g=(0.0, -9.81), mass=2.0, every=3),
+        dict(name="batch_moon", integrator="implicitfast", g=(0.0, -1.62), mass=1.0, every=2),
+        dict(name="batch_tilt", integrator="Euler", g=(2.0, -9.6), mass=0.5, every=1),
     ]
-    paths = [p for c in cases for p in record_spec(c["name"], BOUNCE.format(**c))]
+    paths = [p for c in cases for p in record_spec(c["name"], bounce(**c))]
     alone = [analyze_run(load_log(p)) for p in paths]
     together = analyze_runs([load_log(p) for p in paths])
     for a, b in zip(together, alone, strict=True):

@@ -12,6 +12,7 @@ from pathlib import Path
 import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
+from specs import SOFT, drop, toml
 
 from impactlab.analyze import batch as batch_module
 from impactlab.analyze import write as write_module
@@ -21,30 +22,23 @@ from impactlab.record import plan, record_runs
 
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 
-SPEC = """
-name = "stream_drop"
-[options]
-timestep = 0.0005
-[contact]
-condim = 1
-solref = [0.02, 1.0]
-solimp = [0.9, 0.95, 0.001]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.2]
-[stop]
-max_time = {max_time}
-[sweep]
-"ball.pos" = [{points}]
-"""
-
 
 def sweep(folder: Path, runs: int, max_time: float) -> list[Path]:
     """`runs` drops of a ball from 0.15 m up (they bounce within `max_time`), recorded."""
-    points = ", ".join(f"[0.0, 0.0, {0.15 + 0.0005 * i:.4f}]" for i in range(runs))
+    points = [[0.0, 0.0, round(0.15 + 0.0005 * i, 4)] for i in range(runs)]
     spec = folder / f"stream_{runs}.toml"
-    spec.write_text(SPEC.format(max_time=max_time, points=points))
+    spec.write_text(
+        toml(
+            drop(
+                "stream_drop",
+                z=0.2,
+                timestep=0.0005,
+                contact=SOFT,
+                max_time=max_time,
+                sweep={"ball.pos": points},
+            )
+        )
+    )
     return sorted(record_runs(plan([spec]), folder / f"logs_{runs}").paths)
 
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import polars as pl
 import pytest
 from mcap.writer import Writer
+from specs import SOFT, drop, toml
 from test_analyze_bounces import DROP_SPEC
 from test_analyze_collisions import COLLISION_SPEC
 
@@ -129,23 +130,15 @@ def test_analysis_does_not_import_mujoco(logs, tmp_path):
     assert proc.returncode == 0, proc.stderr
 
 
-NO_BOUNCE_SWEEP = """
-name = "early_stop"
-[options]
-timestep = 0.0005
-[contact]
-condim = 1
-solref = [0.02, 1.0]
-solimp = [0.9, 0.95, 0.001]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.5
-[sweep]
-"ball.pos" = [[0.0, 0.0, 1.0], [0.0, 0.0, 1.1]]
-"""
+NO_BOUNCE_SWEEP = toml(
+    drop(
+        "early_stop",
+        timestep=0.0005,
+        contact=SOFT,
+        max_time=0.5,
+        sweep={"ball.pos": [[0.0, 0.0, 1.0], [0.0, 0.0, 1.1]]},
+    )
+)
 
 
 @pytest.mark.slow

@@ -6,39 +6,21 @@ import os
 from pathlib import Path
 
 import pytest
+from specs import ball, drop, spec, toml
 
 from impactlab.cli import main
 
-GOOD = """
-name = "t"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.01
-"""
-COLLIDE = """
-name = "c"
-[options]
-timestep = 0.001
-gravity = [0.0, 0.0, 0.0]
-[plane]
-enabled = false
-[bodies.a]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.0]
-[bodies.b]
-radius = 0.1
-mass = 1.0
-pos = [1.0, 0.0, 0.0]
-[stop]
-max_time = 0.01
-separation = 0.1
-"""
+GOOD = toml(drop(max_time=0.01))
+COLLIDE = toml(
+    spec(
+        "c",
+        {"a": ball(0.0), "b": ball(0.0, x=1.0)},
+        gravity=[0.0, 0.0, 0.0],
+        plane=False,
+        max_time=0.01,
+        separation=0.1,
+    )
+)
 NO_FREE_BODY = '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/></worldbody></mujoco>'
 NO_GROUND = '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
 

@@ -9,48 +9,14 @@ from pathlib import Path
 import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
+from specs import DIRECT, collision, drop, toml
 
 from impactlab.cli import main
 
 pytestmark = pytest.mark.slow  # the whole lab
 
-DROP = """
-name = "tiny_drop"
-[options]
-timestep = 0.0005
-[contact]
-condim = 1
-solref = [-100000.0, -63.245553]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-[stop]
-max_time = 2.0
-bounces = 2
-"""
-COLLISION = """
-name = "tiny_collision"
-[options]
-timestep = 0.0001
-gravity = [0.0, 0.0, 0.0]
-[plane]
-enabled = false
-[bodies.a]
-radius = 0.1
-mass = 1.0
-pos = [-0.3, 0.0, 0.0]
-vel = [2.0, 0.0, 0.0]
-[bodies.b]
-radius = 0.1
-mass = 1.0
-pos = [0.3, 0.0, 0.0]
-vel = [-1.0, 0.0, 0.0]
-[stop]
-max_time = 1.0
-separation = 0.05
-"""
+DROP = toml(drop("tiny_drop", z=0.5, timestep=0.0005, contact=DIRECT, max_time=2.0, bounces=2))
+COLLISION = toml(collision("tiny_collision", timestep=0.0001))
 
 
 def test_lab_records_analyzes_and_links_replays(tmp_path, capsys):

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import polars as pl
 import pytest
+from specs import DIRECT, drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.measure.bounces import TURNING
@@ -198,24 +199,19 @@ def without_rotation(run: RunLog) -> RunLog:
     return RunLog(**{**run.__dict__, "bodies": bodies})
 
 
-SPINNING = """
-name = "spinning"
-[options]
-timestep = 0.0001
-[contact]
-condim = 3
-solref = [-100000.0, -63.245553]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.05
-mass = 1.0
-pos = [0.0, 0.0, 0.55]
-vel = [0.5, 0.0, 0.0]
-angvel = [3.0, 40.0, 7.0]
-[stop]
-max_time = 2.0
-bounces = 2
-"""
+SPINNING = toml(
+    drop(
+        "spinning",
+        z=0.55,
+        radius=0.05,
+        vel=[0.5, 0.0, 0.0],
+        angvel=[3.0, 40.0, 7.0],
+        timestep=0.0001,
+        contact={**DIRECT, "condim": 3},
+        max_time=2.0,
+        bounces=2,
+    )
+)
 
 
 def test_contact_point_equals_centre_for_a_spinning_ball(record_spec, edge_box):

@@ -21,6 +21,7 @@ import psutil
 import pytest
 from executor_tasks import MARKER, die_on, serve_after_a_failed_start
 from paths import ROOT
+from specs import drop, toml
 
 from impactlab.analyze.batch import batches
 from impactlab.executors import processes
@@ -31,22 +32,16 @@ from impactlab.logs.load import require_logs
 pytestmark = pytest.mark.slow  # workers and parents killed (SIGKILL)
 
 SIGKILLED = "worker process died (signal SIGKILL)"
-SWEEP = """
-name = "faults"
-[options]
-timestep = 0.0005
-[contact]
-condim = 1
-solref = [0.02, 0.3]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.3]
-[stop]
-max_time = 0.6
-[sweep]
-"ball.mass" = [1.0, 1.1, 1.2, 1.3, 1.4, 1.5, 1.6, 1.7, 1.8, 1.9, 2.0, 2.1]
-"""
+SWEEP = toml(
+    drop(
+        "faults",
+        z=0.3,
+        timestep=0.0005,
+        contact={"condim": 1, "solref": [0.02, 0.3]},
+        max_time=0.6,
+        sweep={"ball.mass": [round(1.0 + 0.1 * i, 1) for i in range(12)]},
+    )
+)
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ import polars as pl
 import pytest
 import ray
 from polars.testing import assert_frame_equal
+from specs import drop, toml
 
 from impactlab.analyze.job import run_analysis
 from impactlab.cli import main
@@ -27,24 +28,15 @@ from impactlab.record.tasks import task_groups
 pytestmark = pytest.mark.slow  # a local Ray cluster
 
 # Four short drops; solref [2, 1] is so soft that the ball sinks through the floor (unstable).
-SPEC = """
-name = "raysweep"
-description = "drop sweep for the Ray tests"
-
-[options]
-timestep = 0.001
-
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-
-[stop]
-max_time = 0.6
-
-[sweep]
-"contact.solref" = [[0.02, 1.0], [0.02, 0.5], [2.0, 1.0], [0.01, 1.0]]
-"""
+SPEC = toml(
+    drop(
+        "raysweep",
+        description="drop sweep for the Ray tests",
+        z=0.5,
+        max_time=0.6,
+        sweep={"contact.solref": [[0.02, 1.0], [0.02, 0.5], [2.0, 1.0], [0.01, 1.0]]},
+    )
+)
 # its run id ends with the spec's hash, which changes with the spec schema's defaults
 UNSTABLE = next(r.info.run_id for r in plan(tomllib.loads(SPEC)) if "solref=2_1" in r.info.run_id)
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")

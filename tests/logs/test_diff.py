@@ -13,6 +13,7 @@ import polars as pl
 import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from specs import DIRECT, drop, toml
 
 from impactlab.cli import main
 from impactlab.logs import format as logformat
@@ -29,24 +30,9 @@ from impactlab.logs.load import load_log
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import plan, record_runs
 
-SPEC = """
-name = "difftest"
-[options]
-timestep = 0.0001
-[contact]
-condim = 1
-solref = [-100000.0, -63.245553]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.3]
-[stop]
-max_time = 0.5
-bounces = 1
-[logging]
-every = 5
-"""
+SPEC = toml(
+    drop("difftest", z=0.3, timestep=0.0001, contact=DIRECT, max_time=0.5, bounces=1, every=5)
+)
 STATE = "/bodies/ball/state"
 
 

@@ -10,22 +10,11 @@ import sys
 
 import pytest
 from paths import ROOT
+from specs import drop, toml
 
 from impactlab.logs.load import load_log
 
-SPEC = """
-name = "race"
-[options]
-timestep = 0.0001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 1.5
-[sweep]
-"ball.mass" = [1.0, 2.0, 3.0, 4.0]
-"""
+SPEC = toml(drop("race", timestep=0.0001, max_time=1.5, sweep={"ball.mass": [1.0, 2.0, 3.0, 4.0]}))
 
 
 @pytest.mark.slow

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from paths import ROOT
+from specs import drop, toml
 
 from impactlab.progress import ProgressEvent
 from impactlab.record import forked, plan, record_runs
@@ -21,25 +22,11 @@ from impactlab.record.forked import DIED, can_fork, shares
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 
-SPEC = """
-name = "forked"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-[stop]
-max_time = {max_time}
-[sweep]
-"ball.mass" = [{masses}]
-"""
-
 
 def _spec(tmp_path: Path, runs: int, max_time: float = 0.3) -> Path:
     path = tmp_path / f"forked_{runs}_{max_time:g}.toml"
-    masses = ", ".join(str(1.0 + 0.5 * i) for i in range(runs))
-    path.write_text(SPEC.format(max_time=max_time, masses=masses))
+    masses = [1.0 + 0.5 * i for i in range(runs)]
+    path.write_text(toml(drop("forked", z=0.5, max_time=max_time, sweep={"ball.mass": masses})))
     return path
 
 

@@ -9,23 +9,14 @@ from collections import namedtuple
 
 import pytest
 from paths import ROOT
+from specs import drop, toml
 
 import impactlab
 from impactlab.cli import main
 from impactlab.files import OutputError
 from impactlab.record import work
 
-GOOD = """
-name = "t"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.05
-"""
+GOOD = toml(drop(max_time=0.05))
 
 
 def one_line(capsys, code: int) -> str:

@@ -14,27 +14,14 @@ import pytest
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from paths import EXPERIMENTS
+from specs import DIRECT, drop, toml
 
 from impactlab.cli import main
 from impactlab.logs import format as logformat
 from impactlab.record import plan, record_runs
 
-BOUNCY = """
-name = "bouncy"
-[options]
-timestep = 0.0001
-[contact]
-condim = 1
-solref = [-100000.0, -63.245553]   # k = 1e5, zeta = 0.1: e = 0.744
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.6]
-[stop]
-max_time = 5.0
-bounces = 2
-"""
+# k = 1e5, zeta = 0.1: e = 0.744
+BOUNCY = toml(drop("bouncy", z=0.6, timestep=0.0001, contact=DIRECT, max_time=5.0, bounces=2))
 
 
 def record_text(tmp_path: Path, text: str, *overrides: str) -> list[Path]:

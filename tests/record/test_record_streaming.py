@@ -12,20 +12,9 @@ from pathlib import Path
 
 import pytest
 from paths import ROOT
+from specs import drop, toml
 
 from impactlab.logs.load import load_log
-
-SPEC = """
-name = "long"
-[options]
-timestep = 0.0001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = {max_time}
-"""
 
 PEAK = """
 import json, sys
@@ -38,9 +27,14 @@ print(json.dumps({"peak_mb": int(hwm[0].split()[1]) / 1024, "logged": result.log
 """
 
 
+def long_drop(max_time: float, **options) -> str:
+    """A ball dropped from 1 m at a 0.1 ms step for `max_time` s, as TOML."""
+    return toml(drop("long", timestep=0.0001, max_time=max_time, **options))
+
+
 def _peak(tmp_path: Path, max_time: float) -> dict:
     spec = tmp_path / f"long_{max_time:g}.toml"
-    spec.write_text(SPEC.format(max_time=max_time))
+    spec.write_text(long_drop(max_time))
     out = subprocess.run(
         [sys.executable, "-c", PEAK, str(spec), str(tmp_path / f"logs_{max_time:g}")],
         capture_output=True,
@@ -67,7 +61,7 @@ def test_sigterm_stops_a_long_run_within_a_chunk(tmp_path):
     """One run of 10^7 steps (about a minute): SIGTERM once its log is being written ends the
     job within seconds, exit 130, and leaves no log and no temporary file."""
     spec = tmp_path / "endless.toml"
-    spec.write_text(SPEC.format(max_time=1000.0) + "[logging]\nevery = 100\n")
+    spec.write_text(long_drop(1000.0, every=100))
     out = tmp_path / "logs"
     proc = subprocess.Popen(
         [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out)],
@@ -98,7 +92,7 @@ def test_a_streamed_log_equals_the_runs_rows(tmp_path):
     """Streaming keeps every row, in order, with the logging stride counted from step 0
     across chunk boundaries (chunks of 5000 steps, logging every 3rd step)."""
     spec = tmp_path / "stride.toml"
-    spec.write_text(SPEC.format(max_time=1.5) + "[logging]\nevery = 3\n")
+    spec.write_text(long_drop(1.5, every=3))
     out = tmp_path / "logs"
     code = subprocess.run(
         [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out)], cwd=ROOT

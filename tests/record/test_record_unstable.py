@@ -5,21 +5,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from specs import drop, toml
 
 from impactlab.cli import main
 from impactlab.logs.load import load_log
 
-DROP = """
-name = "t"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.5
-"""
+DROP = toml(drop(max_time=0.5))
 
 # (override, the warning, the step that raises it)
 HUGE = [

@@ -6,21 +6,12 @@ from pathlib import Path
 
 import pytest
 from paths import EXPERIMENTS
+from specs import drop, toml
 
 from impactlab.errors import SpecError
 from impactlab.record.sweep import load_runs, parse_override
 
-BASE = """
-name = "t"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 1.0
-"""
+BASE = toml(drop())
 
 
 def write(tmp_path: Path, text: str) -> Path:

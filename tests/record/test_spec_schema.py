@@ -7,22 +7,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from specs import drop, toml
 
 from impactlab.cli import main
 from impactlab.record.schema import Logging, PairContact, SpecDocument, Stop
 from impactlab.record.sweep import load_runs
 
-GOOD = """
-name = "t"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 0.01
-"""
+GOOD = toml(drop(max_time=0.01))
 
 # one TOML value of each JSON type
 SAMPLES = {

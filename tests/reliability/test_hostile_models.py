@@ -14,6 +14,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from specs import drop, toml
 
 from impactlab.cli import main
 
@@ -308,21 +309,15 @@ def test_generated_names_do_not_clash(case, tmp_path, capsys):
 
 # -- specs: names and sweeps that are valid ----------------------------------------------
 
-SPEC = """name = "s"
-[options]
-timestep = 0.001
-[stop]
-max_time = 0.02
-[bodies.{body}]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-"""
+
+def small(body: str = "ball", **options) -> str:
+    """One ball named `body` 0.5 m up, 0.02 s of it, as TOML."""
+    return toml(drop("s", z=0.5, body=body, **{"max_time": 0.02, **options}))
 
 
 def test_a_sweep_over_the_description_is_analyzed(tmp_path, capsys):
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(body="ball") + '[sweep]\ndescription = ["first", "second"]\n')
+    spec.write_text(small(sweep={"description": ["first", "second"]}))
     code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")
     assert code == 0, err
     code, _, err = cli(capsys, "analyze", tmp_path / "logs", "-o", tmp_path / "out", "--no-figures")
@@ -336,7 +331,7 @@ def test_a_sweep_over_the_description_is_analyzed(tmp_path, capsys):
 @pytest.mark.parametrize("name", ["plane", "world"])
 def test_a_body_named_like_the_plane_or_the_world_is_one_line(name, tmp_path, capsys):
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(body=name))
+    spec.write_text(small(name))
     code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")
     assert code == 2
     one_error(err, "s.toml", f"bodies.{name}")
@@ -348,7 +343,7 @@ def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
     import polars as pl
 
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(body="total"))
+    spec.write_text(small("total"))
     assert cli(capsys, "record", spec, "-o", tmp_path / "logs")[0] == 0
     code, _, err = cli(capsys, "analyze", tmp_path / "logs", "-o", tmp_path / "out")
     assert code == 0, err
@@ -367,7 +362,7 @@ def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
 
 def test_a_line_break_in_a_set_value_is_one_line(tmp_path, capsys):
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(body="ball"))
+    spec.write_text(small())
     code, _, err = cli(
         capsys, "record", spec, "-o", tmp_path / "logs", "--set", "ball.mass=2\nball.radius=0.05"
     )
@@ -390,7 +385,7 @@ def test_diff_in_the_python_api(tmp_path, capsys):
     import impactlab
 
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(body="ball"))
+    spec.write_text(small())
     assert cli(capsys, "record", spec, "-o", tmp_path / "a")[0] == 0
     assert cli(capsys, "record", spec, "-o", tmp_path / "b", "--set", "ball.mass=2")[0] == 0
     (a,), (b,) = sorted((tmp_path / "a").glob("*.mcap")), sorted((tmp_path / "b").glob("*.mcap"))
@@ -415,8 +410,9 @@ def test_the_timestep_a_refusal_names_is_accepted_as_printed(tmp_path, capsys):
     # the same in a spec: the refusal's number, used as printed, is accepted
     spec = tmp_path / "r.toml"
     spec.write_text(
-        SPEC.format(body="ball").replace("0.001", "1e-5").replace("0.02", "0.0005")
-        + "[contact]\nrestitution = 0.3\nspeed_range = [0.5, 6.0]\n"
+        small(
+            timestep=1e-5, max_time=0.0005, contact={"restitution": 0.3, "speed_range": [0.5, 6.0]}
+        )
     )
     spec.write_text(spec.read_text().replace("radius = 0.1", "radius = 0.12"))
     code, _, err = cli(capsys, "record", spec, "-o", tmp_path / "logs")

@@ -30,6 +30,7 @@ from hypothesis import strategies as st
 from markdown_it import MarkdownIt
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from specs import drop, toml
 
 from impactlab.analyze.report import html as page_html
 from impactlab.logs import format as logformat
@@ -40,18 +41,15 @@ TITLE = "Impact lab: analysis report"
 SCRIPT_BODY = "<img src=x onerror=\"document.title='PWNED'\">"
 SCRIPT_FLOOR = "<script>document.title='PWNED'</script>"
 SCRIPT_FILE = "<svg onload=document.title='PWNED'>"  # a legal file name (no slash)
-SPEC = """
-name = "__init__"
-description = "<img src=x onerror=\\"document.title='PWNED'\\"> ![d](/etc/passwd)"
-[options]
-timestep = 0.001
-[bodies._ball_]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.15]
-[stop]
-max_time = 0.2
-"""
+SPEC = toml(
+    drop(
+        "__init__",
+        description=f"{SCRIPT_BODY} ![d](/etc/passwd)",
+        body="_ball_",
+        z=0.15,
+        max_time=0.2,
+    )
+)
 MEMORY_LIMIT = 3 * 2**30  # a run that reads /dev/zero fails fast instead of filling memory
 TIMEOUT_S = 120  # a run that reads /dev/stdin (an open pipe here) would wait forever
 

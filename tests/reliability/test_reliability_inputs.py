@@ -25,6 +25,7 @@ from mcap.data_stream import RecordBuilder
 from mcap.records import Chunk, DataEnd, Footer, Header
 from mcap.writer import MCAP0_MAGIC
 from mcap_conformance import Variant, variants
+from specs import drop, toml
 
 from impactlab.cli import main
 from impactlab.errors import LogError
@@ -222,17 +223,7 @@ def test_the_size_limit_is_documented_and_settable(tmp_path, capsys, monkeypatch
     assert not load_log(log).partial
 
 
-SMALL_SPEC = """
-name = "limits"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.3]
-[stop]
-max_time = 1.0
-"""
+SMALL_SPEC = toml(drop("limits", z=0.3))
 
 
 # ---------------------------------------------------------------------------------------------

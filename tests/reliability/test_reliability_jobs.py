@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from paths import ROOT
+from specs import SOFT, drop, toml
 
 from impactlab.cli import main
 from impactlab.logs import writer as writer_module
@@ -26,28 +27,12 @@ from impactlab.record import plan, record_runs
 from impactlab.record import recorder as recorder_module
 from impactlab.record import simulate as simulate_module
 
-DROP = """
-name = "{name}"
-[options]
-timestep = {dt}
-[contact]
-condim = 1
-solref = [0.02, 1.0]
-solimp = [0.9, 0.95, 0.001]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-[stop]
-max_time = {max_time}
-{extra}
-"""
-
 
 def spec_file(folder: Path, name: str, *, dt=0.0005, max_time=1.0, extra="") -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{name}.toml"
-    path.write_text(DROP.format(name=name, dt=dt, max_time=max_time, extra=extra))
+    spec = drop(name, z=0.5, timestep=dt, contact=SOFT, max_time=max_time)
+    path.write_text(toml(spec) + extra + "\n")
     return path
 
 

@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
+from specs import drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
@@ -30,17 +31,7 @@ from impactlab.logs.info import describe
 from impactlab.logs.load import RunLog, load_log
 from impactlab.proto import impactlab_pb2 as pb
 
-SPEC = """
-name = "fragile"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.3]
-[stop]
-max_time = 0.6
-"""
+SPEC = toml(drop("fragile", z=0.3, max_time=0.6))
 CHUNK_BYTES = 1 << 15  # about 70 logged steps per chunk: the 0.6 s run spans ~9 chunks
 FOOTER_BYTES = 1 + 8 + 8 + 8 + 4 + 8  # footer record and closing magic
 

@@ -12,22 +12,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from specs import drop, toml
 
 from impactlab.record import plan, record_runs
 
 pytestmark = pytest.mark.slow  # peak memory of a 100,000-step analysis
 
-SPEC = """
-name = "long"
-[options]
-timestep = 0.0001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = {seconds}
-"""
 
 MEASURE = r"""
 import json, resource, sys, time
@@ -61,7 +51,9 @@ def measure(log: Path, out: Path) -> dict:
 
 def test_peak_memory_of_analyzing_a_long_log(tmp_path):
     spec = tmp_path / "long.toml"
-    spec.write_text(SPEC.format(seconds=10.0))  # 100,001 logged steps, contact half the time
+    spec.write_text(
+        toml(drop("long", timestep=0.0001, max_time=10.0))
+    )  # 100,001 logged steps, contact half the time
     (result,) = record_runs(plan([spec]), tmp_path / "logs")
     m = measure(result.path, tmp_path / "results")
     assert m["code"] == 0 and m["steps"] == 100_001

@@ -21,6 +21,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap.writer import Writer
 from paths import ROOT
+from specs import drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
@@ -32,17 +33,7 @@ from impactlab.logs.info import describe
 from impactlab.logs.load import load_log
 from impactlab.replay.recordings import write_recording
 
-SPEC = """
-name = "odd"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.2]
-[stop]
-max_time = 0.3
-"""
+SPEC = toml(drop("odd", z=0.2, max_time=0.3))
 RUN, OUTCOME = logformat.RUN_METADATA, logformat.OUTCOME_METADATA
 KEYS = (*logformat.RUN_KEYS, *logformat.OUTCOME_KEYS)
 ANALYSIS_KEYS = (  # docs/log-format.md

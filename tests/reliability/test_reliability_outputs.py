@@ -17,25 +17,21 @@ from pathlib import Path
 import matplotlib.image
 import polars as pl
 import pytest
+from specs import drop, toml
 
 from impactlab.cli import main
 
 MANIFEST = ".impactlab-analysis.json"  # documented in docs/reliability.md
 STAGING_PREFIX = ".impactlab-staging-"
 
-SPEC = """
-name = "drops"
-[options]
-timestep = 0.001
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.3]
-[stop]
-max_time = 0.5
-[sweep]
-"ball.pos" = [[0.0, 0.0, 0.25], [0.0, 0.0, 0.3], [0.0, 0.0, 0.35]]
-"""
+SPEC = toml(
+    drop(
+        "drops",
+        z=0.3,
+        max_time=0.5,
+        sweep={"ball.pos": [[0.0, 0.0, 0.25], [0.0, 0.0, 0.3], [0.0, 0.0, 0.35]]},
+    )
+)
 USER_FILES = {"notes.md": "my notes\n", "figures/mine.png": "not even a PNG"}
 
 

@@ -16,6 +16,7 @@ import numpy as np
 import polars as pl
 import pytest
 import rerun as rr
+from specs import collision, drop, toml
 
 from impactlab import cli
 from impactlab.analyze.measure.analysis import analyze_run
@@ -27,44 +28,28 @@ from impactlab.replay.recordings import replay_logs
 
 RERUN = Path(sys.executable).parent / "rerun"
 
-DROP = """
-name = "replay_drop"
-[options]
-timestep = 0.0005
-gravity = [0.0, 0.0, -9.81]
-[contact]
-solref = [-20000.0, -5.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-vel = [0.3, 0.0, 0.0]
-angvel = [0.0, 5.0, 0.0]
-[stop]
-max_time = 1.5
-"""
+DROP = toml(
+    drop(
+        "replay_drop",
+        vel=[0.3, 0.0, 0.0],
+        angvel=[0.0, 5.0, 0.0],
+        timestep=0.0005,
+        gravity=[0.0, 0.0, -9.81],
+        contact={"solref": [-20000.0, -5.0]},
+        max_time=1.5,
+    )
+)
 
-COLLISION = """
-name = "replay_collision"
-[options]
-timestep = 0.0005
-gravity = [0.0, 0.0, 0.0]
-[plane]
-enabled = false
-[bodies.ball1]
-radius = 0.1
-mass = 1.0
-pos = [-0.3, 0.0, 0.5]
-vel = [2.0, 0.0, 0.0]
-[bodies.ball2]
-radius = 0.1
-mass = 2.0
-pos = [0.3, 0.0, 0.5]
-vel = [-1.0, 0.0, 0.0]
-[stop]
-max_time = 1.0
-separation = 0.1
-"""
+COLLISION = toml(
+    collision(
+        "replay_collision",
+        names=("ball1", "ball2"),
+        z=0.5,
+        masses=(1.0, 2.0),
+        timestep=0.0005,
+        separation=0.1,
+    )
+)
 
 
 @pytest.fixture(scope="module")

@@ -19,6 +19,7 @@ import rerun as rr
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from paths import GOLDEN
+from specs import drop, toml
 
 from impactlab.logs.geoms import SCENE_METADATA, decode_stl, read_scene
 from impactlab.logs.load import load_log
@@ -532,17 +533,7 @@ def test_the_viewer_draws_the_articulated_model(models, tmp_path):
     assert counts and min(counts.values()) >= 150, counts
 
 
-DROP = """
-name = "layout_drop"
-[options]
-timestep = 0.0005
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-[stop]
-max_time = 0.6
-"""
+DROP = toml(drop("layout_drop", z=0.5, timestep=0.0005, max_time=0.6))
 
 
 def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):

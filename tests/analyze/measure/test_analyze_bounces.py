@@ -12,6 +12,7 @@ import math
 import numpy as np
 import polars as pl
 import pytest
+from specs import DIRECT, drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import load_log
@@ -24,25 +25,20 @@ RADIUS = 0.05
 Z0 = 1.05  # centre height: 1.0 m above the contact height
 VX0, VZ0 = 0.3, 0.5  # a toss: up and sideways, so the free flight has v0 != 0
 
-DROP_SPEC = f"""
-name = "known_drop"
-[options]
-timestep = {DT}
-integrator = "Euler"
-gravity = [0.0, 0.0, {-G}]
-[contact]
-condim = 1
-solref = [{-K}, {-2 * ZETA * math.sqrt(K)!r}]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = {RADIUS}
-mass = 1.0
-pos = [0.0, 0.0, {Z0}]
-vel = [{VX0}, 0.0, {VZ0}]
-[stop]
-max_time = 3.0
-bounces = 3
-"""
+DROP_SPEC = toml(
+    drop(
+        "known_drop",
+        z=Z0,
+        radius=RADIUS,
+        vel=[VX0, 0.0, VZ0],
+        timestep=DT,
+        integrator="Euler",
+        gravity=[0.0, 0.0, -G],
+        contact={**DIRECT, "solref": [-K, -2 * ZETA * math.sqrt(K)]},
+        max_time=3.0,
+        bounces=3,
+    )
+)
 
 
 def schwager_poeschel(zeta: float) -> float:

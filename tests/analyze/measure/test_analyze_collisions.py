@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from specs import DIRECT, collision, toml
 from test_analyze_bounces import schwager_poeschel
 
 from impactlab.analyze.measure.analysis import analyze_run
@@ -15,32 +16,20 @@ from impactlab.physics import collision_after
 K, ZETA, DT = 1.0e5, 0.1, 1.0e-4
 M1, M2, V1, V2 = 1.0, 2.0, 2.0, -1.0
 
-COLLISION_SPEC = f"""
-name = "known_collision"
-[options]
-timestep = {DT}
-integrator = "Euler"
-gravity = [0.0, 0.0, 0.0]
-[contact]
-condim = 1
-solref = [{-K}, {-2 * ZETA * math.sqrt(K)!r}]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[plane]
-enabled = false
-[bodies.ball1]
-radius = 0.05
-mass = {M1}
-pos = [-0.2, 0.0, 0.0]
-vel = [{V1}, 0.0, 0.0]
-[bodies.ball2]
-radius = 0.05
-mass = {M2}
-pos = [0.2, 0.0, 0.0]
-vel = [{V2}, 0.0, 0.0]
-[stop]
-max_time = 1.0
-separation = 0.05
-"""
+COLLISION_SPEC = toml(
+    collision(
+        "known_collision",
+        names=("ball1", "ball2"),
+        x=0.2,
+        vel=(V1, V2),
+        masses=(M1, M2),
+        radius=0.05,
+        timestep=DT,
+        integrator="Euler",
+        contact={**DIRECT, "solref": [-K, -2 * ZETA * math.sqrt(K)]},
+        max_time=1.0,
+    )
+)
 
 
 @pytest.fixture(scope="module")

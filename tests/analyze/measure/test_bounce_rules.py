@@ -11,6 +11,7 @@ import numpy as np
 import polars as pl
 import pytest
 from paths import GOLDEN, ROOT
+from specs import ball, drop, spec, toml
 from test_analyze_bounces import DROP_SPEC, G
 
 import impactlab
@@ -20,27 +21,17 @@ from impactlab.cli import main
 from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log
 
-PAIRS = """
-name = "pairs"
-[options]
-timestep = 0.000005
-[contact]
-condim = 1
-[contact.pairs."a/plane"]
-restitution = 0.42
-[contact.pairs."b/plane"]
-restitution = 0.88
-[bodies.a]
-radius = 0.05
-mass = 1.0
-pos = [0.0, 0.0, 0.55]
-[bodies.b]
-radius = 0.05
-mass = 1.0
-pos = [0.5, 0.0, 0.55]
-[stop]
-max_time = 1.0
-"""
+PAIRS = toml(
+    spec(
+        "pairs",
+        {"a": ball(0.55, radius=0.05), "b": ball(0.55, x=0.5, radius=0.05)},
+        timestep=0.000005,
+        contact={
+            "condim": 1,
+            "pairs": {"a/plane": {"restitution": 0.42}, "b/plane": {"restitution": 0.88}},
+        },
+    )
+)
 TARGETS = {"a": 0.42, "b": 0.88}
 
 
@@ -124,26 +115,13 @@ def test_the_stop_step_is_logged(record_spec):
     assert ball["vz"][-1] <= 0 < ball["vz"][-2]  # the apex after the last bounce
 
 
-REST = """
-name = "rest"
-[options]
-timestep = 0.0005
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.1]
-vel = [{v}, 0.0, 0.0]
-angvel = [0.0, {w}, 0.0]
-[stop]
-max_time = 1.0
-"""
-
-
 @pytest.mark.parametrize(
     ("v", "w"), [(0.0, 0.0), (1.0, 10.0), (1.0, 0.0)], ids=["rest", "rolling", "sliding"]
 )
 def test_resting_rolling_and_sliding_balls_make_no_bounce(record_spec, v, w):
-    (path,) = record_spec("rest", REST.format(v=v, w=w))
+    (path,) = record_spec(
+        "rest", drop("rest", z=0.1, vel=[v, 0.0, 0.0], angvel=[0.0, w, 0.0], timestep=0.0005)
+    )
     a = analyze_run(load_log(path))
     assert a.summary["n_bounces"] == 0
     (row,) = a.bounces.rows(named=True)

@@ -10,36 +10,29 @@ import numpy as np
 import polars as pl
 import pytest
 from paths import GOLDEN
+from specs import DIRECT, drop, toml
 
 from impactlab.analyze.measure import reference
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.logs.load import RunLog, load_log
 
-DROP = """
-name = "oracle_drop"
-[options]
-timestep = 0.0005
-integrator = "{integrator}"
-[contact]
-condim = 1
-solref = [-100000.0, -63.245553]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 1.0]
-[stop]
-max_time = 2.0
-bounces = 3
-[logging]
-every = {every}
-"""
-
 
 def recorded(tmp_path: Path, integrator: str, every: int) -> RunLog:
     spec = tmp_path / f"{integrator}-{every}.toml"
-    spec.write_text(DROP.format(integrator=integrator, every=every))
+    spec.write_text(
+        toml(
+            drop(
+                "oracle_drop",
+                timestep=0.0005,
+                integrator=integrator,
+                contact=DIRECT,
+                max_time=2.0,
+                bounces=3,
+                every=every,
+            )
+        )
+    )
     out = tmp_path / spec.stem
     assert main(["record", str(spec), "-o", str(out)]) == 0
     (path,) = out.glob("*.mcap")

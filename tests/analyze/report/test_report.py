@@ -6,53 +6,31 @@ from __future__ import annotations
 import re
 
 import pytest
+from specs import DIRECT, collision, drop, toml
 
 from impactlab.analyze.job import run_analysis
 from impactlab.analyze.tables.labels import parameter_words
 
-DROP = """
-name = "swept_drop"
-[options]
-timestep = 0.0005
-[contact]
-condim = 1
-solref = [-100000.0, -63.245553]
-solimp = [0.9999, 0.9999, 0.001, 0.5, 2.0]
-[bodies.ball]
-radius = 0.1
-mass = 1.0
-pos = [0.0, 0.0, 0.5]
-[stop]
-max_time = 2.0
-bounces = 3
-[sweep]
-"ball.pos" = [[0.0, 0.0, 0.4], [0.0, 0.0, 0.6]]
-"""
-COLLISION = """
-name = "swept_collision"
-[options]
-timestep = 0.00002
-gravity = [0.0, 0.0, 0.0]
-[contact]
-restitution = 0.5
-[plane]
-enabled = false
-[bodies.a]
-radius = 0.1
-mass = 1.0
-pos = [-0.3, 0.0, 0.0]
-vel = [2.0, 0.0, 0.0]
-[bodies.b]
-radius = 0.1
-mass = 1.0
-pos = [0.3, 0.0, 0.0]
-vel = [-1.0, 0.0, 0.0]
-[stop]
-max_time = 0.5
-separation = 0.05
-[sweep]
-"contact.restitution" = [0.5, 0.9]
-"""
+DROP = toml(
+    drop(
+        "swept_drop",
+        z=0.5,
+        timestep=0.0005,
+        contact=DIRECT,
+        max_time=2.0,
+        bounces=3,
+        sweep={"ball.pos": [[0.0, 0.0, 0.4], [0.0, 0.0, 0.6]]},
+    )
+)
+COLLISION = toml(
+    collision(
+        "swept_collision",
+        timestep=0.00002,
+        contact={"restitution": 0.5},
+        max_time=0.5,
+        sweep={"contact.restitution": [0.5, 0.9]},
+    )
+)
 STEPS = ("step-1-energy", "step-2-restitution", "step-3-collision", "step-4-parameter-studies")
 NUMBER = re.compile(r"\d+\.\d+|\d+ %|\d+e-\d+")
 
