@@ -11,10 +11,9 @@ from pathlib import Path
 
 import polars as pl
 import pytest
+from known import COLLISION_SPEC, DROP_SPEC
 from mcap.writer import Writer
 from specs import SOFT, drop, toml
-from test_analyze_bounces import DROP_SPEC
-from test_analyze_collisions import COLLISION_SPEC
 
 from impactlab.analyze.job import run_analysis
 from impactlab.cli import main

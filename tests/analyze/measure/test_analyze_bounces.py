@@ -12,43 +12,10 @@ import math
 import numpy as np
 import polars as pl
 import pytest
-from specs import DIRECT, drop, toml
+from known import DROP_SPEC, DT, VX0, VZ0, Z0, ZETA, G, K, schwager_poeschel
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import load_log
-
-K = 1.0e5
-ZETA = 0.1
-DT = 1.0e-4
-G = 9.81
-RADIUS = 0.05
-Z0 = 1.05  # centre height: 1.0 m above the contact height
-VX0, VZ0 = 0.3, 0.5  # a toss: up and sideways, so the free flight has v0 != 0
-
-DROP_SPEC = toml(
-    drop(
-        "known_drop",
-        z=Z0,
-        radius=RADIUS,
-        vel=[VX0, 0.0, VZ0],
-        timestep=DT,
-        integrator="Euler",
-        gravity=[0.0, 0.0, -G],
-        contact={**DIRECT, "solref": [-K, -2 * ZETA * math.sqrt(K)]},
-        max_time=3.0,
-        bounces=3,
-    )
-)
-
-
-def schwager_poeschel(zeta: float) -> float:
-    """e of the linear dashpot with the contact ending at zero force (independent of k)."""
-    w0 = 1.0
-    beta = zeta * w0
-    w = math.sqrt(w0**2 - beta**2)
-    if beta < w0 / math.sqrt(2):
-        return math.exp(-(beta / w) * (math.pi - math.atan(2 * beta * w / (w**2 - beta**2))))
-    return math.exp(-(beta / w) * math.atan(2 * beta * w / (beta**2 - w**2)))
 
 
 @pytest.fixture(scope="module")

@@ -2,34 +2,13 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from specs import DIRECT, collision, toml
-from test_analyze_bounces import schwager_poeschel
+from known import COLLISION_SPEC, M1, M2, V1, V2, ZETA, schwager_poeschel
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.logs.load import load_log
 from impactlab.physics import collision_after
-
-K, ZETA, DT = 1.0e5, 0.1, 1.0e-4
-M1, M2, V1, V2 = 1.0, 2.0, 2.0, -1.0
-
-COLLISION_SPEC = toml(
-    collision(
-        "known_collision",
-        names=("ball1", "ball2"),
-        x=0.2,
-        vel=(V1, V2),
-        masses=(M1, M2),
-        radius=0.05,
-        timestep=DT,
-        integrator="Euler",
-        contact={**DIRECT, "solref": [-K, -2 * ZETA * math.sqrt(K)]},
-        max_time=1.0,
-    )
-)
 
 
 @pytest.fixture(scope="module")

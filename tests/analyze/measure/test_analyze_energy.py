@@ -7,7 +7,7 @@ import math
 import numpy as np
 import polars as pl
 import pytest
-from test_analyze_bounces import DROP_SPEC, DT, RADIUS, Z0, G
+from known import DROP_SPEC, DT, RADIUS, Z0, G
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.measure.energy import body_energy

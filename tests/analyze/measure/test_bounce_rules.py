@@ -10,9 +10,9 @@ import shutil
 import numpy as np
 import polars as pl
 import pytest
+from known import DROP_SPEC, G
 from paths import GOLDEN, ROOT
 from specs import ball, drop, spec, toml
-from test_analyze_bounces import DROP_SPEC, G
 
 import impactlab
 from impactlab.analyze.measure.analysis import analyze_run
