@@ -72,6 +72,7 @@ def close(a: object, b: object, where: str = "") -> None:
         assert a == b, where
 
 
+@pytest.mark.slow
 def test_streamed_tables_equal_one_batch(logs200, tmp_path, monkeypatch):
     """200 logs in batches of 7 (29 parts per table) against one batch of all 200, and
     against the tables held in memory (no folder)."""
@@ -119,6 +120,7 @@ def driver_peak(logs: list[Path], out: Path) -> int:
     return peak
 
 
+@pytest.mark.slow
 def test_driver_memory_does_not_grow_with_the_runs(tmp_path, monkeypatch):
     """400 logs need no more of the driver's Python memory than 100 (within 1.3x): it holds
     one batch of frames and a small brief per run, not every run's tables and metadata."""

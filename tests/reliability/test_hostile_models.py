@@ -315,6 +315,7 @@ def small(body: str = "ball", **options) -> str:
     return toml(drop("s", z=0.5, body=body, **{"max_time": 0.02, **options}))
 
 
+@pytest.mark.slow
 def test_a_sweep_over_the_description_is_analyzed(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text(small(sweep={"description": ["first", "second"]}))

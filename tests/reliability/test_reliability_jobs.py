@@ -208,6 +208,7 @@ def test_overwrite_reruns_everything(tmp_path, capsys):
 # determinism
 
 
+@pytest.mark.slow
 def test_batching_does_not_change_the_logs(tmp_path):
     """Serial (one run at a time, one thread) and batched (4 runs, 2 threads) recordings of the
     same spec file give byte-identical logs. Byte for byte holds because both are recorded on
@@ -275,6 +276,7 @@ class _FillingDisk:
         self._stream.close()
 
 
+@pytest.mark.slow
 def test_disk_full_while_writing(tmp_path, capsys, monkeypatch):
     """The disk fills while the logs are written (room for two and a half): one error line
     saying how many logs are complete, non-zero exit, every finished log intact, no

@@ -539,6 +539,7 @@ def test_missing_and_folder(tmp_path, capsys):
     assert code == 1 and "folder" in assert_error_line(err, folder)
 
 
+@pytest.mark.slow
 def test_one_bad_log_does_not_stop_the_others(tmp_path, capsys, intact):
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"garbage")
