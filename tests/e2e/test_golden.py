@@ -56,6 +56,11 @@ from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
 
 IDS = [g.name for g in GOLDENS]
+# every golden log; drop_bounces, the largest (1 to 2.5 s a test), in the slow tier only
+READ = [
+    pytest.param(g, id=g.name, marks=[pytest.mark.slow] if g.name == "drop_bounces" else [])
+    for g in GOLDENS
+]
 CURRENT_SCHEMAS = {
     logformat.BODY_STATE_SCHEMA: pb.BodyState,
     logformat.CONTACT_SCHEMA: pb.Contact,
@@ -98,7 +103,7 @@ def read_official(path: Path):
     return summary, messages, meta
 
 
-@pytest.mark.parametrize("golden", GOLDENS, ids=IDS)
+@pytest.mark.parametrize("golden", READ)
 def test_official_reader_agrees_with_load(golden: Golden):
     summary, messages, meta = read_official(golden.log_path)
     counts = Counter(topic for topic, _, _ in messages)
@@ -170,7 +175,7 @@ def _fields(proto: descriptor_pb2.DescriptorProto) -> dict[str, tuple[int, int, 
     return {f.name: (f.number, f.type, f.label, f.type_name) for f in proto.field}
 
 
-@pytest.mark.parametrize("golden", GOLDENS, ids=IDS)
+@pytest.mark.parametrize("golden", READ)
 def test_golden_logs_still_decode_with_the_current_schema(golden: Golden):
     """A schema change that breaks reading existing logs fails here: see docs/log-format.md."""
     summary, _, meta = read_official(golden.log_path)
@@ -334,7 +339,7 @@ def nudged(golden: Golden, path: Path, *, rel: float | None = None) -> Path:
     return path
 
 
-@pytest.mark.parametrize("golden", GOLDENS, ids=IDS)
+@pytest.mark.parametrize("golden", READ)
 def test_last_bit_differences_agree_with_the_golden_log(golden: Golden, tmp_path):
     """Another CPU may round MuJoCo's or numpy's results differently in the last bit: such a
     recording agrees with its golden log, although it differs bit for bit."""
@@ -347,7 +352,7 @@ def test_last_bit_differences_agree_with_the_golden_log(golden: Golden, tmp_path
     assert diff.equal, diff.report()
 
 
-@pytest.mark.parametrize("golden", GOLDENS[:2], ids=IDS[:2])
+@pytest.mark.parametrize("golden", READ[:2])
 def test_a_change_far_below_what_matters_is_still_caught(golden: Golden, tmp_path):
     """1e-9 relative is far below any physical change and far above the last bit."""
     changed = nudged(golden, tmp_path / "changed.mcap", rel=1e-9)

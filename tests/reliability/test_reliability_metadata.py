@@ -187,6 +187,7 @@ def test_the_schema_declares_every_key_the_format_has():
         assert f"| `{key.name}` | `{key.record}` | {key.holds} | {needed} |" in doc, key.name
 
 
+@pytest.mark.slow  # 127 cases, each read by the commands: 23 s
 @pytest.mark.parametrize("case", cases(), ids=case_id)
 def test_every_key_wrong_missing_or_out_of_range(tmp_path, records, intact, case):
     key, value = case
