@@ -9,12 +9,12 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import pytest
 from paths import ROOT
 from specs import drop, toml
+from waiting import wait_until
 
 from impactlab.progress import ProgressEvent
 from impactlab.record import forked, plan, record_runs
@@ -134,11 +134,7 @@ def test_sigterm_stops_the_workers_and_leaves_nothing(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 60
-    while len(list(out.glob("*.partial"))) < 2:  # both workers are writing
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    wait_until(lambda: len(list(out.glob("*.partial"))) >= 2, proc, what="two workers writing")
     workers = [int(p.name.split(".")[-2]) for p in out.glob("*.partial")]
     assert proc.pid not in workers
     proc.send_signal(signal.SIGTERM)

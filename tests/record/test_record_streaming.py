@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 from paths import ROOT
 from specs import drop, toml
+from waiting import wait_until
 
 from impactlab.logs.load import load_log
 
@@ -70,11 +71,8 @@ def test_sigterm_stops_a_long_run_within_a_chunk(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 60
-    while not list(out.glob("*.partial")):  # the log is open: simulation is under way
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    # the log is open: simulation is under way
+    wait_until(lambda: any(out.glob("*.partial")), proc, what="a log being written")
     time.sleep(0.5)
     proc.send_signal(signal.SIGTERM)
     try:

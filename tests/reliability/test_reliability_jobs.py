@@ -11,7 +11,6 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ import pytest
 from mcap.reader import make_reader
 from paths import ROOT
 from specs import SOFT, drop, toml
+from waiting import wait_until
 
 from impactlab.cli import main
 from impactlab.logs import writer as writer_module
@@ -155,11 +155,7 @@ def test_interrupted_job(tmp_path, capsys, sig):
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 60
-    while not list(out.glob("*.mcap")):
-        assert proc.poll() is None, proc.communicate()
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    wait_until(lambda: any(out.glob("*.mcap")), proc, what="a log file")
     proc.send_signal(sig)
     stdout, stderr = proc.communicate(timeout=60)
     assert "Traceback" not in stderr, stderr

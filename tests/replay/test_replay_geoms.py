@@ -20,6 +20,7 @@ from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from paths import GOLDEN
 from specs import drop, toml
+from waiting import wait_until
 
 from impactlab.logs.geoms import SCENE_METADATA, decode_stl, read_scene
 from impactlab.logs.load import load_log
@@ -435,6 +436,17 @@ def _serve_folder(folder: Path):
     return server
 
 
+def serves(url: str) -> bool:
+    """Whether a server answers at `url` (a request that fails says no)."""
+    import urllib.request
+
+    try:
+        urllib.request.urlopen(url, timeout=2).close()
+    except OSError:
+        return False
+    return True
+
+
 def screenshot_replay(
     rrd: Path,
     png: Path,
@@ -473,14 +485,7 @@ def screenshot_replay(
     try:
         start(["Xvfb", f":{display}", "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24"])
         start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web)])
-        start_by = time.monotonic() + 30
-        while True:
-            try:
-                urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=2).close()
-                break
-            except OSError:
-                assert time.monotonic() < start_by, "the web viewer did not start"
-                time.sleep(0.5)
+        wait_until(lambda: serves(f"http://127.0.0.1:{web}/"), what="the web viewer", poll_s=0.5)
         source = f"http://127.0.0.1:{files.server_address[1]}/{rrd.name}"
         url = f"http://127.0.0.1:{web}/?url={urllib.parse.quote(source, safe='')}"
         browser = [
