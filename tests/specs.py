@@ -3,8 +3,8 @@
 `drop(...)` is one ball dropped on the ground, `collision(...)` two balls meeting head on in
 zero gravity with no ground, `spec(...)` anything else; each returns a fresh dict with the
 spec's defaults overridden by keyword, and `toml(spec)` writes it as the text a spec file
-holds (what the `record_spec` fixture and `impactlab record` read). Lengths in m, speeds in
-m/s, times in s.
+holds (what the `record_spec` fixture and `impactlab record` read). `mjcf_drop(...)` is an
+MJCF model of one body dropped on a floor. Lengths in m, speeds in m/s, times in s.
 """
 
 from __future__ import annotations
@@ -125,6 +125,26 @@ def collision(
     }
     options.setdefault("gravity", [0.0, 0.0, 0.0])
     return spec(name, bodies, plane=False, separation=separation, **options)
+
+
+def mjcf_drop(
+    name: str, shape: str, size: str, z: float, *, euler: str = "0 0 0", condim: int = 1
+) -> str:
+    """An MJCF model: a 1 kg body of one geom (`shape`, `size` as MJCF writes it) at rest at
+    height `z`, turned by `euler` (degrees), above a floor, with the DIRECT contact."""
+    solref, solimp = (" ".join(f"{v:.10g}" for v in DIRECT[k]) for k in ("solref", "solimp"))
+    return f"""<mujoco model="{name}">
+  <option timestep="0.0001" gravity="0 0 -9.81"/>
+  <default><geom condim="{condim}" solref="{solref}" solimp="{solimp}"/></default>
+  <worldbody>
+    <geom name="floor" type="plane" size="2 2 0.1"/>
+    <body name="{name}" pos="0 0 {z}" euler="{euler}">
+      <freejoint/>
+      <geom name="{name}" type="{shape}" size="{size}" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
 
 
 def toml(spec: Mapping[str, Any]) -> str:

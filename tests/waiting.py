@@ -1,4 +1,5 @@
-"""Waiting for a real process to reach a state (a log file open, workers started, a server up).
+"""Real processes: starting `impactlab record`, waiting for a state (a log file open, workers
+started, a server up), stopping it with a signal.
 
 A test waits for what it needs, never for a time; the only clock here is a guard that keeps a
 hung process from hanging the suite. It is no speed requirement: it is set far above every
@@ -7,11 +8,15 @@ wait measured on a loaded machine (load average 10 on 2 cores).
 
 from __future__ import annotations
 
+import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 HANG_GUARD_S = 300.0
 
@@ -34,3 +39,27 @@ def wait_until(
         if time.monotonic() > guard:
             pytest.fail(f"no sign of {what} after {HANG_GUARD_S:.0f} s: the process hangs")
         time.sleep(poll_s)
+
+
+def record_process(spec: Path, out: Path, *args: str) -> subprocess.Popen:
+    """`impactlab record SPEC -o OUT ARGS` as a process of its own, its output piped."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out), *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def interrupt(
+    proc: subprocess.Popen, sig: int = signal.SIGTERM, *, within_s: float = 15.0
+) -> tuple[str, str]:
+    """Send `sig` and return the process' (stdout, stderr) once it has ended, which must be
+    within `within_s` (a job stops between two chunks; a run left to its end takes minutes)."""
+    proc.send_signal(sig)
+    try:
+        return proc.communicate(timeout=within_s)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise AssertionError(f"signal {sig} did not stop the job within {within_s} s") from None

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import polars as pl
 import pytest
-from specs import DIRECT, drop, toml
+from specs import DIRECT, drop, mjcf_drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.measure.bounces import TURNING
@@ -42,24 +42,6 @@ HANDOUT_BALL = """
 </worldbody>
 </mujoco>
 """
-
-BOUNCY = """<mujoco model="{name}">
-  <option timestep="0.0001" gravity="0 0 -9.81"/>
-  <default><geom condim="1" solref="-100000 -63.245553" solimp="0.9999 0.9999 0.001 0.5 2"/></default>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
-    <body name="{name}" pos="0 0 {z}" euler="{euler}">
-      <freejoint/>
-      <geom name="{name}" type="{shape}" size="{size}" mass="1"/>
-    </body>
-  </worldbody>
-</mujoco>
-"""
-
-
-def bouncy(name: str, shape: str, size: str, z: float, euler: str = "0 0 0") -> str:
-    """A body dropped at rest onto the floor with the dashpot contact."""
-    return BOUNCY.format(name=name, shape=shape, size=size, z=z, euler=euler)
 
 
 @pytest.mark.slow
@@ -95,14 +77,16 @@ def test_handout_ball_as_written(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def flat_box(record_model) -> RunLog:
     path = record_model(
-        "box", bouncy("box", "box", "0.05 0.05 0.05", 0.55), ["stop.bounces=2", "stop.max_time=2"]
+        "box",
+        mjcf_drop("box", "box", "0.05 0.05 0.05", 0.55),
+        ["stop.bounces=2", "stop.max_time=2"],
     )
     return load_log(path)
 
 
 @pytest.fixture(scope="module")
 def edge_box(record_model) -> RunLog:
-    model = bouncy("box", "box", "0.05 0.05 0.05", 0.6, euler="30 0 0")
+    model = mjcf_drop("box", "box", "0.05 0.05 0.05", 0.6, euler="30 0 0")
     return load_log(record_model("box_edge", model, ["stop.max_time=0.6"]))
 
 
@@ -176,7 +160,7 @@ def test_box_landing_on_an_edge(edge_box):
 
 def test_capsule(record_model):
     """A capsule lying flat (axis horizontal): heights of its lowest line, rest height = radius."""
-    model = bouncy("capsule", "capsule", "0.05 0.1", 0.55, euler="0 90 0")
+    model = mjcf_drop("capsule", "capsule", "0.05 0.1", 0.55, euler="0 90 0")
     run = load_log(record_model("capsule", model, ["stop.bounces=2", "stop.max_time=2"]))
     assert run.body_info["capsule"].shape == "capsule"
     assert run.body_info["capsule"].rest_height_m == pytest.approx(0.05, abs=1e-12)
@@ -231,7 +215,7 @@ def test_contact_point_equals_centre_for_a_spinning_ball(record_spec, edge_box):
 def test_a_turning_box_gives_the_same_e_logged_every_25_steps(record_model, edge_box):
     """The cube landing on an edge spins after it: its contact point's impact and release
     are extrapolated with the rotation too, so e does not depend on the logging rate."""
-    model = bouncy("box", "box", "0.05 0.05 0.05", 0.6, euler="30 0 0")
+    model = mjcf_drop("box", "box", "0.05 0.05 0.05", 0.6, euler="30 0 0")
     coarse = load_log(record_model("box_edge", model, ["stop.max_time=0.6", "logging.every=25"]))
     fine, sparse = analyze_run(edge_box).bounces, analyze_run(coarse).bounces
     assert fine.height == sparse.height >= 3

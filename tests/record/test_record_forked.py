@@ -5,16 +5,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import signal
-import subprocess
 import sys
 import threading
 from pathlib import Path
 
 import pytest
-from paths import ROOT
 from specs import drop, toml
-from waiting import wait_until
+from waiting import interrupt, record_process, wait_until
 
 from impactlab.progress import ProgressEvent
 from impactlab.record import forked, plan, record_runs
@@ -127,22 +124,11 @@ def test_sigterm_stops_the_workers_and_leaves_nothing(tmp_path):
     text = spec.read_text().replace("timestep = 0.001", "timestep = 0.0001")
     spec.write_text(text + "[logging]\nevery = 100\n")
     out = tmp_path / "logs"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out), "--allow-large"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = record_process(spec, out, "--allow-large")
     wait_until(lambda: len(list(out.glob("*.partial"))) >= 2, proc, what="two workers writing")
     workers = [int(p.name.split(".")[-2]) for p in out.glob("*.partial")]
     assert proc.pid not in workers
-    proc.send_signal(signal.SIGTERM)
-    try:
-        _, stderr = proc.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise AssertionError("SIGTERM did not stop the job within 15 s") from None
+    _, stderr = interrupt(proc)
     assert proc.returncode == 130, stderr
     assert "Traceback" not in stderr and "impactlab: interrupted" in stderr
     assert list(out.iterdir()) == []

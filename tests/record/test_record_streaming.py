@@ -4,7 +4,6 @@ run's length, and SIGTERM stops a job within a chunk, leaving only complete logs
 from __future__ import annotations
 
 import json
-import signal
 import subprocess
 import sys
 import time
@@ -13,7 +12,7 @@ from pathlib import Path
 import pytest
 from paths import ROOT
 from specs import drop, toml
-from waiting import wait_until
+from waiting import interrupt, record_process, wait_until
 
 from impactlab.logs.load import load_log
 
@@ -64,22 +63,11 @@ def test_sigterm_stops_a_long_run_within_a_chunk(tmp_path):
     spec = tmp_path / "endless.toml"
     spec.write_text(long_drop(1000.0, every=100))
     out = tmp_path / "logs"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = record_process(spec, out)
     # the log is open: simulation is under way
     wait_until(lambda: any(out.glob("*.partial")), proc, what="a log being written")
     time.sleep(0.5)
-    proc.send_signal(signal.SIGTERM)
-    try:
-        stdout, stderr = proc.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        raise AssertionError("SIGTERM did not stop the job within 15 s") from None
+    stdout, stderr = interrupt(proc)
     assert proc.returncode == 130, (stdout, stderr)
     assert "Traceback" not in stderr and "impactlab: interrupted" in stderr
     assert list(out.iterdir()) == []

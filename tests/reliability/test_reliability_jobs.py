@@ -9,16 +9,13 @@ import multiprocessing
 import os
 import re
 import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from paths import ROOT
 from specs import SOFT, drop, toml
-from waiting import wait_until
+from waiting import interrupt, record_process, wait_until
 
 from impactlab.cli import main
 from impactlab.logs import writer as writer_module
@@ -148,16 +145,9 @@ def test_interrupted_job(tmp_path, capsys, sig):
     (.partial leftovers only after SIGKILL), and a re-run reuses them and runs the rest."""
     spec = spec_file(tmp_path, "slow", dt=0.0001, max_time=4.0, extra=SLOW_SWEEP)
     out = tmp_path / "logs"
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "impactlab", "record", str(spec), "-o", str(out)],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = record_process(spec, out)
     wait_until(lambda: any(out.glob("*.mcap")), proc, what="a log file")
-    proc.send_signal(sig)
-    stdout, stderr = proc.communicate(timeout=60)
+    stdout, stderr = interrupt(proc, sig, within_s=60)
     assert "Traceback" not in stderr, stderr
     if sig == signal.SIGKILL:
         assert proc.returncode == -signal.SIGKILL

@@ -40,16 +40,8 @@ DROP = toml(
     )
 )
 
-COLLISION = toml(
-    collision(
-        "replay_collision",
-        names=("ball1", "ball2"),
-        z=0.5,
-        masses=(1.0, 2.0),
-        timestep=0.0005,
-        separation=0.1,
-    )
-)
+BALLS = {"names": ("ball1", "ball2"), "masses": (1.0, 2.0), "z": 0.5}
+COLLISION = toml(collision("replay_collision", timestep=0.0005, separation=0.1, **BALLS))
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import polars as pl
 import pytest
+from specs import mjcf_drop
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.measure.bounces import E_ABOVE_ONE
@@ -21,18 +22,7 @@ from impactlab.logs.load import load_log
 
 E_DASHPOT = 0.7441  # Schwager-Poeschel, zeta = 0.1
 
-CUBE = """<mujoco model="cube">
-  <option timestep="0.0001" gravity="0 0 -9.81"/>
-  <default><geom condim="3" solref="-100000 -63.245553" solimp="0.9999 0.9999 0.001 0.5 2"/></default>
-  <worldbody>
-    <geom name="floor" type="plane" size="2 2 0.1"/>
-    <body name="cube" pos="0 0 0.5" euler="20 35 10">
-      <freejoint/>
-      <geom name="cube" type="box" size="0.05 0.05 0.05" mass="1"/>
-    </body>
-  </worldbody>
-</mujoco>
-"""
+CUBE = mjcf_drop("cube", "box", "0.05 0.05 0.05", 0.5, euler="20 35 10", condim=3)
 
 
 def bounces(tmp_path: Path, every: int) -> pl.DataFrame:
