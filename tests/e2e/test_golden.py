@@ -35,6 +35,7 @@ from google.protobuf import descriptor_pb2
 from google.protobuf.unknown_fields import UnknownFieldSet
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from mcap_copy import register_like
 from mcap_protobuf.decoder import DecoderFactory
 from polars.testing import assert_frame_equal
 
@@ -292,19 +293,7 @@ def nudged(golden: Golden, path: Path, *, rel: float | None = None) -> Path:
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="nudged")
-        sids = {
-            sid: writer.register_schema(name=s.name, encoding=s.encoding, data=s.data)
-            for sid, s in summary.schemas.items()
-        }
-        cids = {
-            cid: writer.register_channel(
-                topic=c.topic,
-                message_encoding=c.message_encoding,
-                schema_id=sids[c.schema_id],
-                metadata=c.metadata,
-            )
-            for cid, c in summary.channels.items()
-        }
+        cids = register_like(writer, summary)
         for name, values in meta:
             for key in ("timestep_s", "bodies"):
                 if key in values:

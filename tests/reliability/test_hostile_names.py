@@ -30,6 +30,7 @@ from hypothesis import strategies as st
 from markdown_it import MarkdownIt
 from mcap.reader import make_reader
 from mcap.writer import Writer
+from mcap_copy import register_like
 from specs import drop, toml
 
 from impactlab.analyze.report import html as page_html
@@ -120,19 +121,7 @@ def rewrite(log: Path, path: Path, **changes: str) -> Path:
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="hostile")
-        schemas = {
-            sid: writer.register_schema(name=s.name, encoding=s.encoding, data=s.data)
-            for sid, s in summary.schemas.items()
-        }
-        channels = {
-            cid: writer.register_channel(
-                topic=c.topic,
-                message_encoding=c.message_encoding,
-                schema_id=schemas[c.schema_id],
-                metadata=dict(c.metadata),
-            )
-            for cid, c in summary.channels.items()
-        }
+        channels = register_like(writer, summary)
         for name, values in meta:
             outcome = name == logformat.OUTCOME_METADATA
             mine = {k: v for k, v in changes.items() if (k in logformat.OUTCOME_KEYS) == outcome}

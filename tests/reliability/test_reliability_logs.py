@@ -21,6 +21,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
+from mcap_copy import register_like
 from mcap_protobuf.schema import build_file_descriptor_set
 from specs import drop, toml
 
@@ -463,19 +464,7 @@ def test_log_rewritten_by_official_writer(tmp_path, capsys, intact, reference, o
         messages = list(reader.iter_messages(log_time_order=False))
 
     def build(writer: Writer) -> None:
-        schema_ids = {
-            sid: writer.register_schema(name=s.name, encoding=s.encoding, data=s.data)
-            for sid, s in summary.schemas.items()
-        }
-        channel_ids = {
-            cid: writer.register_channel(
-                topic=c.topic,
-                message_encoding=c.message_encoding,
-                schema_id=schema_ids[c.schema_id],
-                metadata=c.metadata,
-            )
-            for cid, c in summary.channels.items()
-        }
+        channel_ids = register_like(writer, summary)
         for m in meta:
             writer.add_metadata(m.name, m.metadata)
         for _, channel, message in messages:

@@ -19,7 +19,9 @@ import numpy as np
 import polars as pl
 import pytest
 from mcap.reader import make_reader
+from mcap.records import Channel
 from mcap.writer import Writer
+from mcap_copy import register_like
 from paths import ROOT
 from specs import drop, toml
 
@@ -143,22 +145,15 @@ def rewrite(
     with open(path, "wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="rewrite")
-        schemas = {
-            sid: writer.register_schema(name=s.name, encoding=s.encoding, data=s.data)
-            for sid, s in summary.schemas.items()
-        }
-        channels = {}
-        for cid, c in summary.channels.items():
+
+        def rename(c: Channel) -> tuple[str, dict[str, str]]:
             topic = (topics or {}).get(c.topic, c.topic)
             md = dict(c.metadata)
             if topic != c.topic and "body" in md:
                 md["body"] = body_meta or topic.split("/")[2]
-            channels[cid] = writer.register_channel(
-                topic=topic,
-                message_encoding=c.message_encoding,
-                schema_id=schemas[c.schema_id],
-                metadata=md,
-            )
+            return topic, md
+
+        channels = register_like(writer, summary, rename)
         for name, values in metadata:
             values = dict(values)
             for key in drop or ():
