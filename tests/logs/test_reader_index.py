@@ -5,7 +5,6 @@ entry, sends the chunk to the record-by-record walk. Checked against the officia
 from __future__ import annotations
 
 import io
-import zlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -14,8 +13,9 @@ import pytest
 from mcap._chunk_builder import ChunkBuilder
 from mcap.data_stream import RecordBuilder
 from mcap.reader import make_reader
-from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, MessageIndex, Schema
+from mcap.records import Channel, DataEnd, Footer, Header, Message, MessageIndex, Schema
 from mcap.writer import MCAP0_MAGIC
+from mcap_conformance import write_chunk
 
 from impactlab.logs.reader import read_mcap
 
@@ -33,15 +33,7 @@ def build(messages: list[Message], edit: Edit | None = None) -> bytes:
     chunk = ChunkBuilder()
     for m in messages:
         chunk.add_message(m)
-    raw = chunk.end()
-    Chunk(
-        compression="",
-        data=raw,
-        message_start_time=chunk.message_start_time,
-        message_end_time=chunk.message_end_time,
-        uncompressed_crc=zlib.crc32(raw),
-        uncompressed_size=len(raw),
-    ).write(out)
+    write_chunk(out, chunk)
     for cid, index in chunk.message_indices.items():
         records = list(index.records) if edit is None else edit(cid, list(index.records))
         MessageIndex(channel_id=cid, records=records).write(out)
