@@ -17,7 +17,7 @@ bit for bit. A change of the physics moves them by far more: the smallest change
 make (one contact damping) moves the bounce velocity by 1e-3 of its scale.
 
 Regenerate only when a change of the recorded values is intended (a new MuJoCo pin, a new
-log format version, a deliberate change of the recorder); `tests/test_golden.py` fails
+log format version, a deliberate change of the recorder); `tests/e2e/test_golden.py` fails
 otherwise, naming the channel, field and time where a new recording departs from the golden.
 """
 

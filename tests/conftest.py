@@ -1,30 +1,38 @@
-"""Shared fixtures: record small runs from inline TOML specs once per session."""
+"""Shared fixtures: record small runs once per session, from specs built by `specs.py` or
+inline MJCF models."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import math
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 
 @pytest.fixture(scope="session")
 def record_spec(tmp_path_factory) -> Callable[..., list[Path]]:
-    """Record an inline TOML spec (cached per session); returns the log paths in run order.
+    """Record a spec (cached per session); returns the log paths in run order.
 
-    Call as `record_spec(name, toml_text, overrides=())`.
+    Call as `record_spec(name, spec, overrides=())`, `spec` a dict of `specs.py` or TOML text.
     """
+    from specs import toml
+
     from impactlab.record import plan, record_runs
 
     cache: dict[tuple[str, str, tuple[str, ...]], list[Path]] = {}
 
-    def _record(name: str, toml_text: str, overrides: Sequence[str] = ()) -> list[Path]:
+    def _record(
+        name: str, spec: str | Mapping[str, Any], overrides: Sequence[str] = ()
+    ) -> list[Path]:
+        toml_text = spec if isinstance(spec, str) else toml(spec)
         key = (name, toml_text, tuple(overrides))
         if key not in cache:
             folder = tmp_path_factory.mktemp(name)
-            spec = folder / f"{name}.toml"
-            spec.write_text(toml_text)
-            results = record_runs(plan([spec], overrides=overrides), folder / "logs")
+            path = folder / f"{name}.toml"
+            path.write_text(toml_text)
+            results = record_runs(plan([path], overrides=overrides), folder / "logs")
             cache[key] = [r.path for r in results]
         return cache[key]
 
@@ -88,3 +96,16 @@ def count_calls(monkeypatch):
         return calls
 
     return wrap
+
+
+@pytest.fixture(autouse=True)
+def no_count_lines(monkeypatch):
+    """The console prints where a job stands after 5 s of wall-clock time without output, which
+    a loaded machine reaches and an idle one does not: off in the tests, so that what a command
+    prints does not depend on the machine's load (tests/cli/test_progress.py tests the count
+    lines with a clock of its own)."""
+    from impactlab import progress
+
+    monkeypatch.setattr(
+        progress, "console_progress", lambda: progress.ConsoleProgress(quiet_s=math.inf)
+    )

@@ -169,6 +169,20 @@ class _Builder(RecordBuilder):
         return self._buffer.getvalue()
 
 
+def write_chunk(out: RecordBuilder, chunk: ChunkBuilder) -> bytes:
+    """Write `chunk`'s messages as one uncompressed Chunk record; returns its data."""
+    raw = chunk.end()
+    Chunk(
+        compression="",
+        data=raw,
+        message_start_time=chunk.message_start_time,
+        message_end_time=chunk.message_end_time,
+        uncompressed_crc=zlib.crc32(raw),
+        uncompressed_size=len(raw),
+    ).write(out)
+    return raw
+
+
 def _written(builder: _Builder, record) -> tuple[int, int]:
     """Write a record; returns (offset, length) of it."""
     start = builder.length()
@@ -220,16 +234,8 @@ def generate(features: frozenset[str], records: list) -> bytes:
             if "mdx" in features:
                 meta_idx.append(MetadataIndex(offset=offset, length=length, name=r.name))
     if chunk is not None:
-        raw = chunk.end()
         start = out.length()
-        Chunk(
-            compression="",
-            data=raw,
-            message_start_time=chunk.message_start_time,
-            message_end_time=chunk.message_end_time,
-            uncompressed_crc=zlib.crc32(raw),
-            uncompressed_size=len(raw),
-        ).write(out)
+        raw = write_chunk(out, chunk)
         chunk_length = out.length() - start
         offsets, index_length = {}, 0
         if "mx" in features:

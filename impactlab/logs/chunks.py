@@ -8,7 +8,7 @@ files are what it would write, message records sorted by time inside each chunk.
 
 mcap has no public way to add a chunk built elsewhere: the writer's private state is reached
 only through `impactlab.logs.mcap_internals` (the mcap version it was written for, and a test
-that fails by name when it changes). `tests/test_chunks.py` reads every file back with the
+that fails by name when it changes). `tests/logs/test_chunks.py` reads every file back with the
 official reader and `rerun mcap check`.
 """
 

@@ -6,7 +6,7 @@ chunks from arrays, writes them to the writer's stream itself and must then tell
 about them, so that the summary it writes (statistics, chunk indexes) counts them.
 
 Written against mcap 1.6.0 (`MCAP_VERSION`): the name-mangled attributes in `PRIVATE`.
-`tests/test_mcap_internals.py` fails, naming the attribute, when an mcap release changes them.
+`tests/logs/test_mcap_internals.py` fails, naming the attribute, when an mcap release changes them.
 """
 
 from __future__ import annotations

@@ -7,9 +7,8 @@ timestep, and reads and analyzes as its format-2 recording does.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from paths import GOLDEN
 
 from impactlab.analyze.measure.analysis import analyze_run, expects_collision
 from impactlab.logs import format as logformat
@@ -17,7 +16,6 @@ from impactlab.logs.contract import GeomContact
 from impactlab.logs.load import load_log
 from impactlab.physics import INTEGRATORS, half_step_s
 
-GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 DEFAULT_CONTACT = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0))  # the spec's
 
 

@@ -4,17 +4,17 @@
 from __future__ import annotations
 
 import pickle
-from pathlib import Path
 
 import mujoco
 import pytest
+from paths import GOLDEN
 
 import impactlab.record.model as model_module
 import impactlab.record.planner as planner
 from impactlab.record.log_rows import shared_geom_contact
 from impactlab.record.tasks import portable
 
-SPEC = Path(__file__).resolve().parents[1] / "golden" / "specs" / "drop_restitution.toml"
+SPEC = GOLDEN / "specs" / "drop_restitution.toml"
 
 
 def test_a_spec_run_is_calibrated_once_and_its_model_uses_that_calibration(monkeypatch):

@@ -1,0 +1,143 @@
+"""Recording over forked worker processes: the same logs, progress as runs finish, and every
+fault a worker can meet (killed, a bug, interrupted) ends in complete logs or none."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from specs import drop, toml
+from waiting import interrupt, record_process, wait_until
+
+from impactlab.progress import ProgressEvent
+from impactlab.record import forked, plan, record_runs
+from impactlab.record.forked import DIED, can_fork, shares
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
+
+
+def _spec(tmp_path: Path, runs: int, max_time: float = 0.3) -> Path:
+    path = tmp_path / f"forked_{runs}_{max_time:g}.toml"
+    masses = [1.0 + 0.5 * i for i in range(runs)]
+    path.write_text(toml(drop("forked", z=0.5, max_time=max_time, sweep={"ball.mass": masses})))
+    return path
+
+
+def test_shares_are_consecutive_balanced_and_never_empty(tmp_path):
+    runs = plan([_spec(tmp_path, 7)])
+    for parts in (1, 2, 3, 7, 20):
+        cut = shares(runs, parts)
+        assert [r for share in cut for r in share] == list(runs)  # consecutive, all of them
+        assert len(cut) == min(parts, len(runs)) and all(cut)
+        sizes = [len(s) for s in cut]
+        assert max(sizes) - min(sizes) <= 1, (parts, sizes)  # equal steps: equal counts
+
+
+def test_forked_logs_equal_one_process_logs(tmp_path, monkeypatch):
+    """Two worker processes write byte for byte the logs one process writes (same machine,
+    same session), and report every run once, as it finishes."""
+    runs = plan([_spec(tmp_path, 5)])
+    assert can_fork()
+    events: list[ProgressEvent] = []
+    calls = []
+    real = forked.record_forked
+
+    def spy(*args, **kwargs):
+        calls.append(kwargs["workers"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr("impactlab.record.recorder.record_forked", spy)
+    two = record_runs(runs, tmp_path / "two", threads=2, progress=events.append)
+    one = record_runs(runs, tmp_path / "one", threads=1)
+    assert calls == [2]
+    assert [r.run_id for r in two] == [r.info.run_id for r in runs]
+    for a, b in zip(two, one, strict=True):
+        assert (a.status, a.outcome, a.steps, a.logged) == (b.status, b.outcome, b.steps, b.logged)
+        assert a.path.read_bytes() == b.path.read_bytes()
+    assert [e.done for e in events if e.line is None] == list(range(len(runs) + 1))
+
+
+def test_a_killed_worker_fails_only_its_unreported_runs(tmp_path):
+    """A worker that dies while building its second batch: its runs not yet logged fail with
+    the reason, the other worker's runs are complete, the temporary file of the log it was
+    writing is removed."""
+    runs = list(plan([_spec(tmp_path, 4)]))
+
+    def die():
+        os._exit(9)
+
+    runs[3] = dataclasses.replace(runs[3], build=die)
+    result = record_runs(runs, tmp_path / "logs", threads=2, batch_size=1)
+    by_id = {r.run_id: r for r in result}
+    status = [by_id[r.info.run_id].status for r in runs]
+    assert status[:2] == ["recorded"] * 2  # the other worker's share
+    assert (status[3], by_id[runs[3].info.run_id].reason) == ("failed", DIED)
+    assert status[2] in ("recorded", "failed")  # logged before the worker died, or not
+    assert sorted(p.name for p in (tmp_path / "logs").iterdir()) == sorted(
+        r.path.name for r in result if r.status == "recorded"
+    )
+
+
+def test_a_bug_in_a_worker_reaches_the_caller(tmp_path):
+    runs = list(plan([_spec(tmp_path, 2)]))
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+        yield
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr("impactlab.record.batch.batches", broken)
+        with pytest.raises(RuntimeError, match="ZeroDivisionError: a bug"):
+            record_runs(runs, tmp_path / "logs", threads=2)
+    assert not list((tmp_path / "logs").iterdir())
+
+
+def test_with_another_thread_running_it_records_in_one_process(tmp_path, monkeypatch):
+    """Forking a process with other threads is unsafe: then the job stays in this process."""
+    runs = plan([_spec(tmp_path, 3)])
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("forked with another thread running")
+
+    monkeypatch.setattr("impactlab.record.recorder.record_forked", refuse)
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert not can_fork()
+        result = record_runs(runs, tmp_path / "logs", threads=2)
+    finally:
+        stop.set()
+        other.join()
+    assert [r.status for r in result] == ["recorded"] * 3
+
+
+@pytest.mark.slow
+def test_sigterm_stops_the_workers_and_leaves_nothing(tmp_path):
+    """SIGTERM to `impactlab record` while two workers write long runs: exit 130 within
+    seconds, no log, no temporary file, no worker left running."""
+    spec = _spec(tmp_path, 2, max_time=1000.0)
+    text = spec.read_text().replace("timestep = 0.001", "timestep = 0.0001")
+    spec.write_text(text + "[logging]\nevery = 100\n")
+    out = tmp_path / "logs"
+    proc = record_process(spec, out, "--allow-large")
+    wait_until(lambda: len(list(out.glob("*.partial"))) >= 2, proc, what="two workers writing")
+    workers = [int(p.name.split(".")[-2]) for p in out.glob("*.partial")]
+    assert proc.pid not in workers
+    _, stderr = interrupt(proc)
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "impactlab: interrupted" in stderr
+    assert list(out.iterdir()) == []
+    for pid in workers:
+        assert not Path(f"/proc/{pid}").exists() or "Z" in _state(pid), pid
+
+
+def _state(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split()[2]
+    except FileNotFoundError:
+        return "gone"

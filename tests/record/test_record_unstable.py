@@ -1,0 +1,83 @@
+"""MuJoCo's own warnings: a run that trips one is `unstable`, its outcome names the warning,
+the job exits 1, the log keeps only the rows before it, and no MUJOCO_LOG.TXT appears."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from specs import drop, toml
+
+from impactlab.cli import main
+from impactlab.logs.load import load_log
+
+DROP = toml(drop(max_time=0.5))
+
+# (override, the warning, the step that raises it)
+HUGE = [
+    ("ball.vel=[0, 0, 1e300]", "mjWARN_BADQVEL", 0),
+    ("ball.angvel=[0, 0, 1e300]", "mjWARN_BADQVEL", 0),
+    ("ball.pos=[0, 0, 1e300]", "mjWARN_BADQPOS", 0),
+    ("ball.pos=[1e300, 0, 1]", "mjWARN_BADQPOS", 0),
+    ("options.gravity=[0, 0, -1e300]", "mjWARN_BADQACC", 0),
+    # through the plane in one step: the contact's acceleration is huge at step 1
+    ("ball.vel=[0, 0, -1e9]", "mjWARN_BADQACC", 1),
+]
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")  # no overflow in our own code
+@pytest.mark.parametrize(("override", "warning", "step"), HUGE, ids=[h[0] for h in HUGE])
+def test_huge_values_are_unstable_runs(tmp_path, monkeypatch, capsys, override, warning, step):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "spec.toml").write_text(DROP)
+    code = main(["record", "spec.toml", "-o", "logs", "--set", override])
+    out, err = capsys.readouterr()
+    assert code == 1, (out, err)
+    (path,) = (tmp_path / "logs").glob("*.mcap")
+    log = load_log(path)
+    assert log.outcome == "unstable"
+    reason = log.meta["reason"]
+    assert reason.startswith(f"MuJoCo warning at t = {step * 0.001:g} s (step {step}): {warning}")
+    assert "The simulation is unstable" in reason
+    assert f"warning: {path.stem}: unstable: MuJoCo warning" in out
+    # only the rows before the warning: never MuJoCo's reset state
+    ball = log.bodies["ball"]
+    assert ball.height == step
+    if step:
+        assert ball["z"][0] == 1.0 and ball["vz"][0] == -1e9
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs", "spec.toml"]  # no MUJOCO_LOG
+
+
+def test_a_warning_in_the_last_step_of_a_chunk(tmp_path, capsys):
+    """Gravity pushes the speed past MuJoCo's 1e10 limit in step 999, the last of the first
+    chunk (1000 steps): found although the next chunk starts again from MuJoCo's reset state."""
+    g_dt = 1e10 / 998.5  # speed after k steps is k * g * dt: > 1e10 first when k = 999
+    spec = tmp_path / "fly.toml"
+    spec.write_text(
+        DROP.replace("timestep = 0.001", f"timestep = {g_dt / 6e9!r}\ngravity = [0.0, 0.0, 6e9]")
+        .replace("pos = [0.0, 0.0, 1.0]", "pos = [0.0, 0.0, 0.0]")
+        .replace("max_time = 0.5", "max_time = 2.0")
+        + "[plane]\nenabled = false\n"
+    )
+    assert main(["record", str(spec), "-o", str(tmp_path / "logs")]) == 1
+    (path,) = (tmp_path / "logs").glob("*.mcap")
+    log = load_log(path)
+    assert "(step 999): mjWARN_BADQVEL" in log.meta["reason"]
+    ball = log.bodies["ball"]
+    assert ball.height == 999
+    assert np.all(np.diff(ball["vz"].to_numpy()) > 0)  # the speed only grew: no reset inside
+    capsys.readouterr()
+
+
+def test_other_runs_of_the_batch_complete(tmp_path, capsys):
+    """One run of a batched sweep trips a warning; the other runs of its rollout are whole."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(DROP + '[sweep]\n"ball.vel" = [[0, 0, 0], [0, 0, 1e300], [0, 0, 1]]\n')
+    assert main(["record", str(spec), "-o", str(tmp_path / "logs")]) == 1
+    out = capsys.readouterr().out
+    assert "3 run(s) written" in out and "1 unstable" in out
+    outcomes = sorted(load_log(p).outcome for p in (tmp_path / "logs").glob("*.mcap"))
+    assert outcomes == ["completed", "completed", "unstable"]
+    for path in (tmp_path / "logs").glob("*.mcap"):
+        log = load_log(path)
+        if log.outcome == "completed":
+            assert log.bodies["ball"].height == 501
