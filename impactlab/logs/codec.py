@@ -17,6 +17,7 @@ from functools import cached_property
 
 import numpy as np
 from google.protobuf.message import Message
+from numpy.lib.stride_tricks import as_strided
 
 Setter = Callable[[Message, Sequence[float]], None]
 
@@ -106,10 +107,30 @@ class Template:
         if not (payloads[:, fixed] == self.template[fixed]).all():
             return False
         fields = payloads.view(self.record_dtype)[:, 0]
-        for j in range(self.slots.size):
-            out[j] = fields[f"v{j}"]
+        for j, count, spacing in self._runs:  # evenly spaced doubles: one strided copy each
+            first = fields[f"v{j}"]
+            if count == 1:
+                out[j] = first
+            else:
+                shape, strides = (count, n), (spacing, first.strides[0])
+                out[j : j + count] = as_strided(first, shape, strides, writeable=False)
         return True
 
     @cached_property
     def _fixed_at(self) -> np.ndarray:
         return np.flatnonzero(self.fixed)
+
+    @cached_property
+    def _runs(self) -> list[tuple[int, int, int]]:
+        """The doubles in runs of even spacing: (first value, count, spacing in bytes)."""
+        runs: list[tuple[int, int, int]] = []
+        slots = self.slots.tolist()
+        j = 0
+        while j < len(slots):
+            count = 1
+            spacing = slots[j + 1] - slots[j] if j + 1 < len(slots) else 8
+            while j + count < len(slots) and slots[j + count] - slots[j + count - 1] == spacing:
+                count += 1
+            runs.append((j, count, spacing))
+            j += count
+        return runs

@@ -41,6 +41,7 @@ from impactlab.logs.bounded import (
     read_file,
 )
 from impactlab.logs.chunk_index import MESSAGE_HEADER_SIZE, OP_MESSAGE, add_pieces, checked_index
+from impactlab.logs.file_index import gather_indexed
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER = int(Opcode.HEADER), int(Opcode.FOOTER)
@@ -93,10 +94,21 @@ def read_mcap(
     such read used when nothing refers to it any more (for a caller that decodes the
     content and drops it before reading the next file).
 
+    The indexed chunks are checked together at the end, channel by channel (`file_index`);
+    a file with any problem is read again chunk by chunk, which says what is wrong.
+
     Raises:
         UnreadableFile: not a regular file, larger than the limit, or not MCAP (bad magic).
         OSError: the file cannot be read.
     """
+    content = _read(Path(path), skip_topics, reuse_memory, together=True)
+    return content if content is not None else _read(Path(path), skip_topics, reuse_memory)
+
+
+def _read(
+    path: Path, skip_topics: frozenset[str], reuse_memory: bool, together: bool = False
+) -> McapContent | None:
+    """`read_mcap`; `together`: the indexed chunks checked at the end, None on any problem."""
     limit = max_log_bytes()
     buf = memoryview(read_file(Path(path), limit=limit))
     if bytes(buf[:8]) != MAGIC:
@@ -112,6 +124,7 @@ def read_mcap(
     loose: dict[int, tuple[list[int], list[bytes]]] = defaultdict(lambda: ([], []))
     pos = 8
     pending: tuple[bytes, dict[int, np.ndarray] | None, int] | None = None
+    deferred: list | None = [] if together else None  # indexed chunks, checked at the end
     try:
         while pos < len(buf):
             if pos + 9 > len(buf):
@@ -126,7 +139,7 @@ def read_mcap(
             body = buf[pos + 9 : end]
             if op != OP_MESSAGE_INDEX and pending is not None:
                 done, pending = pending, None
-                _gather(done, schemas, channels, loose, skip_topics, problems)
+                _gather(done, schemas, channels, loose, skip_topics, problems, deferred)
             if op in (OP_SCHEMA, OP_CHANNEL):
                 _definition(op, body, schemas, channels)
             elif op == OP_METADATA:
@@ -154,7 +167,7 @@ def read_mcap(
             pos = end
         if pending is not None and pos < len(buf):
             done, pending = pending, None
-            _gather(done, schemas, channels, loose, skip_topics, problems)
+            _gather(done, schemas, channels, loose, skip_topics, problems, deferred)
         if pos >= len(buf):  # a cut after a chunk may have left only some of its indexes
             raise _Damage(f"truncated at byte {pos}, before the end of the data")
         footer_at = len(buf) - FOOTER_SIZE - len(MAGIC)
@@ -172,6 +185,10 @@ def read_mcap(
         problems.append(f"damaged: unreadable record ({type(exc).__name__}: {exc})")
         _salvage(pending, schemas, channels, loose)
         summary = False
+    if deferred is not None and (
+        problems or not gather_indexed(deferred, channels, skip_topics, arena)
+    ):
+        return None
     for channel_id, (times, datas) in loose.items():
         if channel_id in channels:
             channels[channel_id].pieces.append((np.asarray(times, dtype=np.uint64), datas))
@@ -264,7 +281,13 @@ def _definition(op: int, body, schemas: dict[int, str], channels: dict[int, Chan
 
 
 def _gather(
-    pending, schemas, channels: dict[int, ChannelData], loose, skip_topics, problems: list[str]
+    pending,
+    schemas,
+    channels: dict[int, ChannelData],
+    loose,
+    skip_topics,
+    problems: list[str],
+    deferred: list | None = None,
 ) -> None:
     """Add a chunk's messages to their channels, by its message indexes when it has them.
 
@@ -281,6 +304,9 @@ def _gather(
                 f"damaged: message index of the chunk at byte {chunk_at}; read without it"
             )
         _walk_chunk(raw, schemas, channels, loose)
+        return
+    if deferred is not None:  # checked with the file's other chunks (`file_index`)
+        deferred.append((raw, indexes))
         return
     found = []
     for channel_id, pairs in indexes.items():
