@@ -135,7 +135,8 @@ def _together(whole: np.ndarray, raws, bases, mine, channel_id: int, arena: Aren
     starts = relative.astype(np.int64) + np.repeat(
         np.array([bases[j] for j, _ in mine], np.int64), counts
     )
-    records = gather_records(whole, starts, size)
+    room = arena.take(len(starts) * size) if arena is not None else None
+    records = gather_records(whole, starts, size, room)
     head = records.view(_head(size))[:, 0]
     if not (
         (head["start"] == OP_MESSAGE | (length << 8)).all()

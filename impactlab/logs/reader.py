@@ -110,11 +110,11 @@ def _read(
 ) -> McapContent | None:
     """`read_mcap`; `together`: the indexed chunks checked at the end, None on any problem."""
     limit = max_log_bytes()
-    buf = memoryview(read_file(Path(path), limit=limit))
+    arena = Arena() if reuse_memory else None
+    buf = memoryview(read_file(Path(path), limit=limit, arena=arena))
     if bytes(buf[:8]) != MAGIC:
         raise UnreadableFile("not an MCAP file (bad magic bytes)")
     budget = [limit - len(buf)]  # bytes the decompressed chunks may still take
-    arena = Arena() if reuse_memory else None
     schemas: dict[int, str] = {}
     channels: dict[int, ChannelData] = {}
     metadata: dict[str, dict[str, str]] = {}

@@ -141,3 +141,19 @@ def test_frames_hold_what_the_protobuf_library_decodes(logs):
             assert (frame["run_id"] == run.run_id).all()
             assert np.array_equal(frame["t_s"].to_numpy(), frame["t_ns"].to_numpy() / 1e9)
             assert_frame_equal(frame.select(want.columns), want, check_exact=True)
+
+
+def test_a_fixed_byte_changed_in_any_block_is_another_layout():
+    """The fixed bytes are compared block by block: a payload of another layout is refused
+    wherever it is, and every double comes back in its column."""
+    from impactlab.logs import codec, messages
+
+    layout = messages.contact("plane", "ball", "world", "ball", 2)
+    n = 3 * codec.CHECK_BLOCK_BYTES // int(layout.fixed.sum()) + 5  # over three blocks
+    values = np.arange(n * layout.slots.size, dtype=np.float64).reshape(n, -1)
+    payloads = layout.encode(values)
+    assert np.array_equal(layout.decode(payloads), values)
+    for row in (0, n // 2, n - 1):
+        bad = payloads.copy()
+        bad[row, np.flatnonzero(layout.fixed)[-1]] ^= 1
+        assert layout.decode(bad) is None
