@@ -271,7 +271,13 @@ def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> p
 
 def _constant(value: str, n: int, name: str = "") -> pl.Series:
     """A string column of one value (eager: no query plan per column)."""
-    return pl.Series(name, [value], dtype=pl.String).new_from_index(0, n)
+    return _one(value).new_from_index(0, n).alias(name)
+
+
+@functools.lru_cache(maxsize=256)
+def _one(value: str) -> pl.Series:
+    """A one-row string Series (only ever copied: a log's frames repeat the same values)."""
+    return pl.Series("", [value], dtype=pl.String)
 
 
 def fixed_frame(run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]):
