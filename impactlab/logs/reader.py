@@ -18,6 +18,7 @@ log_time >= 2^63 ns (292 years) is skipped and reported.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import struct
 from collections import defaultdict
@@ -272,12 +273,31 @@ def _attachment_header(body: memoryview) -> tuple[str, int, int]:
 
 def _definition(op: int, body, schemas: dict[int, str], channels: dict[int, ChannelData]):
     """Register a Schema or Channel record."""
+    small = len(body) <= MAX_CACHED_RECORD  # the logs of a sweep repeat the same records
     if op == OP_SCHEMA:
-        s = Schema.read(ReadDataStream(io.BytesIO(body)))
-        schemas[s.id] = s.name
+        schema_id, name = (_schema if small else _schema.__wrapped__)(bytes(body))
+        schemas[schema_id] = name
     else:
-        c = Channel.read(ReadDataStream(io.BytesIO(body)))
-        channels[c.id] = ChannelData(c.topic, schemas.get(c.schema_id, ""), c.metadata)
+        parsed = (_channel if small else _channel.__wrapped__)(bytes(body))
+        channel_id, schema_id, topic, metadata = parsed
+        channels[channel_id] = ChannelData(topic, schemas.get(schema_id, ""), dict(metadata))
+
+
+MAX_CACHED_RECORD = 64 << 10  # larger Schema and Channel records are parsed each time
+
+
+@functools.lru_cache(maxsize=256)
+def _schema(body: bytes) -> tuple[int, str]:
+    """Id and name of a Schema record."""
+    s = Schema.read(ReadDataStream(io.BytesIO(body)))
+    return s.id, s.name
+
+
+@functools.lru_cache(maxsize=256)
+def _channel(body: bytes) -> tuple[int, int, str, tuple[tuple[str, str], ...]]:
+    """Id, schema id, topic and metadata of a Channel record."""
+    c = Channel.read(ReadDataStream(io.BytesIO(body)))
+    return c.id, c.schema_id, c.topic, tuple(c.metadata.items())
 
 
 def _gather(

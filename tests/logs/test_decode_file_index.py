@@ -157,3 +157,29 @@ def test_a_fixed_byte_changed_in_any_block_is_another_layout():
         bad = payloads.copy()
         bad[row, np.flatnonzero(layout.fixed)[-1]] ^= 1
         assert layout.decode(bad) is None
+
+
+def test_definitions_parsed_once_give_each_read_its_own_metadata(tmp_path):
+    """Schema and Channel records are parsed once per distinct record (a sweep's logs repeat
+    them): each read still gets its own metadata, and records too large to keep are read
+    every time."""
+    from mcap.writer import Writer
+
+    from impactlab.logs import reader
+
+    path = tmp_path / "big_schema.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="test")
+        big = writer.register_schema("test.Big", "protobuf", b"x" * (reader.MAX_CACHED_RECORD + 1))
+        small = writer.register_schema("test.Small", "protobuf", b"y")
+        for cid, schema in ((1, big), (2, small)):
+            c = writer.register_channel(f"/c{cid}", "protobuf", schema, {"k": str(cid)})
+            writer.add_message(c, log_time=1, data=b"abc", publish_time=1)
+        writer.finish()
+    first, second = read_mcap(path), read_mcap(path)
+    assert [c.schema for c in first.channels.values()] == ["test.Big", "test.Small"]
+    assert [c.metadata for c in second.channels.values()] == [{"k": "1"}, {"k": "2"}]
+    next(iter(first.channels.values())).metadata["k"] = "changed"
+    assert next(iter(second.channels.values())).metadata == {"k": "1"}
+    assert next(iter(read_mcap(path).channels.values())).metadata == {"k": "1"}
