@@ -13,6 +13,7 @@ again chunk by chunk, which reports the damage and walks the chunk (`reader._gat
 
 from __future__ import annotations
 
+import functools
 from collections import defaultdict
 from typing import Any
 
@@ -30,6 +31,7 @@ from impactlab.logs.chunk_index import (
 Chunk = tuple[Any, dict[int, np.ndarray]]  # uncompressed records, message indexes by channel
 
 
+@functools.cache
 def _head(size: int) -> np.dtype:
     """A message record of `size` bytes: op and length (bytes 0-7), length's last byte and
     channel (7-10), log time."""
@@ -130,11 +132,13 @@ def _together(whole: np.ndarray, raws, bases, mine, channel_id: int, arena: Aren
     if size < MESSAGE_HEADER_SIZE or size > sizes.min():
         return None
     relative = pairs[:, 1]
-    if not (relative <= np.repeat((sizes - size).astype(np.uint64), counts)).all():
+    ends = np.cumsum(counts)
+    if (np.maximum.reduceat(relative, ends - counts) > (sizes - size).astype(np.uint64)).any():
         return None  # a record would end past its chunk
-    starts = relative.astype(np.int64) + np.repeat(
-        np.array([bases[j] for j, _ in mine], np.int64), counts
-    )
+    starts = relative.astype(np.int64)
+    for (j, _), end, count in zip(mine, ends.tolist(), counts, strict=True):
+        if bases[j]:
+            starts[end - count : end] += bases[j]  # offsets in the chunk -> in the buffer
     room = arena.take(len(starts) * size) if arena is not None else None
     records = gather_records(whole, starts, size, room)
     head = records.view(_head(size))[:, 0]

@@ -183,3 +183,49 @@ def test_definitions_parsed_once_give_each_read_its_own_metadata(tmp_path):
     next(iter(first.channels.values())).metadata["k"] = "changed"
     assert next(iter(second.channels.values())).metadata == {"k": "1"}
     assert next(iter(read_mcap(path).channels.values())).metadata == {"k": "1"}
+
+
+def _edit_index(data: bytearray, chunk: int, edit) -> None:
+    """Apply `edit(entries)` to the first message index after the `chunk`-th chunk (0-based),
+    its entries a writable (n, 2) uint64 view of the file (log_time, offset)."""
+    pos, seen = 8, -1
+    while pos < len(data):
+        op, length = data[pos], int.from_bytes(data[pos + 1 : pos + 9], "little")
+        if op == 0x06:  # Chunk
+            seen += 1
+        elif op == 0x07 and seen == chunk:  # MessageIndex: channel u16, entries (u32 bytes)
+            size = int.from_bytes(data[pos + 11 : pos + 15], "little")
+            edit(np.frombuffer(data, "<u8", count=size // 8, offset=pos + 15).reshape(-1, 2))
+            return
+        pos += 9 + length
+    raise AssertionError("no such message index")
+
+
+@pytest.mark.parametrize("what", ["offset-past-chunk", "one-time", "other-record"])
+def test_an_index_wrong_in_a_later_chunk_reads_as_chunk_by_chunk(logs, tmp_path, what):
+    """A disagreement found when a channel's chunks are checked together: the file is read
+    again chunk by chunk, which reports it and walks that chunk; nothing is lost."""
+    data = bytearray(logs[-1].read_bytes())
+
+    def edit(entries):
+        if what == "offset-past-chunk":
+            entries[-1, 1] = 1 << 40
+        elif what == "one-time":
+            entries[len(entries) // 2, 0] += 1
+        else:
+            entries[3, 1] = entries[2, 1]
+
+    _edit_index(data, 1, edit)
+    path = tmp_path / "bad.mcap"
+    path.write_bytes(bytes(data))
+    assert _read(path, frozenset(), reuse_memory=True, together=True) is None
+    content = read_mcap(path, reuse_memory=True)
+    slow = _read(path, frozenset(), reuse_memory=False)
+    assert content.problems == slow.problems
+    assert any("message index of the chunk" in p for p in content.problems)
+    original = _read(logs[-1], frozenset(), reuse_memory=False)
+
+    def rows(c):
+        return {k: sorted(zip(*v, strict=True)) for k, v in _messages(c).items()}
+
+    assert rows(content) == rows(original)
