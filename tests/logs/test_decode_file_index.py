@@ -41,16 +41,19 @@ max_time = 2.5
 
 
 @pytest.fixture(scope="module")
-def logs(record_spec, tmp_path_factory) -> list[Path]:
-    """The golden logs, the experiments' logs and a long drop of several chunks."""
+def long_log(record_spec) -> Path:
+    """A drop of several chunks, contacts in some steps only."""
+    return record_spec("long_drop", LONG_DROP)[0]
+
+
+@pytest.fixture(scope="module")
+def logs(long_log, tmp_path_factory) -> list[Path]:
+    """The golden logs, the experiments' logs and the long drop (last)."""
     from impactlab.record import plan, record_runs
 
-    out = list(GOLDEN)
     folder = tmp_path_factory.mktemp("experiments")
     specs = [ROOT / "experiments" / name for name in EXPERIMENTS]
-    out += [r.path for r in record_runs(plan(specs), folder)]
-    out += record_spec("long_drop", LONG_DROP)
-    return out
+    return [*GOLDEN, *(r.path for r in record_runs(plan(specs), folder)), long_log]
 
 
 def _messages(content) -> dict[str, tuple[list[int], list[bytes]]]:
@@ -64,11 +67,11 @@ def _messages(content) -> dict[str, tuple[list[int], list[bytes]]]:
     return out
 
 
-def test_chunks_checked_together_give_the_chunk_by_chunk_messages(logs, monkeypatch):
+def test_chunks_checked_together_give_the_chunk_by_chunk_messages(long_log, monkeypatch):
     calls = []
     together = file_index._together
     monkeypatch.setattr(file_index, "_together", lambda *a: calls.append(1) or together(*a))
-    for path in logs:
+    for path in [*GOLDEN, long_log]:
         fast = _read(path, frozenset(), reuse_memory=True, together=True)
         assert fast is not None, path  # an undamaged log: no second reading
         slow = _read(path, frozenset(), reuse_memory=False)
@@ -77,8 +80,8 @@ def test_chunks_checked_together_give_the_chunk_by_chunk_messages(logs, monkeypa
     assert calls  # channels spread over several chunks were checked together
 
 
-def test_the_long_log_spans_chunks_and_reads_each_channel_in_one_piece(logs):
-    path = logs[-1]
+def test_the_long_log_spans_chunks_and_reads_each_channel_in_one_piece(long_log):
+    path = long_log
     chunks = make_reader(path.open("rb")).get_summary().chunk_indexes
     assert len(chunks) >= 3
     content = read_mcap(path, reuse_memory=True)
@@ -202,10 +205,10 @@ def _edit_index(data: bytearray, chunk: int, edit) -> None:
 
 
 @pytest.mark.parametrize("what", ["offset-past-chunk", "one-time", "other-record"])
-def test_an_index_wrong_in_a_later_chunk_reads_as_chunk_by_chunk(logs, tmp_path, what):
+def test_an_index_wrong_in_a_later_chunk_reads_as_chunk_by_chunk(long_log, tmp_path, what):
     """A disagreement found when a channel's chunks are checked together: the file is read
     again chunk by chunk, which reports it and walks that chunk; nothing is lost."""
-    data = bytearray(logs[-1].read_bytes())
+    data = bytearray(long_log.read_bytes())
 
     def edit(entries):
         if what == "offset-past-chunk":
@@ -223,7 +226,7 @@ def test_an_index_wrong_in_a_later_chunk_reads_as_chunk_by_chunk(logs, tmp_path,
     slow = _read(path, frozenset(), reuse_memory=False)
     assert content.problems == slow.problems
     assert any("message index of the chunk" in p for p in content.problems)
-    original = _read(logs[-1], frozenset(), reuse_memory=False)
+    original = _read(long_log, frozenset(), reuse_memory=False)
 
     def rows(c):
         return {k: sorted(zip(*v, strict=True)) for k, v in _messages(c).items()}
