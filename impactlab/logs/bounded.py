@@ -68,8 +68,11 @@ def check_regular_file(path: Path) -> os.stat_result:
     return info
 
 
-def read_file(path: Path, *, limit: int | None = None) -> bytes:
-    """The bytes of a regular file of at most `limit` bytes (default `max_log_bytes()`).
+def read_file(
+    path: Path, *, limit: int | None = None, arena: Arena | None = None
+) -> bytes | memoryview:
+    """The bytes of a regular file of at most `limit` bytes (default `max_log_bytes()`),
+    read into `arena` when given and it has room (a read-only view).
 
     Raises:
         OSError: it cannot be read (FileNotFoundError, IsADirectoryError, ...).
@@ -84,7 +87,13 @@ def read_file(path: Path, *, limit: int | None = None) -> bytes:
     with open(fd, "rb", closefd=True) as stream:
         if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
             raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
-        return stream.read(size)  # what the file held when checked (it may still grow)
+        room = arena.take(size) if arena is not None and size else None
+        if room is None:
+            return stream.read(size)  # what the file held when checked (it may still grow)
+        got = 0
+        while got < size and (n := stream.readinto(room[got:])):
+            got += n
+        return room[:got].toreadonly()
 
 
 _HINT = f"raise it with the environment variable {MAX_LOG_BYTES_ENV}"

@@ -127,14 +127,17 @@ def _contact_frame(
     t_rep = np.repeat(t, k) if k != 1 else t
     columns = [
         _constant(run_id, rows, "run_id"),
-        pl.Series("t_ns", t_rep, dtype=pl.Int64),
-        pl.Series("t_s", t_rep / 1e9, dtype=pl.Float64),
+        pl.Series("t_ns", t_rep.astype(np.int64, copy=False)),
+        pl.Series("t_s", t_rep / 1e9),
     ]
     columns += [_constant(v, rows, key) for key, v in names.items()]
-    columns.append(pl.Series("point", np.tile(np.arange(k, dtype=np.int32), n), dtype=pl.Int32))
-    for i, f in enumerate(POINT_FIELDS):
-        column = values[i] if k == 1 else values[i::per_point].T.reshape(-1)
-        columns.append(pl.Series(f, column, dtype=pl.Float64))
+    point = np.zeros(n, np.int32) if k == 1 else np.tile(np.arange(k, dtype=np.int32), n)
+    columns.append(pl.Series("point", point))
+    if k == 1:
+        columns += _float_columns(values, POINT_FIELDS)
+    else:  # point-major rows: (k * fields, n) -> a row per field of n * k values
+        by_field = values.reshape(k, per_point, n).transpose(1, 2, 0).reshape(per_point, -1)
+        columns += _float_columns(by_field, POINT_FIELDS)
     return pl.DataFrame(columns)
 
 
@@ -273,23 +276,46 @@ def decode_events(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> p
 
 def _constant(value: str, n: int, name: str = "") -> pl.Series:
     """A string column of one value (eager: no query plan per column)."""
-    return pl.Series(name, [value], dtype=pl.String).new_from_index(0, n)
+    return _one(value).new_from_index(0, n).alias(name)
+
+
+@functools.lru_cache(maxsize=256)
+def _one(value: str) -> pl.Series:
+    """A one-row string Series (only ever copied: a log's frames repeat the same values)."""
+    return pl.Series("", [value], dtype=pl.String)
 
 
 def fixed_frame(
     run_id: str, t_ns: np.ndarray, values: np.ndarray, names: Sequence[str]
 ) -> pl.DataFrame:
-    columns = [
-        _constant(run_id, len(t_ns), "run_id"),
-        pl.Series("t_ns", t_ns, dtype=pl.Int64),
-        pl.Series("t_s", t_ns / 1e9, dtype=pl.Float64),
-    ]
-    columns += [pl.Series(name, values[:, i]) for i, name in enumerate(names)]
-    return pl.DataFrame(columns)
+    """Frame (run_id, t_ns, t_s, *names) of times (n,) int64 and values (n, k)."""
+    return pl.DataFrame(
+        [
+            _constant(run_id, len(t_ns), "run_id"),
+            pl.Series("t_ns", t_ns.astype(np.int64, copy=False)),
+            pl.Series("t_s", t_ns / 1e9),
+            *_float_columns(values.T, names),
+        ]
+    )
+
+
+def _float_columns(rows: np.ndarray, names: Sequence[str]) -> list[pl.Series]:
+    """Float64 columns from `rows`, (k, n), a row per column: one Series over all of them
+    (no copy when `rows` is C-contiguous), sliced (polars builds each Series in Python,
+    a slice is one call)."""
+    n = rows.shape[1]
+    flat = pl.Series(np.ascontiguousarray(rows, dtype=np.float64).reshape(-1))
+    return [flat.slice(i * n, n).alias(name) for i, name in enumerate(names)]
 
 
 def empty_frame(names: Sequence[str], run_id: str) -> pl.DataFrame:
-    return fixed_frame(run_id, np.empty(0, np.int64), np.empty((0, len(names))), names)
+    """A frame of `fixed_frame`'s columns with no rows."""
+    return _empty_fixed(tuple(names)).clear()
+
+
+@functools.cache
+def _empty_fixed(names: tuple[str, ...]) -> pl.DataFrame:
+    return fixed_frame("", np.empty(0, np.int64), np.empty((0, len(names))), names)
 
 
 def empty_contacts(run_id: str) -> pl.DataFrame:

@@ -18,6 +18,7 @@ log_time >= 2^63 ns (292 years) is skipped and reported.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import struct
 from collections import defaultdict
@@ -41,6 +42,7 @@ from impactlab.logs.bounded import (
     read_file,
 )
 from impactlab.logs.chunk_index import MESSAGE_HEADER_SIZE, OP_MESSAGE, add_pieces, checked_index
+from impactlab.logs.file_index import Chunk, gather_indexed
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER = int(Opcode.HEADER), int(Opcode.FOOTER)
@@ -96,16 +98,30 @@ def read_mcap(
     such read used when nothing refers to it any more (for a caller that decodes the
     content and drops it before reading the next file).
 
+    The indexed chunks are checked together at the end, channel by channel (`file_index`);
+    a file with any problem is read again chunk by chunk, which says what is wrong.
+
     Raises:
         UnreadableFile: not a regular file, larger than the limit, or not MCAP (bad magic).
         OSError: the file cannot be read.
     """
+    content = _read(Path(path), skip_topics, reuse_memory, together=True)
+    if content is None:  # a problem: read again chunk by chunk, which says what is wrong
+        content = _read(Path(path), skip_topics, reuse_memory)
+        assert content is not None  # only a `together` read gives up
+    return content
+
+
+def _read(
+    path: Path, skip_topics: frozenset[str], reuse_memory: bool, together: bool = False
+) -> McapContent | None:
+    """`read_mcap`; `together`: the indexed chunks checked at the end, None on any problem."""
     limit = max_log_bytes()
-    buf = memoryview(read_file(Path(path), limit=limit))
+    arena = Arena() if reuse_memory else None
+    buf = memoryview(read_file(Path(path), limit=limit, arena=arena))
     if bytes(buf[:8]) != MAGIC:
         raise UnreadableFile("not an MCAP file (bad magic bytes)")
     budget = [limit - len(buf)]  # bytes the decompressed chunks may still take
-    arena = Arena() if reuse_memory else None
     schemas: dict[int, str] = {}
     channels: dict[int, ChannelData] = {}
     metadata: dict[str, dict[str, str]] = {}
@@ -115,6 +131,7 @@ def read_mcap(
     loose: _Loose = defaultdict(lambda: ([], []))
     pos = 8
     pending: _Pending | None = None
+    deferred: list[Chunk] | None = [] if together else None  # indexed chunks, checked at the end
     try:
         while pos < len(buf):
             if pos + 9 > len(buf):
@@ -129,7 +146,7 @@ def read_mcap(
             body = buf[pos + 9 : end]
             if op != OP_MESSAGE_INDEX and pending is not None:
                 done, pending = pending, None
-                _gather(done, schemas, channels, loose, skip_topics, problems)
+                _gather(done, schemas, channels, loose, skip_topics, problems, deferred)
             if op in (OP_SCHEMA, OP_CHANNEL):
                 _definition(op, body, schemas, channels)
             elif op == OP_METADATA:
@@ -157,7 +174,7 @@ def read_mcap(
             pos = end
         if pending is not None and pos < len(buf):
             done, pending = pending, None
-            _gather(done, schemas, channels, loose, skip_topics, problems)
+            _gather(done, schemas, channels, loose, skip_topics, problems, deferred)
         if pos >= len(buf):  # a cut after a chunk may have left only some of its indexes
             raise _Damage(f"truncated at byte {pos}, before the end of the data")
         footer_at = len(buf) - FOOTER_SIZE - len(MAGIC)
@@ -175,6 +192,10 @@ def read_mcap(
         problems.append(f"damaged: unreadable record ({type(exc).__name__}: {exc})")
         _salvage(pending, schemas, channels, loose)
         summary = False
+    if deferred is not None and (
+        problems or not gather_indexed(deferred, channels, skip_topics, arena)
+    ):
+        return None
     for channel_id, (times, datas) in loose.items():
         if channel_id in channels:
             channels[channel_id].pieces.append((np.asarray(times, dtype=np.uint64), datas))
@@ -265,12 +286,31 @@ def _definition(
     op: int, body: memoryview, schemas: dict[int, str], channels: dict[int, ChannelData]
 ) -> None:
     """Register a Schema or Channel record."""
+    small = len(body) <= MAX_CACHED_RECORD  # the logs of a sweep repeat the same records
     if op == OP_SCHEMA:
-        s = Schema.read(ReadDataStream(io.BytesIO(body)))
-        schemas[s.id] = s.name
+        schema_id, name = (_schema if small else _schema.__wrapped__)(bytes(body))
+        schemas[schema_id] = name
     else:
-        c = Channel.read(ReadDataStream(io.BytesIO(body)))
-        channels[c.id] = ChannelData(c.topic, schemas.get(c.schema_id, ""), c.metadata)
+        parsed = (_channel if small else _channel.__wrapped__)(bytes(body))
+        channel_id, schema_id, topic, metadata = parsed
+        channels[channel_id] = ChannelData(topic, schemas.get(schema_id, ""), dict(metadata))
+
+
+MAX_CACHED_RECORD = 64 << 10  # larger Schema and Channel records are parsed each time
+
+
+@functools.lru_cache(maxsize=256)
+def _schema(body: bytes) -> tuple[int, str]:
+    """Id and name of a Schema record."""
+    s = Schema.read(ReadDataStream(io.BytesIO(body)))
+    return s.id, s.name
+
+
+@functools.lru_cache(maxsize=256)
+def _channel(body: bytes) -> tuple[int, int, str, tuple[tuple[str, str], ...]]:
+    """Id, schema id, topic and metadata of a Channel record."""
+    c = Channel.read(ReadDataStream(io.BytesIO(body)))
+    return c.id, c.schema_id, c.topic, tuple(c.metadata.items())
 
 
 def _gather(
@@ -280,6 +320,7 @@ def _gather(
     loose: _Loose,
     skip_topics: frozenset[str],
     problems: list[str],
+    deferred: list[Chunk] | None = None,
 ) -> None:
     """Add a chunk's messages to their channels, by its message indexes when it has them.
 
@@ -296,6 +337,9 @@ def _gather(
                 f"damaged: message index of the chunk at byte {chunk_at}; read without it"
             )
         _walk_chunk(raw, schemas, channels, loose)
+        return
+    if deferred is not None:  # checked with the file's other chunks (`file_index`)
+        deferred.append((raw, indexes))
         return
     found = []
     for channel_id, pairs in indexes.items():
