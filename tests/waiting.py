@@ -53,10 +53,11 @@ def record_process(spec: Path, out: Path, *args: str) -> subprocess.Popen:
 
 
 def interrupt(
-    proc: subprocess.Popen, sig: int = signal.SIGTERM, *, within_s: float = 15.0
+    proc: subprocess.Popen, sig: int = signal.SIGTERM, *, within_s: float = 60.0
 ) -> tuple[str, str]:
     """Send `sig` and return the process' (stdout, stderr) once it has ended, which must be
-    within `within_s` (a job stops between two chunks; a run left to its end takes minutes)."""
+    within `within_s`, a hang guard far above the time it takes (a job stops between two
+    chunks, in well under a second; a run left to its end takes minutes)."""
     proc.send_signal(sig)
     try:
         return proc.communicate(timeout=within_s)

@@ -47,7 +47,7 @@ class Hang(Exception):
     pass
 
 
-def run_cli(capsys, argv: list[str], *, seconds: int = 20) -> tuple[int, str, str]:
+def run_cli(capsys, argv: list[str], *, seconds: int = 60) -> tuple[int, str, str]:
     """Run the command line in-process, failing (not hanging) if it does not end in time."""
 
     def alarm(signum, frame):
@@ -71,13 +71,13 @@ resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))  # a read that never 
 from impactlab.cli import main
 import impactlab.analyze.job, impactlab.logs.diff, impactlab.replay.recordings
 def alarm(signum, frame):
-    raise TimeoutError("did not end within 20 s")
+    raise TimeoutError("did not end within 60 s")
 signal.signal(signal.SIGALRM, alarm)
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 for line in sys.stdin:
     argv = json.loads(line)
     err = io.StringIO()
-    signal.alarm(20)
+    signal.alarm(60)
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
             code = main(argv)
@@ -91,7 +91,7 @@ for line in sys.stdin:
 
 def guarded(runs: list[list[str]]) -> list[tuple[int, str, int]]:
     """Run command lines in a fresh process whose memory is capped at 4 GiB and whose every
-    command is stopped after 20 s: (exit code, stderr, peak memory growth in MiB) of each."""
+    command is stopped after 60 s (a hang guard: each takes well under a second): (exit code, stderr, peak memory growth in MiB) of each."""
     lines = "".join(json.dumps(argv) + "\n" for argv in runs)
     done = subprocess.run(
         [sys.executable, "-c", GUARD], input=lines, capture_output=True, text=True, timeout=300

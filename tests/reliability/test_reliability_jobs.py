@@ -147,7 +147,7 @@ def test_interrupted_job(tmp_path, capsys, sig):
     out = tmp_path / "logs"
     proc = record_process(spec, out)
     wait_until(lambda: any(out.glob("*.mcap")), proc, what="a log file")
-    stdout, stderr = interrupt(proc, sig, within_s=60)
+    stdout, stderr = interrupt(proc, sig)
     assert "Traceback" not in stderr, stderr
     if sig == signal.SIGKILL:
         assert proc.returncode == -signal.SIGKILL
