@@ -59,10 +59,11 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         run_id: reason or outcome or "reason not recorded"
         for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
     }
+    keys = ("run_id", "body", "surface")  # each pair's rows, in one pass over the table
+    groups = bounces.filter(pl.all_horizontal(pl.col(k).is_not_null() for k in keys))
+    of = groups.partition_by(*keys, as_dict=True, maintain_order=True)
     for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
-        mine = bounces.filter(
-            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
-        )
+        mine = of[(run_id, body, surface)]
         es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls().drop_nans()
         who = f"{_who(mine.row(0, named=True))}, {md_text(body)} on {md_text(surface)}"
         if es.len() >= 2:
