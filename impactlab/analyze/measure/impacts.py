@@ -43,7 +43,7 @@ import polars as pl
 from impactlab.analyze.measure import kinematics as k
 from impactlab.analyze.measure.contact_intervals import PAIR
 from impactlab.analyze.measure.ground import Ground
-from impactlab.analyze.measure.states import logged_interval_s
+from impactlab.analyze.measure.states import logged_interval_s, state_blocks
 from impactlab.logs.load import RunLog
 
 RK4 = "RK4"
@@ -73,28 +73,33 @@ class StateTable:
     contacts at once."""
 
     def __init__(self, states: pl.DataFrame) -> None:
-        # each (run, body) is one block of rows in `states_long`: its code is the block's
-        # number, so the keys come sorted (the general rank when the blocks are not so)
-        coded = states.select("run_id", "body", pl.struct("run_id", "body").rle_id().alias("code"))
-        pairs = coded.unique("code", keep="first", maintain_order=True)
-        if pairs.select("run_id", "body").is_duplicated().any():
+        # each (run, body) is one block of rows in `states_long`, its rows increasing: the
+        # keys (block number, row) come sorted, and a lookup gathers only the rows it finds
+        # (the general rank and a sort when the blocks are not so)
+        self.states = states
+        blocks = state_blocks(states)
+        self.codes = {(r, b): float(i) for i, (r, b, _, _) in enumerate(blocks)}
+        self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
+        lengths = np.array([end - first for _, _, first, end in blocks], dtype=np.int64)
+        code = np.repeat(np.arange(len(blocks), dtype=float), lengths)
+        keys = code * self.stride + states["row"].to_numpy().astype(float)
+        self.order: np.ndarray | None = None
+        if len(self.codes) != len(blocks) or not bool((keys[1:] >= keys[:-1]).all()):
             coded = states.select(
                 "run_id", "body", (pl.struct("run_id", "body").rank("dense") - 1).alias("code")
             )
             pairs = coded.unique("code", keep="first", maintain_order=True)
-        self.codes = {
-            (r, b): float(c)
-            for r, b, c in zip(
-                *(pairs[k].to_list() for k in ("run_id", "body", "code")), strict=True
-            )
-        }
-        self.stride = float(states["row"].max() or 0) + 2 if states.height else 1.0
-        code = coded["code"].cast(pl.Float64).to_numpy()
-        keys = code * self.stride + states["row"].to_numpy().astype(float)
-        order = np.argsort(keys, kind="stable")
-        self.keys = keys[order]
-        values = states.select([pl.col(c).cast(pl.Float64) for c in STATE]).to_numpy()
-        self.values = values[order]
+            self.codes = {
+                (r, b): float(c)
+                for r, b, c in zip(
+                    *(pairs[k].to_list() for k in ("run_id", "body", "code")), strict=True
+                )
+            }
+            keys = coded["code"].cast(pl.Float64).to_numpy() * self.stride
+            keys = keys + states["row"].to_numpy().astype(float)
+            self.order = np.argsort(keys, kind="stable")
+            keys = keys[self.order]
+        self.keys = keys
 
     def keys_of(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> np.ndarray:
         """One number per (run, body, row); NaN where the body or row is missing or the body
@@ -115,7 +120,9 @@ class StateTable:
             spot = np.searchsorted(self.keys, np.nan_to_num(key, nan=-1.0))
             idx = np.clip(spot, 0, self.keys.size - 1)
             found = np.isfinite(key) & (self.keys[idx] == key)
-            out[found] = self.values[idx[found]]
+            at = idx[found] if self.order is None else self.order[idx[found]]
+            picked = self.states[at].select([pl.col(c).cast(pl.Float64) for c in STATE])
+            out[found] = picked.to_numpy()
         return States(out[:, 0] / 1e9, out[:, 1:4], out[:, 4:8], out[:, 8:11], out[:, 11:14])
 
 
