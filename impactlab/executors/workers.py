@@ -80,6 +80,17 @@ def serve(conn: Connection, parent: int) -> None:
             conn.send_bytes(_run(index, payload))
     except (KeyboardInterrupt, ConnectionError):  # SIGTERM, or the parent is gone
         raise SystemExit(EXIT_TERMINATED) from None
+    _leave()
+
+
+def _leave() -> None:
+    """End a worker whose work is done without the interpreter's teardown of every module
+    (0.1 s with polars loaded, 0.7 s with matplotlib, which `close` would wait for): each
+    task closed its own files; the standard streams are flushed."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(0)
 
 
 def _receive(conn: Connection) -> tuple[int, bytes] | None:

