@@ -56,8 +56,11 @@ def plan(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     allow_large: bool = False,
-) -> list[PlannedRun]:
+) -> Sequence[PlannedRun]:
     """Validate specs or models and return the runs they give, without simulating.
+
+    The runs are a sequence (`len`, indexing, iteration) that builds a sweep's run when it
+    is read, so a large sweep is planned in little memory; `list(...)` holds them all.
 
     Args:
         inputs: a spec file (.toml), an MJCF model (.xml), a spec document (a dict with the
@@ -120,8 +123,12 @@ def record(
 
     if not str(out).strip():
         raise OutputError(str(out), "the output folder must not be empty (for this folder: '.')")
-    items = _items(inputs)
-    runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
+    from impactlab.record.planned import PlannedRuns
+
+    items = [] if isinstance(inputs, PlannedRuns) else _items(inputs)
+    runs: Sequence[PlannedRun] | None = inputs if isinstance(inputs, PlannedRuns) else None
+    if items and all(isinstance(r, PlannedRun) for r in items):
+        runs = items
     if runs is None:
         runs = plan_runs(
             items,

@@ -17,6 +17,7 @@ from impactlab.record.contact_pairs import calibrated_pairs
 from impactlab.record.log_rows import RunInfo
 from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
+from impactlab.record.planned import PlannedRuns
 from impactlab.record.spec import RunSpec, Stop, spec_hash
 from impactlab.record.sweep import SpecSweep
 from impactlab.record.work import Work, check_work, run_steps
@@ -34,7 +35,7 @@ class PlannedRun:
     """
 
     info: RunInfo
-    build: Callable[[], InstrumentedModel]
+    build: Callable[[], InstrumentedModel] = field(compare=False)
     spec: RunSpec | None
     max_time: float
     stop: Stop | None = None
@@ -47,11 +48,13 @@ def plan(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     allow_large: bool = False,
-) -> list[PlannedRun]:
+) -> PlannedRuns[PlannedRun]:
     """Validate every input and return the runs to record, in order.
 
     The job's work is estimated first, from the specs' sweeps without expanding them
     (`impactlab.record.work`): a job beyond the limits is refused unless `allow_large`.
+    Every run is validated here; a sweep's runs are not kept but built again when read
+    (`impactlab.record.planned.PlannedRuns`), so a large sweep plans in little memory.
 
     Args:
         inputs: experiment specs (.toml files, or spec documents as dicts) and/or MJCF
@@ -88,24 +91,19 @@ def plan(
     work = sum((_work(part) for part in parts), Work())
     sources = [p.source if isinstance(p, SpecSweep) else p.info.source for p in parts]
     check_work(work, source=", ".join(dict.fromkeys(sources)), allow_large=allow_large)
-    runs: list[PlannedRun] = []
-    for part in parts:
-        if isinstance(part, SpecSweep):
-            planned = [_plan_spec(run) for run in part.runs()]
-            planned[0].build()  # MuJoCo compiles the model (its own checks fail now)
-            runs += planned
-        else:
-            runs.append(part)
-    first: dict[str, PlannedRun] = {}
-    for run in runs:
-        other = first.setdefault(run.info.run_id, run)
-        if other is not run:
+    runs = PlannedRuns(parts, _plan_spec)
+    first: dict[str, int] = {}  # every run is validated now, then dropped: built again when run
+    for index, run in enumerate(runs):
+        if run.spec is not None and run.info.sweep_index == 0:
+            run.build()  # MuJoCo compiles the sweep's model (its own checks fail now)
+        other = first.setdefault(run.info.run_id, index)
+        if other != index:
             where = f"sweep point {_point(run)}" if run.info.sweep else "its only run"
             raise SpecError(
                 run.info.source,
                 "",
-                f"{where} is the same run as {_point(other)} of {other.info.source}; "
-                "give each input once",
+                f"{where} is the same run as {_point(runs[other])} of "
+                f"{runs[other].info.source}; give each input once",
             )
     return runs
 
