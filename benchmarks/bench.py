@@ -44,7 +44,7 @@ def main() -> int:
         with tempfile.TemporaryDirectory(prefix="impactlab-scale-") as tmp:
             specs = {n: cases.write_spec(Path(tmp), n, 0.05) for n in sorted(set(args.runs))}
             results = Results("Scale: large sweeps of short runs", _command())
-            scale.main(Path(tmp), specs, args.executors, results)
+            scale.main(Path(tmp), specs, args.executors, results, lambda r: r.write("scale.md"))
         print(f"\nwritten: {results.write('scale.md')}")
         return 0
     runs = 16 if args.quick else 64

@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import contextlib
 import json
+import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import cases
@@ -50,10 +52,9 @@ def run_sampled(argv: list[str]) -> tuple[dict, float]:
     return json.loads(out.strip().splitlines()[-1]), peak / 1e6
 
 
-def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> list[dict]:
+def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterator[dict]:
     """Record each size's spec once, analyze it on each executor; one row per (size,
-    executor). `specs`: per number of runs, its sweep spec (written by bench.py)."""
-    rows = []
+    executor), as it is measured. `specs`: per number of runs, its sweep spec."""
     for n, spec in specs.items():
         logs = folder / f"scale_logs_{n}"
         rec, rec_mb = run_sampled([sys.executable, cases.__file__, "record", str(spec), str(logs)])
@@ -63,18 +64,17 @@ def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> list[di
             ana, ana_mb = run_sampled(
                 [sys.executable, cases.__file__, "tables", str(logs), str(out), executor]
             )
-            rows.append(
-                {
-                    "runs": n,
-                    "executor": executor,
-                    "record_ms": rec["seconds"] * 1e3 / n,
-                    "record_mb": rec_mb,
-                    "analyze_ms": ana["seconds"] * 1e3 / n,
-                    "analyze_mb": ana_mb,
-                }
-            )
-            _print_row(rows[-1])
-    return rows
+            row = {
+                "runs": n,
+                "executor": executor,
+                "record_ms": rec["seconds"] * 1e3 / n,
+                "record_mb": rec_mb,
+                "analyze_ms": ana["seconds"] * 1e3 / n,
+                "analyze_mb": ana_mb,
+            }
+            _print_row(row)
+            yield row
+        shutil.rmtree(logs, ignore_errors=True)  # 100,000 logs are 4 GB
 
 
 def _print_row(r: dict) -> None:
@@ -85,9 +85,16 @@ def _print_row(r: dict) -> None:
     )
 
 
-def main(folder: Path, specs: dict[int, Path], executors: list[str], results: Results) -> None:
-    """Measure every size on every executor; print the rows and ratios, add them to
-    `results`."""
+def main(
+    folder: Path,
+    specs: dict[int, Path],
+    executors: list[str],
+    results: Results,
+    write: Callable[[Results], object],
+) -> None:
+    """Measure every size on every executor; print the rows and ratios. `results` holds
+    the rows measured so far and is written (`write`) after each: a long run stopped
+    before its end leaves the figures it measured."""
     print(
         "scale: sweeps of short runs (0.05 s, 101 steps) recorded, then analyzed (tables, "
         "summary.json, report; no figures), each stage in a fresh interpreter; peak MB of "
@@ -97,7 +104,50 @@ def main(folder: Path, specs: dict[int, Path], executors: list[str], results: Re
         f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'record MB':>10} "
         f"{'analyze ms':>11} {'analyze MB':>11}"
     )
-    rows = scale(folder, specs, executors)
+    rows: list[dict] = []
+    for row in scale(folder, specs, executors):
+        rows.append(row)
+        _fill(results, rows, executors, len(specs) * len(executors))
+        write(results)
+    for text in _ratios(rows, executors):
+        print(text)
+
+
+def _ratios(rows: list[dict], executors: list[str]) -> Iterator[str]:
+    """Each larger size against the smallest, per stage: the lines to print."""
+    small = min(r["runs"] for r in rows)
+    for large in sorted({r["runs"] for r in rows} - {small}):
+        yield (
+            f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
+            f"{GOAL_MEMORY}):"
+        )
+        for stage, where, t, m in _compare(rows, executors, small, large):
+            verdict = "met" if t <= GOAL_TIME and m <= GOAL_MEMORY else "not met"
+            yield f"    {stage}{where}: time per run {t:.2f}x, peak memory {m:.2f}x: {verdict}"
+
+
+def _compare(
+    rows: list[dict], executors: list[str], small: int, large: int
+) -> Iterator[tuple[str, str, float, float]]:
+    """(stage, executor note, time ratio, memory ratio) of `large` runs against `small`."""
+    for executor in executors:
+        a = [r for r in rows if r["runs"] == small and r["executor"] == executor]
+        b = [r for r in rows if r["runs"] == large and r["executor"] == executor]
+        if not (a and b):
+            continue
+        for stage in ("record", "analyze"):
+            if stage == "record" and executor != executors[0]:
+                continue  # recorded once per size
+            t = b[0][f"{stage}_ms"] / a[0][f"{stage}_ms"]
+            m = b[0][f"{stage}_mb"] / a[0][f"{stage}_mb"]
+            yield stage, "" if stage == "record" else f" ({executor})", t, m
+
+
+def _fill(results: Results, rows: list[dict], executors: list[str], planned: int) -> None:
+    """`results` with the rows measured so far and the ratios they allow."""
+    results.rows.clear()
+    results.tables.clear()
+    results.notes.clear()
     results.table(
         [
             "runs",
@@ -119,33 +169,18 @@ def main(folder: Path, specs: dict[int, Path], executors: list[str], results: Re
             for r in rows
         ],
     )
-    small = min(specs)
-    for large in sorted(specs)[1:]:
-        print(
-            f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
-            f"{GOAL_MEMORY}):"
-        )
-        for executor in executors:
-            a = next(r for r in rows if r["runs"] == small and r["executor"] == executor)
-            b = next(r for r in rows if r["runs"] == large and r["executor"] == executor)
-            for stage in ("record", "analyze"):
-                if stage == "record" and executor != executors[0]:
-                    continue  # recorded once per size
-                t = b[f"{stage}_ms"] / a[f"{stage}_ms"]
-                m = b[f"{stage}_mb"] / a[f"{stage}_mb"]
-                ok = t <= GOAL_TIME and m <= GOAL_MEMORY
-                where = "" if stage == "record" else f" ({executor})"
-                print(
-                    f"    {stage}{where}: time per run {t:.2f}x, peak memory {m:.2f}x: "
-                    f"{'met' if ok else 'not met'}"
-                )
-                results.add(
-                    "ratio",
-                    f"{stage}{where}, {large:,} runs against {small:,}",
-                    f"time per run {t:.2f}x, peak memory {m:.2f}x",
-                    f"time <= {GOAL_TIME}x, memory <= {GOAL_MEMORY}x",
-                    ok,
-                )
+    small = min(r["runs"] for r in rows)
+    for large in sorted({r["runs"] for r in rows} - {small}):
+        for stage, where, t, m in _compare(rows, executors, small, large):
+            results.add(
+                "ratio",
+                f"{stage}{where}, {large:,} runs against {small:,}",
+                f"time per run {t:.2f}x, peak memory {m:.2f}x",
+                f"time <= {GOAL_TIME}x, memory <= {GOAL_MEMORY}x",
+                t <= GOAL_TIME and m <= GOAL_MEMORY,
+            )
+    if len(rows) < planned:
+        results.note(f"**Incomplete**: {len(rows)} of the {planned} rows measured so far.")
     results.note(
         "Runs of 0.05 s (101 steps), drop sweep. Each stage in a fresh interpreter; peak "
         "memory of the whole process tree (the stage's process and its workers, resident "
