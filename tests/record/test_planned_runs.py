@@ -66,3 +66,23 @@ def test_a_bad_point_fails_at_plan_time(tmp_path):
     path.write_text(path.read_text().replace('"ball.mass" = [1, ', '"ball.mass" = [1, -2, '))
     with pytest.raises(SpecError, match="mass"):
         plan(path)
+
+
+def test_recording_holds_no_planned_run_in_the_driver(tmp_path):
+    """While forked workers record a sweep, the driver holds its runs as indices: when each
+    run's result arrives, at most one planned run (the last one read, with its resolved
+    spec) is alive here, not one per run."""
+    from impactlab.record.forked import can_fork
+    from impactlab.record.recorder import record_runs
+
+    assert can_fork()
+    runs = plan(_spec(tmp_path, 2))  # 6 runs
+    alive: list[tuple[int, int]] = []
+
+    def progress(event) -> None:
+        if event.line is not None and event.done:
+            alive.append((_alive(PlannedRun), _alive(RunSpec)))
+
+    result = record_runs(runs, tmp_path / "logs", threads=2, progress=progress)
+    assert len(result) == 6 and not result.failed
+    assert len(alive) >= 6 and max(max(a) for a in alive) <= 1, alive
