@@ -4,7 +4,8 @@ Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`
 an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
 `geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
 and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`job`
-plans, `work` estimates and refuses absurd jobs, `recorder` runs here or as executor `tasks`).
+plans, `planned` keeps a plan's sweeps unexpanded, `work` estimates and refuses absurd jobs,
+`recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
 MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
