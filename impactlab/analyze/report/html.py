@@ -17,8 +17,10 @@ import html
 import re
 import shutil
 import stat
-from collections.abc import Iterator
+from array import array
+from collections.abc import Iterator, Sequence
 from pathlib import Path
+from typing import overload
 from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
@@ -81,19 +83,16 @@ def _anchors(state: StateCore) -> None:
         token.attrSet("id", unique_slug(slugify(title), slugs))
 
 
-def _pieces(markdown: str | list[str]) -> Iterator[tuple[str, str]]:
+def _pieces(markdown: str) -> Iterator[tuple[str, str]]:
     """The Markdown in pieces that render alone as within the whole page: its sections (cut
     before each heading outside a code fence) and, of a table of more than SLICE_ROWS rows
     standing between blank lines, slices of rows under its header. Yields (part, text):
     part "" for Markdown as it is, "first", "middle" or "last" for a table's slices.
-    `markdown`: the text, or its lines (with their ends) when it defines no reference."""
-    if isinstance(markdown, str):
-        if _DEFINITION.search(markdown):  # a reference may be defined in another piece: whole
-            yield "", markdown
-            return
-        lines = markdown.splitlines(keepends=True)
-    else:
-        lines = markdown
+    The lines are read from the text as they are needed (`_Lines`), never listed."""
+    if _DEFINITION.search(markdown):  # a reference may be defined in another piece: whole
+        yield "", markdown
+        return
+    lines = _Lines(markdown)
     text: list[str] = []
     fence = ""
     i = 0
@@ -200,7 +199,37 @@ def _closes(line: str, fence: str) -> bool:
     return mark[0] == fence[0] and len(mark) >= len(fence) and not line[closing.end() :].strip()
 
 
-def _table_at(lines: list[str], i: int) -> bool:
+class _Lines(Sequence[str]):
+    """A text's lines with their ends (as `str.splitlines(keepends=True)` cuts them), each
+    read from the text when it is indexed: only where each line ends is kept (the report of
+    20,000 runs is 17 MB of text; its list of lines took 22 MB more)."""
+
+    def __init__(self, text: str) -> None:
+        self._text = text
+        self._ends = array("q", (m.end() for m in _LINE_END.finditer(text)))
+        if not self._ends or self._ends[-1] < len(text):
+            self._ends.append(len(text))  # the last line, without an end
+
+    def __len__(self) -> int:
+        return len(self._ends) if self._text else 0
+
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[str]: ...
+    def __getitem__(self, i: int | slice) -> str | list[str]:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        if not 0 <= i < len(self):
+            raise IndexError(i)
+        return self._text[self._ends[i - 1] if i else 0 : self._ends[i]]
+
+
+_LINE_END = re.compile("\r\n|[\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029]")
+"""Where `str.splitlines` cuts a line."""
+
+
+def _table_at(lines: Sequence[str], i: int) -> bool:
     """Whether a table (a row, then its delimiter row) starts at line i."""
     return (
         lines[i].startswith("|")  # at the margin: a table of the page, not of a list item
@@ -275,7 +304,7 @@ def _embed(tokens: list[Token], folder: Path) -> list[str]:
     return refused
 
 
-def _rendered(markdown: str | list[str], folder: Path, missing: list[str]) -> Iterator[str]:
+def _rendered(markdown: str, folder: Path, missing: list[str]) -> Iterator[str]:
     """The page's body, piece by piece (`_pieces`); figures not found are added to
     `missing`."""
     md = _parser()
@@ -328,17 +357,14 @@ def write_report_html(report_md: Path) -> Path:
     text = report_md.read_text(encoding="utf-8")
     heading = _TITLE.search(text)
     first = heading.group(0) if heading else "# impactlab report"
-    # the text or its lines, not both: the report of 20,000 runs is 17 MB of text
-    source = text if _DEFINITION.search(text) else text.splitlines(keepends=True)
-    del text
     target = report_md.with_suffix(".html")
     body = temporary_path(report_md.with_suffix(".body.html"))
     missing: list[str] = []
     try:
         with open(body, "w", encoding="utf-8") as stream:
-            for piece in _rendered(source, report_md.parent, missing):
+            for piece in _rendered(text, report_md.parent, missing):
                 stream.write(piece)
-        del source
+        del text
         head, tail = _frame(first[2:].strip(), missing)
         with atomic_path(target) as tmp, open(tmp, "w", encoding="utf-8") as out:
             out.write(head)
