@@ -49,7 +49,7 @@ def can_fork() -> bool:
     )
 
 
-def shares(runs: Sequence[PlannedRun], parts: int) -> list[Subset]:
+def shares(runs: Sequence[PlannedRun], parts: int) -> list[Subset[PlannedRun]]:
     """Consecutive runs cut into at most `parts` shares of about equal work (steps).
 
     Consecutive runs are mostly points of one sweep: kept together they share rollouts.
@@ -95,7 +95,7 @@ def record_forked(
     context = multiprocessing.get_context("fork")
     sys.stdout.flush()
     sys.stderr.flush()
-    pending: dict[Connection, tuple[Any, Subset]] = {}
+    pending: dict[Connection, tuple[Any, Subset[PlannedRun]]] = {}
     processes = []
     out: list[RecordedRun] = []
     try:
