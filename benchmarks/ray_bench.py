@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from bench import write_spec  # the same drop sweep as the main benchmark
+from cases import write_spec  # the same drop sweep as the main benchmark
 
 from impactlab.record import plan, record_runs
 

@@ -1,23 +1,28 @@
 """Scale: large sweeps of short runs recorded and analyzed end to end (`bench.py --scale`).
 
 Each stage (record, then analyze: tables, summary.json and the report, no figures) runs in
-a fresh interpreter; its peak memory is that of the whole process tree (the stage's process
-and every child: record's forked workers, the analysis' worker processes), the sum of their
-resident memory sampled with psutil every 20 ms. Time per run is the stage's own time
-(without the interpreter's start) over the number of runs. The goals (issue 28): at 20,000
-runs, time per run within 1.2x and peak memory within 1.3x of those at 2,000.
+a fresh interpreter (`cases.py`); its peak memory is that of the whole process tree (the
+stage's process and every child: record's forked workers, the analysis' worker processes),
+the sum of their resident memory sampled with psutil every 20 ms. Time per run is the
+stage's own time (planning included, the interpreter's start not) over the number of runs.
+The goals (issue 28): at 20,000 runs, time per run within 1.2x and peak memory within 1.3x
+of those at 2,000; larger sweeps (100,000) are measured against 2,000 the same way.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import shutil
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
+import cases
 import psutil
+from results import Results
 
 SAMPLE_S = 0.02
 GOAL_TIME, GOAL_MEMORY = 1.2, 1.3
@@ -43,35 +48,33 @@ def run_sampled(argv: list[str]) -> tuple[dict, float]:
         time.sleep(SAMPLE_S)
     out = proc.stdout.read() if proc.stdout else ""
     if proc.returncode != 0:
-        raise SystemExit(f"{argv[3:]} failed with exit code {proc.returncode}")
+        raise SystemExit(f"{argv[2:]} failed with exit code {proc.returncode}")
     return json.loads(out.strip().splitlines()[-1]), peak / 1e6
 
 
-def scale(folder: Path, bench: str, specs: dict[int, Path], executors: list[str]) -> list[dict]:
+def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterator[dict]:
     """Record each size's spec once, analyze it on each executor; one row per (size,
-    executor). `specs`: per number of runs, its sweep spec (written by bench.py)."""
-    rows = []
+    executor), as it is measured. `specs`: per number of runs, its sweep spec."""
     for n, spec in specs.items():
         logs = folder / f"scale_logs_{n}"
-        rec, rec_mb = run_sampled([sys.executable, bench, "--case", "record", str(spec), str(logs)])
+        rec, rec_mb = run_sampled([sys.executable, cases.__file__, "record", str(spec), str(logs)])
         assert rec["runs"] == n, rec
         for executor in executors:
             out = folder / f"scale_results_{n}_{executor}"
             ana, ana_mb = run_sampled(
-                [sys.executable, bench, "--case", "tables", str(logs), str(out), executor]
+                [sys.executable, cases.__file__, "tables", str(logs), str(out), executor]
             )
-            rows.append(
-                {
-                    "runs": n,
-                    "executor": executor,
-                    "record_ms": rec["seconds"] * 1e3 / n,
-                    "record_mb": rec_mb,
-                    "analyze_ms": ana["seconds"] * 1e3 / n,
-                    "analyze_mb": ana_mb,
-                }
-            )
-            _print_row(rows[-1])
-    return rows
+            row = {
+                "runs": n,
+                "executor": executor,
+                "record_ms": rec["seconds"] * 1e3 / n,
+                "record_mb": rec_mb,
+                "analyze_ms": ana["seconds"] * 1e3 / n,
+                "analyze_mb": ana_mb,
+            }
+            _print_row(row)
+            yield row
+        shutil.rmtree(logs, ignore_errors=True)  # 100,000 logs are 4 GB
 
 
 def _print_row(r: dict) -> None:
@@ -82,7 +85,16 @@ def _print_row(r: dict) -> None:
     )
 
 
-def main(folder: Path, bench: str, specs: dict[int, Path], executors: list[str]) -> None:
+def main(
+    folder: Path,
+    specs: dict[int, Path],
+    executors: list[str],
+    results: Results,
+    write: Callable[[Results], object],
+) -> None:
+    """Measure every size on every executor; print the rows and ratios. `results` holds
+    the rows measured so far and is written (`write`) after each: a long run stopped
+    before its end leaves the figures it measured."""
     print(
         "scale: sweeps of short runs (0.05 s, 101 steps) recorded, then analyzed (tables, "
         "summary.json, report; no figures), each stage in a fresh interpreter; peak MB of "
@@ -92,22 +104,88 @@ def main(folder: Path, bench: str, specs: dict[int, Path], executors: list[str])
         f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'record MB':>10} "
         f"{'analyze ms':>11} {'analyze MB':>11}"
     )
-    rows = scale(folder, bench, specs, executors)
-    small, large = min(specs), max(specs)
-    if small == large:
-        return
-    print(
-        f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
-        f"{GOAL_MEMORY}):"
-    )
-    for executor in executors:
-        a = next(r for r in rows if r["runs"] == small and r["executor"] == executor)
-        b = next(r for r in rows if r["runs"] == large and r["executor"] == executor)
-        for stage in ("record", "analyze"):
-            t = b[f"{stage}_ms"] / a[f"{stage}_ms"]
-            m = b[f"{stage}_mb"] / a[f"{stage}_mb"]
+    rows: list[dict] = []
+    for row in scale(folder, specs, executors):
+        rows.append(row)
+        _fill(results, rows, executors, len(specs) * len(executors))
+        write(results)
+    for text in _ratios(rows, executors):
+        print(text)
+
+
+def _ratios(rows: list[dict], executors: list[str]) -> Iterator[str]:
+    """Each larger size against the smallest, per stage: the lines to print."""
+    small = min(r["runs"] for r in rows)
+    for large in sorted({r["runs"] for r in rows} - {small}):
+        yield (
+            f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
+            f"{GOAL_MEMORY}):"
+        )
+        for stage, where, t, m in _compare(rows, executors, small, large):
             verdict = "met" if t <= GOAL_TIME and m <= GOAL_MEMORY else "not met"
-            print(
-                f"    {stage:>7} ({executor}): time per run {t:.2f}x, peak memory {m:.2f}x: "
-                f"{verdict}"
+            yield f"    {stage}{where}: time per run {t:.2f}x, peak memory {m:.2f}x: {verdict}"
+
+
+def _compare(
+    rows: list[dict], executors: list[str], small: int, large: int
+) -> Iterator[tuple[str, str, float, float]]:
+    """(stage, executor note, time ratio, memory ratio) of `large` runs against `small`."""
+    for executor in executors:
+        a = [r for r in rows if r["runs"] == small and r["executor"] == executor]
+        b = [r for r in rows if r["runs"] == large and r["executor"] == executor]
+        if not (a and b):
+            continue
+        for stage in ("record", "analyze"):
+            if stage == "record" and executor != executors[0]:
+                continue  # recorded once per size
+            t = b[0][f"{stage}_ms"] / a[0][f"{stage}_ms"]
+            m = b[0][f"{stage}_mb"] / a[0][f"{stage}_mb"]
+            yield stage, "" if stage == "record" else f" ({executor})", t, m
+
+
+def _fill(results: Results, rows: list[dict], executors: list[str], planned: int) -> None:
+    """`results` with the rows measured so far and the ratios they allow."""
+    results.rows.clear()
+    results.tables.clear()
+    results.notes.clear()
+    results.table(
+        [
+            "runs",
+            "analyze executor",
+            "record ms/run",
+            "record peak MB",
+            "analyze ms/run",
+            "analyze peak MB",
+        ],
+        [
+            [
+                f"{r['runs']:,}",
+                r["executor"],
+                f"{r['record_ms']:.2f}",
+                f"{r['record_mb']:.0f}",
+                f"{r['analyze_ms']:.2f}",
+                f"{r['analyze_mb']:.0f}",
+            ]
+            for r in rows
+        ],
+    )
+    small = min(r["runs"] for r in rows)
+    for large in sorted({r["runs"] for r in rows} - {small}):
+        for stage, where, t, m in _compare(rows, executors, small, large):
+            results.add(
+                "ratio",
+                f"{stage}{where}, {large:,} runs against {small:,}",
+                f"time per run {t:.2f}x, peak memory {m:.2f}x",
+                f"time <= {GOAL_TIME}x, memory <= {GOAL_MEMORY}x",
+                t <= GOAL_TIME and m <= GOAL_MEMORY,
             )
+    if len(rows) < planned:
+        results.note(f"**Incomplete**: {len(rows)} of the {planned} rows measured so far.")
+    results.note(
+        "Runs of 0.05 s (101 steps), drop sweep. Each stage in a fresh interpreter; peak "
+        "memory of the whole process tree (the stage's process and its workers, resident "
+        "memory summed, sampled every 20 ms); time per run: the stage's time, planning "
+        "included, over the runs. Record shares the runs among forked workers, one per core; "
+        "the analysis runs in one process (`local`) or one worker process per CPU "
+        "(`processes`)."
+    )

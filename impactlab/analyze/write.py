@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
@@ -195,7 +195,7 @@ def _drawing(
     drawn()
 
 
-def write_lines(path: Path, parts: Sequence[str]) -> Path:
+def write_lines(path: Path, parts: Iterable[str]) -> Path:
     """Write `parts` joined by newlines, atomically, without joining them in memory."""
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
         for i, part in enumerate(parts):

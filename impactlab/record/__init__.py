@@ -4,7 +4,8 @@ Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`
 an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
 `geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
 and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`planner`
-plans, `work` estimates and refuses absurd jobs, `recorder` runs here or as executor `tasks`).
+plans, keeping a sweep as its grid (`PlannedRuns`), `work` estimates and refuses absurd jobs,
+`recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
 MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
@@ -56,8 +57,11 @@ def plan(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     allow_large: bool = False,
-) -> list[PlannedRun]:
+) -> Sequence[PlannedRun]:
     """Validate specs or models and return the runs they give, without simulating.
+
+    The runs are a sequence (`len`, indexing, iteration) that builds a sweep's run when it
+    is read, so a large sweep is planned in little memory; `list(...)` holds them all.
 
     Args:
         inputs: a spec file (.toml), an MJCF model (.xml), a spec document (a dict with the
@@ -120,8 +124,12 @@ def record(
 
     if not str(out).strip():
         raise OutputError(str(out), "the output folder must not be empty (for this folder: '.')")
-    items = _items(inputs)
-    runs = items if items and all(isinstance(r, PlannedRun) for r in items) else None
+    from impactlab.record.planner import PlannedRuns
+
+    items = [] if isinstance(inputs, PlannedRuns) else _items(inputs)
+    runs: Sequence[PlannedRun] | None = inputs if isinstance(inputs, PlannedRuns) else None
+    if items and all(isinstance(r, PlannedRun) for r in items):
+        runs = items
     if runs is None:
         runs = plan_runs(
             items,

@@ -124,8 +124,10 @@ def record_batches(
     stop_on_write_error: bool = True,
     reuse: Reuse | None = None,
     on_run: Report = lambda _: None,
+    keep: bool = True,
 ) -> list[RecordedRun]:
-    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
+    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion
+    (none with `keep=False`: `on_run` has them all, and nothing grows with the runs here).
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
     written fails its run, or, with `stop_on_write_error` (a full disk: nothing more can be
@@ -135,9 +137,13 @@ def record_batches(
     exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
+    written = 0
 
     def report(run: RecordedRun) -> None:
-        out.append(run)
+        nonlocal written
+        written += run.status == "recorded"
+        if keep:
+            out.append(run)
         on_run(run)
 
     logs: dict[RunRequest, _OpenLog] = {}
@@ -182,7 +188,6 @@ def record_batches(
                     if request in logs:
                         logs.pop(request).abort()
                     if stop_on_write_error and isinstance(exc, OSError):
-                        written = sum(r.status == "recorded" for r in out)
                         raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)
                     fail(run, f"cannot write the log: {describe_error(exc)}")

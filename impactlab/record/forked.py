@@ -32,7 +32,7 @@ from typing import Any
 from impactlab.logs.writer import partial_path
 from impactlab.record.batch import LogWriteError, Report, Reuse, record_batches
 from impactlab.record.folder import log_path
-from impactlab.record.planner import PlannedRun
+from impactlab.record.planner import PlannedRun, Subset
 from impactlab.record.results import RecordedRun
 
 DIED = "its worker process died (killed or out of memory)"
@@ -48,21 +48,26 @@ def can_fork() -> bool:
     )
 
 
-def shares(runs: Sequence[PlannedRun], parts: int) -> list[list[PlannedRun]]:
+def shares(runs: Sequence[PlannedRun], parts: int) -> list[Subset[PlannedRun]]:
     """Consecutive runs cut into at most `parts` shares of about equal work (steps).
 
     Consecutive runs are mostly points of one sweep: kept together they share rollouts.
     """
-    weights = [max(1.0, float(r.work.steps)) for r in runs]
+    steps = [float(r.work.steps) for r in runs]
+    return [Subset(runs, indices) for indices in share_ranges(steps, parts)]
+
+
+def share_ranges(steps: Sequence[float], parts: int) -> list[range]:
+    """`shares` by index: runs given by their steps, cut into at most `parts` ranges."""
+    weights = [max(1.0, w) for w in steps]
     total = sum(weights)
-    out: list[list[PlannedRun]] = [[]]
+    starts = [0]
     done = 0.0
-    for run, weight in zip(runs, weights, strict=True):
-        if out[-1] and done >= total * len(out) / parts and len(out) < parts:
-            out.append([])
-        out[-1].append(run)
+    for index, weight in enumerate(weights):
+        if index > starts[-1] and done >= total * len(starts) / parts and len(starts) < parts:
+            starts.append(index)
         done += weight
-    return out
+    return [range(a, b) for a, b in zip(starts, [*starts[1:], len(weights)], strict=True)]
 
 
 def record_forked(
@@ -73,9 +78,14 @@ def record_forked(
     batch_size: int,
     reuse: Reuse | None = None,
     on_run: Report = lambda _: None,
+    steps: Sequence[float] | None = None,
 ) -> list[RecordedRun]:
     """Record `runs` over `workers` forked processes; one `RecordedRun` per run, in order of
-    completion. `on_run` is called here as each run's log is complete.
+    completion. `on_run` is called here as each run's log is complete. `steps`: each run's
+    steps, when known (else read from the runs), to share the work.
+
+    The workers inherit `runs` (a sequence that may build its runs when read) and each
+    reads only its share, as it records it.
 
     Raises:
         LogWriteError: a worker could not write a log (a full disk); the logs reported
@@ -84,11 +94,14 @@ def record_forked(
     context = multiprocessing.get_context("fork")
     sys.stdout.flush()
     sys.stderr.flush()
-    pending: dict[Connection, tuple[Any, list[PlannedRun]]] = {}
+    pending: dict[Connection, tuple[Any, Subset[PlannedRun]]] = {}
     processes = []
     out: list[RecordedRun] = []
     try:
-        for share in shares(runs, workers):
+        if steps is None:
+            steps = [float(r.work.steps) for r in runs]
+        for indices in share_ranges(steps, workers):
+            share = Subset(runs, indices)
             receive, send = context.Pipe(duplex=False)
             process = context.Process(
                 target=_work,
@@ -153,7 +166,7 @@ def _die_with(parent: int) -> None:
 
 
 def _work(
-    runs: list[PlannedRun],
+    runs: Sequence[PlannedRun],
     out_dir: Path,
     batch_size: int,
     reuse: Reuse | None,
@@ -171,6 +184,7 @@ def _work(
             threads=1,
             reuse=reuse,
             on_run=lambda run: send.send(("run", run)),
+            keep=False,
         )
     except LogWriteError as exc:
         send.send(("error", (exc.path, exc.problem)))

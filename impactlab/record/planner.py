@@ -1,17 +1,22 @@
 """Plan a record job: specs or MJCF files -> validated runs, each with its name and metadata.
 
-Everything is validated before the first simulation, so a wrong input writes nothing.
+Everything is validated before the first simulation, so a wrong input writes nothing. The
+plan is a sequence built on demand (`PlannedRuns`): a 100,000-point sweep planned as a list
+holds 100,000 resolved specs (about 7 KB each) in the process that records them and in every
+worker forked from it, so a sweep is kept as its grid and a run is built again (about 0.1 ms,
+the spec validated again) when it is asked for; `Subset` is a view of some runs, by index.
 """
 
 from __future__ import annotations
 
+import bisect
 import functools
 import hashlib
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar, overload
 
 from impactlab.errors import SpecError
 from impactlab.logs.contract import PairTarget
@@ -38,7 +43,7 @@ class PlannedRun:
     """
 
     info: RunInfo
-    build: Callable[[], InstrumentedModel]
+    build: Callable[[], InstrumentedModel] = field(compare=False)
     spec: RunSpec | None
     max_time: float
     stop: Stop | None = None
@@ -52,11 +57,13 @@ def plan(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     allow_large: bool = False,
-) -> list[PlannedRun]:
+) -> PlannedRuns[PlannedRun]:
     """Validate every input and return the runs to record, in order.
 
     The job's work is estimated first, from the specs' sweeps without expanding them
     (`impactlab.record.work`): a job beyond the limits is refused unless `allow_large`.
+    Every run is validated here; a sweep's runs are not kept but built again when read
+    (`impactlab.record.planner.PlannedRuns`), so a large sweep plans in little memory.
 
     Args:
         inputs: experiment specs (.toml files, or spec documents as dicts) and/or MJCF
@@ -93,24 +100,19 @@ def plan(
     work = sum((_work(part) for part in parts), Work())
     sources = [p.source if isinstance(p, SpecSweep) else p.info.source for p in parts]
     check_work(work, source=", ".join(dict.fromkeys(sources)), allow_large=allow_large)
-    runs: list[PlannedRun] = []
-    for part in parts:
-        if isinstance(part, SpecSweep):
-            planned = [_plan_spec(run) for run in part.runs()]
-            planned[0].build()  # MuJoCo compiles the model (its own checks fail now)
-            runs += planned
-        else:
-            runs.append(part)
-    first: dict[str, PlannedRun] = {}
-    for run in runs:
-        other = first.setdefault(run.info.run_id, run)
-        if other is not run:
+    runs = PlannedRuns(parts, _plan_spec)
+    first: dict[str, int] = {}  # every run is validated now, then dropped: built again when run
+    for index, run in enumerate(runs):
+        if run.spec is not None and run.info.sweep_index == 0:
+            run.build()  # MuJoCo compiles the sweep's model (its own checks fail now)
+        other = first.setdefault(run.info.run_id, index)
+        if other != index:
             where = f"sweep point {_point(run)}" if run.info.sweep else "its only run"
             raise SpecError(
                 run.info.source,
                 "",
-                f"{where} is the same run as {_point(other)} of {other.info.source}; "
-                "give each input once",
+                f"{where} is the same run as {_point(runs[other])} of "
+                f"{runs[other].info.source}; give each input once",
             )
     return runs
 
@@ -195,3 +197,78 @@ def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -
     if len(readable) > MAX_READABLE_NAME:  # file names have at most 255 bytes
         readable = readable[: MAX_READABLE_NAME - 3] + "..."
     return f"{readable}-{digest[:8]}"
+
+
+T = TypeVar("T")  # a planned run (`PlannedRun`)
+
+
+class PlannedRuns(Sequence[T]):
+    """The runs of a job's inputs, in plan order, each built when it is read.
+
+    Args:
+        parts: per input, its sweep (checked already) or its one planned run.
+        build: a sweep's run -> its planned run (names it, estimates its work).
+    """
+
+    def __init__(self, parts: Sequence[SpecSweep | T], build: Callable[[RunSpec], T]) -> None:
+        self._parts = list(parts)
+        self._build = build
+        self._starts: list[int] = []
+        total = 0
+        for part in self._parts:
+            self._starts.append(total)
+            total += len(part) if isinstance(part, SpecSweep) else 1
+        self._len = total
+
+    def __len__(self) -> int:
+        return self._len
+
+    @overload
+    def __getitem__(self, index: int) -> T: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[T]: ...
+    def __getitem__(self, index: int | slice) -> T | list[T]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._len))]
+        if index < 0:
+            index += self._len
+        if not 0 <= index < self._len:
+            raise IndexError(f"run {index} of {self._len}")
+        at = bisect.bisect_right(self._starts, index) - 1
+        part = self._parts[at]
+        if isinstance(part, SpecSweep):
+            return self._build(part.run(index - self._starts[at]))
+        return part
+
+    def __iter__(self) -> Iterator[T]:
+        for part in self._parts:
+            if isinstance(part, SpecSweep):
+                yield from map(self._build, part.iter_runs())
+            else:
+                yield part
+
+    def __repr__(self) -> str:
+        return f"PlannedRuns({self._len} runs)"
+
+
+class Subset(Sequence[T]):
+    """Some runs of a sequence, by index, read from it when asked for."""
+
+    def __init__(self, runs: Sequence[T], indices: Sequence[int]) -> None:
+        self._runs, self._indices = runs, indices
+
+    def __len__(self) -> int:
+        return len(self._indices)
+
+    @overload
+    def __getitem__(self, index: int) -> T: ...
+    @overload
+    def __getitem__(self, index: slice) -> Subset[T]: ...
+    def __getitem__(self, index: int | slice) -> T | Subset[T]:
+        if isinstance(index, slice):
+            return Subset(self._runs, self._indices[index])
+        return self._runs[self._indices[index]]
+
+    def __iter__(self) -> Iterator[T]:
+        for i in self._indices:
+            yield self._runs[i]

@@ -13,7 +13,7 @@ from impactlab.progress import Progress, Tracker
 from impactlab.record.batch import BATCH_RUNS, record_batches
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.forked import can_fork, record_forked
-from impactlab.record.planner import PlannedRun
+from impactlab.record.planner import PlannedRun, Subset
 from impactlab.record.results import RecordedRun, RecordResult
 from impactlab.record.tasks import count_run, record_on
 from impactlab.record.work import Work, check_space
@@ -60,34 +60,42 @@ def record_runs(
     out_dir = Path(out_dir)
     check_writable(out_dir)
     by_id: dict[str, RecordedRun] = {}
-    todo = []
-    for run in runs:
+    order: list[str] = []  # every run's id, in plan order
+    todo: list[int] = []  # the runs to record, by their index in `runs`
+    steps: list[float] = []  # and their steps (to share the work)
+    work = Work()
+    for index, run in enumerate(runs):  # a planned sweep builds its runs as they are read
+        order.append(run.info.run_id)
         found = None if overwrite else reusable(out_dir, run)
         if found is not None:
             by_id[run.info.run_id] = found
         else:
             remove_stale_partials(log_path(out_dir, run))
-            todo.append(run)
-    check_space(sum((r.work for r in todo), Work()), out_dir, allow_large=allow_large)
+            todo.append(index)
+            steps.append(float(run.work.steps))
+            work += run.work
+    check_space(work, out_dir, allow_large=allow_large)
+    pending = Subset(runs, todo)
     tracker = Tracker("record", len(todo), progress, reused=len(by_id))
     if by_id:
         tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
     reuse = None if overwrite else lambda run: reusable(out_dir, run)
     workers = min(threads or available_cpus(), len(todo))
     if executor is not None and executor.name != "local":
-        done = record_on(executor, todo, out_dir, tracker, overwrite=overwrite, threads=threads)
+        done = record_on(executor, pending, out_dir, tracker, overwrite=overwrite, threads=threads)
     elif workers > 1 and can_fork():
         done = record_forked(
-            todo,
+            pending,
             out_dir,
             workers=workers,
             batch_size=batch_size,
             reuse=reuse,
             on_run=lambda run: count_run(tracker, run),
+            steps=steps,
         )
     else:
         done = record_batches(
-            todo,
+            pending,
             out_dir,
             batch_size=batch_size,
             threads=threads,
@@ -95,4 +103,5 @@ def record_runs(
             on_run=lambda run: count_run(tracker, run),
         )
     by_id |= {r.run_id: r for r in done}
-    return RecordResult([by_id[r.info.run_id] for r in runs if r.info.run_id in by_id])
+    del done
+    return RecordResult([by_id[run_id] for run_id in order if run_id in by_id])

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -116,6 +116,29 @@ class SpecSweep:
         """Every run of the sweep, validated."""
         return expand(self.doc, self.sweep, self.source)
 
+    def iter_runs(self) -> Iterator[RunSpec]:
+        """Every run of the sweep, validated one at a time (a large sweep is never held)."""
+        return iter_expand(self.doc, self.sweep, self.source)
+
+    def run(self, index: int) -> RunSpec:
+        """The sweep's point `index` (0 <= index < len(self)), validated.
+
+        The points are in `runs()` order: the last swept key varies fastest.
+        """
+        keys = list(self.sweep)
+        size = len(self)
+        point, rest = [], index
+        for key in reversed(keys):
+            rest, i = divmod(rest, len(self.sweep[key]))
+            point.append(self.sweep[key][i])
+        values = dict(zip(keys, reversed(point), strict=True))
+        return validate(
+            _with_values(self.doc, values),
+            source=self.source,
+            sweep_values=values,
+            sweep_point=(index, size),
+        )
+
 
 WORK_FIELDS = ("options.timestep", "stop.max_time", "logging.every")
 
@@ -169,6 +192,22 @@ def _prepare(
 
 def expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> list[RunSpec]:
     """One validated run per point of the sweep grid (one run when the sweep is empty)."""
+    return list(iter_expand(doc, sweep, source))
+
+
+def iter_expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> Iterator[RunSpec]:
+    """`expand`, one run at a time; the sweep's lists are checked before the first run."""
+    check_sweep(sweep, source)
+    keys = list(sweep)
+    size = math.prod(len(sweep[k]) for k in keys)
+    for index, point in enumerate(itertools.product(*(sweep[k] for k in keys))):
+        values = dict(zip(keys, point, strict=True))
+        run_doc = _with_values(doc, values)
+        yield validate(run_doc, source=source, sweep_values=values, sweep_point=(index, size))
+
+
+def check_sweep(sweep: Mapping[str, Any], source: str) -> None:
+    """Each swept key's values: a non-empty list, no value twice."""
     for key, values in sweep.items():
         if not isinstance(values, list) or not values:
             raise SpecError(
@@ -180,16 +219,6 @@ def expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> lis
             if frozen in seen:
                 raise SpecError(source, f"sweep.{key}", f"lists {short(value)} twice")
             seen.add(frozen)
-    keys = list(sweep)
-    runs = []
-    size = math.prod(len(sweep[k]) for k in keys)
-    for index, point in enumerate(itertools.product(*(sweep[k] for k in keys))):
-        values = dict(zip(keys, point, strict=True))
-        run_doc = _with_values(doc, values)
-        runs.append(
-            validate(run_doc, source=source, sweep_values=values, sweep_point=(index, size))
-        )
-    return runs
 
 
 def _with_values(doc: Mapping[str, Any], values: Mapping[str, Any]) -> dict[str, Any]:

@@ -20,6 +20,7 @@ pytestmark = pytest.mark.slow  # mypy over the documented use
 
 
 GOOD = """
+from collections.abc import Sequence
 from pathlib import Path
 from typing import assert_type
 
@@ -33,7 +34,7 @@ from impactlab.record import PlannedRun, RecordResult
 def use(spec: Path, out: Path) -> float:
     runs = impactlab.record(spec, out=out / "logs", overrides=["stop.max_time=1"])
     assert_type(runs, RecordResult)
-    assert_type(impactlab.plan(spec), list[PlannedRun])
+    assert_type(impactlab.plan(spec), Sequence[PlannedRun])
     result = impactlab.analyze(runs.paths, out=out / "results", report=True)
     assert_type(result, AnalysisResult)
     assert_type(impactlab.replay(runs.paths, out=out / "replays"), list[Path])

@@ -17,9 +17,10 @@ import html
 import re
 import shutil
 import stat
-from collections.abc import Iterator
+from array import array
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 from urllib.parse import unquote, urlsplit
 
 from markdown_it import MarkdownIt
@@ -59,6 +60,7 @@ SLICE_ROWS = 200
 """A table of more rows is parsed in slices of this many rows (the page is the same)."""
 _FENCE = re.compile(r" {0,3}(`{3,}|~{3,})")
 _HEADING = re.compile(r"#{1,6}(\s|$)")  # at the margin: never inside a list or a quote
+_TITLE = re.compile(r"^# [^\n]*", re.MULTILINE)  # the page's title: the first "# " line
 _DELIMITER = re.compile(r"\|?\s*:?-+:?\s*(\|\s*:?-+:?\s*)*\|?\s*$")
 _HEAD, _TAIL = "<tbody>\n", "</tbody>\n</table>\n"
 
@@ -87,11 +89,12 @@ def _pieces(markdown: str, *, tables: bool = False) -> Iterator[tuple[str, str]]
     standing between blank lines, slices of rows under its header. Yields (part, text):
     part "" for Markdown as it is, "first", "middle" or "last" for a table's slices; with
     `tables`, "table" for a smaller table between blank lines (so that a plain one is
-    written without markdown-it, `_plain_table`)."""
+    written without markdown-it, `_plain_table`).
+    The lines are read from the text as they are needed (`_Lines`), never listed."""
     if _DEFINITION.search(markdown):  # a reference may be defined in another piece: whole
         yield "", markdown
         return
-    lines = markdown.splitlines(keepends=True)
+    lines = _Lines(markdown)
     text: list[str] = []
     fence = ""
     i = 0
@@ -206,7 +209,37 @@ def _closes(line: str, fence: str) -> bool:
     return mark[0] == fence[0] and len(mark) >= len(fence) and not line[closing.end() :].strip()
 
 
-def _table_at(lines: list[str], i: int) -> bool:
+class _Lines(Sequence[str]):
+    """A text's lines with their ends (as `str.splitlines(keepends=True)` cuts them), each
+    read from the text when it is indexed: only where each line ends is kept (the report of
+    20,000 runs is 17 MB of text; its list of lines took 22 MB more)."""
+
+    def __init__(self, text: str) -> None:
+        self._text = text
+        self._ends = array("q", (m.end() for m in _LINE_END.finditer(text)))
+        if not self._ends or self._ends[-1] < len(text):
+            self._ends.append(len(text))  # the last line, without an end
+
+    def __len__(self) -> int:
+        return len(self._ends) if self._text else 0
+
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[str]: ...
+    def __getitem__(self, i: int | slice) -> str | list[str]:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        if not 0 <= i < len(self):
+            raise IndexError(i)
+        return self._text[self._ends[i - 1] if i else 0 : self._ends[i]]
+
+
+_LINE_END = re.compile("\r\n|[\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029]")
+"""Where `str.splitlines` cuts a line."""
+
+
+def _table_at(lines: Sequence[str], i: int) -> bool:
     """Whether a table (a row, then its delimiter row) starts at line i."""
     return (
         lines[i].startswith("|")  # at the margin: a table of the page, not of a list item
@@ -332,9 +365,8 @@ def write_report_html(report_md: Path) -> Path:
     page is never held whole in memory.
     """
     text = report_md.read_text(encoding="utf-8")
-    first = next(
-        (line for line in text.splitlines() if line.startswith("# ")), "# impactlab report"
-    )
+    heading = _TITLE.search(text)
+    first = heading.group(0) if heading else "# impactlab report"
     target = report_md.with_suffix(".html")
     body = temporary_path(report_md.with_suffix(".body.html"))
     missing: list[str] = []

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -100,8 +100,9 @@ def report_parts(
     figures: dict[str, list[Path]],
     failed: Sequence[tuple[str, str]],
     energy_stride_note: str,
-) -> list[str]:
-    """The report's Markdown, in pieces to be joined by newlines (or written one by one).
+) -> Iterator[str]:
+    """The report's Markdown, in pieces to be joined by newlines (or written one by one),
+    made as they are read: the report of many runs is never held whole.
 
     Args:
         figures: keyed "energy", "decay", "restitution", "collision", "study".
@@ -112,25 +113,25 @@ def report_parts(
         with_labels(f, labels) for f in (runs, bounces, collisions, phases)
     )
     studies = {name: with_labels(s, labels) for name, s in studies.items()}
-    out = ["# Impact lab: analysis report\n"]
-    out.append(
+    yield "# Impact lab: analysis report\n"
+    yield (
         f"{runs.height} run(s) analyzed from {runs['experiment'].n_unique()} experiment(s)"
         + (f"; {len(failed)} input(s) could not be read." if failed else ".")
         + " Units: SI (m, s, m/s, J, N, N s).\n"
     )
     if failed:
-        out.append("\n**Inputs not analyzed:**\n")
-        out += [f"- {md_code(p)}: {md_text(why)}" for p, why in failed]
-        out.append("")
+        yield "\n**Inputs not analyzed:**\n"
+        yield from [f"- {md_code(p)}: {md_text(why)}" for p, why in failed]
+        yield ""
     partial = runs.filter(pl.col("partial"))
     if partial.height:
-        out.append("\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n")
-        out += [
+        yield "\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n"
+        yield from [
             f"- {md_code(r)}: {md_text(why)}"
             for r, why in partial.select("run_id", "problems").iter_rows()
         ]
-        out.append("")
-    out += headline(
+        yield ""
+    yield from headline(
         out_dir=out_dir,
         runs=runs,
         bounces=bounces,
@@ -139,11 +140,11 @@ def report_parts(
         params=params,
         figures=figures,
     )
-    out += as_written_section(runs, collisions)
-    out.append("\n## Runs\n")
-    out.append("Each run's label, and its run id (the log's name) for finding its files:\n")
+    yield from as_written_section(runs, collisions)
+    yield "\n## Runs\n"
+    yield "Each run's label, and its run id (the log's name) for finding its files:\n"
     param_cols = sorted({p for ps in params.values() for p in ps})
-    out.append(
+    yield (
         md_table(
             runs,
             [
@@ -160,12 +161,12 @@ def report_parts(
         )
     )
 
-    out.append("\n## Step 1: energy\n")
-    out += [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a ground."]
+    yield "\n## Step 1: energy\n"
+    yield from [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a ground."]
     gravity_runs = runs.filter(pl.col("ground"))
     if gravity_runs.height:
-        out.append("\nEnergy bookkeeping per run (J):\n")
-        out.append(
+        yield "\nEnergy bookkeeping per run (J):\n"
+        yield (
             md_table(
                 gravity_runs,
                 [
@@ -184,23 +185,23 @@ def report_parts(
             (pl.col("kind") == "contact") & pl.col("run_id").is_in(gravity_runs["run_id"].implode())
         )
         if losses.height:
-            out.append("\nEnergy lost at each contact (J):\n")
-            out.append(md_table(losses, ["run", "start_t_s", "end_t_s", "loss_J", "open"]))
-    out.append(
+            yield "\nEnergy lost at each contact (J):\n"
+            yield md_table(losses, ["run", "start_t_s", "end_t_s", "loss_J", "open"])
+    yield (
         "\n`mujoco_diff_max_J` is the largest |MuJoCo total (shifted by the reference) - our "
         "total| over the run: MuJoCo's own energy (its `e_kinetic` and `e_potential` sensors) "
         "against the energy computed here from the logged states.\n"
     )
-    out += [image(p, out_dir, "energy") for p in figures.get("energy", [])]
+    yield from [image(p, out_dir, "energy") for p in figures.get("energy", [])]
 
-    out.append("\n## Step 2: restitution\n")
-    out.append("**Is e constant across bounces?**\n")
-    out += [f"- {s}" for s in answers.constancy_answer(runs, bounces)] or ["- No bounce data."]
-    out.append("\n**Does e depend on the drop height (impact velocity)?**\n")
-    out += [f"- {s}" for s in answers.height_answer(studies)] or ["- No drop-height study."]
+    yield "\n## Step 2: restitution\n"
+    yield "**Is e constant across bounces?**\n"
+    yield from [f"- {s}" for s in answers.constancy_answer(runs, bounces)] or ["- No bounce data."]
+    yield "\n**Does e depend on the drop height (impact velocity)?**\n"
+    yield from [f"- {s}" for s in answers.height_answer(studies)] or ["- No drop-height study."]
     if bounces.height:
-        out.append("\nBounces (heights: the body's lowest point above the surface):\n")
-        out.append(
+        yield "\nBounces (heights: the body's lowest point above the surface):\n"
+        yield (
             md_table(
                 bounces,
                 [
@@ -224,14 +225,16 @@ def report_parts(
                 ],
             )
         )
-    out += [image(p, out_dir, "bounce decay") for p in figures.get("decay", [])]
-    out += [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
+    yield from [image(p, out_dir, "bounce decay") for p in figures.get("decay", [])]
+    yield from [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
 
-    out.append("\n## Step 3: collision\n")
-    out += [f"- {s}" for s in answers.collision_answer(collisions, runs)] or ["- No two-body run."]
+    yield "\n## Step 3: collision\n"
+    yield from [f"- {s}" for s in answers.collision_answer(collisions, runs)] or [
+        "- No two-body run."
+    ]
     if collisions.height:
-        out.append("\nCollisions (contact-point velocities along the contact normal, m/s):\n")
-        out.append(
+        yield "\nCollisions (contact-point velocities along the contact normal, m/s):\n"
+        yield (
             md_table(
                 collisions,
                 [
@@ -253,23 +256,24 @@ def report_parts(
                 ],
             )
         )
-    out += [image(p, out_dir, "collision") for p in figures.get("collision", [])]
+    yield from [image(p, out_dir, "collision") for p in figures.get("collision", [])]
 
-    out.append("\n## Step 4: parameter studies\n")
-    out += [f"- {s}" for s in answers.study_answer(studies, params)] or ["- No collision sweep."]
+    yield "\n## Step 4: parameter studies\n"
+    yield from [f"- {s}" for s in answers.study_answer(studies, params)] or [
+        "- No collision sweep."
+    ]
     for name, study in studies.items():
         swept = ", ".join(md_text(p) for p in params.get(name, []))
-        out.append(f"\n{md_code(name)} (swept: {swept}):\n")
-        out.append(md_table(study.drop("partial", "note", "run_id", strict=False)))
-    out += [image(p, out_dir, "study") for p in figures.get("study", [])]
+        yield f"\n{md_code(name)} (swept: {swept}):\n"
+        yield (md_table(study.drop("partial", "note", "run_id", strict=False)))
+    yield from [image(p, out_dir, "study") for p in figures.get("study", [])]
 
-    out.append("\n## Method\n")
-    out.append(METHOD)
-    out.append(f"- {findings.method_line()}")
-    out.append(f"- {energy_stride_note}\n")
-    out.append(
+    yield "\n## Method\n"
+    yield METHOD
+    yield f"- {findings.method_line()}"
+    yield f"- {energy_stride_note}\n"
+    yield (
         "\n## Files\n\n- `runs.parquet`: one row per run (parameters, state of the log, results)"
         "\n- `bounces.parquet`, `collisions.parquet`, `energy.parquet`, `phases.parquet`"
         "\n- `summary.json`: the runs, the studies and the answers\n- `figures/`\n"
     )
-    return out
