@@ -45,7 +45,7 @@ def write_spec(folder: Path, runs: int, max_time: float) -> Path:
 def handout_loop(spec: Path) -> tuple[float, int]:
     """Seconds and steps for the handout's loop over the sweep's models (nothing logged)."""
     import mujoco
-    import numpy as np
+    from handout_loop import step_all
 
     from impactlab.record.model import mjcf_from_spec
     from impactlab.record.sweep import load_runs
@@ -54,39 +54,8 @@ def handout_loop(spec: Path) -> tuple[float, int]:
     models = [mujoco.MjModel.from_xml_string(mjcf_from_spec(r)) for r in runs]
     steps = round(runs[0].stop.max_time / runs[0].options.timestep) + 1
     start = time.perf_counter()
-    for model in models:
-        data = mujoco.MjData(model)
-        mujoco.mj_resetDataKeyframe(model, data, 0)
-        qpos, qvel = [], []
-        for _ in range(steps):
-            mujoco.mj_step(model, data)
-            qpos.append(data.qpos.copy())
-            qvel.append(data.qvel.copy())
-        np.asarray(qpos)
+    step_all(models, steps)
     return time.perf_counter() - start, steps * len(models)
-
-
-BARE_LOOP = """
-import sys
-from pathlib import Path
-
-import mujoco
-import numpy as np
-
-steps = int(sys.argv[2])
-for path in sorted(Path(sys.argv[1]).glob("*.xml")):
-    model = mujoco.MjModel.from_xml_path(str(path))
-    data = mujoco.MjData(model)
-    mujoco.mj_resetDataKeyframe(model, data, 0)
-    qpos, qvel = [], []
-    for _ in range(steps):
-        mujoco.mj_step(model, data)
-        qpos.append(data.qpos.copy())
-        qvel.append(data.qvel.copy())
-    np.asarray(qpos)
-"""
-"""The handout's loop as a whole program: the models (MJCF files), stepped one after the
-other, the states copied, nothing logged."""
 
 
 def bare_loop_argv(spec: Path, folder: Path) -> list[str]:
@@ -100,7 +69,12 @@ def bare_loop_argv(spec: Path, folder: Path) -> list[str]:
     for i, run in enumerate(runs):
         (folder / f"run_{i:05d}.xml").write_text(mjcf_from_spec(run))
     steps = round(runs[0].stop.max_time / runs[0].options.timestep) + 1
-    return [sys.executable, "-c", BARE_LOOP, str(folder), str(steps)]
+    return [
+        sys.executable,
+        str(Path(__file__).with_name("handout_loop.py")),
+        str(folder),
+        str(steps),
+    ]
 
 
 def record_case(spec: Path, out: Path, threads: int, *, with_plan: bool = False) -> dict:
