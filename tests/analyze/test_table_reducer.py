@@ -3,6 +3,8 @@ of every run's frames, with the energy table decimated as it is written."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import paths
 import polars as pl
 import pytest
@@ -48,6 +50,35 @@ def test_folded_tables_equal_one_concatenation(analyses, monkeypatch, every):
         int(full.group_by("run_id", "body").len()["len"].max()),
     )
     assert result.runs.height == len(analyses)
+
+
+@pytest.mark.parametrize("every", [1, 2, 3])
+def test_written_parts_join_to_one_concatenation(analyses, monkeypatch, tmp_path, every):
+    """With a folder, the parts written every `every` runs (drops, collisions, a box; parts
+    with different columns and types) are joined into the same tables, and removed."""
+    monkeypatch.setattr(tables_module, "REDUCE_EVERY", every)
+    first, second, *rest = analyses
+    varied = [  # a column all null (type Null) in one run, a column only one run has
+        dataclasses.replace(first, bounces=first.bounces.with_columns(e_velocity=None)),
+        dataclasses.replace(second, phases=second.phases.with_columns(extra=pl.lit(1.5))),
+        *rest,
+    ]
+    reducer = TableReducer(folder=tmp_path)
+    for a in varied:
+        reducer.take(a)
+    result = reducer.result(tmp_path, [])
+
+    def concat(name: str) -> pl.DataFrame:
+        frames = [getattr(a, name) for a in varied if getattr(a, name).width]
+        return pl.concat(frames, how="diagonal_relaxed")
+
+    for name in ("bounces", "collisions", "phases"):
+        assert result.sources[name] == tmp_path / f"{name}.parquet"
+        assert_frame_equal(getattr(result, name), concat(name), check_exact=True)
+    assert_frame_equal(result.energy, decimate(concat("energy")), check_exact=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        f"{n}.parquet" for n in ("bounces", "collisions", "energy", "phases")
+    ]
 
 
 def test_a_long_run_is_decimated_as_written(analyses):

@@ -126,6 +126,7 @@ class TableReducer:
         self._pending: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._parts: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._files: dict[str, list[Path]] = {name: [] for name in _TABLES}
+        self._schemas: dict[str, pl.Schema] = {name: pl.Schema() for name in _TABLES}
         self._summaries: list[dict[str, Any]] = []
         self._runs: list[pl.DataFrame] = []
         self._taken = self._rows = self._longest = 0
@@ -164,6 +165,7 @@ class TableReducer:
             part = self.folder / name / f"part-{len(self._files[name]):06d}.parquet"
             part.parent.mkdir(parents=True, exist_ok=True)
             self._files[name].append(write_parquet(frame, part))
+            self._schemas[name] = _relaxed(self._schemas[name], frame.schema)
 
     def result(self, out_dir: Path | None, failed: Sequence[tuple[str, str]]) -> AnalysisResult:
         """The output tables of every run taken, with the sweep studies; with `folder`, the
@@ -177,7 +179,8 @@ class TableReducer:
             if self.folder is None:
                 sources[name] = _cat(self._parts[name])
             else:
-                sources[name] = _join(self._files[name], self.folder / f"{name}.parquet")
+                path = self.folder / f"{name}.parquet"
+                sources[name] = _join(self._files[name], path, self._schemas[name])
         return AnalysisResult(
             out_dir=out_dir,
             runs=runs,
@@ -188,11 +191,18 @@ class TableReducer:
         )
 
 
-def _join(parts: list[Path], path: Path) -> Path:
+def _relaxed(a: pl.Schema, b: pl.Schema) -> pl.Schema:
+    """The schema of the diagonal, relaxed concatenation of frames of schemas `a` and `b`
+    (every column of either, each of the supertype of its types)."""
+    empty = [pl.DataFrame(schema=s) for s in (a, b) if s]
+    return pl.concat(empty, how="diagonal_relaxed").schema if empty else pl.Schema()
+
+
+def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
     """The parts as one Parquet file at `path` (one part: renamed), one row group per part,
-    read and written one part at a time (each cast to the schema of their diagonal, relaxed
-    concatenation); the parts are removed. No parts: an empty table, as an empty frame is
-    written."""
+    read and written one part at a time, each cast to `schema` (that of their diagonal,
+    relaxed concatenation, `_relaxed`, known as they were written: the parts are not read
+    twice); the parts are removed. No parts: an empty table, as an empty frame is written."""
     if not parts:
         return write_parquet(pl.DataFrame(), path)
     if len(parts) == 1:  # the part is the table: renamed, not written again
@@ -202,8 +212,6 @@ def _join(parts: list[Path], path: Path) -> Path:
         return path
     import pyarrow.parquet as pq
 
-    parts_frame = pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
-    schema = parts_frame.collect_schema()
     with atomic_path(path) as tmp:
         writer = None
         try:
