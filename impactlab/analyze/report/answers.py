@@ -67,15 +67,24 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
         run_id: reason or outcome or "reason not recorded"
         for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
     }
-    # each pair's rows, in one pass over the table
-    rows: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
-    for row in bounces.iter_rows(named=True):
-        rows.setdefault((row["run_id"], row["body"], row["surface"]), []).append(row)
+    # each pair's name, complete bounces' e and number of contacts, in one pass over the
+    # table (a few values per pair, not its rows)
+    found: dict[tuple[str, str, str], tuple[str, list[float], list[int]]] = {}
+    cols = ["run_id", "body", "surface", "e_velocity", "complete"]
+    for row in bounces.select(*cols, *(["run"] if "run" in bounces.columns else [])).iter_rows(
+        named=True
+    ):
+        key = (row["run_id"], row["body"], row["surface"])
+        if key not in found:
+            found[key] = (_who(row), [], [0])
+        _, complete, contacts = found[key]
+        contacts[0] += 1
+        e = row["e_velocity"]
+        if row["complete"] and e is not None and not math.isnan(e):
+            complete.append(e)
     for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
-        mine = rows[(run_id, body, surface)]
-        es = [r["e_velocity"] for r in mine if r["complete"]]
-        es = [e for e in es if e is not None and not math.isnan(e)]
-        who = f"{_who(mine[0])}, {md_text(body)} on {md_text(surface)}"
+        name, es, (n_contacts,) = found[(run_id, body, surface)]
+        who = f"{name}, {md_text(body)} on {md_text(surface)}"
         if len(es) >= 2:
             spread = float(max(es) - min(es))
             vals = ", ".join(f"{e:.3f}" for e in es)
@@ -89,7 +98,7 @@ def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
                 "cannot be tested: the log ends "
                 f"({md_text(reasons.get(run_id) or 'reason not recorded')}) "
-                f"after {len(mine)} contact(s) with an impact, the last one without a flight "
+                f"after {n_contacts} contact(s) with an impact, the last one without a flight "
                 "after it."
             )
     return out
@@ -137,7 +146,7 @@ def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None)
     """Is momentum conserved in the collisions, how much kinetic energy is lost? The
     momentum's words come from `findings.momentum_finding` (its change and what else acted
     on the pair, with the run's row from `runs`)."""
-    by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
+    by_run = F.momentum_runs(runs)
     return F.each(
         collisions.iter_rows(named=True), lambda r: _collision_sentence(r, by_run.get(r["run_id"]))
     )

@@ -240,6 +240,22 @@ def _acting(col: dict[str, Any], run: dict[str, Any] | None) -> tuple[list[str],
     return others, touched is None or not defined(gravity)
 
 
+RUN_FIELDS = ("mujoco_diff_max_J",)
+"""The runs-table columns `momentum_kind` and `momentum_finding` read of a collision's run."""
+
+
+def momentum_runs(runs: pl.DataFrame | None) -> dict[str, dict[str, Any]]:
+    """Each run's row as `momentum_kind` and `momentum_finding` read it (run id -> those of
+    RUN_FIELDS the table has): a few numbers per run, not every column of every run."""
+    if runs is None:
+        return {}
+    fields = [c for c in RUN_FIELDS if c in runs.columns]
+    return {
+        r["run_id"]: {c: r[c] for c in fields}
+        for r in runs.select("run_id", *fields).iter_rows(named=True)
+    }
+
+
 def momentum_finding(col: dict[str, Any], run: dict[str, Any] | None = None) -> str:
     """Whether one collision conserves momentum, in words: its relative change against
     `MOMENTUM_CONSERVED_REL` and what else acted on the pair (`touched_by`,

@@ -46,27 +46,42 @@ def energy_line(runs: pl.DataFrame) -> str:
         return (
             "Not answered: no run has a ground to fall onto, so there is no contact to lose energy."
         )
-    rows = ground.to_dicts()
-    kinds = [F.drift_kind(r) for r in rows]
-    flown = [r for r, k in zip(rows, kinds, strict=True) if k != "none"]
-    if flown:
-        worst = max(flown, key=lambda r: abs(r.get("flight_drift_J") or 0.0))
+    kinds: list[str] = []
+    odd: list[str] = []  # the first few runs whose drift is unexplained
+    n_odd = 0
+    worst_i, worst_drift = -1, -1.0
+    for i, r in enumerate(ground.iter_rows(named=True)):  # one row at a time
+        kind = F.drift_kind(r)
+        kinds.append(kind)
+        if kind != "none" and abs(r.get("flight_drift_J") or 0.0) > worst_drift:
+            worst_i, worst_drift = i, abs(r.get("flight_drift_J") or 0.0)
+        if kind == "unexplained":
+            n_odd += 1
+            if len(odd) < 4:
+                odd.append(_who(r))
+    if worst_i >= 0:
+        worst = ground.row(worst_i, named=True)
         n_ok = sum(k in ("negligible", "integrator") for k in kinds)
-        odd = [_who(r) for r, k in zip(rows, kinds, strict=True) if k == "unexplained"]
+        n_flown = sum(k != "none" for k in kinds)
         drift_words = (
-            f"in {n_ok} of {len(flown)} run(s) with a flight the energy is conserved in flight "
+            f"in {n_ok} of {n_flown} run(s) with a flight the energy is conserved in flight "
             f"up to the integrator's drift (at most {F.DRIFT_FACTOR:g} times m g^2 dt T / 2 for "
             "the semi-implicit integrators, none for RK4)"
             + (
-                f"; not in {len(odd)} ({', '.join(odd[:3])}{', ...' if len(odd) > 3 else ''})"
-                if odd
+                f"; not in {n_odd} ({', '.join(odd[:3])}{', ...' if n_odd > 3 else ''})"
+                if n_odd
                 else ""
             )
             + f". Largest drift, run {_who(worst)}: {F.drift_finding(worst)}"
         )
     else:
         drift_words = "no run has a flight phase to test conservation on"
-    start_end = [(r["energy_initial_J"], r.get("energy_final_J")) for r in rows]
+    finals = ground["energy_final_J"] if "energy_final_J" in ground.columns else None
+    start_end = zip(
+        ground["energy_initial_J"].to_list(),
+        finals.to_list() if finals is not None else [None] * ground.height,
+        strict=True,
+    )
     lost = [
         (energy_start, energy_start - energy_end)
         for energy_start, energy_end in start_end
@@ -178,25 +193,24 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
     if done.is_empty():
         why = md_text(collisions["note"][0] or "no complete collision")
         return f"Not answered: no collision separated ({why})."
-    by_run = {r["run_id"]: r for r in runs.to_dicts()} if runs is not None else {}
-    rows = done.to_dicts()
-    kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in rows]
-    rels = [c["momentum_rel_change"] for c in rows if F.defined(c["momentum_rel_change"])]
+    by_run = F.momentum_runs(runs)
+    kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.iter_rows(named=True)]
+    rels = [v for v in done["momentum_rel_change"].to_list() if F.defined(v)]
     if all(k == "conserved" for k in kinds):
         out = (
-            f"Momentum is conserved in all {len(rows)} collision(s): its relative change is at "
+            f"Momentum is conserved in all {done.height} collision(s): its relative change is at "
             f"most {max(rels):.1g} (below {F.MOMENTUM_CONSERVED_REL:g}) and nothing else "
             "touched the pairs. "
         )
     else:
-        odd = next(c for c, k in zip(rows, kinds, strict=True) if k != "conserved")
+        odd = done.row(next(i for i, k in enumerate(kinds) if k != "conserved"), named=True)
         n = sum(k == "conserved" for k in kinds)
         words = F.momentum_finding(odd, by_run.get(odd["run_id"]))
         out = (
-            f"Momentum is conserved in {n} of {len(rows)} collision(s); in run {_who(odd)} "
+            f"Momentum is conserved in {n} of {done.height} collision(s); in run {_who(odd)} "
             f"({md_text(odd['body1'])}-{md_text(odd['body2'])}) {words}. "
         )
-    r = rows[0]
+    r = done.row(0, named=True)
     before, after = r["ke_before_J"], r["ke_after_J"]
     if F.defined(before) and F.defined(after):
         out += (

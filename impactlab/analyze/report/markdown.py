@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -53,6 +53,9 @@ METHOD = """\
 """
 
 
+RUNS = "`runs.parquet`"
+
+
 def fmt(value: Any) -> str:
     """A table cell: floats to 4 significant digits, None as a dash, text as text
     (`md_text`: never markup, whatever a name holds)."""
@@ -67,15 +70,41 @@ def fmt(value: Any) -> str:
     return md_text(value)
 
 
-def md_table(frame: pl.DataFrame, columns: Sequence[str] | None = None) -> str:
-    """A Markdown table of the given columns (those present)."""
+REPORT_ROWS = 500
+"""Rows of a table, or sentences of a list, that the report shows. Beyond them it says how
+many more there are and which file holds them all: the report of a sweep of 100,000 runs
+stays one a person can read, and its size and the memory to write it do not grow with the
+sweep."""
+
+
+def md_table(frame: pl.DataFrame, columns: Sequence[str] | None = None, *, source: str) -> str:
+    """A Markdown table of the given columns (those present): at most REPORT_ROWS rows, then
+    a line saying how many more rows `source` (the file holding them all) has."""
     cols = [c for c in (columns or frame.columns) if c in frame.columns]
     if frame.is_empty() or not cols:
         return "_(no rows)_\n"
     lines = ["| " + " | ".join(md_text(c) for c in cols) + " |", "|" + "---|" * len(cols)]
-    for row in frame.select(cols).iter_rows():
+    for row in frame.head(REPORT_ROWS).select(cols).iter_rows():
         lines.append("| " + " | ".join(fmt(v) for v in row) + " |")
+    if frame.height > REPORT_ROWS:
+        lines.append(
+            f"\n_The first {REPORT_ROWS:,} of {frame.height:,} rows; all of them are in {source}._"
+        )
     return "\n".join(lines) + "\n"
+
+
+def bullets(sentences: Iterable[str], *, source: str, none: str) -> Iterator[str]:
+    """The sentences as Markdown list items, at most REPORT_ROWS of them, then one saying how
+    many more `source` (the file holding them all) has; `none` when there is no sentence."""
+    n = 0
+    for sentence in sentences:
+        if n < REPORT_ROWS:
+            yield f"- {sentence}"
+        n += 1
+    if not n:
+        yield none
+    elif n > REPORT_ROWS:
+        yield f"- The first {REPORT_ROWS:,} of {n:,} are above; all of them are in {source}."
 
 
 def image(path: Path, out_dir: Path, alt: str) -> str:
@@ -121,15 +150,23 @@ def report_parts(
     )
     if failed:
         yield "\n**Inputs not analyzed:**\n"
-        yield from [f"- {md_code(p)}: {md_text(why)}" for p, why in failed]
+        yield from bullets(
+            (f"{md_code(p)}: {md_text(why)}" for p, why in failed),
+            source="`summary.json` (`failed`)",
+            none="",
+        )
         yield ""
     partial = runs.filter(pl.col("partial"))
     if partial.height:
         yield "\n**Partial logs** (damaged or incomplete; what could be read was analyzed):\n"
-        yield from [
-            f"- {md_code(r)}: {md_text(why)}"
-            for r, why in partial.select("run_id", "problems").iter_rows()
-        ]
+        yield from bullets(
+            (
+                f"{md_code(r)}: {md_text(why)}"
+                for r, why in partial.select("run_id", "problems").iter_rows()
+            ),
+            source="`runs.parquet` (`partial`, `problems`)",
+            none="",
+        )
         yield ""
     yield from headline(
         out_dir=out_dir,
@@ -158,11 +195,16 @@ def report_parts(
                 "n_collisions",
                 "note",
             ],
+            source=RUNS,
         )
     )
 
     yield "\n## Step 1: energy\n"
-    yield from [f"- {s}" for s in answers.energy_answer(runs)] or ["- No run with a ground."]
+    yield from bullets(
+        answers.energy_answer(runs),
+        source="`summary.json` (`answers.energy`)",
+        none="- No run with a ground.",
+    )
     gravity_runs = runs.filter(pl.col("ground"))
     if gravity_runs.height:
         yield "\nEnergy bookkeeping per run (J):\n"
@@ -179,6 +221,7 @@ def report_parts(
                     "flight_drift_max_rel",
                     "mujoco_diff_max_J",
                 ],
+                source=RUNS,
             )
         )
         losses = phases.filter(
@@ -186,7 +229,9 @@ def report_parts(
         )
         if losses.height:
             yield "\nEnergy lost at each contact (J):\n"
-            yield md_table(losses, ["run", "start_t_s", "end_t_s", "loss_J", "open"])
+            yield md_table(
+                losses, ["run", "start_t_s", "end_t_s", "loss_J", "open"], source="`phases.parquet`"
+            )
     yield (
         "\n`mujoco_diff_max_J` is the largest |MuJoCo total (shifted by the reference) - our "
         "total| over the run: MuJoCo's own energy (its `e_kinetic` and `e_potential` sensors) "
@@ -196,9 +241,17 @@ def report_parts(
 
     yield "\n## Step 2: restitution\n"
     yield "**Is e constant across bounces?**\n"
-    yield from [f"- {s}" for s in answers.constancy_answer(runs, bounces)] or ["- No bounce data."]
+    yield from bullets(
+        answers.constancy_answer(runs, bounces),
+        source="`summary.json` (`answers.e_constant_across_bounces`)",
+        none="- No bounce data.",
+    )
     yield "\n**Does e depend on the drop height (impact velocity)?**\n"
-    yield from [f"- {s}" for s in answers.height_answer(studies)] or ["- No drop-height study."]
+    yield from bullets(
+        answers.height_answer(studies),
+        source="`summary.json` (`answers.e_against_drop_height`)",
+        none="- No drop-height study.",
+    )
     if bounces.height:
         yield "\nBounces (heights: the body's lowest point above the surface):\n"
         yield (
@@ -223,15 +276,18 @@ def report_parts(
                     "max_penetration_m",
                     "note",
                 ],
+                source="`bounces.parquet`",
             )
         )
     yield from [image(p, out_dir, "bounce decay") for p in figures.get("decay", [])]
     yield from [image(p, out_dir, "e against impact speed") for p in figures.get("restitution", [])]
 
     yield "\n## Step 3: collision\n"
-    yield from [f"- {s}" for s in answers.collision_answer(collisions, runs)] or [
-        "- No two-body run."
-    ]
+    yield from bullets(
+        answers.collision_answer(collisions, runs),
+        source="`summary.json` (`answers.collision`)",
+        none="- No two-body run.",
+    )
     if collisions.height:
         yield "\nCollisions (contact-point velocities along the contact normal, m/s):\n"
         yield (
@@ -254,18 +310,22 @@ def report_parts(
                     "v_after_inelastic_mps",
                     "note",
                 ],
+                source="`collisions.parquet`",
             )
         )
     yield from [image(p, out_dir, "collision") for p in figures.get("collision", [])]
 
     yield "\n## Step 4: parameter studies\n"
-    yield from [f"- {s}" for s in answers.study_answer(studies, params)] or [
-        "- No collision sweep."
-    ]
+    yield from bullets(
+        answers.study_answer(studies, params),
+        source="`summary.json` (`answers.parameter_study`)",
+        none="- No collision sweep.",
+    )
     for name, study in studies.items():
         swept = ", ".join(md_text(p) for p in params.get(name, []))
         yield f"\n{md_code(name)} (swept: {swept}):\n"
-        yield (md_table(study.drop("partial", "note", "run_id", strict=False)))
+        table = study.drop("partial", "note", "run_id", strict=False)
+        yield md_table(table, source="`summary.json` (`studies`)")
     yield from [image(p, out_dir, "study") for p in figures.get("study", [])]
 
     yield "\n## Method\n"
