@@ -14,6 +14,7 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report import answers
+from impactlab.analyze.report.decimate_lines import LINE_BINS
 from impactlab.analyze.report.html import write_report_html
 from impactlab.analyze.report.markdown import report_parts
 from impactlab.analyze.report.run_figures import draw_named, run_label
@@ -215,8 +216,9 @@ def _stride_note(result: AnalysisResult) -> str:
     return (
         f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
         f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
-        f"{kept} of {rows} rows kept); figures and all quantities use every "
-        "logged step."
+        f"{kept} of {rows} rows kept); all quantities use every logged step, and the "
+        f"figures' lines of more than {2 * LINE_BINS} points show the lowest and highest "
+        f"point of each of {LINE_BINS} runs of steps."
     )
 
 
