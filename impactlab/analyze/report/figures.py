@@ -261,7 +261,11 @@ def restitution_figure(
     name -> targets asked for) as a dashed line of its colour; body-body collisions as black
     squares."""
     fig, ax = plt.subplots(figsize=(8, 5))
-    b = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
+    b = (  # no bounce at all (body-body collisions only): a frame without the columns
+        bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
+        if bounces.height
+        else bounces
+    )
     group = experiments or labels
     names = list(dict.fromkeys(group[r] for r in b["run_id"].to_list())) if b.height else []
     for i, name in enumerate(names):
