@@ -66,6 +66,8 @@ class _Drawn:
 
 _ENERGY: dict[tuple[tuple[str, ...], int, bool], _Drawn] = {}
 _ENERGY_LOCK = threading.Lock()
+KEPT_FIGURES = 4
+"""At most this many energy figures (of different bodies or lines) are kept (3 MB each)."""
 
 
 def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, path: Path) -> Path:
@@ -82,9 +84,9 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     heights, energies = _energy_lines(energy)
     shape = (tuple(b for b, _, _ in heights), len(energies), bool(contacts.height))
     with _ENERGY_LOCK:
-        kept = _ENERGY.get(shape)
+        kept = _ENERGY.pop(shape, None)  # back in only once drawn: never half-filled
         if kept is None:
-            kept = _ENERGY[shape] = _new_energy_figure(heights, energies, contacts, title)
+            kept = _new_energy_figure(heights, energies, contacts, title)
         else:
             for line, (*_, x, y) in zip(kept.lines, [*heights, *energies], strict=True):
                 line.set_data(x, y)
@@ -97,7 +99,11 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
                     old.remove()
                 kept.shades[i] = _shade_contacts(ax, contacts)
                 ax.autoscale_view()
-        return save_figure(kept.fig, path)
+        path = save_figure(kept.fig, path)
+        while len(_ENERGY) >= KEPT_FIGURES:  # the least recently drawn goes
+            _ENERGY.pop(next(iter(_ENERGY)))
+        _ENERGY[shape] = kept
+        return path
 
 
 def _new_energy_figure(
