@@ -14,9 +14,10 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report import answers
+from impactlab.analyze.report.decimate_lines import LINE_BINS
 from impactlab.analyze.report.html import write_report_html
 from impactlab.analyze.report.markdown import report_parts
-from impactlab.analyze.report.run_figures import run_label
+from impactlab.analyze.report.run_figures import draw_named, run_label
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
@@ -215,8 +216,9 @@ def _stride_note(result: AnalysisResult) -> str:
     return (
         f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
         f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
-        f"{kept} of {rows} rows kept); figures and all quantities use every "
-        "logged step."
+        f"{kept} of {rows} rows kept); all quantities use every logged step, and the "
+        f"figures' lines of more than {2 * LINE_BINS} points show the lowest and highest "
+        f"point of each of {LINE_BINS} runs of steps."
     )
 
 
@@ -252,7 +254,6 @@ def summary_figure_jobs(
 ) -> list[tuple[str, Path, str, Callable[[], Path]]]:
     """The figures over many runs to draw (`summary_figures`), nothing drawn yet: (kind,
     path, key, drawing) of each."""
-    from impactlab.analyze.report import figures
     from impactlab.analyze.report.figure_cache import figure_key
 
     all_bounces, collisions = tables
@@ -270,7 +271,8 @@ def summary_figure_jobs(
             title = f"Bounce height decay: {exp}"
             key = figure_key("decay", all_bounces, labels, title)
             draw = functools.partial(
-                figures.bounce_decay_figure,
+                draw_named,
+                "bounce_decay_figure",
                 all_bounces,
                 labels,
                 title=title,
@@ -290,7 +292,8 @@ def summary_figure_jobs(
         path = fig_dir / "restitution-vs-speed.png"
         key = figure_key("restitution", bounces, collisions, labels, experiments, targets)
         draw = functools.partial(
-            figures.restitution_figure,
+            draw_named,
+            "restitution_figure",
             bounces,
             collisions,
             labels,
@@ -307,7 +310,8 @@ def summary_figure_jobs(
             m1, m2 = group[0].masses[:2]
             key = figure_key("collision-study", study, param, title, m1, m2)
             draw = functools.partial(
-                figures.collision_study_figure,
+                draw_named,
+                "collision_study_figure",
                 study,
                 param,
                 title=title,
@@ -321,7 +325,7 @@ def summary_figure_jobs(
             title = f"Parameter study: {name}: e of the first bounce"
             key = figure_key("bounce-study", study, param, title)
             draw = functools.partial(
-                figures.bounce_study_figure, study, param, title=title, path=path.absolute()
+                draw_named, "bounce_study_figure", study, param, title=title, path=path.absolute()
             )
             jobs.append(("study", path, key, draw))
     return jobs

@@ -28,6 +28,7 @@ KEY = "impactlab-figure-key"
 CODE = (
     "impactlab.analyze.report.figures",
     "impactlab.analyze.report.run_figures",
+    "impactlab.analyze.report.decimate_lines",
     "impactlab.plotting",
 )
 """The modules whose source draws the figures (part of every key)."""

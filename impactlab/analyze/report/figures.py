@@ -5,62 +5,135 @@ Every function takes frames, a title and an output path, writes one PNG and retu
 
 from __future__ import annotations
 
+import threading
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import matplotlib.ticker
 import numpy as np
 import polars as pl
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from impactlab.analyze.measure.bounces import TURNING
+from impactlab.analyze.report.decimate_lines import thinned
 from impactlab.plotting import plt, save_figure
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
+    from matplotlib.collections import Collection
+    from matplotlib.lines import Line2D
 
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
 
 
-def _shade_contacts(ax: Axes, intervals: pl.DataFrame) -> None:
+def _shade_contacts(ax: Axes, intervals: pl.DataFrame) -> Collection | None:
     """Shade contact intervals, all in one artist (a resting ball has thousands of them)."""
     if not intervals.height:
-        return
+        return None
     spans = [(t0, t1 - t0) for t0, t1 in intervals.select("start_t_s", "end_t_s").iter_rows()]
-    ax.broken_barh(
+    return ax.broken_barh(
         spans, (0, 1), transform=ax.get_xaxis_transform(), color="0.85", lw=0, label="contact"
     )
+
+
+def _energy_lines(energy: pl.DataFrame) -> tuple[list[tuple[str, Any, Any]], list[Any]]:
+    """The energy figure's lines, thinned (`decimate_lines`): (body, t, height) per body and
+    (t, y) of kinetic, potential, total and, when logged, MuJoCo's total."""
+    heights = []
+    for body, frame in energy.filter(~pl.col("is_total")).group_by("body", maintain_order=True):
+        heights.append(
+            (str(body[0]), *thinned(frame["t_s"].to_numpy(), frame["height_m"].to_numpy()))
+        )
+    total = energy.filter(pl.col("is_total"))
+    t = total["t_s"].to_numpy()
+    ys = [total["ke_trans_J"] + total["ke_rot_J"], total["pe_J"], total["total_J"]]
+    if total["mujoco_total_J"].drop_nulls().len():
+        ys.append(total["mujoco_total_J"])
+    return heights, [thinned(t, y.to_numpy()) for y in ys]
+
+
+@dataclass
+class _Drawn:
+    """An energy figure kept to draw the next run's into: its axes and artists."""
+
+    fig: Figure
+    axes: tuple[Axes, Axes]
+    lines: list[Line2D]
+    shades: list[Collection | None]
+
+
+_ENERGY: dict[tuple[tuple[str, ...], int, bool], _Drawn] = {}
+_ENERGY_LOCK = threading.Lock()
+KEPT_FIGURES = 4
+"""At most this many energy figures (of different bodies or lines) are kept (3 MB each)."""
 
 
 def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, path: Path) -> Path:
     """Height above the contact height per body (top) and the run's energies (bottom).
 
+    The figure is kept and the next run's with the same bodies, lines and shading is drawn
+    into it (its lines' data, limits, title and shading replaced): the axes, ticks, legends
+    and text measures are built once per process, not once per run.
+
     Args:
         energy: `run_energy` of one run.
         contacts: the run's contact phases (start_t_s, end_t_s), shaded.
     """
-    fig, (ax_h, ax_e) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)
-    for body, frame in energy.filter(~pl.col("is_total")).group_by("body", maintain_order=True):
-        ax_h.plot(frame["t_s"], frame["height_m"], label=str(body[0]))
-    _shade_contacts(ax_h, contacts)
+    heights, energies = _energy_lines(energy)
+    shape = (tuple(b for b, _, _ in heights), len(energies), bool(contacts.height))
+    with _ENERGY_LOCK:
+        kept = _ENERGY.pop(shape, None)  # back in only once drawn: never half-filled
+        if kept is None:
+            kept = _new_energy_figure(heights, energies, contacts, title)
+        else:
+            for line, (*_, x, y) in zip(kept.lines, [*heights, *energies], strict=True):
+                line.set_data(x, y)
+            kept.axes[0].set_title(title)
+            for ax in kept.axes:
+                ax.relim()  # the lines' limits; the shading's are added as it is drawn
+            for i, ax in enumerate(kept.axes):
+                old = kept.shades[i]
+                if old is not None:
+                    old.remove()
+                kept.shades[i] = _shade_contacts(ax, contacts)
+                ax.autoscale_view()
+        path = save_figure(kept.fig, path)
+        while len(_ENERGY) >= KEPT_FIGURES:  # the least recently drawn goes
+            _ENERGY.pop(next(iter(_ENERGY)))
+        _ENERGY[shape] = kept
+        return path
+
+
+def _new_energy_figure(
+    heights: list[tuple[str, Any, Any]], energies: list[Any], contacts: pl.DataFrame, title: str
+) -> _Drawn:
+    """An energy figure (`energy_figure`) drawn from the start."""
+    fig = Figure(figsize=(9, 7))
+    FigureCanvasAgg(fig)  # its renderer lays the figure out and draws it
+    ax_h, ax_e = fig.subplots(2, 1, sharex=True)
+    for body, t, h in heights:
+        ax_h.plot(t, h, label=body)
+    shades = [_shade_contacts(ax_h, contacts)]
     ax_h.set_ylabel("lowest point above the ground (m)")
     ax_h.set_title(title)
     ax_h.legend(loc="upper right")
     ax_h.grid(True, alpha=0.3)
-    total = energy.filter(pl.col("is_total"))
-    t = total["t_s"]
-    ax_e.plot(t, total["ke_trans_J"] + total["ke_rot_J"], label="kinetic", alpha=0.8)
-    ax_e.plot(t, total["pe_J"], label="potential (zero at rest on the ground)", alpha=0.8)
-    ax_e.plot(t, total["total_J"], label="total", lw=2, color="k")
-    if total["mujoco_total_J"].drop_nulls().len():
-        ax_e.plot(
-            t, total["mujoco_total_J"], "--", lw=1, color="tab:red", label="MuJoCo total (shifted)"
-        )
-    _shade_contacts(ax_e, contacts)
+    styles: list[tuple[tuple[str, ...], dict[str, Any]]] = [
+        ((), {"label": "kinetic", "alpha": 0.8}),
+        ((), {"label": "potential (zero at rest on the ground)", "alpha": 0.8}),
+        ((), {"label": "total", "lw": 2, "color": "k"}),
+        (("--",), {"lw": 1, "color": "tab:red", "label": "MuJoCo total (shifted)"}),
+    ]
+    for (t, y), (fmt, style) in zip(energies, styles, strict=False):
+        ax_e.plot(t, y, *fmt, **style)
+    shades.append(_shade_contacts(ax_e, contacts))
     ax_e.set_xlabel("time (s)")
     ax_e.set_ylabel("energy (J)")
     ax_e.legend(loc="center right")
     ax_e.grid(True, alpha=0.3)
-    return save_figure(fig, path)
+    return _Drawn(fig, (ax_h, ax_e), [*ax_h.get_lines(), *ax_e.get_lines()], shades)
 
 
 def bounce_decay_figure(
@@ -143,13 +216,13 @@ def collision_figure(
         s = states.filter(pl.col("body") == row[f"body{k}"]).sort("t_ns")
         pos = s.select("x", "y", "z").to_numpy() @ n
         vel = s.select("vx", "vy", "vz").to_numpy()
-        axes[0].plot(s["t_s"], pos, label=row[f"body{k}"])
-        axes[1].plot(s["t_s"], vel @ n, label=row[f"body{k}"])
+        t = s["t_s"].to_numpy()
+        axes[0].plot(*thinned(t, pos), label=row[f"body{k}"])
+        axes[1].plot(*thinned(t, vel @ n), label=row[f"body{k}"])
         mom = row[f"m{k}_kg"] * vel
         p = mom if p is None else p + mom
-        t = s["t_s"]
     p0 = np.array([row["px_before_Ns"], row["py_before_Ns"], row["pz_before_Ns"]])
-    axes[2].plot(t, p @ n, label="total momentum along n", color="k")
+    axes[2].plot(*thinned(t, p @ n), label="total momentum along n", color="k")
     axes[2].axhline(p0 @ n, color="tab:red", ls="--", label="before the collision")
     for key, style, lab in (
         ("v1n_after_elastic_mps", ":", "elastic"),
@@ -194,7 +267,11 @@ def restitution_figure(
     name -> targets asked for) as a dashed line of its colour; body-body collisions as black
     squares."""
     fig, ax = plt.subplots(figsize=(8, 5))
-    b = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
+    b = (  # no bounce at all (body-body collisions only): a frame without the columns
+        bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
+        if bounces.height
+        else bounces
+    )
     group = experiments or labels
     names = list(dict.fromkeys(group[r] for r in b["run_id"].to_list())) if b.height else []
     for i, name in enumerate(names):

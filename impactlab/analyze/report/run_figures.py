@@ -81,7 +81,7 @@ def run_figures(
                     key,
                     previous,
                     functools.partial(
-                        _draw, "energy_figure", a.energy, contacts, title=title, path=path
+                        draw_named, "energy_figure", a.energy, contacts, title=title, path=path
                     ),
                 ),
             )
@@ -97,7 +97,13 @@ def run_figures(
                     key,
                     previous,
                     functools.partial(
-                        _draw, "collision_figure", a.states, row, contacts, title=title, path=path
+                        draw_named,
+                        "collision_figure",
+                        a.states,
+                        row,
+                        contacts,
+                        title=title,
+                        path=path,
                     ),
                 ),
             )
@@ -105,9 +111,10 @@ def run_figures(
     return made
 
 
-def _draw(name: str, *args: Any, **kwargs: Any) -> Path:
+def draw_named(name: str, *args: Any, **kwargs: Any) -> Path:
     """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
-    copied unchanged from the last analysis needs none)."""
+    copied unchanged from the last analysis needs none, nor does a driver whose workers
+    draw)."""
     from impactlab.analyze.report import figures
 
     path: Path = getattr(figures, name)(*args, **kwargs)

@@ -115,6 +115,28 @@ def test_restitution_figure_draws_each_experiments_target(monkeypatch, tmp_path)
     assert "(m/s)" in ax.get_xlabel()
 
 
+@pytest.mark.slow
+def test_restitution_figure_of_collisions_without_a_bounce(monkeypatch, tmp_path):
+    """Two balls and no ground (experiments/collision.toml): the bounces frame the analysis
+    passes has no columns but `complete`; the body-body collision alone is drawn."""
+    from impactlab.analyze.report import figures
+
+    seen = []
+    monkeypatch.setattr(figures, "save_figure", lambda fig, path: seen.append(fig) or path)
+    collisions = pl.DataFrame(
+        {"complete": [True], "v1n_before_mps": [2.0], "v2n_before_mps": [-1.0], "e_measured": [0.8]}
+    )
+    figures.restitution_figure(
+        pl.DataFrame(schema={"complete": pl.Boolean}),
+        collisions,
+        {"a": "a"},
+        path=tmp_path / "r.png",
+    )
+    (ax,) = seen[0].axes
+    (line,) = ax.get_lines()
+    assert (tuple(line.get_xdata()), tuple(line.get_ydata())) == ((3.0,), (0.8,))
+
+
 def test_a_bounce_decay_figure_needs_two_complete_bounces():
     from impactlab.analyze.write import _has_decay
 
