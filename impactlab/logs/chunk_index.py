@@ -9,6 +9,8 @@ into the chunk; any other layout is checked and copied after one gather.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from mcap.opcode import Opcode
 
@@ -41,10 +43,20 @@ def gather_records(
     room: bytearray | memoryview | None = None,
 ) -> np.ndarray:
     """The `size` bytes at each offset `starts` of `raw` (every offset must leave `size`
-    bytes), (n, size) uint8, gathered in one step (into `room`, writable memory of n * size
-    bytes, when given: memory written before costs no page faults)."""
+    bytes), (n, size) uint8 (into `room`, writable memory of n * size bytes, when given:
+    memory written before costs no page faults). Offsets in a few runs of even spacing, as
+    a recorder's chunks hold a channel's records, are copied run by run, others gathered."""
     if size == 0:
         return np.empty((len(starts), 0), dtype=np.uint8)
+    runs = _even_runs(starts)
+    if runs is not None:  # a few runs of evenly spaced records: one strided copy each
+        n = len(starts)
+        out = np.empty((n, size), np.uint8) if room is None else np.frombuffer(room, np.uint8)
+        out = out.reshape(n, size)
+        for lo, hi, step, first in runs:
+            view = np.ndarray((hi - lo, size), np.uint8, raw, first, (step, 1))
+            out[lo:hi] = view
+        return out
     row = np.dtype((np.void, size))
     whole = np.ndarray((len(raw) - size + 1,), dtype=row, buffer=raw, strides=(1,))
     if room is None:
@@ -56,6 +68,30 @@ def gather_records(
         out[at : at + step] = whole[starts[at : at + step]]
     result: np.ndarray = out.view(np.uint8).reshape(len(starts), size)
     return result
+
+
+MAX_RUNS_SHARE = 16
+"""Records are copied run by run when there are at most one run per this many records
+(numpy's gather costs about 60 ns per record, a strided copy a few us per run)."""
+
+
+def _even_runs(starts: np.ndarray) -> list[tuple[int, int, int, int]] | None:
+    """`starts` cut into runs of equal spacing, [(first, end, spacing, first offset)], or
+    None when there are many."""
+    n = len(starts)
+    if n < 2 * MAX_RUNS_SHARE:
+        return None
+    at = starts.astype(np.int64, copy=False)
+    steps = np.diff(at)
+    change = np.flatnonzero(steps[1:] != steps[:-1]) + 2  # a run ends at the element before
+    if len(change) * MAX_RUNS_SHARE > n:
+        return None
+    bounds = [0, *change.tolist(), n]
+    runs = []
+    for lo, hi in itertools.pairwise(bounds):
+        if hi > lo:
+            runs.append((lo, hi, int(steps[lo]) if hi - lo > 1 else 0, int(at[lo])))
+    return runs
 
 
 def checked_index(

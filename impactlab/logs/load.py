@@ -25,6 +25,7 @@ from impactlab.logs.bodies import BodyInfo as BodyInfo  # re-exported: readers i
 from impactlab.logs.bodies import SurfaceInfo as SurfaceInfo
 from impactlab.logs.contract import GeomContact, PairTarget, optional_keys
 from impactlab.logs.decode import (
+    Columns,
     body_state_values,
     decode_clearance,
     decode_contact_work,
@@ -297,6 +298,7 @@ def load_log(path: str | Path) -> RunLog:
     clearance_frames: list[pl.DataFrame] = []
     work_frames: list[pl.DataFrame] = []
     energy: pl.DataFrame | None = None
+    columns = Columns()  # the columns the frames repeat, built once
     joint_energy: pl.DataFrame | None = None
     events: pl.DataFrame | None = None
     for channel in raw.channels.values():
@@ -305,19 +307,19 @@ def load_log(path: str | Path) -> RunLog:
             if schema == logformat.BODY_STATE_SCHEMA:
                 t, values = decode_fixed(channel, messages.body_state(), body_state_values)
                 name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]
-                bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS)
+                bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS, columns)
             elif schema == logformat.CONTACT_SCHEMA:
-                contact_frames.append(decode_contacts(run_id, channel))
+                contact_frames.append(decode_contacts(run_id, channel, columns))
             elif schema == logformat.CLEARANCE_SCHEMA:
-                clearance_frames.append(decode_clearance(run_id, channel))
+                clearance_frames.append(decode_clearance(run_id, channel, columns))
             elif schema == logformat.CONTACT_WORK_SCHEMA:
                 work_frames.append(decode_contact_work(run_id, channel, loose_payloads(channel)[1]))
             elif schema == logformat.ENERGY_SCHEMA:
                 t, values = decode_fixed(channel, messages.energy(), energy_values)
                 if topic == logformat.JOINT_ENERGY_TOPIC:
-                    joint_energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
+                    joint_energy = fixed_frame(run_id, t, values, ENERGY_FIELDS, columns)
                 else:
-                    energy = fixed_frame(run_id, t, values, ENERGY_FIELDS)
+                    energy = fixed_frame(run_id, t, values, ENERGY_FIELDS, columns)
             elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
                 t, payloads = loose_payloads(channel)
                 events = decode_events(run_id, t, payloads)
