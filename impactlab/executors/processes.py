@@ -39,6 +39,7 @@ from impactlab.executors.base import (
     TaskOutcome,
     describe_error,
 )
+from impactlab.executors.here import HereTasks
 from impactlab.executors.workers import (
     EXIT_MAIN_GUARD,
     MAIN_GUARD_HINT,
@@ -46,7 +47,6 @@ from impactlab.executors.workers import (
     PRELOADED,
     READY,
     STARTED,
-    TEST_SIGKILL_TASK,
     death,
     importing_main,
     serve,
@@ -124,29 +124,37 @@ class ProcessExecutor:
         todo = deque(range(len(items)))
         size = min(self.workers - 1 if here else self.workers, len(items))
         preload = _modules(fn) if here else ()
+        mine = HereTasks(fn, items) if here else None
         try:
-            while todo or any(w.task is not None for w in pool):
+            while todo or any(w.task is not None for w in pool) or (mine and mine.busy):
                 self._grow(size, todo, preload)
                 if not pool:  # no worker can start: the rest here
+                    if mine is not None and mine.busy:
+                        yield mine.finish()
                     self._give_up()
                     yield from _here(fn, items, todo)
                     return
                 yield from self._feed(todo, fn, items)
-                mine = _mine(todo) if here else None
-                if mine is not None:
-                    yield _one(fn, items, mine)
+                if mine is not None and not mine.busy:
+                    mine.start(todo)
+                waiting = [w.conn for w in pool] + [w.process.sentinel for w in pool]
+                if mine is not None and mine.busy:
+                    waiting.append(mine.reader)
                 elif not any(w.task is not None or not w.warm for w in pool):
                     continue  # every send failed: those workers are gone, start others
-                conns = [w.conn for w in pool] + [w.process.sentinel for w in pool]
-                ready = wait(conns, 0 if mine is not None else None)
+                ready = wait(waiting)
                 news = [w for w in pool if w.conn in ready or w.process.sentinel in ready]
                 done = [o for worker in news for o in self._hear(worker, todo)]
                 done.extend(self._feed(todo, fn, items))  # before the caller takes the outcomes
+                if mine is not None and mine.reader in ready:
+                    done.append(mine.finish())
                 yield from done
         finally:
             for worker in [w for w in pool if w.task is not None]:  # stopped early: stop them
                 _stop(worker.process)
                 self._drop(worker)
+            if mine is not None:
+                mine.close()
 
     def prestart(self, modules: Sequence[str]) -> None:
         """Start the workers a `map(..., here=True)` will use now, each importing `modules`
@@ -322,20 +330,3 @@ def _modules(fn: Callable[..., Any]) -> tuple[str, ...]:
     """The module a worker imports to run `fn` (a function or a `functools.partial` of one)."""
     module = getattr(getattr(fn, "func", fn), "__module__", None)
     return (module,) if isinstance(module, str) and module != "__main__" else ()
-
-
-def _mine(todo: deque[int]) -> int | None:
-    """The next task for this process to run itself, taken from `todo` (never the one the
-    tests have a worker kill itself on, `TEST_SIGKILL_TASK`: that one waits for a worker)."""
-    skip = os.environ.get(TEST_SIGKILL_TASK)
-    for k, index in enumerate(todo):
-        if str(index) != skip:
-            del todo[k]
-            return index
-    return None
-
-
-def _one(fn: Callable[[Any], R], items: Sequence[Any], index: int) -> TaskOutcome[R]:
-    """Task `index` run in this process."""
-    outcome = next(iter(LocalExecutor().map(fn, [items[index]])))
-    return TaskOutcome(index, outcome.value, outcome.error, outcome.wall_s)
