@@ -236,9 +236,11 @@ class ProcessExecutor:
             yield from self._lost(worker, todo)
         elif message[0] == READY:
             worker.ready = True
-            self._failed_starts = 0
+            if worker.warm:  # up (one told to import first is up once it has)
+                self._failed_starts = 0
         elif message[0] == PRELOADED:
             worker.warm = True
+            self._failed_starts = 0
         elif message[0] == STARTED:
             worker.started = True
         else:
@@ -251,9 +253,9 @@ class ProcessExecutor:
         worker.process.join()
         code = worker.process.exitcode
         self._drop(worker)
-        if not worker.ready:
-            if code == EXIT_MAIN_GUARD:
-                raise ExecutorError(MAIN_GUARD_HINT)
+        if not worker.ready and code == EXIT_MAIN_GUARD:
+            raise ExecutorError(MAIN_GUARD_HINT)
+        if not (worker.ready and worker.warm):  # died while it started or imported
             self._failed_start(death(code))
         if worker.task is None:
             return

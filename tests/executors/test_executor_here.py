@@ -5,6 +5,7 @@ and the analysis' files are those of the local executor."""
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 from collections import deque
@@ -79,3 +80,38 @@ def test_shared_analysis_writes_the_local_files(tmp_path):
     assert json.loads((tmp_path / "shared" / "summary.json").read_text()) == local_summary
     for name in ("report.md",):
         assert (tmp_path / "shared" / name).read_text() == (tmp_path / "local" / name).read_text()
+
+
+DIES_ON_IMPORT = """
+import multiprocessing, os, signal, time
+
+if multiprocessing.parent_process() is not None:  # a worker importing it: killed
+    os.kill(os.getpid(), signal.SIGKILL)
+EX = None  # the executor under test
+
+
+def after_three_failed_starts(item):
+    deadline = time.monotonic() + 60  # a bound, not a speed requirement
+    while EX._failed_starts < 3 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return item, os.getpid(), EX._failed_starts
+"""
+
+
+def test_workers_that_die_while_importing_leave_the_tasks_here(tmp_path, monkeypatch, caplog):
+    """Workers killed while they import the tasks' module count as failed starts (not
+    started again and again): after three, the tasks all run here, with the one warning
+    line, and none is lost."""
+    (tmp_path / "dies_on_import.py").write_text(DIES_ON_IMPORT)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import dies_on_import
+
+    with caplog.at_level(logging.WARNING), ProcessExecutor(workers=2, min_items=1) as ex:
+        dies_on_import.EX = ex
+        items = list(range(4))
+        outcomes = sorted(
+            ex.map(dies_on_import.after_three_failed_starts, items, here=True),
+            key=lambda o: o.index,
+        )
+    assert [o.value for o in outcomes] == [(i, os.getpid(), 3) for i in items]
+    assert "cannot start worker processes (worker process died (signal SIGKILL))" in caplog.text
