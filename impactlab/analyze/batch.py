@@ -24,6 +24,7 @@ from impactlab.analyze.tables.combine import TableReducer
 from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.errors import LogError
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
+from impactlab.executors.processes import ProcessExecutor
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 
@@ -215,7 +216,14 @@ def analyze_logs(
         parts = max(parts, 8 * executor.slots)
     groups = batches(items, parts=parts)
     absolute = [[(items[i][0].absolute(), items[i][1]) for i in group] for group in groups]
-    for outcome in executor.map(task, absolute):
+    # worker processes: this process analyzes batches too, from the first while the workers
+    # start (the analysis cannot bring it down: a log it cannot read is an error entry)
+    outcomes = (
+        executor.map(task, absolute, here=True)
+        if isinstance(executor, ProcessExecutor)
+        else executor.map(task, absolute)
+    )
+    for outcome in outcomes:
         group = groups[outcome.index]
         if outcome.ok and outcome.value is not None and len(outcome.value) == len(group):
             for i, value in zip(group, outcome.value, strict=True):

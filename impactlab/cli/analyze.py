@@ -13,6 +13,8 @@ from pathlib import Path
 
 from impactlab.cli.options import add_executor_options, make_executor, path
 
+ANALYSIS_TASKS = "impactlab.analyze.batch"  # the module of the analysis' executor tasks
+
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `analyze` subcommand."""
@@ -39,12 +41,16 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyze into the output folder: tables, report and (unless --no-figures) figures."""
-    from impactlab.analyze.job import run_analysis
+    from impactlab.executors.processes import ProcessExecutor
     from impactlab.progress import console_progress
 
     executor = make_executor(args)
+    if isinstance(executor, ProcessExecutor):  # the workers import while this process does
+        executor.prestart([ANALYSIS_TASKS])
     progress = console_progress()
     try:
+        from impactlab.analyze.job import run_analysis
+
         result = run_analysis(
             args.logs, args.out, figures=args.figures, executor=executor, progress=progress
         )

@@ -4,7 +4,10 @@ Workers are spawned (not forked: polars and MuJoCo run thread pools, which a for
 in whatever state they are), so each pays the import of what its function needs once (about
 half a second); a batch smaller than `min_items` therefore runs here, one item after the
 other, as the local executor would, unless the workers are up already. Functions and items
-must be picklable (module-level functions, plain data), as for Ray.
+must be picklable (module-level functions, plain data), as for Ray. Asked to (`map(...,
+here=True)`, the analysis), this process runs tasks too, whenever it is free: it works from
+the start while one worker fewer start, and a worker gets tasks once it has imported the
+function's module, so a batch is never slower than in one process because of their start.
 
 Each worker holds one task at a time (`impactlab.executors.workers`). So a worker that dies
 (killed, out of memory) fails only the task it had started, with the reason ("worker process
@@ -36,9 +39,12 @@ from impactlab.executors.base import (
     TaskOutcome,
     describe_error,
 )
+from impactlab.executors.here import HereTasks
 from impactlab.executors.workers import (
     EXIT_MAIN_GUARD,
     MAIN_GUARD_HINT,
+    PRELOAD,
+    PRELOADED,
     READY,
     STARTED,
     death,
@@ -78,6 +84,7 @@ class _Worker:
     ready: bool = False  # it said it is up
     task: int | None = None  # the index of the item sent to it
     started: bool = False  # it said it took that task
+    warm: bool = True  # False until it has imported what it was told to (PRELOAD)
 
 
 class ProcessExecutor:
@@ -97,8 +104,17 @@ class ProcessExecutor:
     def slots(self) -> int:
         return self.workers
 
-    def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
-        """Yield one outcome per item as it finishes (here, in order, for a small batch)."""
+    def map(
+        self, fn: Callable[[Any], R], items: Sequence[Any], *, here: bool = False
+    ) -> Iterator[TaskOutcome[R]]:
+        """Yield one outcome per item as it finishes (here, in order, for a small batch).
+
+        `here`: this process runs tasks too, the next one whenever it is free (while the
+        workers start, and whenever they are all busy), so the batch never waits for a
+        worker's start; one worker fewer is started (this process is one of the `slots`),
+        and each gets tasks only once it has imported `fn`'s module. Only for functions that
+        cannot bring the process down: a task run here that crashes ends the caller.
+        """
         refuse_in_worker_start()
         small = len(items) < self.min_items and self._pool is None
         if not items or self.workers < 2 or small or self._no_workers:
@@ -106,34 +122,65 @@ class ProcessExecutor:
             return
         pool = self._pool = self._pool or []
         todo = deque(range(len(items)))
+        size = min(self.workers - 1 if here else self.workers, len(items))
+        preload = _modules(fn) if here else ()
+        mine = HereTasks(fn, items) if here else None
         try:
-            while todo or any(w.task is not None for w in pool):
-                self._grow(min(self.workers, len(items)), todo)
+            while todo or any(w.task is not None for w in pool) or (mine and mine.busy):
+                self._grow(size, todo, preload)
                 if not pool:  # no worker can start: the rest here
+                    if mine is not None and mine.busy:
+                        yield mine.finish()
                     self._give_up()
                     yield from _here(fn, items, todo)
                     return
                 yield from self._feed(todo, fn, items)
-                if not any(w.task is not None for w in pool):
+                if mine is not None and not mine.busy:
+                    mine.start(todo)
+                waiting = [w.conn for w in pool] + [w.process.sentinel for w in pool]
+                if mine is not None and mine.busy:
+                    waiting.append(mine.reader)
+                elif not any(w.task is not None or not w.warm for w in pool):
                     continue  # every send failed: those workers are gone, start others
-                ready = wait([w.conn for w in pool] + [w.process.sentinel for w in pool])
+                ready = wait(waiting)
                 news = [w for w in pool if w.conn in ready or w.process.sentinel in ready]
                 done = [o for worker in news for o in self._hear(worker, todo)]
                 done.extend(self._feed(todo, fn, items))  # before the caller takes the outcomes
+                if mine is not None and mine.reader in ready:
+                    done.append(mine.finish())
                 yield from done
         finally:
             for worker in [w for w in pool if w.task is not None]:  # stopped early: stop them
                 _stop(worker.process)
                 self._drop(worker)
+            if mine is not None:
+                mine.close()
 
-    def _grow(self, size: int, todo: deque[int]) -> None:
-        """Start workers up to `size` while there are tasks to give them."""
+    def prestart(self, modules: Sequence[str]) -> None:
+        """Start the workers a `map(..., here=True)` will use now, each importing `modules`
+        first, so that they start while this process does something else (its own imports);
+        they are stopped at once by `close` if no task came."""
+        refuse_in_worker_start()
+        if self.workers < 2 or self._no_workers or self._pool:
+            return
+        self._pool = []
+        self._grow(self.workers - 1, deque([0]), tuple(modules))
+
+    def _grow(self, size: int, todo: deque[int], preload: tuple[str, ...] = ()) -> None:
+        """Start workers up to `size` while there are tasks to give them (each told to
+        import `preload` first: it gets no task until it has)."""
         pool = self._pool if self._pool is not None else []
         while todo and len(pool) < size and self._failed_starts < MAX_FAILED_STARTS:
             try:
-                pool.append(_start())
+                worker = _start()
             except OSError as exc:  # no process, pipe or memory to be had
                 self._failed_start(describe_error(exc))
+                continue
+            pool.append(worker)
+            if preload:
+                worker.warm = False
+                with contextlib.suppress(OSError):  # it died: `_lost` hears of it
+                    worker.conn.send((PRELOAD, preload))
 
     def _give_up(self) -> None:
         """No worker could start: say so once; this executor runs its tasks here from now."""
@@ -154,7 +201,7 @@ class ProcessExecutor:
     ) -> Iterator[TaskOutcome[R]]:
         """Give each idle worker its next task (a task that cannot be pickled fails here)."""
         for worker in list(self._pool or []):
-            if worker.task is None and todo:
+            if worker.task is None and worker.warm and todo:
                 yield from self._send(worker, todo, fn, items)
 
     def _send(
@@ -189,6 +236,10 @@ class ProcessExecutor:
             yield from self._lost(worker, todo)
         elif message[0] == READY:
             worker.ready = True
+            if worker.warm:  # up (one told to import first is up once it has)
+                self._failed_starts = 0
+        elif message[0] == PRELOADED:
+            worker.warm = True
             self._failed_starts = 0
         elif message[0] == STARTED:
             worker.started = True
@@ -202,9 +253,9 @@ class ProcessExecutor:
         worker.process.join()
         code = worker.process.exitcode
         self._drop(worker)
-        if not worker.ready:
-            if code == EXIT_MAIN_GUARD:
-                raise ExecutorError(MAIN_GUARD_HINT)
+        if not worker.ready and code == EXIT_MAIN_GUARD:
+            raise ExecutorError(MAIN_GUARD_HINT)
+        if not (worker.ready and worker.warm):  # died while it started or imported
             self._failed_start(death(code))
         if worker.task is None:
             return
@@ -227,6 +278,8 @@ class ProcessExecutor:
                 worker.conn.send(None)
             if worker.task is not None:
                 worker.process.terminate()
+            elif not worker.warm:  # still importing, holding nothing: no need to wait
+                worker.process.kill()
         for worker in pool:
             _stop(worker.process, terminate=False)
             worker.conn.close()
@@ -273,3 +326,9 @@ def _here(
     todo.clear()
     for outcome in LocalExecutor().map(fn, [items[i] for i in left]):
         yield TaskOutcome(left[outcome.index], outcome.value, outcome.error, outcome.wall_s)
+
+
+def _modules(fn: Callable[..., Any]) -> tuple[str, ...]:
+    """The module a worker imports to run `fn` (a function or a `functools.partial` of one)."""
+    module = getattr(getattr(fn, "func", fn), "__module__", None)
+    return (module,) if isinstance(module, str) and module != "__main__" else ()

@@ -3,7 +3,9 @@ pipe, so the parent always knows which task a worker holds.
 
 A worker is spawned (a fresh interpreter, not a fork) and talks to its parent over one
 `multiprocessing.Pipe`: it says `READY` once up, `STARTED` when it takes a task, then sends
-the task's outcome. No queue, lock or semaphore is shared, so the workers need no POSIX
+the task's outcome; asked to (`PRELOAD`), it imports the modules its tasks will need and
+says `PRELOADED`, so a parent that works too can give it tasks only once it runs them at
+once. No queue, lock or semaphore is shared, so the workers need no POSIX
 semaphores (no `/dev/shm`), and a worker that dies takes only its own task with it.
 
 A worker never outlives its parent: on Linux the kernel sends it SIGTERM when the parent dies
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import importlib
 import multiprocessing
 import os
 import signal
@@ -25,11 +28,14 @@ import sys
 import time
 from multiprocessing.connection import Connection
 from multiprocessing.reduction import ForkingPickler
+from typing import Any
 
 from impactlab.executors.base import describe_error
 
 READY = "ready"
 STARTED = "started"
+PRELOAD = "preload"  # (PRELOAD, module names): import them now, then say PRELOADED
+PRELOADED = "preloaded"
 PR_SET_PDEATHSIG = 1  # prctl(2): the signal a process gets when its parent dies
 EXIT_TERMINATED = 128 + signal.SIGTERM  # a worker stopped by SIGTERM (its parent gone)
 EXIT_MAIN_GUARD = 87  # a worker whose start ran the caller's script into the executor again
@@ -74,6 +80,10 @@ def serve(conn: Connection, parent: int) -> None:
         conn.send((READY, os.getpid()))
         while (task := _receive(conn)) is not None:
             index, payload = task
+            if isinstance(index, str):  # PRELOAD
+                _preload(payload)
+                conn.send((PRELOADED, os.getpid()))
+                continue
             conn.send((STARTED, index))
             if os.environ.get(TEST_SIGKILL_TASK) == str(index):
                 os.kill(os.getpid(), signal.SIGKILL)
@@ -93,9 +103,18 @@ def _leave() -> None:
     os._exit(0)
 
 
-def _receive(conn: Connection) -> tuple[int, bytes] | None:
+def _preload(modules: object) -> None:
+    """Import the modules a task's function needs before the first task arrives (one that
+    cannot be imported here fails the tasks that need it, with the reason, later)."""
+    for name in modules if isinstance(modules, (list, tuple)) else ():
+        with contextlib.suppress(Exception):
+            importlib.import_module(str(name))
+
+
+def _receive(conn: Connection) -> tuple[Any, Any] | None:
+    """The next (index, pickled task) or (PRELOAD, module names); None once the pipe closed."""
     try:
-        task: tuple[int, bytes] = conn.recv()
+        task: tuple[Any, Any] = conn.recv()
         return task
     except EOFError:  # the parent closed the pipe (or died)
         return None
