@@ -137,6 +137,9 @@ class ConsoleProgress:
 
             auto_tqdm.monitor_interval = 0
             return auto_tqdm(total=event.total, unit=unit, desc=event.stage, leave=True)
+        isatty = getattr(sys.stderr, "isatty", None)
+        if isatty is not None and not isatty():  # tqdm's test (disable=None), before its import
+            return None
         from tqdm import tqdm
 
         # no monitor thread: a process with another thread cannot fork record workers

@@ -14,12 +14,7 @@ import math
 import sys
 from pathlib import Path
 
-from impactlab.logs.diff_result import (
-    DEFAULT_ATOL,
-    DEFAULT_IGNORED_META,
-    DEFAULT_RTOL,
-    Tolerance,
-)
+from impactlab.logs.diff_defaults import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
 from impactlab.text import terminal_text
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
@@ -102,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
     """Compare; exit 0 equal, 1 different, 2 bad input."""
     from impactlab.errors import LogError
     from impactlab.logs.diff import diff_logs
+    from impactlab.logs.diff_result import Tolerance
     from impactlab.logs.load import load_log
 
     try:

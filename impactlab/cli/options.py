@@ -3,12 +3,23 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 from pathlib import Path
 
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
 from impactlab.text import terminal_text
+
+
+def started() -> None:
+    """The command has started (imported what it needs, planned its work): turn the garbage
+    collector back on if the program turned it off (`impactlab.cli.command`), with the
+    objects made so far frozen (kept for good, never scanned again: forked workers neither
+    scan nor copy them)."""
+    if not gc.isenabled():
+        gc.freeze()
+        gc.enable()
 
 
 def add_executor_options(parser: argparse.ArgumentParser, default: str = "local") -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor, path, seconds
+from impactlab.cli.options import add_executor_options, make_executor, path, seconds, started
 from impactlab.text import terminal_text
 
 
@@ -45,7 +45,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "see docs/reliability.md)",
     )
     add_executor_options(rec)
-    rec.set_defaults(func=run)
+    rec.set_defaults(func=run, gc_started_by_command=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -62,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
         duration=args.duration,
         allow_large=args.allow_large,
     )
+    started()
     progress = console_progress()
     try:
         result = record_runs(

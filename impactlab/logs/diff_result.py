@@ -11,10 +11,10 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from impactlab.logs import format as logformat
+from impactlab.logs.diff_defaults import DEFAULT_ATOL as DEFAULT_ATOL
+from impactlab.logs.diff_defaults import DEFAULT_IGNORED_META as DEFAULT_IGNORED_META
+from impactlab.logs.diff_defaults import DEFAULT_RTOL as DEFAULT_RTOL
 
-DEFAULT_ATOL = 1e-9
-DEFAULT_RTOL = 1e-9
-DEFAULT_IGNORED_META = ("impactlab_version",)
 CONTACT_TEXT_FIELDS = ("body1", "body2")
 EVENT_FIELDS = ("level", "message")
 _VALUE_WIDTH = 80  # longest metadata / model line quoted in a report

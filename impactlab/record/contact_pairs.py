@@ -15,6 +15,7 @@ experiment gives (`default_speed_range`):
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -107,21 +108,49 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         else:
             duration, max_pen = con.duration, con.max_penetration
         try:
-            params = contact_params(
+            params = _calibrated(
                 e,
-                radius_m=radius,
-                speed_range_mps=speeds,
-                timestep_s=run.options.timestep,
-                integrator=run.options.integrator,
-                duration_s=duration,
-                max_penetration_m=max_pen,
-                gravity_mps2=g_normal,
-                allow_coarse=con.allow_coarse_timestep,
+                radius,
+                tuple(speeds),
+                run.options.timestep,
+                run.options.integrator,
+                duration,
+                max_pen,
+                g_normal,
+                con.allow_coarse_timestep,
             )
         except ContactModelError as exc:
             raise SpecError(run.source, field, str(exc)) from None
         out.append(CalibratedPair(geom1, body.name, params))
     return out
+
+
+@functools.lru_cache(maxsize=1024)
+def _calibrated(
+    e: float,
+    radius: float,
+    speeds: tuple[float, ...],
+    timestep: float,
+    integrator: str,
+    duration: float | None,
+    max_pen: float | None,
+    g_normal: float,
+    allow_coarse: bool,
+) -> ContactParams:
+    """`contact_params` once per process for the same arguments: a run's pairs are calibrated
+    when it is planned, again when the recorder reads the plan and when its model is built
+    (in a forked worker, which inherits what the parent calibrated)."""
+    return contact_params(
+        e,
+        radius_m=radius,
+        speed_range_mps=speeds,
+        timestep_s=timestep,
+        integrator=integrator,
+        duration_s=duration,
+        max_penetration_m=max_pen,
+        gravity_mps2=g_normal,
+        allow_coarse=allow_coarse,
+    )
 
 
 T = TypeVar("T")

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
 from impactlab.executors.base import Executor
 from impactlab.executors.processes import available_cpus
 from impactlab.files import check_writable
-from impactlab.logs.writer import remove_stale_partials
+from impactlab.logs.writer import PARTIAL_SUFFIX, remove_stale_partials
 from impactlab.progress import Progress, Tracker
 from impactlab.record.batch import BATCH_RUNS, record_batches
 from impactlab.record.folder import log_path, reusable
@@ -64,13 +65,17 @@ def record_runs(
     todo: list[int] = []  # the runs to record, by their index in `runs`
     steps: list[float] = []  # and their steps (to share the work)
     work = Work()
+    # temporary files left in the folder, listed once (not one scan of it per run)
+    partials = [n for n in os.listdir(out_dir) if n.endswith(PARTIAL_SUFFIX)]
     for index, run in enumerate(runs):  # a planned sweep builds its runs as they are read
         order.append(run.info.run_id)
         found = None if overwrite else reusable(out_dir, run)
         if found is not None:
             by_id[run.info.run_id] = found
         else:
-            remove_stale_partials(log_path(out_dir, run))
+            path = log_path(out_dir, run)
+            if partials and any(n.startswith(f"{path.name}.") for n in partials):
+                remove_stale_partials(path)
             todo.append(index)
             steps.append(float(run.work.steps))
             work += run.work

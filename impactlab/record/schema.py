@@ -105,9 +105,11 @@ def short(value: Any, limit: int = 60) -> str:
 
 class Section(BaseModel):
     """A table of the spec: unknown keys are errors, values are checked strictly (no "1" for
-    1), and a validated section is frozen."""
+    1), a validated section is frozen; its validator is built on first use (`defer_build`)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, hide_input_in_errors=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, hide_input_in_errors=True, defer_build=True
+    )
 
 
 class Options(Section):
