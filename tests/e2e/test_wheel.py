@@ -47,10 +47,11 @@ BALL = """<mujoco model="user">
 
 
 def _env() -> dict[str, str]:
-    """The environment of a user's shell: nothing pointing into this checkout."""
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
-    env["PYTHONDONTWRITEBYTECODE"] = "1"
-    return env
+    """The environment of a user's shell: nothing pointing into this checkout, and bytecode
+    written as usual (the wheel is installed with --no-compile: the first command compiles
+    what it imports into the venv, the next ones and their spawned workers reuse it)."""
+    drop = ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONDONTWRITEBYTECODE")
+    return {k: v for k, v in os.environ.items() if k not in drop}
 
 
 def run(args: list[str], cwd: Path, *, check: bool = True) -> subprocess.CompletedProcess[str]:

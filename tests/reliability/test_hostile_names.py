@@ -185,6 +185,16 @@ class Requests(BaseHTTPRequestHandler):
         pass
 
 
+@pytest.fixture(scope="module")
+def spec_log(tmp_path_factory) -> Path:
+    """SPEC recorded once (`impactlab record` in a process of its own, under the limits), for
+    the tests that copy it with crafted metadata: they read it, never write it."""
+    folder = tmp_path_factory.mktemp("spec")
+    (folder / "spec.toml").write_text(SPEC)
+    (log,) = record([folder / "spec.toml"], folder / "logs")
+    return log
+
+
 @pytest.fixture
 def server():
     Requests.seen = []
@@ -196,15 +206,13 @@ def server():
     httpd.server_close()
 
 
-def test_no_name_runs_script_in_the_page(tmp_path):
+def test_no_name_runs_script_in_the_page(tmp_path, spec_log):
     """Body, geom, file, experiment and input names full of HTML: the page runs no script
     (its title stays), and each name reads in the page as written."""
     xml = tmp_path / f"{SCRIPT_FILE}.xml"
     xml.write_text(model(SCRIPT_FLOOR, [SCRIPT_BODY]))
-    spec = tmp_path / "spec.toml"
-    spec.write_text(SPEC)
     (drop,) = record([xml], tmp_path / "logs", "--duration", "0.2")
-    (ball,) = record([spec], tmp_path / "spec-logs")
+    ball = spec_log
     crafted = rewrite(ball, tmp_path / "crafted.mcap", experiment=SCRIPT_BODY, run_id="crafted")
     unreadable = tmp_path / f"{SCRIPT_FILE}.mcap"
     unreadable.write_bytes(b"not a log")
@@ -310,14 +318,11 @@ def test_no_name_loads_a_url_or_makes_a_heading(tmp_path, server):
     assert "floor\\n# HEADING\\n" in shown  # the newline shown as an escape
 
 
-def test_info_and_errors_print_no_terminal_escape(tmp_path):
+def test_info_and_errors_print_no_terminal_escape(tmp_path, spec_log):
     """A log whose metadata retitles the terminal and clears the screen: `impactlab info`
     prints the escapes as text; an input whose name holds them is named the same way."""
-    spec = tmp_path / "spec.toml"
-    spec.write_text(SPEC)
-    (log,) = record([spec], tmp_path / "logs")
     crafted = rewrite(
-        log,
+        spec_log,
         tmp_path / "crafted.mcap",
         experiment="\x1b]0;title\x07",
         source="\x1b[2J\x9b2J",
@@ -381,19 +386,17 @@ def test_md_text_renders_as_the_text_itself(name):
         assert fast == md.render(table)
 
 
-def test_no_name_writes_outside_the_output_folder(tmp_path):
+def test_no_name_writes_outside_the_output_folder(tmp_path, spec_log):
     """A log whose run id is a path out of the output folder: its figure is written inside the
     folder, under a name made safe (before, it went to that path)."""
-    spec = tmp_path / "spec.toml"
-    spec.write_text(SPEC)
-    (log,) = record([spec], tmp_path / "logs")
     target = tmp_path / "outside"  # figures/energy-x/../../.. ... /outside.png
-    crafted = rewrite(log, tmp_path / "crafted.mcap", run_id="x/" + "../" * 40 + str(target)[1:])
+    crafted = rewrite(
+        spec_log, tmp_path / "crafted.mcap", run_id="x/" + "../" * 40 + str(target)[1:]
+    )
     out = tmp_path / "results"
     done = impactlab("analyze", str(crafted), "-o", str(out))
     assert not target.with_suffix(".png").exists()
     assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
     (figure,) = (out / "figures").glob("energy-*.png")
     assert figure.is_file() and "/" not in figure.name
-    mine = {out, tmp_path / "logs", tmp_path / "spec.toml", tmp_path / "crafted.mcap"}
-    assert {p for p in tmp_path.iterdir()} == mine
+    assert {p for p in tmp_path.iterdir()} == {out, tmp_path / "crafted.mcap"}
