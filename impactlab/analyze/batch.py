@@ -181,7 +181,8 @@ def analyze_logs(
     error entry with the task's reason.
     """
     tracker = Tracker("analyze", len(paths), progress)
-    items = [(p, p) for p in map(Path, paths)]  # one Path object per log, shared
+    # one Path object per log, the caller's, shared (a Path holds its parts: ~0.5 KB)
+    items = [(q, q) for q in (p if isinstance(p, Path) else Path(p) for p in paths)]
     out: list[AnalyzedLog | None] = [None] * len(paths)
     ready = 0  # out[:ready] has gone through the reducer
 

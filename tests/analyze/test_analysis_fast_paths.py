@@ -16,7 +16,7 @@ from impactlab.analyze.measure.contact_intervals import _run_blocks
 from impactlab.analyze.measure.energy import _mujoco_at
 from impactlab.analyze.measure.state_table import StateTable
 from impactlab.analyze.measure.states import states_long
-from impactlab.analyze.tables.combine import _join
+from impactlab.analyze.tables.combine import _join, _relaxed
 from impactlab.files import write_parquet
 from impactlab.logs.load import load_log
 
@@ -94,12 +94,12 @@ def test_one_part_is_renamed_and_two_are_joined(tmp_path):
     for folder in ("one", "two"):
         (tmp_path / folder).mkdir()
     one = write_parquet(a, tmp_path / "one" / "part-000000.parquet")
-    out = _join([one], tmp_path / "one.parquet")
+    out = _join([one], tmp_path / "one.parquet", a.schema)
     assert not one.exists() and not one.parent.exists()
     assert_frame_equal(pl.read_parquet(out), a)
     parts = [
         write_parquet(f, tmp_path / "two" / f"part-{i:06d}.parquet") for i, f in enumerate((a, b))
     ]
-    out = _join(parts, tmp_path / "two.parquet")
+    out = _join(parts, tmp_path / "two.parquet", _relaxed(a.schema, b.schema))
     assert_frame_equal(pl.read_parquet(out), pl.concat([a, b], how="diagonal_relaxed"))
     assert not any(p.exists() for p in parts)

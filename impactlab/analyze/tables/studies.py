@@ -45,28 +45,35 @@ def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
     A swept top-level key that is also a column of the runs table (`description`) is named
     `sweep.<key>`.
     """
-    values: dict[str, dict[str, Any]] = {}
-    for run_id, experiment, sweep in runs.select("run_id", "experiment", "sweep").iter_rows():
-        point = json.loads(sweep or "{}")
-        values[run_id] = {"__experiment": experiment}
-        for key, value in point.items():
+    # one list per parameter, filled run by run (_ABSENT where a run lacks it): the values
+    # in columns, never a dict per run
+    run_ids: list[str] = []
+    experiments: list[str] = []
+    found: dict[str, list[Any]] = {}
+    for run_id, experiment, sweep in (
+        runs.select("run_id", "experiment", "sweep")
+        .unique("run_id", maintain_order=True)
+        .iter_rows()
+    ):  # a run id given twice (one log in two folders) is one sweep point
+        n = len(run_ids)
+        run_ids.append(run_id)
+        experiments.append(experiment)
+        for key, value in json.loads(sweep or "{}").items():
             if "." not in key and (key in runs.columns or key == "__experiment"):
                 key = f"sweep.{key}"  # a top-level spec key: `description`, `name`
-            if isinstance(value, list):
-                for i, item in enumerate(value):
-                    values[run_id][f"{key}[{i}]"] = item
-            else:
-                values[run_id][key] = value
-    columns: dict[str, list[Any]] = {"run_id": list(values)}
-    keys = sorted({k for v in values.values() for k in v if k != "__experiment"})
-    for key in keys:
-        by_exp: dict[str, set[str]] = {}
-        for v in values.values():
-            if key in v:
-                by_exp.setdefault(v["__experiment"], set()).add(json.dumps(v[key]))
-        if not any(len(s) > 1 for s in by_exp.values()) and "[" in key:
+            items = enumerate(value) if isinstance(value, list) else [(None, value)]
+            for i, item in items:
+                name = key if i is None else f"{key}[{i}]"
+                column = found.setdefault(name, [])
+                column.extend([_ABSENT] * (n - len(column)))
+                column.append(item)
+    columns: dict[str, list[Any]] = {"run_id": run_ids}
+    for key in sorted(found):
+        column = found.pop(key)
+        column.extend([_ABSENT] * (len(run_ids) - len(column)))
+        if "[" in key and not _varies(column, experiments):
             continue  # a list element that is the same in every run of every experiment
-        columns[key] = [v.get(key) for v in values.values()]
+        columns[key] = [None if c is _ABSENT else c for c in column]
     schema = {k: _dtype(col) for k, col in columns.items()}
     for key, dtype in schema.items():
         if dtype == pl.String and key != "run_id":
@@ -74,6 +81,22 @@ def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
                 c if c is None or isinstance(c, str) else json.dumps(c) for c in columns[key]
             ]
     return pl.DataFrame(columns, schema=schema, strict=False)
+
+
+_ABSENT = object()
+"""A run's value of a parameter its sweep does not set (`sweep_parameters`)."""
+
+
+def _varies(column: list[Any], experiments: list[str]) -> bool:
+    """Whether some experiment's runs that set the parameter set it to different values."""
+    first: dict[str, str] = {}
+    for value, experiment in zip(column, experiments, strict=True):
+        if value is _ABSENT:
+            continue
+        text = json.dumps(value)
+        if first.setdefault(experiment, text) != text:
+            return True
+    return False
 
 
 def _dtype(column: list[Any]) -> PolarsDataType:
