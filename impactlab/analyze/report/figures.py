@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from matplotlib.lines import Line2D
 
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
+MAX_SPEED_LABELS = 8  # a study figure writes the impact speed of at most this many runs
 
 
 def _shade_contacts(ax: Axes, intervals: pl.DataFrame) -> Collection | None:
@@ -150,15 +151,13 @@ def bounce_decay_figure(
     rows = bounces.filter(
         pl.col("run_id").is_in(list(labels)) & pl.col("bounce").is_not_null()
     ).sort("bounce")
-    keys = rows.select("run_id", "body", "surface").unique(maintain_order=True).rows()
+    groups = rows.partition_by("run_id", "body", "surface", maintain_order=True, as_dict=True)
+    keys = [(str(r), str(b), str(s)) for r, b, s in groups]
     several = len({(b, s) for _, b, s in keys}) > 1
     legend = len(keys) <= MAX_LEGEND_RUNS
     colors = plt.cm.viridis(np.linspace(0, 1, max(len(keys), 1)))
     drawn = set()
-    for i, (run_id, body, surface) in enumerate(keys):
-        mine = rows.filter(
-            (pl.col("run_id") == run_id) & (pl.col("body") == body) & (pl.col("surface") == surface)
-        )
+    for i, ((run_id, body, surface), mine) in enumerate(zip(keys, groups.values(), strict=True)):
         n = [0, *mine["bounce"].to_list()]
         h = [mine["apex_before_m"][0], *mine["apex_m"].to_list()]
         pts = [(a, b) for a, b in zip(n, h, strict=True) if b is not None]
@@ -374,23 +373,28 @@ def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Pa
             clip_on=False,
             label="no rebound (the ball stays on the ground)",
         )
+    shown = ""
     if "first_impact_speed_mps" in rows.columns and x_col == "drop_height_m":
-        for x, v in rows.select(x_col, "first_impact_speed_mps").iter_rows():
-            if v is not None:
-                ax.annotate(
-                    f"{v:.3g} m/s",
-                    (x, 0.0),
-                    textcoords="offset points",
-                    xytext=(0, 12),
-                    ha="center",
-                    fontsize=8,
-                    color="0.3",
-                )
+        speeds = rows.select(x_col, "first_impact_speed_mps").drop_nulls()
+        if speeds.height > MAX_SPEED_LABELS:  # evenly spaced, the first and last among them
+            keep = np.unique(np.linspace(0, speeds.height - 1, MAX_SPEED_LABELS).round())
+            speeds = speeds[keep.astype(np.int64).tolist()]
+            shown = f", {MAX_SPEED_LABELS} of {rows.height} runs"
+        for x, v in speeds.iter_rows():
+            ax.annotate(
+                f"{v:.3g} m/s",
+                (x, 0.0),
+                textcoords="offset points",
+                xytext=(0, 12),
+                ha="center",
+                fontsize=8,
+                color="0.3",
+            )
     ax.set_xlabel(x_label)
     ax.set_ylabel("coefficient of restitution e")
     top = float(rows.select(pl.col("e_velocity_first").max()).item() or 0)
     ax.set_ylim(-0.03 * max(0.2, top * 1.5), max(0.2, top * 1.5))
-    ax.set_title(f"{title}\n(grey: impact speed at the first contact)")
+    ax.set_title(f"{title}\n(grey: impact speed at the first contact{shown})")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return save_figure(fig, path)
