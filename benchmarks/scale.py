@@ -186,6 +186,6 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
         "memory of the whole process tree (the stage's process and its workers, resident "
         "memory summed, sampled every 20 ms); time per run: the stage's time, planning "
         "included, over the runs. Record shares the runs among forked workers, one per core; "
-        "the analysis runs in one process (`local`) or in its own process and one worker "
-        "process per other CPU (`processes`)."
+        "the analysis (tables only) runs in one process (`local`) or in its own process and "
+        "one worker process per other CPU (`processes`)."
     )
