@@ -123,7 +123,8 @@ def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
             return cols, joined
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
-    joined = runs.join(params, on="run_id", how="left").sort(
+    # a table that has them already (an analysis' runs table) gets them once, not twice
+    joined = runs.drop(cols, strict=False).join(params, on="run_id", how="left").sort(
         ["experiment", *cols, "run_id"], nulls_last=True
     )
     _LAST[:] = [(weakref.ref(runs, _forget), cols, joined)]
