@@ -126,7 +126,12 @@ class ProcessExecutor:
         preload = _modules(fn) if here else ()
         mine = HereTasks(fn, items) if here else None
         try:
-            while todo or any(w.task is not None for w in pool) or (mine and mine.busy):
+            # a worker still importing is waited for even when this process did every task:
+            # its start may fail in a way the caller must hear (a script without the
+            # `__main__` guard), whichever finished first
+            while (
+                todo or any(w.task is not None or not w.warm for w in pool) or (mine and mine.busy)
+            ):
                 self._grow(size, todo, preload)
                 if not pool:  # no worker can start: the rest here
                     if mine is not None and mine.busy:
