@@ -124,8 +124,10 @@ def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
     # a table that has them already (an analysis' runs table) gets them once, not twice
-    joined = runs.drop(cols, strict=False).join(params, on="run_id", how="left").sort(
-        ["experiment", *cols, "run_id"], nulls_last=True
+    joined = (
+        runs.drop(cols, strict=False)
+        .join(params, on="run_id", how="left")
+        .sort(["experiment", *cols, "run_id"], nulls_last=True)
     )
     _LAST[:] = [(weakref.ref(runs, _forget), cols, joined)]
     return cols, joined
