@@ -103,3 +103,26 @@ def test_one_part_is_renamed_and_two_are_joined(tmp_path):
     out = _join(parts, tmp_path / "two.parquet", _relaxed(a.schema, b.schema))
     assert_frame_equal(pl.read_parquet(out), pl.concat([a, b], how="diagonal_relaxed"))
     assert not any(p.exists() for p in parts)
+
+
+@pytest.mark.parametrize(
+    "first, second",
+    [
+        ({"v": [1, 2]}, {"v": [1.5]}),  # integers widened to floats
+        ({"v": pl.Series([1], dtype=pl.Int32)}, {"v": [3]}),  # to a wider integer
+        ({"v": pl.Series([None, None], dtype=pl.Null)}, {"v": [1.5]}),  # an all-null column
+        ({"v": [[1.0]]}, {"v": pl.Series([None], dtype=pl.Null)}),  # a list, then nulls
+        ({"v": [1.5]}, {"v": ["text"]}),  # floats and text: the fallback's concatenation
+        ({"v": [True]}, {"v": [3]}),  # booleans and integers: the fallback too
+    ],
+)
+def test_parts_of_different_types_join_to_their_relaxed_concatenation(tmp_path, first, second):
+    """Whatever the parts' types, the joined table is their diagonal, relaxed concatenation
+    (the streaming scan widens what it can; the rest goes through one scan per part)."""
+    frames = [pl.DataFrame({"run_id": ["a"] * len(c["v"]), **c}) for c in (first, second)]
+    parts = [write_parquet(f, tmp_path / f"part-{i:06d}.parquet") for i, f in enumerate(frames)]
+    out = _join(
+        parts, tmp_path.parent / f"{tmp_path.name}.parquet", _relaxed(*(f.schema for f in frames))
+    )
+    assert_frame_equal(pl.read_parquet(out), pl.concat(frames, how="diagonal_relaxed"))
+    assert not tmp_path.exists()
