@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,7 +53,7 @@ BATCH_BYTES = 32 << 20
 """...and at most this many bytes of log files (more only for one larger log)."""
 
 
-def batches(items: Sequence[tuple[Path, Path]], parts: int = 1) -> list[list[int]]:
+def batches(items: Sequence[tuple[str | Path, str | Path]], parts: int = 1) -> list[list[int]]:
     """Consecutive groups of `items` (by index) to analyze together: `parts` groups of
     nearly equal size (fewer only when there are fewer logs), each cut further to at most
     BATCH_LOGS logs and BATCH_BYTES of files (more only for one larger log)."""
@@ -64,7 +65,7 @@ def batches(items: Sequence[tuple[Path, Path]], parts: int = 1) -> list[list[int
         first = len(out)
         for i in range(g * n // k, (g + 1) * n // k):
             try:
-                nbytes = items[i][0].stat().st_size
+                nbytes = os.stat(items[i][0]).st_size
             except OSError:
                 nbytes = 0
             if len(out) > first and len(out[-1]) < BATCH_LOGS and size + nbytes <= BATCH_BYTES:
@@ -77,7 +78,9 @@ def batches(items: Sequence[tuple[Path, Path]], parts: int = 1) -> list[list[int
 
 
 def analyze_some(
-    items: Sequence[tuple[Path, Path]], fig_dir: Path | None, previous: Path | None = None
+    items: Sequence[tuple[str | Path, str | Path]],
+    fig_dir: Path | None,
+    previous: Path | None = None,
 ) -> list[AnalyzedLog]:
     """Analyze some logs together and draw each run's own figures into `fig_dir` (None: no
     figures); one result per log, in order.
@@ -88,7 +91,8 @@ def analyze_some(
     """
     out: list[AnalyzedLog | None] = [None] * len(items)
     loaded: list[tuple[int, RunLog]] = []
-    for i, (where, shown) in enumerate(items):
+    for i, (where_given, shown_given) in enumerate(items):
+        where, shown = Path(where_given), Path(shown_given)
         try:
             run = load_log(where)
         except LogError as exc:
@@ -148,7 +152,7 @@ def slim(a: RunAnalysis) -> RunAnalysis:
 
 
 def _task(
-    items: list[tuple[Path, Path]], fig_dir: Path | None, previous: Path | None = None
+    items: list[tuple[str, str]], fig_dir: Path | None, previous: Path | None = None
 ) -> list[AnalyzedLog]:
     """The body of one executor task: as `analyze_some`, returning small tables only."""
     results = analyze_some(items, fig_dir, previous)
@@ -160,7 +164,7 @@ def _task(
 
 
 def analyze_logs(
-    paths: Sequence[Path],
+    paths: Sequence[str | Path],
     *,
     fig_dir: Path | None,
     previous: Path | None = None,
@@ -181,8 +185,8 @@ def analyze_logs(
     error entry with the task's reason.
     """
     tracker = Tracker("analyze", len(paths), progress)
-    # one Path object per log, the caller's, shared (a Path holds its parts: ~0.5 KB)
-    items = [(q, q) for q in (p if isinstance(p, Path) else Path(p) for p in paths)]
+    # one string per log, shared: a Path, which holds its parts too, is made per batch
+    items = [(q, q) for q in map(str, paths)]
     out: list[AnalyzedLog | None] = [None] * len(paths)
     ready = 0  # out[:ready] has gone through the reducer
 
@@ -216,7 +220,9 @@ def analyze_logs(
     if fig_dir is not None:  # a run's own figures cost more than its analysis: finer tasks
         parts = max(parts, 8 * executor.slots)
     groups = batches(items, parts=parts)
-    absolute = [[(items[i][0].absolute(), items[i][1]) for i in group] for group in groups]
+    absolute = [
+        [(str(Path(items[i][0]).absolute()), items[i][1]) for i in group] for group in groups
+    ]
     # worker processes, tables only: this process analyzes batches too, from the first while
     # the workers start (the analysis cannot bring it down: a log it cannot read is an error
     # entry). Not with figures: drawing here cost more than it gave (64-run sweep: 4.2 s ->

@@ -17,7 +17,7 @@ from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
 from impactlab.analyze.write import RunBrief, brief, write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
-from impactlab.logs.inputs import require_logs
+from impactlab.logs.inputs import require_log_names
 from impactlab.progress import Progress, say
 
 
@@ -50,7 +50,7 @@ def run_analysis(
         NoLogs: no input names any log (exit code 2); an input among others that names none
             is reported as failed.
     """
-    paths, empty = require_logs(inputs)
+    paths, empty = require_log_names(inputs)
     out = None if out_dir is None else Path(out_dir)
     if out is None:
         return _analysis(paths, empty, None, None, figures, report, executor, progress)
@@ -60,7 +60,7 @@ def run_analysis(
 
 
 def _analysis(
-    paths: Sequence[Path],
+    paths: Sequence[str],
     empty: Sequence[tuple[str, str]],
     out: Path | None,
     stage: Path | None,
