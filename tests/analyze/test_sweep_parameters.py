@@ -26,6 +26,7 @@ def test_parameters_are_joined_once():
     )
     once = with_parameters(runs)
     assert once.columns == ["run_id", "experiment", "sweep", "note", "ball.mass", "ball.pos[2]"]
-    twice = with_parameters(once)
+    assert with_parameters(once) is once  # the table made is its own answer, not a copy
+    twice = with_parameters(once.clone())  # computed again: the same table
     assert_frame_equal(twice, once)
     assert study_parameters(once, "drop") == ["ball.pos[2]"]

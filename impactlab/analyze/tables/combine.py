@@ -172,8 +172,8 @@ class TableReducer:
         four tables are files there (`AnalysisResult.sources`), the parts removed."""
         self._reduce()
         runs = _cat(self._runs)
-        self._runs = [runs]
         runs = with_parameters(runs) if runs.height else runs
+        self._runs = [runs]  # not the table without its parameters too: one copy is kept
         sources: dict[str, pl.DataFrame | Path] = {}
         for name in _TABLES:
             if self.folder is None:

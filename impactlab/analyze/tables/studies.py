@@ -111,16 +111,20 @@ def with_parameters(runs: pl.DataFrame) -> pl.DataFrame:
     return _parameters(runs)[1]
 
 
-_LAST: list[tuple[weakref.ref[pl.DataFrame], list[str], pl.DataFrame]] = []
+_LAST: list[tuple[weakref.ref[pl.DataFrame], list[str], pl.DataFrame | None]] = []
+"""The last tables `_parameters` saw: (the table, its parameter columns, the table with
+them joined; None when that is the table itself)."""
 
 
 def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
     """The runs table's sweep parameter columns and `with_parameters`, computed once per
     table object while it lives (the report, the studies and the labels each ask for them,
-    per experiment: the sweep JSON of every run was parsed again each time)."""
+    per experiment: the sweep JSON of every run was parsed again each time). The table
+    returned is its own answer when it is asked again (joining once more would give an
+    equal table: a copy of 20,000 rows for nothing)."""
     for ref, cols, joined in _LAST:
         if ref() is runs:
-            return cols, joined
+            return cols, runs if joined is None else joined
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
     # a table that has them already (an analysis' runs table) gets them once, not twice
@@ -129,14 +133,16 @@ def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
         .join(params, on="run_id", how="left")
         .sort(["experiment", *cols, "run_id"], nulls_last=True)
     )
-    _LAST[:] = [(weakref.ref(runs, _forget), cols, joined)]
+    _LAST[:] = [
+        (weakref.ref(runs, _forget), cols, joined),
+        (weakref.ref(joined, _forget), cols, None),
+    ]
     return cols, joined
 
 
 def _forget(ref: weakref.ref[pl.DataFrame]) -> None:
-    """Drop the cached table with the runs table it was made from."""
-    if _LAST and _LAST[0][0] is ref:
-        _LAST.clear()
+    """Drop a cached table's entry when the table is gone."""
+    _LAST[:] = [entry for entry in _LAST if entry[0] is not ref]
 
 
 def study_parameters(runs: pl.DataFrame, experiment: str) -> list[str]:
