@@ -62,7 +62,8 @@ def main(argv: list[str]) -> int:
         if where != last:
             print(f"{t:8.2f} s {mb:8.1f} MB  {where}")
             last = where
-    print(f"peak {max(mb for _, mb, _ in samples):.1f} MB")
+    t, mb, where = max(samples, key=lambda s: s[1])
+    print(f"peak {mb:.1f} MB at {t:.2f} s  {where}")
     return 0
 
 

@@ -59,14 +59,26 @@ def test_written_parts_join_to_one_concatenation(analyses, monkeypatch, tmp_path
     monkeypatch.setattr(tables_module, "REDUCE_EVERY", every)
     first, second, *rest = analyses
     varied = [  # a column all null (type Null) in one run, a column only one run has
-        dataclasses.replace(first, bounces=first.bounces.with_columns(e_velocity=None)),
+        dataclasses.replace(
+            first,
+            bounces=first.bounces.with_columns(e_velocity=None),
+            summary={**first.summary, "note": None, "only_here": 2},  # in the runs table too
+        ),
         dataclasses.replace(second, phases=second.phases.with_columns(extra=pl.lit(1.5))),
         *rest,
     ]
     reducer = TableReducer(folder=tmp_path)
+    in_memory = TableReducer()
     for a in varied:
         reducer.take(a)
+        in_memory.take(a)
+    # the runs table's rows are written as they come, like the other tables
+    assert len(list((tmp_path / "runs").glob("part-*.parquet"))) == len(varied) // every
     result = reducer.result(tmp_path, [])
+    # the runs table's parts are read back: the table kept in memory without a folder
+    assert_frame_equal(result.runs, in_memory.result(None, []).runs, check_exact=True)
+    only = result.runs.select("run_id", "only_here").drop_nulls()
+    assert only.rows() == [(first.run.run_id, 2)]
 
     def concat(name: str) -> pl.DataFrame:
         frames = [getattr(a, name) for a in varied if getattr(a, name).width]

@@ -114,19 +114,19 @@ class TableReducer:
 
     Every REDUCE_EVERY runs the frames taken are concatenated: kept in memory (the tables'
     data rather than thousands of small frames), or, with `folder`, written there as one
-    Parquet part per table (`<table>/part-NNNNNN.parquet`) and dropped, so that memory holds
-    one batch of frames whatever the number of runs; `result` then joins each table's parts
-    into `folder/<table>.parquet` (a streaming polars scan). The runs table's rows are kept
-    (one small row per run, in columns). Either way the tables are those one concatenation
-    of every run's frames, in order, would give.
+    Parquet part per table (`<table>/part-NNNNNN.parquet`, the runs table's rows too) and
+    dropped, so that memory holds one batch of frames whatever the number of runs; `result`
+    then joins each table's parts into `folder/<table>.parquet` (a streaming polars scan)
+    and reads the runs table's parts back, once the others are joined. Either way the tables
+    are those one concatenation of every run's frames, in order, would give.
     """
 
     def __init__(self, folder: Path | None = None) -> None:
         self.folder = folder
         self._pending: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
         self._parts: dict[str, list[pl.DataFrame]] = {name: [] for name in _TABLES}
-        self._files: dict[str, list[Path]] = {name: [] for name in _TABLES}
-        self._schemas: dict[str, pl.Schema] = {name: pl.Schema() for name in _TABLES}
+        self._files: dict[str, list[Path]] = {name: [] for name in TABLES}
+        self._schemas: dict[str, pl.Schema] = {name: pl.Schema() for name in TABLES}
         self._summaries: list[dict[str, Any]] = []
         self._runs: list[pl.DataFrame] = []
         self._taken = self._rows = self._longest = 0
@@ -150,10 +150,14 @@ class TableReducer:
 
     def _reduce(self) -> None:
         if self._summaries:
-            self._runs.append(pl.DataFrame(self._summaries, infer_schema_length=None))
+            rows = pl.DataFrame(self._summaries, infer_schema_length=None)
             self._summaries.clear()
-            if len(self._runs) >= RUNS_PIECES:
-                self._runs = [_cat(self._runs)]
+            if self.folder is not None:
+                self._write_part("runs", rows)
+            else:
+                self._runs.append(rows)
+                if len(self._runs) >= RUNS_PIECES:
+                    self._runs = [_cat(self._runs)]
         for name, frames in self._pending.items():
             if not frames:
                 continue
@@ -161,19 +165,21 @@ class TableReducer:
             frames.clear()
             if self.folder is None:
                 self._parts[name].append(frame)
-                continue
-            part = self.folder / name / f"part-{len(self._files[name]):06d}.parquet"
-            part.parent.mkdir(parents=True, exist_ok=True)
-            self._files[name].append(write_parquet(frame, part))
-            self._schemas[name] = _relaxed(self._schemas[name], frame.schema)
+            else:
+                self._write_part(name, frame)
+
+    def _write_part(self, name: str, frame: pl.DataFrame) -> None:
+        """Write the next part of table `name` into the folder, widening its schema."""
+        assert self.folder is not None
+        part = self.folder / name / f"part-{len(self._files[name]):06d}.parquet"
+        part.parent.mkdir(parents=True, exist_ok=True)
+        self._files[name].append(write_parquet(frame, part))
+        self._schemas[name] = _relaxed(self._schemas[name], frame.schema)
 
     def result(self, out_dir: Path | None, failed: Sequence[tuple[str, str]]) -> AnalysisResult:
         """The output tables of every run taken, with the sweep studies; with `folder`, the
         four tables are files there (`AnalysisResult.sources`), the parts removed."""
         self._reduce()
-        runs = _cat(self._runs)
-        runs = with_parameters(runs) if runs.height else runs
-        self._runs = [runs]  # not the table without its parameters too: one copy is kept
         sources: dict[str, pl.DataFrame | Path] = {}
         for name in _TABLES:
             if self.folder is None:
@@ -181,6 +187,13 @@ class TableReducer:
             else:
                 path = self.folder / f"{name}.parquet"
                 sources[name] = _join(self._files[name], path, self._schemas[name])
+                self._files[name] = []
+        if self.folder is not None and self._files["runs"]:  # read back after the joins
+            self._runs = [_read(self._files["runs"], self._schemas["runs"])]
+            self._files["runs"] = []
+        runs = _cat(self._runs)
+        runs = with_parameters(runs) if runs.height else runs
+        self._runs = [runs]  # not the table without its parameters too: one copy is kept
         return AnalysisResult(
             out_dir=out_dir,
             runs=runs,
@@ -200,15 +213,12 @@ def _relaxed(a: pl.Schema, b: pl.Schema) -> pl.Schema:
 
 def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
     """The parts as one Parquet file at `path` (one part: renamed), in order, each read as
-    `schema` (that of their diagonal, relaxed concatenation, `_relaxed`, known as they were
-    written: the parts are not read twice); the parts are removed. No parts: an empty table,
-    as an empty frame is written.
+    `schema` (`_scan`); the parts are removed. No parts: an empty table, as an empty frame
+    is written.
 
-    One streaming scan of every part, each part's missing columns inserted as nulls and its
-    types widened to the schema's, so memory holds a few row groups whatever the number of
-    parts (20,000 runs: +59 MB and 1.1 s, against +99 MB and 6 to 7 s for parts read and
-    written one at a time through pyarrow). Types the scan will not widen (a float column
-    that another part has as text) fall back to a concatenation of one scan per part.
+    One streaming scan of every part, so memory holds a few row groups whatever the number
+    of parts (20,000 runs: +59 MB and 1.1 s, against +99 MB and 6 to 7 s for parts read
+    and written one at a time through pyarrow).
     """
     if not parts:
         return write_parquet(pl.DataFrame(), path)
@@ -217,26 +227,52 @@ def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
         with contextlib.suppress(OSError):
             parts[0].parent.rmdir()
         return path
-    widen = pl.ScanCastOptions(
-        integer_cast=["upcast", "allow-float"],
-        float_cast="upcast",
-        missing_struct_fields="insert",
-        extra_struct_fields="ignore",
-        categorical_to_string="allow",
-    )
-    scan = pl.scan_parquet(parts, schema=schema, missing_columns="insert", cast_options=widen)
     try:
         with atomic_path(path) as tmp:
-            scan.sink_parquet(tmp, compression="zstd")
+            _scan(parts, schema).sink_parquet(tmp, compression="zstd")
     except pl.exceptions.SchemaError:
-        scans = [pl.scan_parquet(p) for p in parts]
         with atomic_path(path) as tmp:
-            pl.concat(scans, how="diagonal_relaxed").sink_parquet(tmp, compression="zstd")
+            _scan(parts, None).sink_parquet(tmp, compression="zstd")
+    _remove(parts)
+    return path
+
+
+def _read(parts: list[Path], schema: pl.Schema) -> pl.DataFrame:
+    """The parts as one frame, as `_join` would write them; the parts are removed."""
+    try:
+        frame = _scan(parts, schema).collect()
+    except pl.exceptions.SchemaError:
+        frame = _scan(parts, None).collect()
+    _remove(parts)
+    return frame.rechunk()
+
+
+_WIDEN = pl.ScanCastOptions(
+    integer_cast=["upcast", "allow-float"],
+    float_cast="upcast",
+    missing_struct_fields="insert",
+    extra_struct_fields="ignore",
+    categorical_to_string="allow",
+)
+
+
+def _scan(parts: list[Path], schema: pl.Schema | None) -> pl.LazyFrame:
+    """The parts, in order, as their diagonal, relaxed concatenation: one scan of them all,
+    each part read as `schema` (that concatenation's schema, `_relaxed`, known as they were
+    written: the parts are not read twice), missing columns inserted as nulls and types
+    widened; that scan stops at types it will not widen (a float column that another part
+    has as text): with `schema` None, a concatenation of one scan per part instead."""
+    if schema is None:
+        return pl.concat([pl.scan_parquet(p) for p in parts], how="diagonal_relaxed")
+    return pl.scan_parquet(parts, schema=schema, missing_columns="insert", cast_options=_WIDEN)
+
+
+def _remove(parts: list[Path]) -> None:
+    """Remove the parts and their folder."""
     for part in parts:
         part.unlink(missing_ok=True)
     with contextlib.suppress(OSError):
         parts[0].parent.rmdir()
-    return path
 
 
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
