@@ -6,7 +6,7 @@ words are named constants in `findings`, so the words follow the numbers.
 
 from __future__ import annotations
 
-import math
+from collections.abc import Iterator
 from typing import Any
 
 import polars as pl
@@ -28,7 +28,7 @@ def _who(row: dict[str, Any]) -> str:
 
 
 @F.guard_lines("the energy answer")
-def energy_answer(runs: pl.DataFrame) -> list[str]:
+def energy_answer(runs: pl.DataFrame) -> Iterator[str]:
     """Is energy conserved in flight and lost at contacts? One sentence per run with a
     ground, its words chosen by `findings` from its numbers and its integrator."""
     rows = runs.filter(pl.col("ground")).iter_rows(named=True)  # one row at a time
@@ -56,52 +56,57 @@ def _energy_sentence(r: dict[str, Any]) -> str:
 
 
 @F.guard_lines("the answer on e across bounces")
-def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> list[str]:
+def constancy_answer(runs: pl.DataFrame, bounces: pl.DataFrame) -> Iterator[str]:
     """Is e constant across bounces? Asked of each body on each surface of each run: bodies
     with different contacts are never put in one answer."""
-    out: list[str] = []
     if bounces.is_empty() or "surface" not in bounces.columns:
-        return out
-    pairs = bounces.filter(pl.col("bounce").is_not_null()).select("run_id", "body", "surface")
-    reasons = {
-        run_id: reason or outcome or "reason not recorded"
-        for run_id, reason, outcome in runs.select("run_id", "reason", "outcome").iter_rows()
-    }
-    # each pair's name, complete bounces' e and number of contacts, in one pass over the
-    # table (a few values per pair, not its rows)
-    found: dict[tuple[str, str, str], tuple[str, list[float], list[int]]] = {}
-    cols = ["run_id", "body", "surface", "e_velocity", "complete"]
-    for row in bounces.select(*cols, *(["run"] if "run" in bounces.columns else [])).iter_rows(
-        named=True
-    ):
-        key = (row["run_id"], row["body"], row["surface"])
-        if key not in found:
-            found[key] = (_who(row), [], [0])
-        _, complete, contacts = found[key]
-        contacts[0] += 1
-        e = row["e_velocity"]
-        if row["complete"] and e is not None and not math.isnan(e):
-            complete.append(e)
-    for run_id, body, surface in pairs.unique(maintain_order=True).iter_rows():
-        name, es, (n_contacts,) = found[(run_id, body, surface)]
-        who = f"{name}, {md_text(body)} on {md_text(surface)}"
+        return
+    keys = ["run_id", "body", "surface"]
+    e = pl.col("e_velocity").cast(pl.Float64)
+    # each pair's first row (its name), complete bounces' e in order and its contacts, in
+    # columns: a few values per pair, never a Python object per run
+    per_pair = bounces.group_by(keys, maintain_order=True).agg(
+        pl.col("run").first() if "run" in bounces.columns else pl.lit(None).alias("run"),
+        e.filter(pl.col("complete") & e.is_not_null() & e.is_not_nan()).alias("es"),
+        pl.len().alias("n_contacts"),
+    )
+    text = pl.col("reason").is_not_null() & (pl.col("reason") != "")
+    said = pl.col("outcome").is_not_null() & (pl.col("outcome") != "")
+    reasons = runs.select(
+        "run_id",
+        pl.when(text)
+        .then(pl.col("reason"))
+        .when(said)
+        .then(pl.col("outcome"))
+        .otherwise(pl.lit("reason not recorded"))
+        .alias("why"),
+    ).unique("run_id", keep="last", maintain_order=True)
+    pairs = (
+        bounces.filter(pl.col("bounce").is_not_null())
+        .select(keys)
+        .unique(maintain_order=True)
+        .join(per_pair, on=keys, how="left", maintain_order="left")
+        .join(reasons, on="run_id", how="left", maintain_order="left")
+    )
+    for row in pairs.iter_rows(named=True):
+        es: list[float] = row["es"]
+        who = f"{_who(row)}, {md_text(row['body'])} on {md_text(row['surface'])}"
         if len(es) >= 2:
             spread = float(max(es) - min(es))
             vals = ", ".join(f"{e:.3f}" for e in es)
-            out.append(
+            yield (
                 f"{who}: across its {len(es)} complete bounces ({vals}) e is "
                 f"{F.spread_finding(spread)}."
             )
         else:
-            out.append(
+            yield (
                 f"{who}: {len(es)} complete bounce(s) "
                 f"({', '.join(f'{e:.3f}' for e in es) or 'none'}), so constancy across bounces "
                 "cannot be tested: the log ends "
-                f"({md_text(reasons.get(run_id) or 'reason not recorded')}) "
-                f"after {n_contacts} contact(s) with an impact, the last one without a flight "
-                "after it."
+                f"({md_text(row['why'] or 'reason not recorded')}) "
+                f"after {row['n_contacts']} contact(s) with an impact, the last one without a "
+                "flight after it."
             )
-    return out
 
 
 @F.guard_lines("the answer on e against drop height")
@@ -142,11 +147,11 @@ def height_answer(studies: dict[str, pl.DataFrame]) -> list[str]:
 
 
 @F.guard_lines("the collision answer")
-def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> list[str]:
+def collision_answer(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -> Iterator[str]:
     """Is momentum conserved in the collisions, how much kinetic energy is lost? The
     momentum's words come from `findings.momentum_finding` (its change and what else acted
     on the pair, with the run's row from `runs`)."""
-    by_run = F.momentum_runs(runs)
+    by_run = F.momentum_runs(runs, collisions)
     return F.each(
         collisions.iter_rows(named=True), lambda r: _collision_sentence(r, by_run.get(r["run_id"]))
     )

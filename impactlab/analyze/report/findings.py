@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, ParamSpec, TypeGuard, TypeVar
 
 import polars as pl
@@ -244,15 +244,17 @@ RUN_FIELDS = ("mujoco_diff_max_J",)
 """The runs-table columns `momentum_kind` and `momentum_finding` read of a collision's run."""
 
 
-def momentum_runs(runs: pl.DataFrame | None) -> dict[str, dict[str, Any]]:
-    """Each run's row as `momentum_kind` and `momentum_finding` read it (run id -> those of
-    RUN_FIELDS the table has): a few numbers per run, not every column of every run."""
-    if runs is None:
+def momentum_runs(runs: pl.DataFrame | None, collisions: pl.DataFrame) -> dict[str, dict[str, Any]]:
+    """The row of each run that has a collision in `collisions`, as `momentum_kind` and
+    `momentum_finding` read it (run id -> those of RUN_FIELDS the table has): a few numbers
+    per colliding run, not every column of every run."""
+    if runs is None or collisions.is_empty():
         return {}
     fields = [c for c in RUN_FIELDS if c in runs.columns]
+    mine = runs.filter(pl.col("run_id").is_in(collisions["run_id"].unique().implode()))
     return {
         r["run_id"]: {c: r[c] for c in fields}
-        for r in runs.select("run_id", *fields).iter_rows(named=True)
+        for r in mine.select("run_id", *fields).iter_rows(named=True)
     }
 
 
@@ -315,29 +317,34 @@ def _failed(what: str, exc: Exception) -> str:
     return f"{what}: this finding could not be worded ({type(exc).__name__}: {exc})."
 
 
-def each(rows: Iterable[dict[str, Any]], sentence: Callable[[dict[str, Any]], str]) -> list[str]:
-    """`sentence` of each row; a row whose sentence fails gets a sentence naming it and the
-    error, so a fault in one run's wording stays that run's and the report is still written."""
-    out = []
+def each(
+    rows: Iterable[dict[str, Any]], sentence: Callable[[dict[str, Any]], str]
+) -> Iterator[str]:
+    """`sentence` of each row, made as it is read; a row whose sentence fails gets a sentence
+    naming it and the error, so a fault in one run's wording stays that run's and the report
+    is still written."""
     for r in rows:
         try:
-            out.append(sentence(r))
+            yield sentence(r)
         except WORDING_ERRORS as exc:
-            out.append(_failed(str(r.get("run") or r.get("run_id") or "a run"), exc))
-    return out
+            yield _failed(str(r.get("run") or r.get("run_id") or "a run"), exc)
 
 
-def guard_lines(what: str) -> Callable[[Callable[..., list[str]]], Callable[..., list[str]]]:
-    """Decorate an answer builder (a list of sentences): a fault becomes one sentence naming
-    `what` and the error instead of ending the whole analysis."""
+def guard_lines(
+    what: str,
+) -> Callable[[Callable[..., Iterable[str]]], Callable[..., Iterator[str]]]:
+    """Decorate an answer builder (sentences, as a list or made one by one): the answer is
+    made as it is read (a sweep's answer of one sentence per run is never held whole), and a
+    fault becomes one sentence naming `what` and the error instead of ending the whole
+    analysis (after the sentences made before it)."""
 
-    def wrap(build: Callable[..., list[str]]) -> Callable[..., list[str]]:
+    def wrap(build: Callable[..., Iterable[str]]) -> Callable[..., Iterator[str]]:
         @functools.wraps(build)
-        def guarded(*args: Any, **kwargs: Any) -> list[str]:
+        def guarded(*args: Any, **kwargs: Any) -> Iterator[str]:
             try:
-                return build(*args, **kwargs)
+                yield from build(*args, **kwargs)
             except WORDING_ERRORS as exc:
-                return [_failed(what, exc)]
+                yield _failed(what, exc)
 
         return guarded
 

@@ -69,7 +69,7 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
             return f"no collision: {md_text(row['note'])}" + (
                 f"; {', '.join(after)}" if after else ""
             )
-        by_run = F.momentum_runs(runs)
+        by_run = F.momentum_runs(runs, done)
         kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.iter_rows(named=True)]
         rels = done["momentum_rel_change"].drop_nulls()
         top = rels.to_frame().max().item()

@@ -193,7 +193,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
     if done.is_empty():
         why = md_text(collisions["note"][0] or "no complete collision")
         return f"Not answered: no collision separated ({why})."
-    by_run = F.momentum_runs(runs)
+    by_run = F.momentum_runs(runs, done)
     kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.iter_rows(named=True)]
     rels = [v for v in done["momentum_rel_change"].to_list() if F.defined(v)]
     if all(k == "conserved" for k in kinds):

@@ -54,7 +54,7 @@ def test_each_ball_keeps_its_own_e(pairs):
         assert fast["e_velocity"].max() - fast["e_velocity"].min() < 0.01
         assert ((mine["e_velocity"] > 0) & (mine["e_velocity"] < 1)).all()
         assert (mine["surface"] == "plane").all()
-    sentences = answers.constancy_answer(pl.DataFrame([pairs.summary]), b)
+    sentences = list(answers.constancy_answer(pl.DataFrame([pairs.summary]), b))
     assert len(sentences) == 2
     assert "a on plane" in sentences[0] and "b on plane" in sentences[1]
     assert pairs.summary["e_velocity_mean"] is None  # never an average over both balls

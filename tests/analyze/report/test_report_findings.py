@@ -250,7 +250,7 @@ def test_negative_ranges_read_and_absurd_percentages_become_joules():
     assert "ends with more energy than it started with" in line
     assert not re.search(r"\d--\d", line) and "2140" not in line
     assert "1 run(s) start with zero or too little energy" in line
-    sentences = answers.energy_answer(runs)
+    sentences = list(answers.energy_answer(runs))
     assert "the energy gained is 0.214 J (more than 105 % of the initial 0.01 J" in sentences[2]
     assert "the energy gained is 5.0 % of the initial 10 J (0.5 J)" in sentences[0]
     assert F.span([-2142.6, -2142.6], ".1f", "%") == "-2142.6 %"
@@ -303,7 +303,7 @@ def test_a_sentence_that_fails_stays_its_runs():
     def broken(row: dict) -> str:
         return f"{row['x']:.3f}"
 
-    out = F.each([{"run_id": "bad", "x": None}, {"run_id": "good", "x": 1.0}], broken)
+    out = list(F.each([{"run_id": "bad", "x": None}, {"run_id": "good", "x": 1.0}], broken))
     assert out[0].startswith("bad: this finding could not be worded (TypeError")
     assert out[1] == "1.000"
 
