@@ -46,18 +46,12 @@ def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
     `sweep.<key>`.
     """
     # one list per parameter, filled run by run (_ABSENT where a run lacks it): the values
-    # in columns, never a dict per run
-    run_ids: list[str] = []
-    experiments: list[str] = []
+    # in columns, never a dict per run; run ids stay in polars, experiments as small codes
+    # (a run id given twice, one log in two folders, is one sweep point)
+    table = runs.select("run_id", "experiment", "sweep").unique("run_id", maintain_order=True)
+    experiments = table["experiment"].cast(pl.Categorical).to_physical().to_list()
     found: dict[str, list[Any]] = {}
-    for run_id, experiment, sweep in (
-        runs.select("run_id", "experiment", "sweep")
-        .unique("run_id", maintain_order=True)
-        .iter_rows()
-    ):  # a run id given twice (one log in two folders) is one sweep point
-        n = len(run_ids)
-        run_ids.append(run_id)
-        experiments.append(experiment)
+    for n, sweep in enumerate(table["sweep"]):
         for key, value in json.loads(sweep or "{}").items():
             if "." not in key and (key in runs.columns or key == "__experiment"):
                 key = f"sweep.{key}"  # a top-level spec key: `description`, `name`
@@ -67,14 +61,14 @@ def sweep_parameters(runs: pl.DataFrame) -> pl.DataFrame:
                 column = found.setdefault(name, [])
                 column.extend([_ABSENT] * (n - len(column)))
                 column.append(item)
-    columns: dict[str, list[Any]] = {"run_id": run_ids}
+    columns: dict[str, Any] = {"run_id": table["run_id"]}
     for key in sorted(found):
         column = found.pop(key)
-        column.extend([_ABSENT] * (len(run_ids) - len(column)))
+        column.extend([_ABSENT] * (table.height - len(column)))
         if "[" in key and not _varies(column, experiments):
             continue  # a list element that is the same in every run of every experiment
         columns[key] = [None if c is _ABSENT else c for c in column]
-    schema = {k: _dtype(col) for k, col in columns.items()}
+    schema = {k: pl.String if k == "run_id" else _dtype(col) for k, col in columns.items()}
     for key, dtype in schema.items():
         if dtype == pl.String and key != "run_id":
             columns[key] = [
@@ -87,9 +81,9 @@ _ABSENT = object()
 """A run's value of a parameter its sweep does not set (`sweep_parameters`)."""
 
 
-def _varies(column: list[Any], experiments: list[str]) -> bool:
+def _varies(column: list[Any], experiments: list[int]) -> bool:
     """Whether some experiment's runs that set the parameter set it to different values."""
-    first: dict[str, str] = {}
+    first: dict[int, str] = {}
     for value, experiment in zip(column, experiments, strict=True):
         if value is _ABSENT:
             continue
@@ -128,11 +122,12 @@ def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
     # a table that has them already (an analysis' runs table) gets them once, not twice
-    joined = (
-        runs.drop(cols, strict=False)
-        .join(params, on="run_id", how="left")
-        .sort(["experiment", *cols, "run_id"], nulls_last=True)
-    )
+    base = runs.drop(cols, strict=False)
+    if params.height == runs.height:  # a row per run, in the table's order: set side by side
+        joined = base.hstack(params.drop("run_id").get_columns())
+    else:  # a run id given twice
+        joined = base.join(params, on="run_id", how="left")
+    joined = joined.sort(["experiment", *cols, "run_id"], nulls_last=True)
     _LAST[:] = [
         (weakref.ref(runs, _forget), cols, joined),
         (weakref.ref(joined, _forget), cols, None),
