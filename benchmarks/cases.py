@@ -81,14 +81,27 @@ def record_case(spec: Path, out: Path, threads: int, *, with_plan: bool = False)
     """Record a spec; seconds (planning included `with_plan`), steps and runs."""
     from impactlab.record import plan, record_runs
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _cpu_seconds()
     runs = plan([spec])
     if not with_plan:
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), _cpu_seconds()
     results = record_runs(runs, out, threads=threads, overwrite=True)
     seconds = time.perf_counter() - start
     steps = sum(r.steps for r in results)
-    return {"seconds": seconds, "steps": steps, "runs": len(results)}
+    return {
+        "seconds": seconds,
+        "cpu_seconds": _cpu_seconds() - cpu,
+        "steps": steps,
+        "runs": len(results),
+    }
+
+
+def _cpu_seconds() -> float:
+    """CPU seconds (user and system) of this process and of its children waited for (the
+    workers, once a stage has closed them): a stage's cost, whatever else the machine runs."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 def decode_case(logs: list[Path]) -> dict:
@@ -121,19 +134,19 @@ def official_case(logs: list[Path]) -> dict:
 
 def analyze_case(
     logs: list[Path], out: Path, figures: bool = True, executor: str = "processes"
-) -> dict:
+) -> dict:  # logs: log files, or folders of them (as `impactlab analyze` is given)
     """The whole analysis of the logs (tables and report; figures when asked), on the
     executor `impactlab analyze` uses by default (worker processes) or another."""
     from impactlab.analyze.job import run_analysis
     from impactlab.executors.choose import make_executor
 
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _cpu_seconds()
     with_executor = make_executor(executor)
     try:
         run_analysis(logs, out, figures=figures, executor=with_executor)
     finally:
         with_executor.close()
-    return {"seconds": time.perf_counter() - start}
+    return {"seconds": time.perf_counter() - start, "cpu_seconds": _cpu_seconds() - cpu}
 
 
 def zstd_case(logs: list[Path]) -> dict:
@@ -209,9 +222,9 @@ def run_case(case: list[str]) -> int:
         result = record_case(Path(case[1]), Path(case[2]), threads=1)
     elif kind == "analyze":
         result = analyze_case(sorted(Path(case[1]).glob("*.mcap")), Path(case[2]))
-    elif kind == "tables":  # tables, summary.json and report of a folder of logs
-        logs = sorted(Path(case[1]).glob("*.mcap"))
-        result = analyze_case(logs, Path(case[2]), figures=False, executor=case[3])
+    elif kind == "tables":  # tables, summary.json and report of a folder of logs, given
+        # as the folder (`impactlab analyze FOLDER`): its logs are listed by the analysis
+        result = analyze_case([Path(case[1])], Path(case[2]), figures=False, executor=case[3])
     else:
         raise SystemExit(f"unknown case {kind}")
     children_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # workers

@@ -54,8 +54,13 @@ def run_sampled(argv: list[str]) -> tuple[dict, float]:
 
 def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterator[dict]:
     """Record each size's spec once, analyze it on each executor; one row per (size,
-    executor), as it is measured. `specs`: per number of runs, its sweep spec."""
-    for n, spec in specs.items():
+    executor), as it is measured. `specs`: per number of runs, its sweep spec. The smallest
+    size is measured again at the end (rows with `again`): the machine's speed drifts
+    within the hour, and the ratios are taken against the mean of its two measurements."""
+    sizes = list(specs)
+    order = [*sizes, min(sizes)] if len(sizes) > 1 else sizes
+    for k, n in enumerate(order):
+        spec, again = specs[n], k >= len(sizes)
         logs = folder / f"scale_logs_{n}"
         rec, rec_mb = run_sampled([sys.executable, cases.__file__, "record", str(spec), str(logs)])
         assert rec["runs"] == n, rec
@@ -66,10 +71,13 @@ def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterato
             )
             row = {
                 "runs": n,
+                "again": again,
                 "executor": executor,
                 "record_ms": rec["seconds"] * 1e3 / n,
+                "record_cpu_ms": rec["cpu_seconds"] * 1e3 / n,
                 "record_mb": rec_mb,
                 "analyze_ms": ana["seconds"] * 1e3 / n,
+                "analyze_cpu_ms": ana["cpu_seconds"] * 1e3 / n,
                 "analyze_mb": ana_mb,
             }
             _print_row(row)
@@ -79,8 +87,9 @@ def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterato
 
 def _print_row(r: dict) -> None:
     print(
-        f"  {r['runs']:>6} {r['executor']:>9} {r['record_ms']:>10.2f} {r['record_mb']:>10.0f} "
-        f"{r['analyze_ms']:>11.2f} {r['analyze_mb']:>11.0f}",
+        f"  {r['runs']:>6}{'*' if r['again'] else ' '}{r['executor']:>9} {r['record_ms']:>10.2f} {r['record_cpu_ms']:>8.2f} "
+        f"{r['record_mb']:>10.0f} {r['analyze_ms']:>11.2f} {r['analyze_cpu_ms']:>9.2f} "
+        f"{r['analyze_mb']:>11.0f}",
         flush=True,
     )
 
@@ -101,14 +110,16 @@ def main(
         "the whole process tree (sampled every 20 ms)"
     )
     print(
-        f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'record MB':>10} "
-        f"{'analyze ms':>11} {'analyze MB':>11}"
+        f"  {'runs':>6} {'executor':>9} {'record ms':>10} {'CPU ms':>8} {'record MB':>10} "
+        f"{'analyze ms':>11} {'CPU ms':>9} {'analyze MB':>11}"
     )
     rows: list[dict] = []
+    planned = (len(specs) + (len(specs) > 1)) * len(executors)
     for row in scale(folder, specs, executors):
         rows.append(row)
-        _fill(results, rows, executors, len(specs) * len(executors))
+        _fill(results, rows, executors, planned)
         write(results)
+    print("  (*: the smallest sweep measured again at the end)")
     for text in _ratios(rows, executors):
         print(text)
 
@@ -121,15 +132,19 @@ def _ratios(rows: list[dict], executors: list[str]) -> Iterator[str]:
             f"  ratios {large:,} runs / {small:,} runs (goals: time <= {GOAL_TIME}, memory <= "
             f"{GOAL_MEMORY}):"
         )
-        for stage, where, t, m in _compare(rows, executors, small, large):
+        for stage, where, t, c, m in _compare(rows, executors, small, large):
             verdict = "met" if t <= GOAL_TIME and m <= GOAL_MEMORY else "not met"
-            yield f"    {stage}{where}: time per run {t:.2f}x, peak memory {m:.2f}x: {verdict}"
+            yield (
+                f"    {stage}{where}: time per run {t:.2f}x (CPU {c:.2f}x), peak memory "
+                f"{m:.2f}x: {verdict}"
+            )
 
 
 def _compare(
     rows: list[dict], executors: list[str], small: int, large: int
-) -> Iterator[tuple[str, str, float, float]]:
-    """(stage, executor note, time ratio, memory ratio) of `large` runs against `small`."""
+) -> Iterator[tuple[str, str, float, float, float]]:
+    """(stage, executor note, time ratio, CPU time ratio, memory ratio) of `large` runs
+    against `small`."""
     for executor in executors:
         a = [r for r in rows if r["runs"] == small and r["executor"] == executor]
         b = [r for r in rows if r["runs"] == large and r["executor"] == executor]
@@ -138,9 +153,14 @@ def _compare(
         for stage in ("record", "analyze"):
             if stage == "record" and executor != executors[0]:
                 continue  # recorded once per size
-            t = b[0][f"{stage}_ms"] / a[0][f"{stage}_ms"]
-            m = b[0][f"{stage}_mb"] / a[0][f"{stage}_mb"]
-            yield stage, "" if stage == "record" else f" ({executor})", t, m
+
+            def mean(key: str, a: list[dict] = a) -> float:  # of the smallest's measurements
+                return sum(r[key] for r in a) / len(a)
+
+            t = b[0][f"{stage}_ms"] / mean(f"{stage}_ms")
+            c = b[0][f"{stage}_cpu_ms"] / mean(f"{stage}_cpu_ms")
+            m = b[0][f"{stage}_mb"] / mean(f"{stage}_mb")
+            yield stage, "" if stage == "record" else f" ({executor})", t, c, m
 
 
 def _fill(results: Results, rows: list[dict], executors: list[str], planned: int) -> None:
@@ -153,17 +173,21 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
             "runs",
             "analyze executor",
             "record ms/run",
+            "record CPU ms/run",
             "record peak MB",
             "analyze ms/run",
+            "analyze CPU ms/run",
             "analyze peak MB",
         ],
         [
             [
-                f"{r['runs']:,}",
+                f"{r['runs']:,}" + (" (again, at the end)" if r["again"] else ""),
                 r["executor"],
                 f"{r['record_ms']:.2f}",
+                f"{r['record_cpu_ms']:.2f}",
                 f"{r['record_mb']:.0f}",
                 f"{r['analyze_ms']:.2f}",
+                f"{r['analyze_cpu_ms']:.2f}",
                 f"{r['analyze_mb']:.0f}",
             ]
             for r in rows
@@ -171,11 +195,11 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
     )
     small = min(r["runs"] for r in rows)
     for large in sorted({r["runs"] for r in rows} - {small}):
-        for stage, where, t, m in _compare(rows, executors, small, large):
+        for stage, where, t, c, m in _compare(rows, executors, small, large):
             results.add(
                 "ratio",
                 f"{stage}{where}, {large:,} runs against {small:,}",
-                f"time per run {t:.2f}x, peak memory {m:.2f}x",
+                f"time per run {t:.2f}x (CPU {c:.2f}x), peak memory {m:.2f}x",
                 f"time <= {GOAL_TIME}x, memory <= {GOAL_MEMORY}x",
                 t <= GOAL_TIME and m <= GOAL_MEMORY,
             )
@@ -185,7 +209,12 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
         "Runs of 0.05 s (101 steps), drop sweep. Each stage in a fresh interpreter; peak "
         "memory of the whole process tree (the stage's process and its workers, resident "
         "memory summed, sampled every 20 ms); time per run: the stage's time, planning "
-        "included, over the runs. Record shares the runs among forked workers, one per core; "
+        "included, over the runs; CPU: the user and system seconds of the stage's process and "
+        "its workers over the same span (what the stage costs whatever else the machine "
+        "runs; the verdict is on the time). The smallest sweep is measured first and again "
+        "at the end; each ratio is against the mean of its two measurements (the machine's "
+        "speed drifts within the hour). The analysis is given the logs' folder, as "
+        "`impactlab analyze FOLDER` is. Record shares the runs among forked workers, one per core; "
         "the analysis (tables only) runs in one process (`local`) or in its own process and "
         "one worker process per other CPU (`processes`)."
     )
