@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import polars as pl
 
@@ -15,6 +15,8 @@ from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.analyze.tables.studies import studies, with_parameters
 from impactlab.files import atomic_path, write_parquet
+
+T = TypeVar("T")
 
 TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 """The output tables, each written as `<name>.parquet`."""
@@ -224,27 +226,31 @@ def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
         return write_parquet(pl.DataFrame(), path)
     if len(parts) == 1:  # the part is the table: renamed, not written again
         os.replace(parts[0], path)
-        with contextlib.suppress(OSError):
-            parts[0].parent.rmdir()
-        return path
-    try:
-        with atomic_path(path) as tmp:
-            _scan(parts, schema).sink_parquet(tmp, compression="zstd")
-    except pl.exceptions.SchemaError:
-        with atomic_path(path) as tmp:
-            _scan(parts, None).sink_parquet(tmp, compression="zstd")
+    else:
+
+        def sink(scan: pl.LazyFrame) -> None:
+            with atomic_path(path) as tmp:
+                scan.sink_parquet(tmp, compression="zstd")
+
+        _widened(parts, schema, sink)
     _remove(parts)
     return path
 
 
 def _read(parts: list[Path], schema: pl.Schema) -> pl.DataFrame:
     """The parts as one frame, as `_join` would write them; the parts are removed."""
-    try:
-        frame = _scan(parts, schema).collect()
-    except pl.exceptions.SchemaError:
-        frame = _scan(parts, None).collect()
+    frame = _widened(parts, schema, pl.LazyFrame.collect)
     _remove(parts)
     return frame.rechunk()
+
+
+def _widened(parts: list[Path], schema: pl.Schema, use: Callable[[pl.LazyFrame], T]) -> T:
+    """`use` of the parts' scan as `schema` (`_scan`); where the scan will not widen a type,
+    of the concatenation of one scan per part instead."""
+    try:
+        return use(_scan(parts, schema))
+    except pl.exceptions.SchemaError:
+        return use(_scan(parts, None))
 
 
 _WIDEN = pl.ScanCastOptions(
