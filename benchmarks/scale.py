@@ -7,6 +7,10 @@ the sum of their resident memory sampled with psutil every 20 ms. Time per run i
 stage's own time (planning included, the interpreter's start not) over the number of runs.
 The goals (issue 28): at 20,000 runs, time per run within 1.2x and peak memory within 1.3x
 of those at 2,000; larger sweeps (100,000) are measured against 2,000 the same way.
+
+The machine's speed drifts by a quarter within the hour, so each larger sweep is
+bracketed: the smallest is measured first and again right after each larger one, and a
+larger sweep's ratios are taken against the mean of the two measurements around it.
 """
 
 from __future__ import annotations
@@ -52,15 +56,19 @@ def run_sampled(argv: list[str]) -> tuple[dict, float]:
     return json.loads(out.strip().splitlines()[-1]), peak / 1e6
 
 
+def measuring_order(sizes: list[int]) -> list[int]:
+    """The sizes in the order they are measured: the smallest first and again right after
+    each larger one (`[2000, 20000, 2000, 100000, 2000]`)."""
+    small = min(sizes)
+    return [small, *(n for large in sorted(set(sizes) - {small}) for n in (large, small))]
+
+
 def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterator[dict]:
-    """Record each size's spec once, analyze it on each executor; one row per (size,
-    executor), as it is measured. `specs`: per number of runs, its sweep spec. The smallest
-    size is measured again at the end (rows with `again`): the machine's speed drifts
-    within the hour, and the ratios are taken against the mean of its two measurements."""
-    sizes = list(specs)
-    order = [*sizes, min(sizes)] if len(sizes) > 1 else sizes
-    for k, n in enumerate(order):
-        spec, again = specs[n], k >= len(sizes)
+    """Record each size's spec, analyze it on each executor; one row per (size, executor),
+    as it is measured, in `measuring_order` (`slot`: the place in it; `again`: the
+    smallest measured again). `specs`: per number of runs, its sweep spec."""
+    for k, n in enumerate(measuring_order(list(specs))):
+        spec, again = specs[n], k > 0 and n == min(specs)
         logs = folder / f"scale_logs_{n}"
         rec, rec_mb = run_sampled([sys.executable, cases.__file__, "record", str(spec), str(logs)])
         assert rec["runs"] == n, rec
@@ -71,6 +79,7 @@ def scale(folder: Path, specs: dict[int, Path], executors: list[str]) -> Iterato
             )
             row = {
                 "runs": n,
+                "slot": k,
                 "again": again,
                 "executor": executor,
                 "record_ms": rec["seconds"] * 1e3 / n,
@@ -114,12 +123,12 @@ def main(
         f"{'analyze ms':>11} {'CPU ms':>9} {'analyze MB':>11}"
     )
     rows: list[dict] = []
-    planned = (len(specs) + (len(specs) > 1)) * len(executors)
+    planned = len(measuring_order(list(specs))) * len(executors)
     for row in scale(folder, specs, executors):
         rows.append(row)
         _fill(results, rows, executors, planned)
         write(results)
-    print("  (*: the smallest sweep measured again at the end)")
+    print("  (*: the smallest sweep measured again, right after the larger one above it)")
     for text in _ratios(rows, executors):
         print(text)
 
@@ -146,15 +155,22 @@ def _compare(
     """(stage, executor note, time ratio, CPU time ratio, memory ratio) of `large` runs
     against `small`."""
     for executor in executors:
-        a = [r for r in rows if r["runs"] == small and r["executor"] == executor]
         b = [r for r in rows if r["runs"] == large and r["executor"] == executor]
-        if not (a and b):
+        if not b:
+            continue
+        around = {b[0]["slot"] - 1, b[0]["slot"] + 1}  # the smallest, before and after
+        a = [
+            r
+            for r in rows
+            if r["runs"] == small and r["executor"] == executor and r["slot"] in around
+        ]
+        if not a:
             continue
         for stage in ("record", "analyze"):
             if stage == "record" and executor != executors[0]:
                 continue  # recorded once per size
 
-            def mean(key: str, a: list[dict] = a) -> float:  # of the smallest's measurements
+            def mean(key: str, a: list[dict] = a) -> float:  # of the smallest's, around it
                 return sum(r[key] for r in a) / len(a)
 
             t = b[0][f"{stage}_ms"] / mean(f"{stage}_ms")
@@ -181,7 +197,7 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
         ],
         [
             [
-                f"{r['runs']:,}" + (" (again, at the end)" if r["again"] else ""),
+                f"{r['runs']:,}" + (" (again)" if r["again"] else ""),
                 r["executor"],
                 f"{r['record_ms']:.2f}",
                 f"{r['record_cpu_ms']:.2f}",
@@ -212,8 +228,9 @@ def _fill(results: Results, rows: list[dict], executors: list[str], planned: int
         "included, over the runs; CPU: the user and system seconds of the stage's process and "
         "its workers over the same span (what the stage costs whatever else the machine "
         "runs; the verdict is on the time). The smallest sweep is measured first and again "
-        "at the end; each ratio is against the mean of its two measurements (the machine's "
-        "speed drifts within the hour). The analysis is given the logs' folder, as "
+        "right after each larger one; a larger sweep's ratios are against the "
+        "mean of the smallest's two measurements around it (the machine's speed drifts by a "
+        "quarter within the hour). The analysis is given the logs' folder, as "
         "`impactlab analyze FOLDER` is. Record shares the runs among forked workers, one per core; "
         "the analysis (tables only) runs in one process (`local`) or in its own process and "
         "one worker process per other CPU (`processes`)."
