@@ -173,15 +173,25 @@ def command_seconds(argv: list[str], repeat: int = 3) -> float:
     As on an installed package: bytecode is written and used (one warm-up run first), even
     where PYTHONDONTWRITEBYTECODE is set (which alone adds about 0.1 s of compiling).
     """
+    (best,) = commands_in_turns([argv], repeat)
+    return best
+
+
+def commands_in_turns(argvs: list[list[str]], repeat: int = 3) -> list[float]:
+    """Best wall time of each command, as `command_seconds`, the commands run in turns
+    (a, b, a, b, ...) after a warm-up run of each: a ratio of two of them is not moved by
+    the machine's speed drifting between their measurements."""
     import os
 
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    subprocess.run(argv, capture_output=True, check=True, env=env)
-    best = float("inf")
-    for _ in range(repeat):
-        start = time.perf_counter()
+    for argv in argvs:
         subprocess.run(argv, capture_output=True, check=True, env=env)
-        best = min(best, time.perf_counter() - start)
+    best = [float("inf")] * len(argvs)
+    for _ in range(repeat):
+        for i, argv in enumerate(argvs):
+            start = time.perf_counter()
+            subprocess.run(argv, capture_output=True, check=True, env=env)
+            best[i] = min(best[i], time.perf_counter() - start)
     return best
 
 
