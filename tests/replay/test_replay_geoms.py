@@ -402,7 +402,12 @@ def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str
     import matplotlib.colors
     import matplotlib.image
 
-    image = matplotlib.image.imread(png)[..., :3]
+    image = matplotlib.image.imread(png)
+    if image.ndim == 2:  # ImageMagick writes a screen of greys only (a blank page) as grey
+        image = image[..., None]
+    if image.shape[-1] < 3:  # grey, or grey and alpha: the grey as R, G and B
+        image = np.repeat(image[..., :1], 3, axis=-1)
+    image = image[..., :3]
     h, w = image.shape[:2]
     x0, y0, x1, y1 = region
     crop = image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
@@ -524,6 +529,21 @@ def screenshot_replay(
             except subprocess.TimeoutExpired:
                 os.killpg(proc.pid, signal.SIGKILL)
     return counts
+
+
+@pytest.mark.parametrize("mode", ["L", "LA", "RGB", "RGBA"])
+def test_hue_pixels_reads_grey_screenshots_as_well_as_colour_ones(mode, tmp_path):
+    """A screenshot of a blank page is written as a grey PNG: no model colour, no error; a
+    colour one counts its model colour's pixels."""
+    from PIL import Image
+
+    png = tmp_path / f"{mode}.png"
+    rgb = np.full((40, 60, 3), 255, np.uint8)
+    rgb[5:15, 5:15] = (0, 200, 200)  # cyan: the torso's hue, 100 pixels
+    Image.fromarray(rgb).convert(mode).save(png)
+    counts = hue_pixels(png, (0.0, 0.05, 0.6, 0.55))  # the region `screenshot_replay` reads
+    torso = 100 if mode.startswith("RGB") else 0
+    assert counts == {"torso (cyan)": torso, "legs (orange)": 0, "foot (magenta)": 0}
 
 
 @pytest.mark.slow
