@@ -31,7 +31,7 @@ from pathlib import Path
 import cases
 from results import Results, machine
 
-IN_TURNS = 3  # what is compared, measured in turns (record and loop, decoding and zstd): best of 3
+IN_TURNS = 3  # what a ratio compares is measured in turns, best of 3 each
 
 
 def main() -> int:
@@ -135,7 +135,7 @@ def _decode(logs: list[Path], results: Results) -> None:
     for _ in range(IN_TURNS):  # decoding and zstd in turns, best of each
         d, z = cases.decode_case(logs), cases.zstd_case(logs)
         dec, zst = min(dec, d, key=_seconds), min(zst, z, key=_seconds)
-    off = cases.official_case(logs)  # 26 s: once
+    off = cases.official_case(logs)  # 20 to 26 s: once
     ours, official = dec["messages"] / dec["seconds"], off["messages"] / off["seconds"]
     zstd_mb_s, share = zst["bytes"] / zst["seconds"] / 1e6, zst["seconds"] / dec["seconds"]
     print(f"\ndecode: {len(logs)} logs into polars frames (best of {IN_TURNS}, with zstd in turns)")

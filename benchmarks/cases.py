@@ -179,7 +179,7 @@ def command_seconds(argv: list[str], repeat: int = 3) -> float:
 
 def commands_in_turns(argvs: list[list[str]], repeat: int = 3) -> list[float]:
     """Best wall time of each command, as `command_seconds`, the commands run in turns
-    (a, b, a, b, ...) after a warm-up run of each: a ratio of two of them is not moved by
+    (a, b, a, b, ...) after a warm-up run of each: a ratio of two of them is moved less by
     the machine's speed drifting between their measurements."""
     import os
 
