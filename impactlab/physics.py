@@ -45,3 +45,14 @@ def half_step_s(integrator: str, timestep_s: float) -> float:
     if integrator in SEMI_IMPLICIT:
         return timestep_s / 2
     raise ValueError(f"unknown integrator {integrator!r} (one of {', '.join(INTEGRATORS)})")
+
+
+MIN_FLIGHT_STEPS = 10
+"""Simulated steps two surfaces must stay apart for a contact to have ended: closer
+contacts are one (a resting, sliding or rolling contact flickers in MuJoCo)."""
+
+
+def min_impact_speed(gravity_mps2: float, timestep_s: float) -> float:
+    """The slowest arrival (m/s) that is an impact: a body released against gravity at this
+    speed flies `MIN_FLIGHT_STEPS` steps; slower arrivals are a contact at rest."""
+    return 0.5 * MIN_FLIGHT_STEPS * abs(gravity_mps2) * timestep_s

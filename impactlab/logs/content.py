@@ -1,7 +1,4 @@
-"""What a log holds, as the writer takes it: the run's header, its rows and its outcome.
-
-Plain data with no MuJoCo in it; the recorder fills it (`impactlab.record.log_rows`).
-"""
+"""What a log holds, as the writer takes it: the run's header, its rows and its outcome."""
 
 from __future__ import annotations
 
@@ -59,7 +56,9 @@ class SurfaceMeta:
 
 @dataclass(frozen=True)
 class PairMeta:
-    """A geom pair that may touch; contact normals point from geom1 to geom2."""
+    """A geom pair that touched; contact normals point from geom1 to geom2. `body1` and
+    `body2` are the parties the geoms belong to (a rigid body, the geom itself for a
+    surface, a flex; a flex's side names the flex as its geom)."""
 
     geom1: str
     geom2: str
@@ -158,7 +157,7 @@ class RunMeta:
 
 @dataclass(frozen=True)
 class LogHeader:
-    """Everything a log holds besides its rows: the run, its pairs, its scene and its model.
+    """Everything a log holds besides its rows: the run, its scene and its model.
 
     `clearance` lists, per body with a clearance channel, the names of the surfaces its
     distances are measured to, in value order. `meshes`: the triangles (m, 3, 3) of the
@@ -166,7 +165,6 @@ class LogHeader:
     """
 
     run: RunMeta
-    pairs: Sequence[PairMeta]
     geoms: Sequence[GeomShape]
     model_xml: str
     clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
@@ -205,9 +203,11 @@ class LogRows:
         bodies: state of each body in `RunMeta.bodies` order, (n, nbody, 13) in
             `messages.BODY_FIELDS` order.
         energy: MuJoCo's kinetic, potential and total energy, J, (n, 3).
-        contacts: per pair in `LogHeader.pairs` order, (count, points): the number of
-            contact points at each row, (n,) int, and the points, (n, slots, 13) in
-            `messages.POINT_FIELDS` order (rows with count 0 have no message).
+        work: the work of each kind of force from the run's start to each row, J, (n, k) in
+            `messages.WORK_FIELDS` order.
+        contacts: one entry per contact point: its row (m,), its pair (m,) as an index into
+            `pairs`, and its values (m, 13) in `messages.POINT_FIELDS` order.
+        pairs: the geom pairs `contacts` refers to (this run's so far; a pair keeps its index).
         clearance: per body in `LogHeader.clearance` order, its distance to each of its
             surfaces, (n, k) m.
         joint_energy: the joints' rotor kinetic, spring potential and their total energy,
@@ -217,7 +217,9 @@ class LogRows:
     t_ns: np.ndarray
     bodies: np.ndarray
     energy: np.ndarray
-    contacts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    work: np.ndarray
+    contacts: tuple[np.ndarray, np.ndarray, np.ndarray]
+    pairs: Sequence[PairMeta] = ()
     clearance: list[np.ndarray] = field(default_factory=list)
     joint_energy: np.ndarray | None = None
 
@@ -226,31 +228,36 @@ class LogRows:
 
     def slice(self, lo: int, hi: int) -> LogRows:
         """Rows lo .. hi - 1."""
+        row, pair, values = self.contacts
+        mine = (row >= lo) & (row < hi)
         return LogRows(
             self.t_ns[lo:hi],
             self.bodies[lo:hi],
             self.energy[lo:hi],
-            [(count[lo:hi], points[lo:hi]) for count, points in self.contacts],
+            self.work[lo:hi],
+            (row[mine] - lo, pair[mine], values[mine]),
+            self.pairs,
             [c[lo:hi] for c in self.clearance],
             None if self.joint_energy is None else self.joint_energy[lo:hi],
         )
 
     @staticmethod
     def concat(parts: Sequence[LogRows]) -> LogRows:
-        """The rows of `parts`, one after the other."""
+        """The rows of `parts`, one after the other (the last part's pairs)."""
         if len(parts) == 1:
             return parts[0]
+        offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
         return LogRows(
             np.concatenate([p.t_ns for p in parts]),
             np.concatenate([p.bodies for p in parts]),
             np.concatenate([p.energy for p in parts]),
-            [
-                (
-                    np.concatenate([p.contacts[i][0] for p in parts]),
-                    np.concatenate([p.contacts[i][1] for p in parts]),
-                )
-                for i in range(len(parts[0].contacts))
-            ],
+            np.concatenate([p.work for p in parts]),
+            (
+                np.concatenate([p.contacts[0] + o for p, o in zip(parts, offsets, strict=True)]),
+                np.concatenate([p.contacts[1] for p in parts]),
+                np.concatenate([p.contacts[2] for p in parts]),
+            ),
+            parts[-1].pairs,
             [
                 np.concatenate([p.clearance[i] for p in parts])
                 for i in range(len(parts[0].clearance))

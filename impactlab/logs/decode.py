@@ -213,40 +213,54 @@ def decode_clearance(
     )
 
 
-CONTACT_WORK_SCHEMA: dict[str, Any] = {
+IMPACT_SCHEMA: dict[str, Any] = {
     "run_id": pl.String,
-    "geom1": pl.String,
-    "geom2": pl.String,
-    "body1": pl.String,
-    "body2": pl.String,
-    "start_ns": pl.Int64,
-    "end_ns": pl.Int64,
+    **{k: pl.String for k in ("side1", "kind1", "side2", "kind2", "geom1", "geom2")},
+    "onset_ns": pl.Int64,
+    "release_ns": pl.Int64,
+    "v_in_mps": pl.Float64,
+    "v_out_mps": pl.Float64,
     "work_compression_J": pl.Float64,
     "work_restitution_J": pl.Float64,
-    "v_start_mps": pl.Float64,
-    "v_end_mps": pl.Float64,
+    "work_friction_J": pl.Float64,
+    "peak_force_N": pl.Float64,
+    "impulse_Ns": pl.Float64,
+    "max_penetration_m": pl.Float64,
+    "steps": pl.Int64,
     "open": pl.Boolean,
+    **{f"{v}{c}_{w}": pl.Float64 for w in ("in", "out") for v in ("p", "n") for c in "xyz"},
+    **{f"s{k}_{w}_{f}": pl.Float64 for w in ("in", "out") for k in (1, 2) for f in BODY_FIELDS},
 }
+"""The `/impacts` frame: one row per contact episode (`impactlab.Impact`): point and
+normal at the first and last step (`px_in`, ..., `nz_out`), each side's state at the first
+step in contact and the first after (`s1_in_x`, ..., `s2_out_wz`; null for a side that is
+not a rigid body)."""
 
 
-def decode_contact_work(
-    run_id: str, channel: ChannelData, payloads: Sequence[bytes]
-) -> pl.DataFrame:
-    """A ContactWork channel's payloads -> one row per contact (`CONTACT_WORK_SCHEMA`); the
-    channel's metadata names the pair."""
-    meta = channel.metadata
-    pair = tuple(meta.get(k, "") for k in ("geom1", "geom2", "body1", "body2"))
+def decode_impacts(run_id: str, payloads: Sequence[bytes]) -> pl.DataFrame:
+    """`/impacts` payloads -> one row per contact episode (`IMPACT_SCHEMA`)."""
     rows = []
+    nan13 = [None] * len(BODY_FIELDS)
     for data in payloads:
-        w = pb.ContactWork.FromString(data)
-        numbers = (w.start_ns, w.end_ns, w.work_compression, w.work_restitution)
-        rows.append((run_id, *pair, *numbers, w.v_start, w.v_end, w.open))
-    return pl.DataFrame(rows, schema=CONTACT_WORK_SCHEMA, orient="row")
+        i = pb.Impact.FromString(data)
+        names = (i.side1, i.kind1, i.side2, i.kind2, i.geom1, i.geom2)
+        numbers = (i.onset_ns, i.release_ns, i.v_in, i.v_out, i.work_compression)
+        numbers += (i.work_restitution, i.work_friction, i.peak_force, i.impulse)
+        vectors = [list(v) if len(v) == 3 else [None] * 3 for v in
+                   (i.point_in, i.normal_in, i.point_out, i.normal_out)]
+        states = [list(s.values) if len(s.values) == len(BODY_FIELDS) else nan13 for s in
+                  (i.side1_in, i.side2_in, i.side1_out, i.side2_out)]
+        rows.append(
+            (run_id, *names, *numbers, i.max_penetration, i.steps, i.open)
+            + tuple(x for v in vectors for x in v)
+            + tuple(x for v in states for x in v)
+        )
+    return pl.DataFrame(rows, schema=IMPACT_SCHEMA, orient="row")
 
 
-def empty_contact_work(run_id: str) -> pl.DataFrame:
-    """A contact-work frame with no rows."""
-    return pl.DataFrame(schema=CONTACT_WORK_SCHEMA)
+def empty_impacts(run_id: str) -> pl.DataFrame:
+    """An impacts frame with no rows."""
+    return pl.DataFrame(schema=IMPACT_SCHEMA)
 
 
 def empty_clearance(run_id: str) -> pl.DataFrame:

@@ -8,8 +8,10 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /bodies/<body>/clearance    | impactlab.Clearance     | every logged step (bodies with a    |
 |                             |                         | ground surface to measure against)  |
 | /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
-| /contact_work/<g1>/<g2>     | impactlab.ContactWork   | once per contact, at its last step  |
+|                             |                         | (a channel per pair that touched)   |
+| /impacts                    | impactlab.Impact        | each contact episode, at the end    |
 | /energy                     | impactlab.Energy        | every logged step                   |
+| /energy/work                | impactlab.Work          | every logged step                   |
 | /energy/joints              | impactlab.Energy        | every logged step (models with      |
 |                             |                         | rotor inertia or springs)           |
 | /tf                         | foxglove.FrameTransforms| every logged step (each transform   |
@@ -30,8 +32,8 @@ added to format 1).
 
 from __future__ import annotations
 
-LOG_FORMAT_VERSION = "2"
-READABLE_FORMATS = ("1", "2")  # format 1: the keys of format 2 derived (`logs.contract`)
+LOG_FORMAT_VERSION = "3"
+READABLE_FORMATS = ("1", "2", "3")  # 1, 2: read for info, diff and replay, not analyzed
 PROFILE = ""  # no MCAP well-known profile fits protobuf logs of a simulator
 ENCODING = "protobuf"
 
@@ -48,8 +50,10 @@ WORLD_FRAME = "world"
 BODY_STATE_SCHEMA = "impactlab.BodyState"
 CLEARANCE_SCHEMA = "impactlab.Clearance"
 CONTACT_SCHEMA = "impactlab.Contact"
-CONTACT_WORK_SCHEMA = "impactlab.ContactWork"
-CONTACT_WORK_TOPIC_PREFIX = "/contact_work/"  # + <geom1>/<geom2>: each contact's work
+IMPACT_SCHEMA = "impactlab.Impact"
+IMPACTS_TOPIC = "/impacts"  # each contact episode of a pair of parties (record.episodes)
+WORK_SCHEMA = "impactlab.Work"
+WORK_TOPIC = "/energy/work"  # the work of each kind of force so far (record.budget)
 ENERGY_SCHEMA = "impactlab.Energy"
 
 RUN_METADATA = "impactlab.run"

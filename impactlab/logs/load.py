@@ -28,22 +28,23 @@ from impactlab.logs.decode import (
     Columns,
     body_state_values,
     decode_clearance,
-    decode_contact_work,
     decode_contacts,
     decode_events,
     decode_fixed,
+    decode_impacts,
     empty_clearance,
-    empty_contact_work,
     empty_contacts,
+    empty_impacts,
     empty_frame,
     energy_values,
     fixed_frame,
     loose_payloads,
 )
 from impactlab.logs.geoms import SCENE_METADATA
-from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS
+from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, WORK_FIELDS
 from impactlab.logs.metadata import ANALYSIS_KEYS, MetadataCheck, check_channels, check_metadata
 from impactlab.logs.reader import read_mcap
+from impactlab.proto import impactlab_pb2 as pb
 
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
 DATA_SCHEMAS = frozenset(
@@ -52,7 +53,8 @@ DATA_SCHEMAS = frozenset(
         logformat.CONTACT_SCHEMA,
         logformat.ENERGY_SCHEMA,
         logformat.CLEARANCE_SCHEMA,
-        logformat.CONTACT_WORK_SCHEMA,
+        logformat.IMPACT_SCHEMA,
+        logformat.WORK_SCHEMA,
     }
 )
 
@@ -73,10 +75,10 @@ class RunLog:
         partial: the file is damaged or incomplete, or its metadata; `problems` says how.
         clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
             surface, clearance_m); empty in logs written before it was recorded.
-        contact_work: each contact of each pair over every simulated step (run_id, geom1,
-            geom2, body1, body2, start_ns, end_ns, work_compression_J, work_restitution_J,
-            v_start_mps, v_end_mps, open), `impactlab.record.contact_work`; empty in logs
-            written before it was recorded.
+        impacts: each contact episode of each pair of parties, found at every simulated
+            step (`decode.IMPACT_SCHEMA`); empty in logs before format 3.
+        work: the work of each kind of force so far (run_id, t_ns, t_s, *WORK_FIELDS), J;
+            empty in logs before format 3.
         joint_energy: the energy MuJoCo counts in joints (run_id, t_ns, t_s, kinetic: rotor
             inertia, potential: springs, total), J; empty when the model has neither.
         checked: the metadata checked against its schema and the channels
@@ -98,7 +100,8 @@ class RunLog:
     checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
     clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
     joint_energy: pl.DataFrame = field(default_factory=lambda: empty_frame(ENERGY_FIELDS, ""))
-    contact_work: pl.DataFrame = field(default_factory=lambda: empty_contact_work(""))
+    impacts: pl.DataFrame = field(default_factory=lambda: empty_impacts(""))
+    work: pl.DataFrame = field(default_factory=lambda: empty_frame(WORK_FIELDS, ""))
     scene: dict[str, str] = field(default_factory=dict)
 
     @property
@@ -296,7 +299,8 @@ def load_log(path: str | Path) -> RunLog:
     bodies: dict[str, pl.DataFrame] = {}
     contact_frames: list[pl.DataFrame] = []
     clearance_frames: list[pl.DataFrame] = []
-    work_frames: list[pl.DataFrame] = []
+    impacts: pl.DataFrame | None = None
+    work: pl.DataFrame | None = None
     energy: pl.DataFrame | None = None
     columns = Columns()  # the columns the frames repeat, built once
     joint_energy: pl.DataFrame | None = None
@@ -312,8 +316,11 @@ def load_log(path: str | Path) -> RunLog:
                 contact_frames.append(decode_contacts(run_id, channel, columns))
             elif schema == logformat.CLEARANCE_SCHEMA:
                 clearance_frames.append(decode_clearance(run_id, channel, columns))
-            elif schema == logformat.CONTACT_WORK_SCHEMA:
-                work_frames.append(decode_contact_work(run_id, channel, loose_payloads(channel)[1]))
+            elif schema == logformat.IMPACT_SCHEMA:
+                impacts = decode_impacts(run_id, loose_payloads(channel)[1])
+            elif schema == logformat.WORK_SCHEMA:
+                t, values = decode_fixed(channel, messages.work(), _work_values)
+                work = fixed_frame(run_id, t, values, WORK_FIELDS, columns)
             elif schema == logformat.ENERGY_SCHEMA:
                 t, values = decode_fixed(channel, messages.energy(), energy_values)
                 if topic == logformat.JOINT_ENERGY_TOPIC:
@@ -347,6 +354,13 @@ def load_log(path: str | Path) -> RunLog:
         checked=checked,
         clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
         joint_energy=empty_frame(ENERGY_FIELDS, run_id) if joint_energy is None else joint_energy,
-        contact_work=pl.concat(work_frames) if work_frames else empty_contact_work(run_id),
+        impacts=empty_impacts(run_id) if impacts is None else impacts,
+        work=empty_frame(WORK_FIELDS, run_id) if work is None else work,
         scene=dict(raw.metadata.get(SCENE_METADATA, {})),
     )
+
+
+def _work_values(data: bytes) -> list[float]:
+    """One `impactlab.Work` payload's values, by the protobuf library."""
+    w = pb.Work.FromString(data)
+    return [getattr(w, f) for f in WORK_FIELDS]

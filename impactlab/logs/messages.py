@@ -3,6 +3,7 @@
 Value orders:
 - BodyState: x y z, qw qx qy qz, vx vy vz, wx wy wz (`BODY_FIELDS`).
 - Energy: kinetic potential total.
+- Work: the fields of `impactlab.Work` in number order (`WORK_FIELDS`).
 - Clearance: one distance per surface, in the order of the channel's `surfaces`.
 - ContactPoint: the fields of `impactlab.ContactPoint` in number order (`POINT_FIELDS`).
 - FrameTransforms: per body tx ty tz, qw qx qy qz; each transform's timestamp is the message's
@@ -25,6 +26,7 @@ from impactlab.proto import impactlab_pb2 as pb
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
 ENERGY_FIELDS = ("kinetic", "potential", "total")
 POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields)
+WORK_FIELDS = tuple(f.name for f in pb.Work.DESCRIPTOR.fields)
 
 
 def _set_fields(names: Sequence[str]) -> Callable[[Message, Sequence[float]], None]:
@@ -45,6 +47,12 @@ def body_state() -> Template:
 def energy() -> Template:
     """Layout of `impactlab.Energy`."""
     return Template.learn(pb.Energy, _set_fields(ENERGY_FIELDS), len(ENERGY_FIELDS))
+
+
+@cache
+def work() -> Template:
+    """Layout of `impactlab.Work`."""
+    return Template.learn(pb.Work, _set_fields(WORK_FIELDS), len(WORK_FIELDS))
 
 
 @cache

@@ -1,13 +1,4 @@
-"""Write one run's log: protobuf channels, metadata and the model, streamed chunk by chunk.
-
-`LogWriter` takes the run's rows as they arrive (`write`) and writes a chunk each time about
-`CHUNK_BYTES` of messages have gathered, so memory stays bounded however long the run is.
-The file is written under a temporary name beside the target, unique to the writing process,
-and renamed by `finish`; an interrupted or aborted run never leaves a file that looks finished.
-
-The writer knows the log format and nothing of MuJoCo: the recorder hands it plain arrays
-(`LogRows`) and descriptions (`LogHeader`, `Outcome`).
-"""
+"""Write one run's log: protobuf channels, metadata and the model, streamed chunk by chunk."""
 
 from __future__ import annotations
 
@@ -29,7 +20,7 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.chunks import Block, ChunkWriter
-from impactlab.logs.content import LogHeader, LogRows, Outcome, PairMeta
+from impactlab.logs.content import LogHeader, LogRows, Outcome
 from impactlab.logs.geoms import SCENE_METADATA, STL_MEDIA_TYPE, encode_stl, scene_record
 from impactlab.logs.scene import scene_update
 from impactlab.proto import impactlab_pb2 as pb
@@ -101,16 +92,9 @@ class LogWriter:
             )
             for body, surfaces in header.clearance
         ]
-        self._pairs = []
-        for pair in header.pairs:
-            meta = {
-                "geom1": pair.geom1,
-                "geom2": pair.geom2,
-                "body1": pair.body1,
-                "body2": pair.body2,
-            }
-            self._pairs.append((channels.add(pair.topic, pb.Contact, meta), pair))
+        self._pairs: list[int] = []  # the channel of each pair of `LogRows.pairs`, as they come
         self._energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
+        self._work = channels.add(logformat.WORK_TOPIC, pb.Work)
         self._joint_energy = (
             channels.add(logformat.JOINT_ENERGY_TOPIC, pb.Energy) if header.joint_energy else None
         )
@@ -121,6 +105,7 @@ class LogWriter:
         row_bytes = (
             len(self._bodies) * messages.body_state().size
             + messages.energy().size * (2 if header.joint_energy else 1)
+            + messages.work().size
             + sum(layout.size for _, layout in self._clearance)
             + self._tf_layout.size
             + 200
@@ -165,9 +150,9 @@ class LogWriter:
             blocks.append(Block(channel_id, t, rows.bodies[:, i], messages.body_state()))
         for (channel_id, layout), values in zip(self._clearance, rows.clearance, strict=True):
             blocks.append(Block(channel_id, t, values, layout))
-        for (channel_id, pair), (count, points) in zip(self._pairs, rows.contacts, strict=True):
-            blocks += _contact_blocks(channel_id, pair, t, count, points)
+        blocks += self._contact_blocks(rows)
         blocks.append(Block(self._energy, t, rows.energy, messages.energy()))
+        blocks.append(Block(self._work, t, rows.work, messages.work()))
         if self._joint_energy is not None and rows.joint_energy is not None:
             blocks.append(Block(self._joint_energy, t, rows.joint_energy, messages.energy()))
         poses = rows.bodies[:, :, :7].reshape(len(t), -1)
@@ -175,16 +160,41 @@ class LogWriter:
             blocks.append(Block(self._tf, t[rows_tf], payloads))
         self._out.write_chunk(blocks)
 
-    def finish(self, outcome: Outcome, contact_work: Sequence[np.ndarray] = ()) -> Path:
-        """Write the rest, the outcome, the model and the summary; rename. Returns the path.
+    def _contact_blocks(self, rows: LogRows) -> list[Block]:
+        """Blocks of Contact payloads: per pair that touches, per number of points."""
+        for pair in rows.pairs[len(self._pairs) :]:  # pairs that touch for the first time
+            meta = {"geom1": pair.geom1, "geom2": pair.geom2}
+            meta |= {"body1": pair.body1, "body2": pair.body2}
+            self._pairs.append(self._channels.add(pair.topic, pb.Contact, meta))
+        row, which, values = rows.contacts
+        if not row.size:
+            return []
+        order = np.lexsort((row, which))
+        row, which, values = row[order], which[order], values[order]
+        starts = np.flatnonzero(np.r_[True, (np.diff(which) != 0) | (np.diff(row) != 0)])
+        count = np.diff(np.r_[starts, row.size])
+        blocks = []
+        for k in np.unique(count):
+            for p in np.unique(which[starts[count == k]]):
+                sel = starts[(count == k) & (which[starts] == p)]
+                pair = rows.pairs[int(p)]
+                layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, int(k))
+                points = values[sel[:, None] + np.arange(k)].reshape(sel.size, -1)
+                blocks.append(Block(self._pairs[int(p)], rows.t_ns[row[sel]], points, layout))
+        return blocks
 
-        `contact_work`: per pair in `LogHeader.pairs` order, its contacts (k, 7): start and
-        end time (ns), work while approaching and separating (J), normal velocity at the
-        first and last step (m/s), whether still open (`impactlab.ContactWork`).
+    def finish(self, outcome: Outcome, impacts: Sequence[pb.Impact] = ()) -> Path:
+        """Write the rest, the impacts, the outcome, the model and the summary; rename.
+
+        `impacts`: the run's contact episodes (`/impacts`), in order of `release_ns`.
         """
         try:
             self._flush(whole_chunks_only=False)
-            self._write_contact_work(contact_work)
+            if impacts:
+                channel = self._channels.add(logformat.IMPACTS_TOPIC, pb.Impact)
+                times = np.array([i.release_ns for i in impacts], dtype=np.int64)
+                payloads = [i.SerializeToString() for i in impacts]
+                self._out.write_chunk([Block(channel, times, payloads)])
             if self._scene_payload is not None:  # a run with no rows still has its scene
                 scene = Block(self._scene, np.zeros(1, np.int64), self._scene_payload)
                 self._out.write_chunk([scene])
@@ -217,31 +227,6 @@ class LogWriter:
             self.abort()
             raise
         return self.path
-
-    def _write_contact_work(self, contact_work: Sequence[np.ndarray]) -> None:
-        blocks = []
-        for (_, pair), work in zip(self._pairs, contact_work, strict=False):
-            if not len(work):
-                continue
-            meta = {"geom1": pair.geom1, "geom2": pair.geom2}
-            meta |= {"body1": pair.body1, "body2": pair.body2}
-            topic = f"{logformat.CONTACT_WORK_TOPIC_PREFIX}{pair.geom1}/{pair.geom2}"
-            channel = self._channels.add(topic, pb.ContactWork, meta)
-            payloads = [
-                pb.ContactWork(
-                    start_ns=int(row[0]),
-                    end_ns=int(row[1]),
-                    work_compression=float(row[2]),
-                    work_restitution=float(row[3]),
-                    v_start=float(row[4]),
-                    v_end=float(row[5]),
-                    open=bool(row[6]),
-                ).SerializeToString()
-                for row in work
-            ]
-            blocks.append(Block(channel, work[:, 1].astype(np.int64), payloads))
-        if blocks:
-            self._out.write_chunk(blocks)
 
     def abort(self) -> None:
         """Close and remove the temporary file (nothing is left behind)."""
@@ -291,19 +276,6 @@ def _schema_data(message_type: type[Message]) -> bytes:
         _SCHEMA_DATA[name] = build_file_descriptor_set(message_type).SerializeToString()
     return _SCHEMA_DATA[name]
 
-
-def _contact_blocks(
-    channel_id: int, pair: PairMeta, t: np.ndarray, count: np.ndarray, points: np.ndarray
-) -> list[Block]:
-    """Blocks of Contact payloads for the rows where the pair touches, one per point count."""
-    blocks = []
-    for k in range(1, points.shape[1] + 1):
-        mine = count == k
-        if mine.any():
-            layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, k)
-            values = points[mine, :k].reshape(int(mine.sum()), -1)
-            blocks.append(Block(channel_id, t[mine], values, layout))
-    return blocks
 
 
 def _log_message(t_ns: int, level: Log.Level.ValueType, text: str) -> bytes:

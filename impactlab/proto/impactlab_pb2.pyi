@@ -96,20 +96,88 @@ class Clearance(_message.Message):
     distance: _containers.RepeatedScalarFieldContainer[float]
     def __init__(self, distance: _Optional[_Iterable[float]] = ...) -> None: ...
 
-class ContactWork(_message.Message):
-    __slots__ = ("start_ns", "end_ns", "work_compression", "work_restitution", "v_start", "v_end", "open")
-    START_NS_FIELD_NUMBER: _ClassVar[int]
-    END_NS_FIELD_NUMBER: _ClassVar[int]
+class Work(_message.Message):
+    __slots__ = ("contact_normal", "contact_friction", "springs", "damping", "limits", "equality", "friction_loss", "actuators", "fluid", "gravity_compensation")
+    CONTACT_NORMAL_FIELD_NUMBER: _ClassVar[int]
+    CONTACT_FRICTION_FIELD_NUMBER: _ClassVar[int]
+    SPRINGS_FIELD_NUMBER: _ClassVar[int]
+    DAMPING_FIELD_NUMBER: _ClassVar[int]
+    LIMITS_FIELD_NUMBER: _ClassVar[int]
+    EQUALITY_FIELD_NUMBER: _ClassVar[int]
+    FRICTION_LOSS_FIELD_NUMBER: _ClassVar[int]
+    ACTUATORS_FIELD_NUMBER: _ClassVar[int]
+    FLUID_FIELD_NUMBER: _ClassVar[int]
+    GRAVITY_COMPENSATION_FIELD_NUMBER: _ClassVar[int]
+    contact_normal: float
+    contact_friction: float
+    springs: float
+    damping: float
+    limits: float
+    equality: float
+    friction_loss: float
+    actuators: float
+    fluid: float
+    gravity_compensation: float
+    def __init__(self, contact_normal: _Optional[float] = ..., contact_friction: _Optional[float] = ..., springs: _Optional[float] = ..., damping: _Optional[float] = ..., limits: _Optional[float] = ..., equality: _Optional[float] = ..., friction_loss: _Optional[float] = ..., actuators: _Optional[float] = ..., fluid: _Optional[float] = ..., gravity_compensation: _Optional[float] = ...) -> None: ...
+
+class SideState(_message.Message):
+    __slots__ = ("values",)
+    VALUES_FIELD_NUMBER: _ClassVar[int]
+    values: _containers.RepeatedScalarFieldContainer[float]
+    def __init__(self, values: _Optional[_Iterable[float]] = ...) -> None: ...
+
+class Impact(_message.Message):
+    __slots__ = ("side1", "kind1", "side2", "kind2", "geom1", "geom2", "onset_ns", "release_ns", "v_in", "v_out", "work_compression", "work_restitution", "work_friction", "peak_force", "impulse", "max_penetration", "steps", "open", "point_in", "normal_in", "point_out", "normal_out", "side1_in", "side2_in", "side1_out", "side2_out")
+    SIDE1_FIELD_NUMBER: _ClassVar[int]
+    KIND1_FIELD_NUMBER: _ClassVar[int]
+    SIDE2_FIELD_NUMBER: _ClassVar[int]
+    KIND2_FIELD_NUMBER: _ClassVar[int]
+    GEOM1_FIELD_NUMBER: _ClassVar[int]
+    GEOM2_FIELD_NUMBER: _ClassVar[int]
+    ONSET_NS_FIELD_NUMBER: _ClassVar[int]
+    RELEASE_NS_FIELD_NUMBER: _ClassVar[int]
+    V_IN_FIELD_NUMBER: _ClassVar[int]
+    V_OUT_FIELD_NUMBER: _ClassVar[int]
     WORK_COMPRESSION_FIELD_NUMBER: _ClassVar[int]
     WORK_RESTITUTION_FIELD_NUMBER: _ClassVar[int]
-    V_START_FIELD_NUMBER: _ClassVar[int]
-    V_END_FIELD_NUMBER: _ClassVar[int]
+    WORK_FRICTION_FIELD_NUMBER: _ClassVar[int]
+    PEAK_FORCE_FIELD_NUMBER: _ClassVar[int]
+    IMPULSE_FIELD_NUMBER: _ClassVar[int]
+    MAX_PENETRATION_FIELD_NUMBER: _ClassVar[int]
+    STEPS_FIELD_NUMBER: _ClassVar[int]
     OPEN_FIELD_NUMBER: _ClassVar[int]
-    start_ns: int
-    end_ns: int
+    POINT_IN_FIELD_NUMBER: _ClassVar[int]
+    NORMAL_IN_FIELD_NUMBER: _ClassVar[int]
+    POINT_OUT_FIELD_NUMBER: _ClassVar[int]
+    NORMAL_OUT_FIELD_NUMBER: _ClassVar[int]
+    SIDE1_IN_FIELD_NUMBER: _ClassVar[int]
+    SIDE2_IN_FIELD_NUMBER: _ClassVar[int]
+    SIDE1_OUT_FIELD_NUMBER: _ClassVar[int]
+    SIDE2_OUT_FIELD_NUMBER: _ClassVar[int]
+    side1: str
+    kind1: str
+    side2: str
+    kind2: str
+    geom1: str
+    geom2: str
+    onset_ns: int
+    release_ns: int
+    v_in: float
+    v_out: float
     work_compression: float
     work_restitution: float
-    v_start: float
-    v_end: float
+    work_friction: float
+    peak_force: float
+    impulse: float
+    max_penetration: float
+    steps: int
     open: bool
-    def __init__(self, start_ns: _Optional[int] = ..., end_ns: _Optional[int] = ..., work_compression: _Optional[float] = ..., work_restitution: _Optional[float] = ..., v_start: _Optional[float] = ..., v_end: _Optional[float] = ..., open: _Optional[bool] = ...) -> None: ...
+    point_in: _containers.RepeatedScalarFieldContainer[float]
+    normal_in: _containers.RepeatedScalarFieldContainer[float]
+    point_out: _containers.RepeatedScalarFieldContainer[float]
+    normal_out: _containers.RepeatedScalarFieldContainer[float]
+    side1_in: SideState
+    side2_in: SideState
+    side1_out: SideState
+    side2_out: SideState
+    def __init__(self, side1: _Optional[str] = ..., kind1: _Optional[str] = ..., side2: _Optional[str] = ..., kind2: _Optional[str] = ..., geom1: _Optional[str] = ..., geom2: _Optional[str] = ..., onset_ns: _Optional[int] = ..., release_ns: _Optional[int] = ..., v_in: _Optional[float] = ..., v_out: _Optional[float] = ..., work_compression: _Optional[float] = ..., work_restitution: _Optional[float] = ..., work_friction: _Optional[float] = ..., peak_force: _Optional[float] = ..., impulse: _Optional[float] = ..., max_penetration: _Optional[float] = ..., steps: _Optional[int] = ..., open: _Optional[bool] = ..., point_in: _Optional[_Iterable[float]] = ..., normal_in: _Optional[_Iterable[float]] = ..., point_out: _Optional[_Iterable[float]] = ..., normal_out: _Optional[_Iterable[float]] = ..., side1_in: _Optional[_Union[SideState, _Mapping]] = ..., side2_in: _Optional[_Union[SideState, _Mapping]] = ..., side1_out: _Optional[_Union[SideState, _Mapping]] = ..., side2_out: _Optional[_Union[SideState, _Mapping]] = ...) -> None: ...

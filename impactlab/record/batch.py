@@ -17,7 +17,7 @@ from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
-from impactlab.record.log_rows import contact_work, log_header, log_rows, outcome
+from impactlab.record.log_rows import Rows, impacts, log_header, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
@@ -87,16 +87,20 @@ class _OpenLog:
     def __init__(self, run: PlannedRun, inst: InstrumentedModel, path: Path) -> None:
         self.run, self.inst, self.path = run, inst, path
         self.writer = LogWriter(path, log_header(inst, run.info))
+        self.rows = Rows(inst)
 
     def add(self, piece: Piece) -> RecordedRun | None:
         """Write a piece's rows; on the run's last piece, finish the log and say so."""
         if piece.t_ns.size:
-            self.writer.write(log_rows(self.inst, piece.t_ns, piece.sensordata))
+            assert piece.contacts is not None  # every piece with rows has their contacts
+            self.writer.write(
+                self.rows(piece.t_ns, piece.sensordata, piece.work, piece.contacts)
+            )
         if piece.ending is None:
             return None
         end = piece.ending
         dt_ns = timestep_ns(float(self.inst.model.opt.timestep))
-        self.writer.finish(outcome(end), contact_work(end, dt_ns))
+        self.writer.finish(outcome(end), impacts(self.inst, end, dt_ns))
         v = end.verdict
         return RecordedRun(
             self.run.info.run_id,
@@ -168,7 +172,8 @@ def record_batches(
         fail=lambda run, reason: found.put(_failed(run, log_path(out_dir, run), reason)),
     )
     try:
-        with contextlib.closing(simulate(groups, threads=threads)) as pieces:
+        requests = (request for group in groups for request in group)
+        with contextlib.closing(simulate(requests)) as pieces:
             for piece in pieces:
                 report_found()
                 request, run = piece.request, piece.request.tag

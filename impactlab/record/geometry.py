@@ -1,25 +1,8 @@
-"""The shapes of a model as the analysis needs them: ground surfaces and each free body's extent.
-
-The analysis never sees MuJoCo, so the recorder describes the geometry once, in the log's
-metadata, from the compiled model:
-
-- **Ground surfaces** are the static geoms (welded to the world, not mocap) that a free body's
-  geoms can collide with: planes, boxes, meshes, any primitive. Their `level_m` is their
-  highest point along -gravity (a plane: the height of its origin).
-- **A free body's collision geoms** are the geoms welded to it that collide with anything.
-  Its `rest_height_m` is the lowest height its centre of mass can have above a flat surface it
-  touches: the minimum over directions d of the support h(d) = max over points p of the body
-  of (p - com) . d. For one convex primitive or mesh this is exact (a sphere: its radius, a
-  box: its smallest half size); for a body of several geoms it is the minimum over each geom's
-  axes, each mesh's face normals and 2,000 directions spread over the sphere.
-
-The body's distance to each surface over time is MuJoCo's own geom distance (a `distance`
-sensor per pair of a body geom and a surface, see `impactlab.record.model`).
-"""
+"""The shapes of a model as the log describes them: its rigid bodies, ground and extents."""
 
 from __future__ import annotations
 
-import itertools
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -47,42 +30,90 @@ def can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
 
 
 def is_static(model: mujoco.MjModel, g: int) -> bool:
-    """Whether the geom is welded to the world (and not on a mocap body)."""
-    b = int(model.geom_bodyid[g])
-    return int(model.body_weldid[b]) == 0
+    """Whether the geom never moves in a run: its body is welded to the world or to a
+    mocap body (placed by the user, not simulated)."""
+    root = int(model.body_weldid[model.geom_bodyid[g]])
+    return root == 0 or int(model.body_dofnum[root]) == 0
 
 
-def body_geoms(model: mujoco.MjModel, body: int) -> list[int]:
-    """The body's own collision geoms (visual-only geoms excluded; a welded child body's
-    geoms are its own, since every moving body is logged)."""
-    return [
-        g
-        for g in range(model.ngeom)
-        if int(model.geom_bodyid[g]) == body
-        and (model.geom_contype[g] or model.geom_conaffinity[g])
-    ]
+def collides(model: mujoco.MjModel, g: int) -> bool:
+    """Whether the geom takes part in collisions at all (contype or conaffinity set)."""
+    return bool(model.geom_contype[g] or model.geom_conaffinity[g])
 
 
-def moving_bodies(model: mujoco.MjModel) -> list[int]:
-    """The bodies that move, in model order: free or jointed, or welded to a body that moves
-    (not to the world), not mocap, with mass (a massless body holds no energy)."""
-    return [
-        b
-        for b in range(1, model.nbody)
-        if int(model.body_weldid[b]) != 0
-        and int(model.body_mocapid[b]) < 0
-        and model.body_mass[b] > 0
-    ]
+@dataclass(frozen=True)
+class RigidBody:
+    """A body MuJoCo moves as one: a body with joints and every body welded to it.
+
+    A massless or welded child (a robot's foot, a camera mount) belongs to it, as MuJoCo's
+    `body_weldid` says. The frame the log follows is the members' joint centre of mass and
+    principal axes of inertia, given in the root body's frame (`pos`, `quat`).
+    """
+
+    root: int
+    members: tuple[int, ...]
+    mass: float
+    inertia: tuple[float, float, float]
+    pos: tuple[float, float, float]
+    quat: tuple[float, float, float, float]
 
 
-def motion(model: mujoco.MjModel, body: int) -> str:
-    """How a moving body moves: "free" for a lone rigid body with a free joint (it flies on
-    a parabola between contacts), "articulated" for any body of a jointed or welded tree."""
-    free = int(model.body_jntnum[body]) == 1 and int(
-        model.jnt_type[model.body_jntadr[body]]
+def rigid_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> list[RigidBody]:
+    """Every rigid body that moves, in model order (`data`: any pose, kinematics done)."""
+    members: dict[int, list[int]] = {}
+    for b in range(1, model.nbody):
+        root = int(model.body_weldid[b])
+        if root != 0 and int(model.body_dofnum[root]) > 0:
+            members.setdefault(root, []).append(b)
+    out = []
+    for root, bodies in members.items():
+        mass = np.array([model.body_mass[b] for b in bodies])
+        total = float(mass.sum())
+        xs = np.array([data.xipos[b] for b in bodies])
+        com = mass @ xs / total if total > 0 else data.xipos[root].copy()
+        tensor = np.zeros((3, 3))
+        for b, m, x in zip(bodies, mass, xs, strict=True):
+            rot = data.ximat[b].reshape(3, 3)
+            r = x - com
+            tensor += rot @ np.diag(model.body_inertia[b]) @ rot.T
+            tensor += m * (r @ r * np.eye(3) - np.outer(r, r))
+        moments, axes = np.linalg.eigh(tensor)
+        if len(bodies) == 1:  # MuJoCo's own principal frame, exactly
+            moments, axes = model.body_inertia[root].copy(), data.ximat[root].reshape(3, 3)
+        elif np.linalg.det(axes) < 0:
+            axes[:, 2] *= -1
+        frame = data.xmat[root].reshape(3, 3)
+        quat = np.empty(4)
+        mujoco.mju_mat2Quat(quat, (frame.T @ axes).ravel())
+        pos = frame.T @ (com - data.xpos[root])
+        out.append(
+            RigidBody(
+                root,
+                tuple(bodies),
+                total,
+                (float(moments[0]), float(moments[1]), float(moments[2])),
+                (float(pos[0]), float(pos[1]), float(pos[2])),
+                (float(quat[0]), float(quat[1]), float(quat[2]), float(quat[3])),
+            )
+        )
+    return out
+
+
+def rigid_geoms(model: mujoco.MjModel, body: RigidBody) -> list[int]:
+    """The collision geoms of a rigid body's members."""
+    own = set(body.members)
+    return [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in own and collides(model, g)]
+
+
+def motion(model: mujoco.MjModel, body: RigidBody) -> str:
+    """How a rigid body moves: "free" for a lone body on a free joint (it flies on a
+    parabola between contacts), "articulated" for a body of a jointed tree."""
+    root = body.root
+    free = int(model.body_jntnum[root]) == 1 and int(
+        model.jnt_type[model.body_jntadr[root]]
     ) == int(mujoco.mjtJoint.mjJNT_FREE)
-    alone = int(np.count_nonzero(model.body_rootid == model.body_rootid[body])) == 1
-    return "free" if free and alone else "articulated"
+    tree = {int(b) for b in np.flatnonzero(model.body_rootid == model.body_rootid[root])}
+    return "free" if free and tree <= set(body.members) else "articulated"
 
 
 def gravity(model: mujoco.MjModel) -> np.ndarray:
@@ -93,7 +124,7 @@ def gravity(model: mujoco.MjModel) -> np.ndarray:
 
 
 def ground_geoms(model: mujoco.MjModel, free_geoms: list[int]) -> list[int]:
-    """Static geoms that at least one of `free_geoms` (geoms of moving bodies) can collide
+    """Static geoms that at least one of `free_geoms` (geoms of rigid bodies) can collide
     with, in model order."""
     return [
         g
@@ -144,7 +175,7 @@ def support(
     elif kind == mujoco.mjtGeom.mjGEOM_BOX:
         extent = size[0] * x + size[1] * y + size[2] * z
     elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-        extent = (mesh_vertices(model, g) @ local.T).max(axis=0)
+        extent = _blocked_max(mesh_hull(model, g)[0], local)
     elif kind == mujoco.mjtGeom.mjGEOM_HFIELD:
         extent = size[2] * z  # the top of the field's elevation range
     else:  # plane, sdf
@@ -154,24 +185,28 @@ def support(
     return reach
 
 
-def mesh_vertices(model: mujoco.MjModel, g: int) -> np.ndarray:
-    """A mesh geom's vertices in the geom's frame, (n, 3)."""
+def mesh_hull(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh geom's convex hull as MuJoCo computed it: vertices (n, 3) and outward unit
+    face normals (f, 3), in the geom's frame. A mesh without one (too few vertices for
+    MuJoCo to build it) gives its vertices and no normals."""
     mesh = int(model.geom_dataid[g])
     start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
-    vertices: np.ndarray = np.asarray(model.mesh_vert[start : start + count], dtype=float)
-    return vertices
-
-
-def mesh_face_normals(model: mujoco.MjModel, g: int) -> np.ndarray:
-    """Unit normals of a mesh geom's faces in the geom's frame, (n, 3)."""
-    mesh = int(model.geom_dataid[g])
-    start, count = int(model.mesh_faceadr[mesh]), int(model.mesh_facenum[mesh])
-    faces = np.asarray(model.mesh_face[start : start + count], dtype=int)
-    v = mesh_vertices(model, g)
-    normals = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    vertices = np.asarray(model.mesh_vert[start : start + count], dtype=float)
+    adr = int(model.mesh_graphadr[mesh])
+    if adr < 0:
+        return vertices, np.empty((0, 3))
+    graph = model.mesh_graph
+    numvert, numface = int(graph[adr]), int(graph[adr + 1])
+    ids = np.asarray(graph[adr + 2 + numvert : adr + 2 + 2 * numvert], dtype=int)
+    at = adr + 2 + 3 * numvert + 3 * numface
+    faces = np.asarray(graph[at : at + 3 * numface], dtype=int).reshape(-1, 3)
+    v = vertices[faces]
+    normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     length = np.linalg.norm(normals, axis=1)
-    unit: np.ndarray = normals[length > 0] / length[length > 0, None]
-    return unit
+    normals = normals[length > 0] / length[length > 0, None]
+    centre = vertices[ids].mean(axis=0)
+    outward = np.einsum("ij,ij->i", normals, v[length > 0, 0] - centre) >= 0
+    return vertices[ids], np.where(outward[:, None], normals, -normals)
 
 
 def spread_directions(n: int = SPREAD_DIRECTIONS) -> np.ndarray:
@@ -184,30 +219,38 @@ def spread_directions(n: int = SPREAD_DIRECTIONS) -> np.ndarray:
     )
 
 
-def rest_height(model: mujoco.MjModel, data: mujoco.MjData, body: int, geoms: list[int]) -> float:
-    """Lowest centre-of-mass height of the body above a flat surface it touches, m.
+def rest_height(model: mujoco.MjModel, data: mujoco.MjData, com: np.ndarray, geoms: list[int]) -> float:
+    """Lowest height of the centre of mass `com` above a flat surface the geoms touch, m.
 
-    `data` must hold any pose of the body (mj_kinematics done); see the module docstring.
+    `data` must hold the pose `com` is for (mj_kinematics done); see the module docstring.
     """
     dirs = [spread_directions()]
     for g in geoms:
         rot = data.geom_xmat[g].reshape(3, 3)
         dirs += [rot.T, -rot.T]  # the geom's axes in the world frame
         if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_MESH:
-            normals = mesh_face_normals(model, g) @ rot.T
-            dirs += [normals, -normals]
+            dirs.append(mesh_hull(model, g)[1] @ rot.T)
     d = np.concatenate(dirs)
-    com = data.xipos[body]
     return float(np.max([support(model, data, g, d, com) for g in geoms], axis=0).min())
 
 
-def sphere_radius(model: mujoco.MjModel, data: mujoco.MjData, geoms: list[int]) -> float | None:
-    """The radius when the body's only collision geom is a sphere at its centre of mass."""
+def _blocked_max(points: np.ndarray, dirs: np.ndarray, block: int = 1 << 22) -> np.ndarray:
+    """max over points of points @ dirs.T, (k,), in blocks of bounded memory."""
+    step = max(1, block // max(1, len(points)))
+    return np.concatenate(
+        [(points @ dirs[i : i + step].T).max(axis=0) for i in range(0, len(dirs), step)]
+    )
+
+
+def sphere_radius(
+    model: mujoco.MjModel, data: mujoco.MjData, com: np.ndarray, geoms: list[int]
+) -> float | None:
+    """The radius when the body's only collision geom is a sphere centred at its centre of
+    mass `com`."""
     if len(geoms) != 1 or int(model.geom_type[geoms[0]]) != mujoco.mjtGeom.mjGEOM_SPHERE:
         return None
     g = geoms[0]
-    body = int(model.geom_bodyid[g])
-    if not np.allclose(data.geom_xpos[g], data.xipos[body], rtol=0.0, atol=1e-12):
+    if not np.allclose(data.geom_xpos[g], com, rtol=0.0, atol=1e-12):
         return None
     return float(model.geom_size[g][0])
 
@@ -220,9 +263,11 @@ def shape_name(model: mujoco.MjModel, geoms: list[int]) -> str:
 
 
 def static_potential(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """MuJoCo's potential energy of the bodies welded to the world (they count in its
-    `energy[0]` though they never move), J."""
-    static = [b for b in range(1, model.nbody) if int(model.body_weldid[b]) == 0]
+    """MuJoCo's potential energy of the bodies that never move (they count in its
+    `energy[0]` though they stay put), J."""
+    static = [
+        b for b in range(1, model.nbody) if int(model.body_dofnum[model.body_weldid[b]]) == 0
+    ]
     g = gravity(model)
     return float(sum(-model.body_mass[b] * g @ data.xipos[b] for b in static))
 
@@ -237,34 +282,3 @@ def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> SurfaceMeta:
         level_m=level,
         distance=int(model.geom_type[g]) not in NO_DISTANCE_TYPES,
     )
-
-
-def contact_pairs(model: mujoco.MjModel, free: set[int]) -> list[tuple[int, int, int]]:
-    """Geom pairs (g1, g2, slots) that may collide and involve a moving body (`free`).
-
-    Pairs within one kinematic tree (a robot's own links) are left out. g1 is the geom of
-    the static or lower-numbered tree, so normals point into g2. Sphere-sphere and
-    sphere-plane pairs touch at one point; other pairs get four slots.
-    """
-
-    def root(g: int) -> int:
-        return int(model.body_rootid[model.geom_bodyid[g]])
-
-    def moves(g: int) -> bool:
-        return int(model.geom_bodyid[g]) in free
-
-    pairs = []
-    for g1, g2 in itertools.combinations(range(model.ngeom), 2):
-        b1, b2 = root(g1), root(g2)
-        if b1 == b2 or not (moves(g1) or moves(g2)):
-            continue
-        if not (model.geom_contype[g1] & model.geom_conaffinity[g2]) and not (
-            model.geom_contype[g2] & model.geom_conaffinity[g1]
-        ):
-            continue
-        if (moves(g1), b1) > (moves(g2), b2):
-            g1, g2 = g2, g1
-        simple = {mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_PLANE}
-        types = {int(model.geom_type[g1]), int(model.geom_type[g2])}
-        pairs.append((g1, g2, 1 if types <= {int(t) for t in simple} else 4))
-    return pairs

@@ -1,17 +1,6 @@
-"""Describe every geom of a compiled model for viewers: the log's geom table and meshes.
-
-See `impactlab.logs.geoms` for what the log holds. Each geom is placed on the body it is
-drawn on: its own body when that body's pose is logged, else the nearest ancestor whose pose
-is logged, else the world (static geoms, and bodies welded to the world, at their fixed world
-pose). Its pose is relative to the frame whose pose the log holds for that body (its
-inertial frame: centre of mass and principal axes) and is taken from MuJoCo's kinematics at
-the model's reference configuration (qpos0): exact for geoms welded to the body they are
-drawn on.
-"""
+"""Describe every geom of a compiled model for viewers: the log's geom table and meshes."""
 
 from __future__ import annotations
-
-from collections.abc import Iterable
 
 import mujoco
 import numpy as np
@@ -23,25 +12,25 @@ DEFAULT_RGBA = (0.5, 0.5, 0.5, 1.0)
 
 
 def describe(
-    model: mujoco.MjModel, logged: Iterable[int]
+    model: mujoco.MjModel, frames: dict[int, int]
 ) -> tuple[list[GeomShape], dict[str, np.ndarray]]:
     """Every geom of the model, and the triangles (m, 3, 3) of its meshes and height fields by
     attachment name.
 
-    Args:
-        logged: ids of the bodies whose pose the log holds.
+    Each geom is drawn on the rigid body it belongs to (`frames`: the root body's id -> the
+    site whose pose the log holds for it), else on the world at its pose at qpos0.
     """
     data = mujoco.MjData(model)
     mujoco.mj_kinematics(model, data)
-    with_pose = set(logged)
     shapes: list[GeomShape] = []
     meshes: dict[str, np.ndarray] = {}
     for g in range(model.ngeom):
-        frame = _drawn_on(model, int(model.geom_bodyid[g]), with_pose)
-        pos, quat = _relative_pose(data, g, frame)
+        root = int(model.body_weldid[model.geom_bodyid[g]])
+        site = frames.get(root)
+        pos, quat = _relative_pose(data, g, site)
         kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
         mesh = None
-        if kind == "mesh" and model.geom_dataid[g] >= 0:
+        if kind in ("mesh", "sdf") and model.geom_dataid[g] >= 0:
             m = int(model.geom_dataid[g])
             mesh = mesh_attachment(model.mesh(m).name or f"mesh{m}")
             meshes.setdefault(mesh, mesh_triangles(model, m))
@@ -56,7 +45,7 @@ def describe(
         shapes.append(
             GeomShape(
                 name=model.geom(g).name,
-                body=model.body(frame).name if frame else "world",
+                body=model.body(root).name if site is not None else "world",
                 type=kind,
                 size=(sx, sy, sz),
                 pos=pos,
@@ -70,25 +59,15 @@ def describe(
     return shapes, meshes
 
 
-def _drawn_on(model: mujoco.MjModel, body: int, with_pose: set[int]) -> int:
-    """The body a geom of `body` is drawn on: itself or its nearest ancestor with a logged
-    pose; 0 (the world) when none has one or the body is welded to the world."""
-    if int(model.body_weldid[body]) == 0:
-        return 0
-    b = body
-    while b != 0 and b not in with_pose:
-        b = int(model.body_parentid[b])
-    return b
-
-
 def _relative_pose(
-    data: mujoco.MjData, g: int, frame: int
+    data: mujoco.MjData, g: int, site: int | None
 ) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-    """The geom's position and orientation (w, x, y, z) in the frame the log gives the pose
-    of for body `frame`: its inertial frame (centre of mass, principal axes), which the
-    recorder's `FRAMEPOS`/`FRAMEQUAT` sensors on the body measure."""
-    rot = data.ximat[frame].reshape(3, 3)
-    pos = rot.T @ (data.geom_xpos[g] - data.xipos[frame])
+    """The geom's position and orientation (w, x, y, z) in the frame of `site` (the frame
+    whose pose the log holds for the geom's rigid body), or in the world's (None)."""
+    rot, origin = np.eye(3), np.zeros(3)
+    if site is not None:
+        rot, origin = data.site_xmat[site].reshape(3, 3), data.site_xpos[site]
+    pos = rot.T @ (data.geom_xpos[g] - origin)
     mat = rot.T @ data.geom_xmat[g].reshape(3, 3)
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, mat.reshape(-1))

@@ -1,9 +1,4 @@
-"""What the recorder hands the log writer: a run's header, its rows and its outcome.
-
-The recorder's sensors (`impactlab.record.model`) put everything in MuJoCo's sensordata;
-this module cuts those rows into the log's arrays (`impactlab.logs.writer.LogRows`) and
-describes the run (`LogHeader`, `Outcome`) from the compiled model and the planned run.
-"""
+"""What the recorder hands the log writer: a run's header, its rows, its impacts and outcome."""
 
 from __future__ import annotations
 
@@ -14,16 +9,12 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
+from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, PairMeta, RunMeta
 from impactlab.logs.contract import GeomContact, PairTarget
-from impactlab.logs.messages import POINT_FIELDS
+from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import geometry
-from impactlab.record.model import (
-    BODY_STATE_SIZE,
-    CONTACT_SLOT_SIZE,
-    ContactChannel,
-    InstrumentedModel,
-)
+from impactlab.record.contacts import StepContacts
+from impactlab.record.model import BODY_STATE_SIZE, InstrumentedModel
 from impactlab.record.simulate import Ending
 
 
@@ -55,8 +46,8 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
     bodies = [
         BodyMeta(
             name=b.name,
-            mass=float(model.body_mass[b.body_id]),
-            inertia=_xyz(model.body_inertia[b.body_id]),
+            mass=b.mass,
+            inertia=b.inertia,
             radius=b.radius,
             shape=b.shape,
             rest_height_m=b.rest_height,
@@ -96,7 +87,6 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
     ]
     return LogHeader(
         run,
-        [c.meta for c in inst.contacts],
         inst.geoms,
         inst.xml,
         clearance,
@@ -125,53 +115,121 @@ def integrator_name(model: mujoco.MjModel) -> str:
     return {"EULER": "Euler", "RK4": "RK4"}.get(name, name.lower())
 
 
-def log_rows(inst: InstrumentedModel, t_ns: np.ndarray, sensordata: np.ndarray) -> LogRows:
-    """The log's arrays for rows of the recorder's sensordata, (n, nsensordata)."""
-    n = sensordata.shape[0]
-    bodies = np.stack(
-        [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
-    ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
-    e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
-    energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
-    contacts = [contact_points(pair, sensordata) for pair in inst.contacts]
-    clearance = [
-        np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
-        for b in inst.bodies
-        if inst.clearance_of(b.name)
-    ]
-    joints = None
-    if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
-        rotor, spring = sensordata[:, -2], sensordata[:, -1]
-        joints = np.stack([rotor, spring, rotor + spring], axis=1)
-    return LogRows(t_ns, bodies, energy, contacts, clearance, joints)
+class Rows:
+    """Turns one run's pieces into the log's rows, naming the geom pairs as they touch."""
+
+    def __init__(self, inst: InstrumentedModel) -> None:
+        self.inst = inst
+        self.pairs: list[PairMeta] = []
+        self.index: dict[tuple[int, int], int] = {}
+
+    def __call__(
+        self, t_ns: np.ndarray, sensordata: np.ndarray, work: np.ndarray, contacts: StepContacts
+    ) -> LogRows:
+        """The log's arrays for logged rows of sensordata (n, nsensordata), the work done
+        before each (n, kinds) and the contacts at those rows (`step`: the row)."""
+        inst = self.inst
+        n = sensordata.shape[0]
+        bodies = np.stack(
+            [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
+        ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
+        e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
+        energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
+        clearance = [
+            np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
+            for b in inst.bodies
+            if inst.clearance_of(b.name)
+        ]
+        joints = None
+        if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
+            rotor, spring = sensordata[:, -2], sensordata[:, -1]
+            joints = np.stack([rotor, spring, rotor + spring], axis=1)
+        pair = np.array([self._pair(c) for c in zip(*self._sides(contacts), strict=True)], np.int64)
+        normal, t1 = contacts.frame[:, 0:3], contacts.frame[:, 3:6]
+        t2 = contacts.frame[:, 6:9]
+        f = contacts.force
+        world = f[:, :1] * normal + f[:, 1:2] * t1 + f[:, 2:3] * t2
+        points = np.hstack([contacts.pos, normal, contacts.penetration[:, None], f, world])
+        return LogRows(
+            t_ns,
+            bodies,
+            energy,
+            work,
+            (contacts.step, pair.reshape(-1), points),
+            tuple(self.pairs),
+            clearance,
+            joints,
+        )
+
+    def _sides(self, contacts: StepContacts) -> tuple[np.ndarray, np.ndarray]:
+        """Each contact's sides: a geom id, or -(1 + flex id)."""
+        return (
+            np.where(contacts.geom1 >= 0, contacts.geom1, -1 - contacts.flex1),
+            np.where(contacts.geom2 >= 0, contacts.geom2, -1 - contacts.flex2),
+        )
+
+    def _pair(self, sides: tuple[int, int]) -> int:
+        key = (int(sides[0]), int(sides[1]))
+        if key not in self.index:
+            self.index[key] = len(self.pairs)
+            self.pairs.append(PairMeta(*map(self._name, key), *map(self._party, key)))
+        return self.index[key]
+
+    def _name(self, side: int) -> str:
+        model = self.inst.model
+        return model.geom(side).name if side >= 0 else self._party(side)
+
+    def _party(self, side: int) -> str:
+        at = side if side >= 0 else self.inst.model.ngeom - 1 - side
+        return self.inst.party_names[int(self.inst.party[at])]
 
 
-def contact_points(pair: ContactChannel, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A contact sensor's slots -> (points per row (n,), points (n, num, 13) as POINT_FIELDS).
+def impacts(inst: InstrumentedModel, ending: Ending, timestep_ns: int) -> list[pb.Impact]:
+    """The run's contact episodes as the log keeps them (`impactlab.Impact`)."""
+    nbody, ngeom = len(inst.bodies), int(inst.model.ngeom)
+    names = inst.party_names
 
-    Rows without contact have zero points (the writer logs no message for them).
-    """
-    slots = rows[:, pair.adr : pair.adr + pair.num * CONTACT_SLOT_SIZE]
-    slots = slots.reshape(rows.shape[0], pair.num, CONTACT_SLOT_SIZE)
-    count = np.minimum(slots[:, 0, 0], pair.num).astype(np.int64)
-    points = np.zeros((rows.shape[0], pair.num, len(POINT_FIELDS)))
-    touching = np.flatnonzero(count > 0)
-    slots = slots[touching]
-    force, dist, pos = slots[..., 1:4], slots[..., 4], slots[..., 5:8]
-    normal, t1 = slots[..., 8:11], slots[..., 11:14]
-    t2 = np.cross(normal, t1)
-    world = force[..., 0:1] * normal + force[..., 1:2] * t1 + force[..., 2:3] * t2
-    points[touching] = np.concatenate([pos, normal, -dist[..., None], force, world], axis=2)
-    return count, points
+    def kind(party: int) -> str:
+        return "body" if party < nbody else "surface" if party < nbody + ngeom else "flex"
 
+    def side(geom: int, party: int) -> str:
+        return inst.model.geom(geom).name if geom >= 0 else names[party]
 
-def contact_work(ending: Ending, timestep_ns: int) -> list[np.ndarray]:
-    """Each pair's contacts as the log writer takes them: steps turned into times (ns)."""
+    def state(values: np.ndarray) -> pb.SideState:
+        return pb.SideState(values=[] if np.isnan(values).any() else values.tolist())
+
     out = []
-    for work in ending.contact_work:
-        work = work.copy()
-        work[:, :2] *= timestep_ns
-        out.append(work)
+    for ep in ending.episodes:
+        out.append(
+            pb.Impact(
+                side1=names[ep.side1],
+                kind1=kind(ep.side1),
+                side2=names[ep.side2],
+                kind2=kind(ep.side2),
+                geom1=side(ep.geom1, ep.side1),
+                geom2=side(ep.geom2, ep.side2),
+                onset_ns=ep.onset * timestep_ns,
+                release_ns=(ep.last + (0 if ep.open else 1)) * timestep_ns,
+                v_in=ep.v_in,
+                v_out=ep.v_out,
+                work_compression=ep.work_c,
+                work_restitution=ep.work_r,
+                work_friction=ep.work_f,
+                peak_force=ep.peak_force,
+                impulse=ep.impulse,
+                max_penetration=ep.max_penetration,
+                steps=ep.steps,
+                open=ep.open,
+                point_in=ep.point_in.tolist(),
+                normal_in=ep.normal_in.tolist(),
+                point_out=ep.point_out.tolist(),
+                normal_out=ep.normal_out.tolist(),
+                side1_in=state(ep.state_in[0]),
+                side2_in=state(ep.state_in[1]),
+                side1_out=state(ep.state_out[0]),
+                side2_out=state(ep.state_out[1]),
+            )
+        )
     return out
 
 

@@ -1,15 +1,8 @@
-"""Build MuJoCo models for recording: from an experiment spec, or any user MJCF, instrumented.
-
-Instrumenting adds the sensors the recorder reads, so a batched `mujoco.rollout` captures
-everything without a Python loop: per free body its pose and world-frame velocities, MuJoCo's
-kinetic and potential energy, one `contact` sensor per pair of geoms that can touch, and one
-`distance` sensor per pair of a body's collision geom and a ground surface (its clearance)
-or another free body's geom (the gap the separation stop rule watches). The ground and the
-bodies' shapes are described by `impactlab.record.geometry`.
-"""
+"""Build MuJoCo models for recording: from an experiment spec, or any user MJCF, instrumented."""
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,32 +11,31 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
-from impactlab.logs.content import PairMeta, SurfaceMeta
+from impactlab.logs.content import SurfaceMeta
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
 from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
-from impactlab.record.model_names import SENSOR_PREFIX as SENSOR_PREFIX  # the base prefix
 from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks at import)
 from impactlab.record.spec import RunSpec
 
-# contact sensor data fields: found, force, dist, pos, normal, tangent (mjtConDataField bits)
-CONTACT_DATA_BITS = 1 | 2 | 8 | 16 | 32 | 64
-CONTACT_SLOT_SIZE = 1 + 3 + 1 + 3 + 3 + 3
 BODY_STATE_SIZE = 13  # pos 3, quat 4, linvel 3, angvel 3
 PLANE_NAME = "plane"
 DISTANCE_CUTOFF_M = 1.0e4
 """Distances beyond this are reported as this (MuJoCo's distance sensors need a cutoff)."""
+MAX_GAP_PAIRS = 10_000
+"""Pairs of bodies the separation stop rule may watch (a distance sensor each)."""
 
 
 @dataclass(frozen=True)
 class BodyChannel:
-    """A moving body, where its 13 state values start in sensordata, and its shape.
+    """A rigid body (`geometry.RigidBody`), where its 13 state values start in sensordata,
+    and its shape.
 
-    The state is the body's centre of mass and inertial frame (MuJoCo's `xipos`, `ximat`)
-    and their world-frame velocities.
+    The state is the rigid body's centre of mass and principal axes (a site the recorder
+    adds to its root body) and their world-frame velocities.
 
     Attributes:
         radius: the radius when the body is one sphere centred at its centre of mass.
@@ -61,6 +53,8 @@ class BodyChannel:
     rest_height: float | None = None
     geoms: tuple[str, ...] = ()
     motion: str = "free"
+    mass: float = 0.0
+    inertia: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -72,23 +66,6 @@ class DistanceChannel:
     adrs: tuple[int, ...]
 
 
-@dataclass(frozen=True)
-class ContactChannel:
-    """A geom pair and where its contact sensor's `num` slots start in sensordata."""
-
-    geom1: str
-    geom2: str
-    body1: str
-    body2: str
-    adr: int
-    num: int
-
-    @property
-    def meta(self) -> PairMeta:
-        """The pair as the log describes it."""
-        return PairMeta(self.geom1, self.geom2, self.body1, self.body2)
-
-
 @dataclass
 class InstrumentedModel:
     """A compiled model, its MJCF text and the layout of what the recorder reads."""
@@ -96,7 +73,6 @@ class InstrumentedModel:
     model: mujoco.MjModel
     xml: str  # the MJCF text as written by impactlab or the user (full precision)
     bodies: list[BodyChannel]
-    contacts: list[ContactChannel]
     geoms: list[GeomShape]
     energy_adr: int
     keyframe: int | None
@@ -108,6 +84,8 @@ class InstrumentedModel:
     attachments: tuple[tuple[str, str, bytes], ...] = ()  # more files for the log (name, type)
     inputs: tuple[tuple[str, str], ...] = ()  # (file, SHA-256) the model reads besides its own
     meshes: dict[str, np.ndarray] = field(default_factory=dict)  # triangles by attachment name
+    party: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))  # see `parties`
+    party_names: tuple[str, ...] = ()
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
@@ -176,12 +154,16 @@ def model_from_spec(
 ) -> InstrumentedModel:
     """Compile a spec's model with the recorder's sensors (`pairs`: as `mjcf_from_spec`)."""
     xml = mjcf_from_spec(run, pairs)
-    return instrument(mujoco.MjSpec.from_string(xml), run.source, xml=xml, keyframe="initial")
+    gaps = run.stop.separation is not None
+    spec = mujoco.MjSpec.from_string(xml)
+    return instrument(spec, run.source, xml=xml, keyframe="initial", gaps=gaps)
 
 
-def model_from_mjcf(path: Path, *, keyframe: str | None = None) -> InstrumentedModel:
-    """Load a user's MJCF file and instrument every moving body and every possible contact;
-    the run starts from the named keyframe, or the model's default pose.
+def model_from_mjcf(
+    path: Path, *, keyframe: str | None = None, gaps: bool = False
+) -> InstrumentedModel:
+    """Load a user's MJCF file and instrument it (`instrument`); the run starts from the
+    named keyframe, or the model's default pose.
 
     The log keeps the model's text with its includes inlined and, when it reads mesh or
     texture files, the compiled model (`impactlab.record.model_files`).
@@ -193,7 +175,7 @@ def model_from_mjcf(path: Path, *, keyframe: str | None = None) -> InstrumentedM
     spec = parse_mjcf(path)
     files = model_files(spec, path)
     try:
-        inst = instrument(spec, str(path), xml=files.xml, keyframe=keyframe)
+        inst = instrument(spec, str(path), xml=files.xml, keyframe=keyframe, gaps=gaps)
     except UnicodeDecodeError:  # MuJoCo keeps names as the file's bytes
         raise SpecError(
             str(path), "", "a name in the model is not UTF-8 text: save the model as UTF-8"
@@ -214,15 +196,19 @@ def instrument(
     *,
     xml: str,
     keyframe: str | None,
+    gaps: bool = False,
 ) -> InstrumentedModel:
-    """Name unnamed bodies and geoms, add the recorder's sensors, compile.
+    """Name unnamed bodies and geoms, add the recorder's sites and sensors, compile.
 
-    `xml` is the model's own MJCF text, kept for the log: MuJoCo's saved XML rounds numbers
-    to about six digits, the text we were given does not. The sensors do not change the
-    dynamics, so that text reproduces the run.
+    Per rigid body (`geometry.rigid_bodies`) a site at its centre of mass and principal
+    axes with frame sensors on it; MuJoCo's kinetic and potential energy; per pair of a
+    body's collision geom and a ground surface a distance sensor (its clearance); with
+    `gaps` (a separation stop rule), per pair of free bodies' geoms one too. `xml` is the
+    model's MJCF text, kept for the log. The sensors and sites do not change the dynamics.
 
     Raises:
-        SpecError: the model does not compile, has no body that moves, or lacks `keyframe`.
+        SpecError: the model does not compile, has no body that moves, lacks `keyframe`, or
+            the separation rule would watch more than `MAX_GAP_PAIRS` pairs.
     """
     name_unnamed(spec)
     prefix = sensor_prefix(spec)
@@ -230,8 +216,10 @@ def instrument(
         plain = spec.compile()
     except Exception as exc:
         raise SpecError(source, "", f"invalid MJCF: {_one_line(exc)}") from None
-    free_bodies = geometry.moving_bodies(plain)
-    if not free_bodies:
+    data = mujoco.MjData(plain)
+    mujoco.mj_kinematics(plain, data)
+    rigid = geometry.rigid_bodies(plain, data)
+    if not rigid:
         raise SpecError(
             source, "", "the model has no body that moves (every body is welded to the world)"
         )
@@ -240,14 +228,16 @@ def instrument(
         raise SpecError(
             source, "keyframe", f"no keyframe named {keyframe!r} (the model has {known})"
         )
-    body_names = [plain.body(b).name for b in free_bodies]
-    for name in body_names:
+    names = [plain.body(r.root).name for r in rigid]
+    for r, name in zip(rigid, names, strict=True):
+        site = spec.body(name).add_site(name=f"{prefix}{name}", pos=r.pos, quat=r.quat)
+        site.group = 5  # not drawn by MuJoCo's viewer
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
             spec.add_sensor(
                 name=f"{prefix}{name}:{kind.lower()}",
                 type=getattr(mujoco.mjtSensor, f"mjSENS_{kind}"),
-                objtype=mujoco.mjtObj.mjOBJ_BODY,
-                objname=name,
+                objtype=mujoco.mjtObj.mjOBJ_SITE,
+                objname=f"{prefix}{name}",
             )
     spec.add_sensor(name=f"{prefix}e_potential", type=mujoco.mjtSensor.mjSENS_E_POTENTIAL)
     spec.add_sensor(name=f"{prefix}e_kinetic", type=mujoco.mjtSensor.mjSENS_E_KINETIC)
@@ -258,26 +248,23 @@ def instrument(
             objtype=mujoco.mjtObj.mjOBJ_TENDON,
             objname=plain.tendon(t).name,
         )
-    pairs = geometry.contact_pairs(plain, set(free_bodies))
-    for g1, g2, num in pairs:
-        spec.add_sensor(
-            name=f"{prefix}contact:{g1}:{g2}",  # ids: geom names may hold ':'
-            type=mujoco.mjtSensor.mjSENS_CONTACT,
-            objtype=mujoco.mjtObj.mjOBJ_GEOM,
-            objname=plain.geom(g1).name,
-            reftype=mujoco.mjtObj.mjOBJ_GEOM,
-            refname=plain.geom(g2).name,
-            intprm=[CONTACT_DATA_BITS, 0, num],
-        )
-    data = mujoco.MjData(plain)
-    mujoco.mj_kinematics(plain, data)  # shapes relative to each body do not depend on the pose
-    own = {b: geometry.body_geoms(plain, b) for b in free_bodies}
+    own = {r.root: geometry.rigid_geoms(plain, r) for r in rigid}
     ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
     clearance_plan = _distance_sensors(spec, plain, own, measurable, prefix, between_bodies=False)
-    lone = {b: gs for b, gs in own.items() if geometry.motion(plain, b) == "free"}
-    gap_plan = _distance_sensors(spec, plain, lone, [], prefix, between_bodies=True)
+    gap_plan: list[tuple[str, str, list[str]]] = []
+    if gaps:
+        lone = {r.root: own[r.root] for r in rigid if geometry.motion(plain, r) == "free"}
+        pairs = sum(len(a) * len(b) for a, b in itertools.combinations(lone.values(), 2))
+        if pairs > MAX_GAP_PAIRS:
+            raise SpecError(
+                source,
+                "stop.separation",
+                f"the separation rule would watch {pairs:,} pairs of geoms "
+                f"(at most {MAX_GAP_PAIRS:,}): use a time limit instead",
+            )
+        gap_plan = _distance_sensors(spec, plain, lone, [], prefix, between_bodies=True)
     model = spec.compile()
     # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
     # computes after the sensors: one step late. Off, they compute it themselves, at the
@@ -290,37 +277,32 @@ def instrument(
     def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
 
-    bodies = [
-        BodyChannel(
-            name,
-            b,
-            adr(f"{name}:framepos"),
-            geometry.sphere_radius(plain, data, own[b]),
-            geometry.shape_name(plain, own[b]),
-            geometry.rest_height(plain, data, b, own[b]) if own[b] else None,
-            tuple(plain.geom(g).name for g in own[b]),
-            geometry.motion(plain, b),
+    bodies = []
+    for r, name in zip(rigid, names, strict=True):
+        geoms = own[r.root]
+        com = data.xpos[r.root] + data.xmat[r.root].reshape(3, 3) @ np.asarray(r.pos)
+        bodies.append(
+            BodyChannel(
+                name,
+                r.root,
+                adr(f"{name}:framepos"),
+                geometry.sphere_radius(plain, data, com, geoms),
+                geometry.shape_name(plain, geoms),
+                geometry.rest_height(plain, data, com, geoms) if geoms else None,
+                tuple(plain.geom(g).name for g in geoms),
+                geometry.motion(plain, r),
+                r.mass,
+                r.inertia,
+            )
         )
-        for name, b in zip(body_names, free_bodies, strict=True)
-    ]
-    contacts = [
-        ContactChannel(
-            geom1=model.geom(g1).name,
-            geom2=model.geom(g2).name,
-            body1=model.body(model.geom_bodyid[g1]).name,
-            body2=model.body(model.geom_bodyid[g2]).name,
-            adr=adr(f"contact:{g1}:{g2}"),
-            num=num,
-        )
-        for g1, g2, num in pairs
-    ]
     key = None if keyframe is None else int(model.key(keyframe).id)
-    geoms, meshes = describe_geoms(model, [b.body_id for b in bodies])
+    sites = {r.root: int(model.site(f"{prefix}{n}").id) for r, n in zip(rigid, names, strict=True)}
+    geoms, meshes = describe_geoms(model, sites)
+    party, party_names = parties(model, [r.root for r in rigid])
     return InstrumentedModel(
         model=model,
         xml=xml,
         bodies=bodies,
-        contacts=contacts,
         geoms=geoms,
         energy_adr=adr("e_potential"),
         keyframe=key,
@@ -330,7 +312,29 @@ def instrument(
         static_potential=geometry.static_potential(plain, data),
         joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
         meshes=meshes,
+        party=party,
+        party_names=party_names,
     )
+
+
+def parties(model: mujoco.MjModel, roots: list[int]) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Who each side of a contact is: the party of every geom, then of every flex, and the
+    parties' names.
+
+    A geom of a rigid body belongs to that body (party = its index in `roots`); a static
+    geom is a surface, its own party (`len(roots) + geom id`); a flex is one
+    (`len(roots) + ngeom + flex id`).
+    """
+    index = {root: i for i, root in enumerate(roots)}
+    nb, ngeom = len(roots), model.ngeom
+    geom_party = [
+        index.get(int(model.body_weldid[model.geom_bodyid[g]]), nb + g) for g in range(ngeom)
+    ]
+    flex_party = [nb + ngeom + f for f in range(model.nflex)]
+    names = [model.body(r).name for r in roots]
+    names += [model.geom(g).name for g in range(ngeom)]
+    names += [model.flex(f).name or f"flex{f}" for f in range(model.nflex)]
+    return np.array(geom_party + flex_party, np.int64), tuple(names)
 
 
 def _distance_sensors(

@@ -1,26 +1,8 @@
-"""Simulate runs side by side in chunks of `mujoco.rollout`, stopping each on its own events.
-
-Row i of a rollout's sensordata holds the sensors evaluated at the state *before* step i is
-integrated, i.e. at simulation time i * timestep: that is the time every logged row carries.
-Chunks continue from the last state; the solver's warm start restarts at each chunk boundary
-(every CHUNK_SECONDS of simulated time), which is the only difference from a plain `mj_step`
-loop (about 1e-12 in the state), and what makes a run independent of its batch.
-
-A run logs every `log_every`-th step from step 0, and always the step it stops on (the apex
-a stop rule waited for, the time limit), so the last logged row is the end of the run.
-Rows are handed on chunk by chunk (`simulate`), never gathered: memory per run is bounded by
-the chunk, whatever the time limit or the timestep. MuJoCo's warnings (a state it had to
-reset, too many contacts, ...) stop a run as unstable: `mujoco.rollout` stops stepping a run
-as soon as one is raised and repeats its last state, which the time column shows; the run's
-chunk is then stepped again alone to name the warning (`impactlab.record.mujoco_warnings`).
-"""
+"""Simulate each run with `mj_step`, reading MuJoCo at every step; hand its rows on chunk by chunk."""
 
 from __future__ import annotations
 
-import contextlib
-import os
-import queue
-import threading
+import dataclasses
 import time
 from collections.abc import Generator, Iterable
 from dataclasses import dataclass, field
@@ -28,9 +10,10 @@ from typing import Any
 
 import mujoco
 import numpy as np
-from mujoco import rollout
 
-from impactlab.record.contact_work import ContactWork
+from impactlab.record import budget
+from impactlab.record.contacts import ContactTape, StepContacts, decode
+from impactlab.record.episodes import Episode, Episodes
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.mujoco_warnings import first_warning, quiet_mujoco
 from impactlab.record.spec import Stop
@@ -40,7 +23,7 @@ from impactlab.record.work import run_steps
 CHUNK_SECONDS = 1.0
 MIN_CHUNK_STEPS = 1000
 MAX_CHUNK_STEPS = 5_000
-STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS  # its first value is the simulation time
+STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
 
 def timestep_ns(timestep_s: float) -> int:
@@ -49,13 +32,13 @@ def timestep_ns(timestep_s: float) -> int:
 
 
 def chunk_steps(timestep_s: float) -> int:
-    """Steps per rollout chunk: about CHUNK_SECONDS of simulated time, within bounds."""
+    """Steps per chunk: about CHUNK_SECONDS of simulated time, within bounds."""
     return int(np.clip(round(CHUNK_SECONDS / timestep_s), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
 
 
 @dataclass(eq=False)  # hashable by identity: a key for the run's log while it is written
 class RunRequest:
-    """One run of a batch: the model, its time limit (s), stop rules and logging stride.
+    """One run: the model, its time limit (s), stop rules and logging stride.
 
     `tag` is the caller's (e.g. the planned run); it comes back with every `Piece`.
     """
@@ -69,14 +52,13 @@ class RunRequest:
 
 @dataclass
 class Ending:
-    """How a run ended: the verdict, its warnings, steps simulated and rows logged, and each
-    contact pair's contacts with their work (`impactlab.record.contact_work`)."""
+    """How a run ended: the verdict, its warnings, rows logged, and its contact episodes."""
 
     verdict: Verdict
     warnings: list[str]
     logged: int
     t_end_ns: int
-    contact_work: list[np.ndarray] = field(default_factory=list)
+    episodes: list[Episode] = field(default_factory=list)
 
     @property
     def steps(self) -> int:
@@ -92,268 +74,229 @@ class Piece:
         t_ns: simulation time of each logged row, integer ns, (nrow,).
         sensordata: the recorder's sensors at those times, (nrow, nsensordata), then (for a
             model with rotor inertia or springs) their energy, 2 columns (`JointEnergy`).
+        work: the work each kind of force did from the run's start to each row, J,
+            (nrow, len(budget.WORK_KINDS)).
+        contacts: the contacts at the logged rows (`step`: the row's index in this piece).
         ending: set on the run's last piece.
-        error: set when the run's batch failed (nothing more comes for it).
-        wall_s: wall time of the run's batch so far, shared among its runs.
+        error: set when the run failed (nothing more comes for it).
+        wall_s: wall time of the run so far.
     """
 
     request: RunRequest
     t_ns: np.ndarray
     sensordata: np.ndarray
+    work: np.ndarray = field(default_factory=lambda: np.empty((0, len(budget.WORK_KINDS))))
+    contacts: StepContacts | None = None
     ending: Ending | None = None
     error: str | None = None
     wall_s: float = 0.0
 
 
-@dataclass
-class _Active:
-    request: RunRequest
-    monitor: StopMonitor
-    work: ContactWork
-    total_steps: int
-    state: np.ndarray
-    touched: bool = False
-    verdict: Verdict | None = None
-    logged: int = 0
-    last_t_ns: int = 0
+class _Run:
+    """One run stepped chunk by chunk (see `simulate`)."""
 
-
-class _Batch:
-    """Runs sharing MuJoCo's size signature and timestep, stepped chunk by chunk together."""
-
-    def __init__(self, requests: list[RunRequest], threads: int | None) -> None:
-        model0 = requests[0].inst.model
-        self.dt = float(model0.opt.timestep)
+    def __init__(self, request: RunRequest) -> None:
+        self.request = request
+        inst = request.inst
+        model = self.model = inst.model
+        self.data = mujoco.MjData(model)
+        mujoco.mj_setState(model, self.data, inst.initial_state(), STATE)
+        self.dt = float(model.opt.timestep)
         self.dt_ns = timestep_ns(self.dt)
+        self.total = run_steps(request.max_time, self.dt)
         self.chunk = chunk_steps(self.dt)
-        self.nthread = max(1, min(threads or os.cpu_count() or 1, len(requests)))
-        self.datas = [mujoco.MjData(model0) for _ in range(self.nthread)]
-        self.active = [
-            _Active(
-                request=r,
-                monitor=StopMonitor(r.inst, r.stop, timestep=self.dt),
-                work=ContactWork(r.inst, self.dt),
-                total_steps=run_steps(r.max_time, self.dt),
-                state=r.inst.initial_state(),
-            )
-            for r in requests
-        ]
-        self.running = list(self.active)
+        self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
+        self.pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
+        self.forces = budget.generalised_forces(model)
+        self.tape = ContactTape(model, self.data, types=budget.other_constraints(model))
+        self.episodes = Episodes(inst, self.dt)
+        self.monitor = StopMonitor(inst, request.stop, timestep=self.dt)
+        self.work_done = np.zeros(len(budget.WORK_KINDS))
+        self.v_last = self.data.qvel.copy()
         self.step0 = 0
+        self.logged = 0
+        self.last_t_ns = 0
         self.started = time.perf_counter()
-        self.pool = rollout.Rollout(nthread=self.nthread if self.nthread > 1 else 0)
+        n, nv = self.chunk, model.nv
+        self.rows = np.empty((n, model.nsensordata))
+        self.times = np.empty(n)
+        self.vel = np.empty((n, nv))
+        self.qpos = np.empty((n, model.nq)) if inst.joints is not None else None
+        self.generalised = [np.empty((n, nv)) for _ in self.forces]
 
-    def rollout(self) -> tuple[np.ndarray, np.ndarray, int]:
-        """Step every running run through the next chunk (plus one step that shows a warning
-        raised in the chunk's last step). Returns states, sensordata and the chunk's steps."""
-        # never past the longest remaining time limit: the chunk boundaries of every run
-        # stay at multiples of `chunk` from its start, whatever the batch
-        nstep = min(self.chunk, max(a.total_steps for a in self.running) - self.step0)
-        states, sens = self.pool.rollout(
-            [a.request.inst.model for a in self.running],
-            self.datas,
-            np.stack([a.state for a in self.running]),
-            nstep=nstep + 1,
-        )
-        return states, sens, nstep
-
-    def take(self, states: np.ndarray, sens: np.ndarray, nstep: int) -> list[Piece]:
-        """Apply a chunk's rows to each running run's stop rules; the pieces to hand on."""
-        pieces = []
-        wall = (time.perf_counter() - self.started) / len(self.active)
-        for i, a in enumerate(self.running):
-            first_state = a.state
-            rows, steps = _advance(
-                a, sens[i, :nstep], states[i, nstep - 1], self.step0, states[i, :, 0]
+    def next_piece(self) -> Piece:
+        """Simulate the next chunk and return what it logs (the last one with the ending)."""
+        n = min(self.chunk, self.total - self.step0)
+        start = np.empty(mujoco.mj_stateSize(self.model, STATE))
+        mujoco.mj_getState(self.model, self.data, start, STATE)
+        warned = [int(w.number) for w in self.data.warning]
+        self._steps(n)
+        self.tape.check()
+        v_start = np.vstack([self.v_last[None], self.vel[: n - 1]])
+        work = self._work(n, v_start)
+        contacts, _, _ = self._decoded
+        saved = self.episodes.snapshot()
+        released = self.episodes.update(contacts, self.rows[:n], self.step0)
+        warning = self._warning(start, warned, n)
+        limit = n if warning is None else warning.last_step + 1 - self.step0
+        verdict = None
+        if limit > 0:
+            verdict = self.monitor.update(
+                self.rows[:limit], self.step0, contacts, self.episodes, released, work[:limit]
             )
-            joints = a.request.inst.joints
-            if joints is not None:  # its rotor and spring energy, as two more columns
-                local = steps - self.step0  # the state before step k: after step k - 1
-                before = states[i, np.maximum(local - 1, 0)]
-                before[local == 0] = first_state
-                rows = np.hstack([rows, joints.terms(before, rows)])
-            t_ns = steps * self.dt_ns
-            if t_ns.size:
-                a.logged += t_ns.size
-                a.last_t_ns = int(t_ns[-1])
-            ending = None if a.verdict is None else _ending(a, self.dt)
-            pieces.append(Piece(a.request, t_ns, rows, ending, wall_s=wall))
-        self.running = [a for a in self.running if a.verdict is None]
-        self.step0 += self.chunk
-        return pieces
+        verdict = verdict or warning
+        if verdict is None and self.step0 + n >= self.total:
+            verdict = Verdict(self.total - 1, "completed", f"time limit {self.request.max_time:g} s")
+        end = n if verdict is None else verdict.last_step - self.step0 + 1
+        if end < n:  # the run stops inside the chunk: its contacts after the stop are not
+            self.episodes.restore(saved)
+            self.episodes.update(contacts.take(contacts.step < end), self.rows[:end], self.step0)
+        piece = self._piece(end, verdict, work[:end], v_start[:end], contacts)
+        self.work_done += work[:end].sum(axis=0)
+        self.v_last = self.vel[n - 1].copy()
+        self.step0 += n
+        return piece
 
-    def fail(self, reason: str) -> list[Piece]:
-        """The pieces that end every running run of the batch as failed."""
-        self.running, failed = [], self.running
-        return [_failed(a.request, reason) for a in failed]
+    def _steps(self, n: int) -> None:
+        """Step n times, copying what MuJoCo computed for each step (hot loop)."""
+        model, data, tape = self.model, self.data, self.tape
+        rows, times, vel, qpos = self.rows, self.times, self.vel, self.qpos
+        sensordata, qvel = data.sensordata, data.qvel
+        copies = [
+            (buf, getattr(data, name))
+            for buf, (_, name) in zip(self.generalised, self.forces, strict=True)
+        ]
+        tape.reset()
+        step = mujoco.mj_step
+        for i in range(n):
+            times[i] = data.time
+            if qpos is not None:
+                qpos[i] = data.qpos
+            if self.rk4:  # forces are read at the step's start, before the four stages
+                mujoco.mj_checkPos(model, data)
+                mujoco.mj_checkVel(model, data)
+                mujoco.mj_forward(model, data)
+                mujoco.mj_checkAcc(model, data)
+                for buf, src in copies:
+                    buf[i] = src
+                if data.nefc:
+                    tape.add(i, after=False)
+                mujoco.mj_RungeKutta(model, data, 4)
+            else:
+                step(model, data)
+                for buf, src in copies:
+                    buf[i] = src
+                if data.nefc:
+                    tape.add(i)
+            rows[i] = sensordata
+            vel[i] = qvel
 
-    def close(self) -> None:
-        self.pool.close()
+    def _work(self, n: int, v_start: np.ndarray) -> np.ndarray:
+        """Work of each kind of force during each step of the chunk, (n, kinds) J."""
+        dt = self.dt
+        v_mid = 0.5 * (v_start + self.vel[:n])
+        work = np.zeros((n, len(budget.WORK_KINDS)))
+        for buf, (kind, _) in zip(self.generalised, self.forces, strict=True):
+            work[:, kind] = dt * np.einsum("ij,ij->i", buf[:n], v_mid)
+        contacts, power, in_contact = decode(self.tape, self.pyramidal)
+        self._decoded = (contacts, power, in_contact)
+        normal, friction = budget.KIND["contact_normal"], budget.KIND["contact_friction"]
+        work[:, normal] = dt * np.bincount(contacts.step, contacts.power_normal, n)
+        work[:, friction] = dt * np.bincount(contacts.step, contacts.power_friction, n)
+        if self.tape.types:
+            rest = ~in_contact
+            tape = self.tape
+            work += budget.constraint_work(
+                power[rest], tape.type[: tape.nrow][rest], tape.row_step[: tape.nrow][rest], n, dt
+            )
+        return work
 
-
-def _advance(
-    a: _Active,
-    rows: np.ndarray,
-    last_state: np.ndarray,
-    step0: int,
-    times: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Feed one chunk of a run's rows to its stop rules; returns the rows it logs and their
-    global step indices: every `log_every`-th step of the chunk up to its stop, and the step
-    the run stops on ((n, nsensordata), (n,)).
-
-    `times` is the simulation time after each step of the rollout, (nstep + 1,) (see
-    `_warning`).
-    """
-    n = min(rows.shape[0], a.total_steps - step0)
-    warning = _warning(a, times[: n + 1], step0) if times is not None else None
-    limit = n if warning is None else warning.last_step + 1 - step0
-    verdict = a.monitor.update(rows[:limit], step0) if limit > 0 else None
-    verdict = verdict or warning
-    if verdict is None and step0 + n >= a.total_steps:
-        verdict = Verdict(a.total_steps - 1, "completed", f"time limit {a.request.max_time:g} s")
-    end = n if verdict is None else verdict.last_step - step0 + 1
-    a.work.update(rows[:end], step0)
-    if a.monitor.bodybody_cols:
-        a.touched |= bool((rows[:end, a.monitor.bodybody_cols] > 0).any())
-    a.state = last_state
-    a.verdict = verdict
-    every = a.request.log_every
-    first = -step0 % every  # the first row of the chunk whose global step is logged
-    keep = np.arange(first, end, every, dtype=np.int64)
-    if verdict is not None and end > 0 and (keep.size == 0 or keep[-1] != end - 1):
-        keep = np.append(keep, end - 1)  # the step the run stops on
-        return rows[keep], step0 + keep
-    return rows[first:end:every], step0 + keep
-
-
-def _warning(a: _Active, times: np.ndarray, step0: int) -> Verdict | None:
-    """The unstable verdict of a run whose chunk raised a MuJoCo warning, else None.
-
-    After a warning, `mujoco.rollout` repeats the run's last state for the rest of the chunk,
-    and a warning that reset the state also reset its time: either way the time after some
-    step is not the chunk's start time plus the steps taken. The chunk is then stepped again
-    alone to find the step that raised the warning and to name it (the rows from that step
-    on are MuJoCo's reset or repeated state, not the run's).
-    """
-    dt = float(a.request.inst.model.opt.timestep)
-    expected = a.state[0] + dt * np.arange(1, times.size + 1)
-    bad = _first(np.abs(times - expected) > 0.5 * dt)
-    if bad is None:
-        return None
-    found = first_warning(a.request.inst.model, a.state, bad + 1)
-    if found is None:
-        step, text = max(bad - 1, 0), "MuJoCo stopped the rollout (a warning not raised again)"
-    else:
+    def _warning(self, start: np.ndarray, warned: list[int], n: int) -> Verdict | None:
+        """The unstable verdict of a chunk in which MuJoCo raised a warning, else None."""
+        if [int(w.number) for w in self.data.warning] == warned:
+            return None
+        found = first_warning(self.model, start, n)
+        if found is None:
+            return None
         step, text = found
-    if step >= times.size - 1:  # in the step after the run's last: not the run's
-        return None
-    t = (step0 + step) * dt
-    reason = f"MuJoCo warning at t = {t:.6g} s (step {step0 + step}): {text}"
-    return Verdict(step0 + step - 1, "unstable", reason)
+        t = (self.step0 + step) * self.dt
+        reason = f"MuJoCo warning at t = {t:.6g} s (step {self.step0 + step}): {text}"
+        return Verdict(self.step0 + step - 1, "unstable", reason)
+
+    def _piece(
+        self,
+        end: int,
+        verdict: Verdict | None,
+        work: np.ndarray,
+        v_start: np.ndarray,
+        contacts: StepContacts,
+    ) -> Piece:
+        """The rows of the chunk's first `end` steps that are logged: every `log_every`-th
+        step from the run's start, and the step the run stops on."""
+        every = self.request.log_every
+        first = -self.step0 % every
+        keep = np.arange(first, end, every, dtype=np.int64)
+        if verdict is not None and end > 0 and (keep.size == 0 or keep[-1] != end - 1):
+            keep = np.append(keep, end - 1)
+        rows = self.rows[keep]
+        joints = self.request.inst.joints
+        if joints is not None and self.qpos is not None:
+            states = np.hstack([self.times[keep, None], self.qpos[keep], v_start[keep]])
+            rows = np.hstack([rows, joints.terms(states, rows)])
+        # the work done before each logged step: the run's so far and the chunk's steps before
+        done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, axis=0)])
+        logged = contacts.take(np.isin(contacts.step, keep))
+        logged = dataclasses.replace(logged, step=np.searchsorted(keep, logged.step))
+        t_ns = (self.step0 + keep) * self.dt_ns
+        if t_ns.size:
+            self.logged += t_ns.size
+            self.last_t_ns = int(t_ns[-1])
+        ending = None
+        if verdict is not None:
+            ending = self._ending(verdict)
+        wall = time.perf_counter() - self.started
+        return Piece(self.request, t_ns, rows, done[keep], logged, ending, wall_s=wall)
+
+    def _ending(self, verdict: Verdict) -> Ending:
+        stop = self.request.stop
+        warnings = []
+        episodes = self.episodes.finish(verdict.last_step)
+        nbody = len(self.request.inst.bodies)
+        touched = any(ep.side2 < nbody for ep in episodes)
+        if stop is not None and stop.separation is not None and not touched:
+            warnings.append(
+                f"no contact between the bodies within {max(verdict.last_step, 0) * self.dt:g} s: "
+                "the collision never happened, so 'after' equals 'before'"
+            )
+        if verdict.outcome == "unstable":
+            warnings.append(f"unstable: {verdict.reason}")
+        return Ending(verdict, warnings, self.logged, self.last_t_ns, episodes)
 
 
-def _first(mask: np.ndarray) -> int | None:
-    idx = np.flatnonzero(mask)
-    return int(idx[0]) if idx.size else None
+def simulate(requests: Iterable[RunRequest]) -> Generator[Piece, None, None]:
+    """Simulate runs one after the other and yield their logged rows chunk by chunk.
 
-
-def _ending(a: _Active, dt: float) -> Ending:
-    verdict = a.verdict
-    assert verdict is not None
-    stop = a.request.stop
-    warnings = []
-    if stop is not None and stop.separation is not None and not a.touched:
-        warnings.append(
-            f"no contact between the bodies within {max(verdict.last_step, 0) * dt:g} s: "
-            "the collision never happened, so 'after' equals 'before'"
-        )
-    if verdict.outcome == "unstable":
-        warnings.append(f"unstable: {verdict.reason}")
-    return Ending(verdict, warnings, a.logged, a.last_t_ns, a.work.finish())
-
-
-def simulate(
-    batches: Iterable[list[RunRequest]], *, threads: int | None = None, ahead: int = 2
-) -> Generator[Piece, None, None]:
-    """Simulate batches of runs and yield their logged rows chunk by chunk, as they come.
-
-    The runs of a batch must share MuJoCo's size signature (e.g. points of one sweep) and
-    timestep. Every run advances in chunks of the same number of steps from step 0, and the
-    solver's warm start restarts at each chunk, so a run's rows do not depend on the batch it
-    is in or on the number of threads. The simulation runs on its own thread (MuJoCo releases
-    the GIL while it steps), up to `ahead` chunks ahead of the caller: while the caller
-    handles a chunk's pieces, the next ones simulate and the next batch is built. Closing the
-    generator waits for at most the chunk being simulated.
-
-    Args:
-        batches: lists of runs (consumed lazily on the simulation thread, one batch ahead).
-        threads: rollout threads (default: one per core, at most one per run).
-        ahead: chunks the simulation may run ahead of the caller (bounds the memory).
+    Each run steps with `mj_step` from its initial state (an RK4 run with its stages called
+    one by one, to read the forces at the step's start); after every step the recorder
+    copies MuJoCo's sensors, its contacts and constraint forces and the per-dof forces that
+    can do work, so contacts, impacts and the energy budget are found at every step
+    whatever the logging stride. Memory is bounded by the chunk.
 
     Yields:
-        `Piece`s: each run's rows in time order, its last piece with its `ending`; a batch
-        whose simulation fails ends each of its runs with a piece carrying `error`.
-
-    Raises:
-        Whatever iterating `batches` raises, on the caller's thread.
+        `Piece`s: each run's rows in time order, its last piece with its `ending`; a run
+        that fails ends with a piece carrying `error`.
     """
     quiet_mujoco()
-    out: queue.Queue[list[Piece] | BaseException | None] = queue.Queue(maxsize=max(1, ahead))
-    stop = threading.Event()
-
-    def put(item: list[Piece] | BaseException | None) -> bool:
-        while not stop.is_set():
-            with contextlib.suppress(queue.Full):
-                out.put(item, timeout=0.05)
-                return True
-        return False
-
-    def produce() -> None:
+    for request in requests:
         try:
-            with contextlib.closing(_chunks(batches, threads, stop)) as chunks:
-                for pieces in chunks:
-                    if not put(pieces):
-                        return
-            put(None)
-        except BaseException as exc:  # handed to the caller's thread
-            put(exc)
-
-    producer = threading.Thread(target=produce, name="impactlab-sim", daemon=True)
-    producer.start()
-    try:
-        while (item := out.get()) is not None:
-            if isinstance(item, BaseException):
-                raise item
-            yield from item
-    finally:
-        stop.set()
-        producer.join()
-
-
-def _chunks(
-    batches: Iterable[list[RunRequest]], threads: int | None, stop: threading.Event
-) -> Generator[list[Piece], None, None]:
-    """Each chunk's pieces of every batch in turn, until `stop` is set."""
-    for requests in batches:
-        if not requests:
-            continue
-        try:
-            batch = _Batch(requests, threads)
-        except Exception as exc:
-            yield [_failed(r, f"{type(exc).__name__}: {exc}") for r in requests]
-            continue
-        try:
-            while batch.running and not stop.is_set():
-                try:
-                    pieces = batch.take(*batch.rollout())
-                except Exception as exc:  # MuJoCo errors, e.g. a model it cannot step
-                    pieces = batch.fail(f"{type(exc).__name__}: {exc}")
-                yield pieces
-        finally:
-            batch.close()
-        if stop.is_set():
-            return
+            run = _Run(request)
+            while True:
+                piece = run.next_piece()
+                yield piece
+                if piece.ending is not None:
+                    break
+        except Exception as exc:  # MuJoCo errors, e.g. a model it cannot step
+            yield _failed(request, f"{type(exc).__name__}: {exc}")
 
 
 def _failed(request: RunRequest, reason: str) -> Piece:

@@ -1,8 +1,4 @@
-"""Stop rules evaluated on chunks of sensordata, vectorised, with state carried between chunks.
-
-Each rule sees every simulated step (not only the logged ones) as rows of sensordata, and
-returns the global step index of the last row to keep when it fires.
-"""
+"""Stop rules evaluated on every simulated step of a chunk, vectorised, with state carried on."""
 
 from __future__ import annotations
 
@@ -12,12 +8,28 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from impactlab.record.geometry import gravity, up_vector
+from impactlab.physics import min_impact_speed
+from impactlab.record.contacts import StepContacts
+from impactlab.record.geometry import can_collide, gravity, up_vector
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.spec import Stop
 
 if TYPE_CHECKING:
-    import mujoco
+    from impactlab.record.episodes import Episode, Episodes
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """What a chunk gives the rules: every step's sensordata rows from `step0`, the
+    contacts (local steps) and their parties, the episodes released in it, and each step's
+    work per kind of force (J)."""
+
+    rows: np.ndarray
+    step0: int
+    contacts: StepContacts
+    sides: tuple[np.ndarray, np.ndarray]
+    released: list[Episode]
+    work: np.ndarray
 
 
 @dataclass
@@ -30,7 +42,7 @@ class Verdict:
 
 
 class _Rule:
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+    def update(self, chunk: Chunk) -> Verdict | None:
         raise NotImplementedError
 
 
@@ -41,7 +53,8 @@ def _first(mask: np.ndarray) -> int | None:
 
 @dataclass
 class _Finite(_Rule):
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+    def update(self, chunk: Chunk) -> Verdict | None:
+        rows, step0 = chunk.rows, chunk.step0
         bad = _first(~np.isfinite(rows).all(axis=1))
         if bad is None:
             return None
@@ -52,43 +65,48 @@ class _Finite(_Rule):
 
 @dataclass
 class _Bounces(_Rule):
-    """Stop at the apex after the N-th bounce of every body that touches the ground.
+    """Stop at the apex after the N-th bounce of every free body that lands on the ground.
 
-    A body touches the ground when any of its contact sensors with a ground surface finds a
-    contact (`contact_cols`: per body, those sensors' columns); its apex is the first step
-    after the N-th release whose velocity along -gravity (`vel_cols`: the body's linear
-    velocity, 3 columns) is not positive.
+    A bounce is an episode of the body with a ground surface that arrived at an impact speed
+    (`physics.min_impact_speed`) and was released: the body stayed apart for
+    `physics.MIN_FLIGHT_STEPS` steps (the analysis counts the same episodes). The apex is the
+    first step from then on whose velocity along -gravity (`vel_adr`: the body's linear
+    velocity) is not positive and where the body touches no surface.
     """
 
     n: int
-    contact_cols: list[list[int]]
-    vel_cols: list[int]
+    bodies: list[int]  # party ids of the free bodies that can land on a surface
+    vel_adr: list[int]
+    surfaces: set[int]
     up: np.ndarray
-    in_contact: list[bool] = field(default_factory=list)
-    count: list[int] = field(default_factory=list)
-    done_step: list[int | None] = field(default_factory=list)
+    v_min: float
+    count: dict[int, int] = field(default_factory=dict)
+    since: dict[int, int] = field(default_factory=dict)  # global step the N-th is certain
+    done: dict[int, int] = field(default_factory=dict)
 
-    def __post_init__(self) -> None:
-        k = len(self.contact_cols)
-        self.in_contact, self.count, self.done_step = [False] * k, [0] * k, [None] * k
-
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        for b, (ccols, vcol) in enumerate(zip(self.contact_cols, self.vel_cols, strict=True)):
-            if self.done_step[b] is not None:
+    def update(self, chunk: Chunk) -> Verdict | None:
+        rows, step0 = chunk.rows, chunk.step0
+        for ep in chunk.released:
+            if ep.side1 in self.bodies and ep.side2 in self.surfaces and -ep.v_in >= self.v_min:
+                self.count[ep.side1] = self.count.get(ep.side1, 0) + 1
+                if self.count[ep.side1] == self.n:
+                    self.since[ep.side1] = ep.confirmed
+        p1, p2 = chunk.sides
+        for body, adr in zip(self.bodies, self.vel_adr, strict=True):
+            if body in self.done or body not in self.since:
                 continue
-            touching = np.asarray((rows[:, ccols] > 0).any(axis=1))
-            before = np.concatenate([[self.in_contact[b]], touching[:-1]])
-            released = before & ~touching
-            total = self.count[b] + np.cumsum(released)
-            self.in_contact[b] = bool(touching[-1])
-            reached = total >= self.n
-            v_up = rows[:, vcol : vcol + 3] @ self.up
-            apex = _first(reached & ~touching & (v_up <= 0.0))
-            self.count[b] = int(total[-1])
+            mine = ((p1 == body) & np.isin(p2, list(self.surfaces))) | (
+                (p2 == body) & np.isin(p1, list(self.surfaces))
+            )
+            touching = np.zeros(rows.shape[0], bool)
+            touching[chunk.contacts.step[mine]] = True
+            v_up = rows[:, adr : adr + 3] @ self.up
+            later = np.arange(rows.shape[0]) + step0 >= self.since[body]
+            apex = _first(later & ~touching & (v_up <= 0.0))
             if apex is not None:
-                self.done_step[b] = step0 + apex
-        if self.done_step and all(s is not None for s in self.done_step):
-            last = max(s for s in self.done_step if s is not None)
+                self.done[body] = step0 + apex
+        if self.bodies and all(b in self.done for b in self.bodies):
+            last = max(self.done.values())
             return Verdict(last, "completed", f"apex after bounce {self.n}")
         return None
 
@@ -102,7 +120,8 @@ class _AtRest(_Rule):
     vel_cols: list[int]
     run: int = 0
 
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+    def update(self, chunk: Chunk) -> Verdict | None:
+        rows, step0 = chunk.rows, chunk.step0
         speeds = np.stack([np.linalg.norm(rows[:, c : c + 3], axis=1) for c in self.vel_cols])
         slow = (speeds < self.speed).all(axis=0)
         # length of the run of slow steps ending at each row, continuing the previous chunk's
@@ -126,18 +145,20 @@ class _Separated(_Rule):
     """Stop once two bodies have touched and their surfaces are `gap_m` apart again.
 
     `gap_cols`: per pair of bodies, the columns of MuJoCo's distance sensors between their
-    geoms (the gap is the smallest).
+    geoms (the gap is the smallest); `nbody`: parties below it are rigid bodies.
     """
 
     gap_m: float
-    contact_cols: list[int]
     gap_cols: list[list[int]]
+    nbody: int
     touched: bool = False
 
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
+    def update(self, chunk: Chunk) -> Verdict | None:
+        rows, step0 = chunk.rows, chunk.step0
+        p1, p2 = chunk.sides
+        between = (p1 < self.nbody) & (p2 < self.nbody) & (p1 != p2)
         touching = np.zeros(rows.shape[0], dtype=bool)
-        for c in self.contact_cols:
-            touching |= rows[:, c] > 0
+        touching[chunk.contacts.step[between]] = True
         seen = self.touched | (np.cumsum(touching) > 0)
         self.touched = bool(seen[-1])
         gaps = np.stack([rows[:, cols].min(axis=1) for cols in self.gap_cols]).min(axis=0)
@@ -148,66 +169,65 @@ class _Separated(_Rule):
 
 
 @dataclass
-class _EnergyGain(_Rule):
-    """Unstable when MuJoCo's own mechanical energy (kinetic plus potential: gravity and
-    springs, every body and joint) grows beyond a bound while the model has no source.
+class _Residual(_Rule):
+    """Unstable when energy appears that no force explains: the budget's energy (MuJoCo's
+    kinetic energy plus the bodies' gravitational potential energy) minus the work of every
+    other force grows beyond a bound (`impactlab.record.budget`)."""
 
-    `adr`: the column of MuJoCo's potential energy sensor; its kinetic one follows.
-    """
-
-    adr: int
+    kinetic_adr: int
+    pos_adr: list[int]
+    weights: np.ndarray  # per body, -mass * gravity (3,): its potential energy is w . x
     fraction: float
     timestep: float
     floor_J: float
-    energy_start: float | None = None
+    start: float | None = None
     scale: float = 0.0
+    work_done: float = 0.0
 
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        potential, kinetic = rows[:, self.adr], rows[:, self.adr + 1]
+    def update(self, chunk: Chunk) -> Verdict | None:
+        rows = chunk.rows
+        potential = sum(
+            rows[:, a : a + 3] @ w for a, w in zip(self.pos_adr, self.weights, strict=True)
+        )
+        kinetic = rows[:, self.kinetic_adr]
         energy = kinetic + potential
-        if self.energy_start is None:
-            self.energy_start = float(energy[0])
-            self.scale = max(float(kinetic[0] + abs(potential[0])), self.floor_J, 1e-6)
-        gain = energy - self.energy_start
-        bad = _first(gain > self.fraction * self.scale)
+        if self.start is None:
+            self.start = float(energy[0])
+            self.scale = max(float(kinetic[0] + abs(energy[0] - kinetic[0])), self.floor_J, 1e-6)
+        done = self.work_done + np.r_[0.0, np.cumsum(chunk.work.sum(axis=1))[:-1]]
+        self.work_done += float(chunk.work.sum())
+        residual = energy - self.start - done
+        bad = _first(residual > self.fraction * self.scale)
         if bad is None:
             return None
-        t = (step0 + bad) * self.timestep
+        t = (chunk.step0 + bad) * self.timestep
         reason = (
-            f"MuJoCo's energy grew by {gain[bad]:.4g} J (bound {self.fraction:g} x "
-            f"{self.scale:.4g} J) at t = {t:.6g} s with no source"
+            f"energy grew by {residual[bad]:.4g} J that no force explains (bound "
+            f"{self.fraction:g} x {self.scale:.4g} J) at t = {t:.6g} s"
         )
-        return Verdict(step0 + bad, "unstable", reason)
-
-
-def energy_sources(model: mujoco.MjModel) -> list[str]:
-    """What can feed a model's energy with no control input: actuators with a bias force
-    (position or velocity servos), gravity compensation. Empty: the energy cannot grow."""
-    sources = []
-    if model.nu and np.any(model.actuator_biasprm[:, :3] != 0):
-        sources.append("actuators with a bias force")
-    if np.any(model.body_gravcomp > 0):
-        sources.append("gravity compensation")
-    return sources
+        return Verdict(chunk.step0 + bad, "unstable", reason)
 
 
 @dataclass
 class _Penetration(_Rule):
-    """Unstable when a contact penetrates deeper than a bound (m) for its pair."""
+    """Unstable when a contact of a ball penetrates deeper than a fraction of its radius
+    (`bounds_m`: per party, the bound; inf for parties without a radius)."""
 
-    dist_cols: list[int]
-    bounds_m: list[float]
+    bounds_m: np.ndarray
     timestep: float
 
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        for col, bound in zip(self.dist_cols, self.bounds_m, strict=True):
-            found = rows[:, col - 4] > 0
-            bad = _first(found & (-rows[:, col] > bound))
-            if bad is not None:
-                t = (step0 + bad) * self.timestep
-                reason = f"penetration {-rows[bad, col]:.4g} m > {bound:.4g} m at t = {t:.6g} s"
-                return Verdict(step0 + bad, "unstable", reason)
-        return None
+    def update(self, chunk: Chunk) -> Verdict | None:
+        p1, p2 = chunk.sides
+        bound = np.minimum(self.bounds_m[p1], self.bounds_m[p2])
+        over = chunk.contacts.penetration > bound
+        if not over.any():
+            return None
+        bad = int(chunk.contacts.step[over].min())
+        depth = float(chunk.contacts.penetration[over & (chunk.contacts.step == bad)].max())
+        limit = float(bound[over & (chunk.contacts.step == bad)].min())
+        t = (chunk.step0 + bad) * self.timestep
+        reason = f"penetration {depth:.4g} m > {limit:.4g} m at t = {t:.6g} s"
+        return Verdict(chunk.step0 + bad, "unstable", reason)
 
 
 class StopMonitor:
@@ -215,49 +235,54 @@ class StopMonitor:
 
     def __init__(self, inst: InstrumentedModel, stop: Stop | None, *, timestep: float) -> None:
         self.rules: list[_Rule] = [_Finite()]
-        self.bodybody_cols: list[int] = []
         model = inst.model
+        g = gravity(model)
         gain = stop.max_energy_gain if stop else Stop.model_fields["max_energy_gain"].default
-        if not energy_sources(model):
-            mass = float(sum(model.body_mass[b.body_id] for b in inst.bodies))
-            self.rules.append(
-                _EnergyGain(
-                    adr=inst.energy_adr,
-                    fraction=gain,
-                    timestep=timestep,
-                    floor_J=0.1 * mass * math.hypot(*gravity(model)),  # no overflow
-                )
+        mass = float(sum(b.mass for b in inst.bodies))
+        self.rules.append(
+            _Residual(
+                kinetic_adr=inst.energy_adr + 1,
+                pos_adr=[b.adr for b in inst.bodies],
+                weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
+                fraction=gain,
+                timestep=timestep,
+                floor_J=0.1 * mass * math.hypot(*g),  # no overflow
             )
-        radius = {b.name: b.radius for b in inst.bodies}
+        )
         fraction = stop.max_penetration if stop else Stop.model_fields["max_penetration"].default
-        limited = [
-            (c.adr + 4, fraction * min(r for r in (radius.get(c.body1), radius[c.body2]) if r))
-            for c in inst.contacts
-            if c.num == 1 and radius.get(c.body2)
-        ]
-        if limited:
-            self.rules.append(
-                _Penetration([c for c, _ in limited], [b for _, b in limited], timestep)
-            )
+        bounds = np.full(len(inst.party_names), np.inf)
+        for i, b in enumerate(inst.bodies):
+            if b.radius:
+                bounds[i] = fraction * b.radius
+        if np.isfinite(bounds).any():
+            self.rules.append(_Penetration(bounds, timestep))
         if stop is None:
             return
-        by_name = {b.name: b for b in inst.bodies}
-        ground = {s.name for s in inst.surfaces}
-        bodybody = [c for c in inst.contacts if c.body1 in by_name and c.body2 in by_name]
-        self.bodybody_cols = [c.adr for c in bodybody]
+        nbody = len(inst.bodies)
+        surfaces = {
+            int(inst.party[i]) for i in range(model.ngeom) if inst.party[i] >= nbody
+        }
         if stop.bounces is not None:
-            landing = {
-                b.name: [c.adr for c in inst.contacts if c.geom1 in ground and c.body2 == b.name]
-                for b in inst.bodies
-                if b.motion == "free"  # an apex is a free body's
-            }
-            landing = {name: cols for name, cols in landing.items() if cols}
+            ground = [g for g in range(model.ngeom) if inst.party[g] >= nbody]
+            free = [
+                i
+                for i, b in enumerate(inst.bodies)
+                if b.motion == "free"
+                and any(
+                    can_collide(model, g, s)
+                    for g in range(model.ngeom)
+                    if inst.party[g] == i
+                    for s in ground
+                )
+            ]
             self.rules.append(
                 _Bounces(
                     n=stop.bounces,
-                    contact_cols=list(landing.values()),
-                    vel_cols=[by_name[name].adr + 7 for name in landing],
+                    bodies=free,
+                    vel_adr=[inst.bodies[i].adr + 7 for i in free],
+                    surfaces=surfaces,
                     up=up_vector(model),
+                    v_min=min_impact_speed(float(np.linalg.norm(g)), timestep),
                 )
             )
         if stop.at_rest:
@@ -271,13 +296,22 @@ class StopMonitor:
         if stop.separation is not None and inst.gaps:
             self.rules.append(
                 _Separated(
-                    gap_m=stop.separation,
-                    contact_cols=self.bodybody_cols,
-                    gap_cols=[list(g.adrs) for g in inst.gaps],
+                    gap_m=stop.separation, gap_cols=[list(g.adrs) for g in inst.gaps], nbody=nbody
                 )
             )
 
-    def update(self, rows: np.ndarray, step0: int) -> Verdict | None:
-        """Feed rows for steps step0.. ; return the earliest verdict, if any rule fired."""
-        verdicts = [v for rule in self.rules if (v := rule.update(rows, step0)) is not None]
+    def update(
+        self,
+        rows: np.ndarray,
+        step0: int,
+        contacts: StepContacts,
+        episodes: Episodes,
+        released: list[Episode],
+        work: np.ndarray,
+    ) -> Verdict | None:
+        """Feed every step from step0 (rows, contacts, work) and the episodes released;
+        return the earliest verdict, if any rule fired."""
+        inside = contacts.take(contacts.step < rows.shape[0])
+        chunk = Chunk(rows, step0, inside, episodes.sides(inside), released, work)
+        verdicts = [v for rule in self.rules if (v := rule.update(chunk)) is not None]
         return min(verdicts, key=lambda v: v.last_step) if verdicts else None

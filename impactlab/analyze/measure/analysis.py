@@ -1,4 +1,4 @@
-"""Analysis of one run: every quantity frame, and the run's one-row summary."""
+"""Analysis of runs: every quantity frame, and each run's one-row summary."""
 
 from __future__ import annotations
 
@@ -16,16 +16,20 @@ from impactlab.analyze.measure.collisions import (
     no_collision_rows,
     with_surroundings,
 )
-from impactlab.analyze.measure.contact_intervals import contact_rows, raw_intervals
 from impactlab.analyze.measure.energy import run_energies
+from impactlab.analyze.measure.episodes import episodes
 from impactlab.analyze.measure.flights import flight_rows, flights
 from impactlab.analyze.measure.ground import Ground, references, run_ground
-from impactlab.analyze.measure.impacts import approach_and_release, merge_chatter
-from impactlab.analyze.measure.phases import energy_phases
-from impactlab.analyze.measure.states import logged_interval_s, per_run, state_blocks, states_long
+from impactlab.analyze.measure.phases import WORK_COLUMNS, energy_phases
+from impactlab.analyze.measure.states import per_run, state_blocks, states_long
 from impactlab.analyze.measure.summary import run_aggregates, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
+from impactlab.logs.messages import WORK_FIELDS
+
+ANALYZED_FORMAT = 3
+"""Logs of this format on are analyzed: they carry the recorder's contact episodes and
+energy budget (`/impacts`, `/energy/work`)."""
 
 
 @dataclass
@@ -35,7 +39,7 @@ class RunAnalysis:
     Attributes:
         run: the decoded log.
         states: every body's state (`states_long`).
-        intervals: contacts of every pair, chatter merged (`impacts.merge_chatter`).
+        intervals: the run's contact episodes (`episodes.episodes`).
         energy: energy per body and total ("total" rows), full resolution.
         phases: flight and contact phases with energy drift and loss.
         bounces: one row per bounce of a body on a surface (rows with the reason for bodies
@@ -79,51 +83,20 @@ def analyze_run(run: RunLog) -> RunAnalysis:
     return result
 
 
-@dataclass(frozen=True)
-class _Contacts:
-    """One run's states and raw contact intervals with their impact and release speeds."""
-
-    run: RunLog
-    ground: Ground
-    states: pl.DataFrame
-    rows: pl.DataFrame
-    raw: pl.DataFrame
-
-
 def _check(run: RunLog) -> Ground:
     """The run's ground, once its metadata is known to be usable (else LogError)."""
     reason = run.unanalyzable()
     if reason is not None:
         raise LogError(str(run.path), reason)
-    return run_ground(run)
-
-
-def _contacts(
-    runs: list[RunLog], grounds: dict[str, Ground]
-) -> tuple[list[_Contacts], pl.DataFrame]:
-    """The row-level part of the analysis of runs with usable metadata: states, rows and raw
-    contacts with their impact and release speeds, each run's split out of the batch's; and
-    the batch's states."""
-    states, rows = states_long(runs)
-    kinds: dict[tuple[tuple[str, ...], tuple[str, ...]], list[RunLog]] = {}
-    for run in runs:  # runs with the same bodies and surfaces: their contacts tagged at once
-        kinds.setdefault((tuple(run.bodies), tuple(grounds[run.run_id].surfaces)), []).append(run)
-    steps = pl.concat(
-        [contact_rows(group, surfaces, rows) for (_, surfaces), group in kinds.items()]
-    )
-    raw = approach_and_release(raw_intervals(steps, runs, rows), states, runs, grounds)
-    states_of, rows_of, raw_of = _run_slices(states), by_run(rows), by_run(raw)
-    parts = [
-        _Contacts(
-            run,
-            grounds[run.run_id],
-            states_of.get(run.run_id, states.clear()),
-            rows_of.get(run.run_id, rows.clear()),
-            raw_of.get(run.run_id, raw.clear()),
+    version = str(run.checked.values.get("log_format_version", ""))
+    if not (version.isdigit() and int(version) >= ANALYZED_FORMAT):
+        raise LogError(
+            str(run.path),
+            f"a log of format {version or 'unknown'}: the analysis needs the contact episodes "
+            f"and energy budget of format {ANALYZED_FORMAT} on; record the run again (its "
+            "spec is in the log: `impactlab info` shows it)",
         )
-        for run in runs
-    ]
-    return parts, states
+    return run_ground(run)
 
 
 def _run_slices(states: pl.DataFrame) -> dict[str, pl.DataFrame]:
@@ -181,7 +154,7 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
     """The runs analyzed together; if that fails (one's metadata fails on the way, or runs
     whose frames cannot be stacked), each on its own, so that an error is that run's alone."""
     try:
-        return list(_analyze_contacts(*_contacts(runs, grounds)))
+        return _analyze(runs, grounds)
     except LogError as exc:
         if len(runs) == 1:
             return [exc]
@@ -191,37 +164,27 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
     return [r for run in runs for r in _batch_or_each([run], grounds)]
 
 
-def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunAnalysis]:
-    """The analyses of runs whose states and raw contacts are computed (`_contacts`), in
-    their order (see `analyze_runs`)."""
-    runs = [p.run for p in parts]
-    contacts = merge_chatter(pl.concat([p.raw for p in parts])).with_columns(
-        per_run(runs, logged_interval_s).alias("interval_s")
-    )
+def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis]:
+    """The analyses of runs whose metadata is usable, in their order (see `analyze_runs`)."""
+    states, rows = states_long(runs)
+    eps = episodes(runs, rows)
     on_ground = (
-        contacts.filter(pl.col("kind") == "ground")
-        .sort("run_id", "body", "first_row")
+        eps.filter(pl.col("kind") == "ground")
+        .sort("run_id", "body", "start_t_ns")
         .with_columns(pl.int_range(pl.len()).over("run_id", "body").alias("contact"))
     )
     first: dict[str, dict[str, str]] = {}  # per run, each body's first ground contact's surface
-    for r, b, s in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
-        first.setdefault(r, {}).setdefault(b, s)
-    contacts_of, empty_contacts = by_run(contacts), contacts.clear()
+    for r, b, o in zip(*(on_ground[c].to_list() for c in ("run_id", "body", "other")), strict=True):
+        first.setdefault(r, {}).setdefault(b, o)
     start = _first_positions(states)
-    grounds = {p.run.run_id: p.ground for p in parts}
     refs = {
         r.run_id: references(r, grounds[r.run_id], first.get(r.run_id, {}), start.get(r.run_id, {}))
         for r in runs
     }
     energies, total_of = run_energies(states, runs, grounds, refs)
-    totals, in_contact = [], []
-    for p in parts:
-        total = total_of[p.run.run_id]
-        totals.append(total)
-        times = contact_times(contacts_of.get(p.run.run_id, empty_contacts), p.rows)
-        in_contact.append(is_in_sorted(total["t_ns"].to_numpy(), times.to_numpy()))
-    total_all = pl.concat(totals)
-    phases = energy_phases(total_all, pl.Series(np.concatenate(in_contact), dtype=pl.Boolean))
+    budget = pl.concat([_budget(run, total_of[run.run_id]) for run in runs])
+    inside = np.concatenate([_inside(run, eps, total_of[run.run_id]) for run in runs])
+    phases = energy_phases(budget, pl.Series(inside, dtype=pl.Boolean))
     fl = flights(flight_rows(states, on_ground, runs, grounds))
     g_n = -(
         per_run(runs, lambda r: r.gravity[0]) * pl.col("nx_out")
@@ -231,54 +194,94 @@ def _analyze_contacts(parts: list[_Contacts], states: pl.DataFrame) -> list[RunA
     articulated = [
         (r.run_id, b) for r in runs for b, i in r.body_info.items() if i.motion != "free"
     ]
-    work = pl.concat([r.contact_work for r in runs])
-    found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated, work=work)
-    bnc = _with_no_bounce_rows(parts, found, on_ground)
-    bounces_of, phases_of = by_run(bnc), by_run(phases)
-    body_contacts = by_run(contacts.filter(pl.col("kind") == "body"))
-    aggregates = run_aggregates(total_all, phases, bnc)
-    no_collisions = pl.DataFrame(schema=COLLISION_SCHEMA)  # built once: 40 columns
+    found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated)
+    states_of = _run_slices(states)
+    bnc = _with_no_bounce_rows(runs, grounds, states_of, found, on_ground)
+    bounces_of, phases_of, eps_of = by_run(bnc), by_run(phases), by_run(eps)
+    aggregates = run_aggregates(pl.concat(list(total_of.values())), phases, bnc)
+    no_collisions = pl.DataFrame(schema=COLLISION_SCHEMA)  # built once: many columns
     out = []
-    for p in parts:
-        run, rid = p.run, p.run.run_id
+    for run in runs:
+        rid = run.run_id
+        mine = eps_of.get(rid, eps.clear())
+        run_states = states_of.get(rid, states.clear())
         names = [n for n in run.body_info if n in run.bodies]
         infos = {n: run.body_info[n] for n in names}
-        col = no_collisions
-        if rid in body_contacts:
-            col = collisions(body_contacts[rid], p.states, infos)
+        col = collisions(mine.filter(pl.col("kind") == "body"), infos)
+        if col.is_empty():
+            col = no_collisions
+        else:
             g = float(np.linalg.norm(run.gravity))
             links = frozenset(n for n, i in run.body_info.items() if i.motion != "free")
-            col = with_surroundings(col, run.contacts, g, logged_interval_s(run), links)
+            col = with_surroundings(col, mine, g, links)
         if col.is_empty() and len(names) >= 2 and expects_collision(run):
             col = no_collision_rows(
                 rid,
-                p.states,
+                run_states,
                 infos,
-                f"no contact between the bodies in the {duration_s(p.states):.4g} s logged: "
+                f"no contact between the bodies in the {duration_s(run_states):.4g} s logged: "
                 "the collision never happened, so 'after' (last logged state) equals 'before'",
             )
-        mine_bounces = bounces_of.get(rid, bnc.clear())
         summary = summary_row(
             run,
             aggregates=aggregates,
-            states=p.states,
+            states=run_states,
             collisions=col,
-            ground=bool(p.ground.surfaces),
+            ground=bool(grounds[rid].surfaces),
         )
         out.append(
             RunAnalysis(
                 run,
-                p.states,
-                contacts_of.get(rid, empty_contacts),
+                run_states,
+                mine,
                 energies[rid],
                 phases_of.get(rid, phases.clear()),
-                mine_bounces,
+                bounces_of.get(rid, bnc.clear()),
                 col,
                 summary,
-                p.ground,
+                grounds[rid],
             )
         )
     return out
+
+
+def _budget(run: RunLog, total: pl.DataFrame) -> pl.DataFrame:
+    """The run's budget rows (run_id, t_ns, t_s, energy_J, `WORK_COLUMNS`) at its "total"
+    energy rows: the bodies' energy and the rotor inertia's, without the springs' (their
+    work is booked instead), and the work each kind of force did so far."""
+    t = total["t_ns"].to_numpy()
+    spring = np.zeros(t.size)
+    joints = run.joint_energy
+    if joints.height:
+        spot = np.clip(np.searchsorted(joints["t_ns"].to_numpy(), t), 0, joints.height - 1)
+        spring = joints["potential"].to_numpy()[spot]
+    work = run.work
+    done = np.full((t.size, len(WORK_FIELDS)), np.nan)
+    if work.height:
+        logged = work["t_ns"].to_numpy()
+        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
+        found = logged[spot] == t
+        for i, kind in enumerate(WORK_FIELDS):
+            done[found, i] = work[kind].to_numpy()[spot[found]]
+    return total.select("run_id", "t_ns", "t_s").with_columns(
+        pl.Series("energy_J", total["total_J"].to_numpy() - spring),
+        *[pl.Series(c, done[:, i]) for i, c in enumerate(WORK_COLUMNS)],
+    )
+
+
+def _inside(run: RunLog, eps: pl.DataFrame, total: pl.DataFrame) -> np.ndarray:
+    """Whether the time from each "total" row of the run to the next overlaps any of its
+    contact episodes: the contact phases then hold every step in contact, the flights none."""
+    t = total["t_ns"].to_numpy()
+    mine = eps.filter(pl.col("run_id") == run.run_id)
+    first = np.maximum(np.searchsorted(t, mine["start_t_ns"].to_numpy(), "right") - 1, 0)
+    last = np.searchsorted(t, mine["end_t_ns"].to_numpy(), "left") - 1
+    keep = last >= first
+    cover = np.zeros(t.size + 1, np.int64)
+    np.add.at(cover, first[keep], 1)
+    np.add.at(cover, last[keep] + 1, -1)
+    inside: np.ndarray = np.cumsum(cover)[:-1] > 0
+    return inside
 
 
 def _first_positions(states: pl.DataFrame) -> dict[str, dict[str, tuple[float, float, float]]]:
@@ -293,52 +296,37 @@ def _first_positions(states: pl.DataFrame) -> dict[str, dict[str, tuple[float, f
 
 
 def _with_no_bounce_rows(
-    parts: list[_Contacts], bnc: pl.DataFrame, on_ground: pl.DataFrame
+    runs: list[RunLog],
+    grounds: dict[str, Ground],
+    states_of: dict[str, pl.DataFrame],
+    bnc: pl.DataFrame,
+    on_ground: pl.DataFrame,
 ) -> pl.DataFrame:
     """The runs' bounces, with a row for each body of a run with a ground that has none,
     saying why (after the run's bounces)."""
     have = set(zip(bnc["run_id"].to_list(), bnc["body"].to_list(), strict=True))
     missing = [
-        (p, name)
-        for p in parts
-        if p.ground.surfaces
-        for name in p.run.body_info
-        if name in p.run.bodies and (p.run.run_id, name) not in have
+        (run, name)
+        for run in runs
+        if grounds[run.run_id].surfaces
+        for name in run.body_info
+        if name in run.bodies and (run.run_id, name) not in have
     ]
     if not missing:
         return bnc
     firsts = on_ground.group_by("run_id", "body", maintain_order=True).agg(
-        pl.col("other", "row_b", "v_min_mps").first()
+        pl.col("other", "initial", "v_min_mps").first()
     )
     first = {(r["run_id"], r["body"]): r for r in firsts.to_dicts()}
     reasons = [
-        (p.run.run_id, name, no_bounce_reason(first.get((p.run.run_id, name)), p.states))
-        for p, name in missing
+        (
+            run.run_id,
+            name,
+            no_bounce_reason(first.get((run.run_id, name)), states_of.get(run.run_id, pl.DataFrame())),
+        )
+        for run, name in missing
     ]
     return pl.concat([bnc, no_bounce_rows(reasons)]).sort("run_id", maintain_order=True)
-
-
-def contact_times(contacts: pl.DataFrame, rows: pl.DataFrame) -> pl.Series:
-    """t_ns of every logged row inside any contact (chatter merged), sorted."""
-    if contacts.is_empty() or rows.is_empty():
-        return pl.Series("t_ns", [], dtype=pl.Int64)
-    row, t_ns = rows["row"].to_numpy(), rows["t_ns"].to_numpy()
-    first, last = contacts["first_row"].to_numpy(), contacts["last_row"].to_numpy()
-    size = int(max(row.max(), last.max())) + 2
-    cover = np.zeros(size, dtype=np.int64)  # +1 where a contact starts, -1 after it ends
-    np.add.at(cover, first, 1)
-    np.add.at(cover, last + 1, -1)
-    inside = np.cumsum(cover)[row] > 0
-    return pl.Series("t_ns", np.sort(t_ns[inside]), dtype=pl.Int64)
-
-
-def is_in_sorted(values: np.ndarray, sorted_: np.ndarray) -> np.ndarray:
-    """`np.isin(values, sorted_)` for a sorted `sorted_`, by a binary search of each value."""
-    if not sorted_.size:
-        return np.zeros(values.shape, dtype=bool)
-    spot = np.minimum(np.searchsorted(sorted_, values), sorted_.size - 1)
-    found: np.ndarray = sorted_[spot] == values
-    return found
 
 
 def duration_s(states: pl.DataFrame) -> float:
@@ -348,12 +336,12 @@ def duration_s(states: pl.DataFrame) -> float:
 
 def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:
     """Why a body on a run with a ground has no bounce, from its first ground contact (other,
-    row_b, v_min_mps; None: it has none) and the run's states."""
+    initial, v_min_mps; None: it has none) and the run's states."""
     if first is None:
         return f"no contact with the ground in the {duration_s(states):.4g} s logged"
-    if first["row_b"] is None:
+    if first["initial"]:
         return (
-            f"at rest, sliding or rolling on {first['other']} from the first logged step: "
+            f"at rest, sliding or rolling on {first['other']} from the start: "
             "no impact, no bounce"
         )
     return (

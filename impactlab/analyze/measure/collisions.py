@@ -1,24 +1,12 @@
-"""Body-body collisions: velocities, momentum and kinetic energy before and after, measured e,
-and the analytic 1D outcome along the contact normal.
-
-The normal n is the contact normal (from body1 to body2) at the first logged row in contact;
-for two spheres it is the line of centres. "Before" is the state at the last logged row
-before the contact, "after" at the first row after it (two free bodies fall alike, so their
-relative velocity is the same at those rows as at the moments they meet and part). v1n, v2n
-are the velocities of the contact point of each body along n (v + w x r); the measured
-e = -(v2n' - v1n') / (v2n - v1n). The analytic outcome for restitution e (notes, physics.md),
-v1' = (m1 v1 + m2 v2 + m2 e (v2 - v1)) / (m1 + m2), v2' = (m1 v1 + m2 v2 + m1 e (v1 - v2)) /
-(m1 + m2), kinetic energy lost (1 - e^2) m1 m2 (v1 - v2)^2 / (2 (m1 + m2)), holds for a
-central impact only (n through both centres of mass); for an eccentric one those columns
-are left empty and the note says so. The relative momentum change is |p' - p| / (|m1 v1| +
-|m2 v2|) (not |p|, which can be zero). Contacts are merged across chatter as for bounces.
-"""
+"""Body-body collisions: momentum and kinetic energy before and after, e, and the 1D outcome."""
 
 from __future__ import annotations
 
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.measure.bounces import E_ABOVE_ONE
+from impactlab.analyze.measure.episodes import e_energy, e_velocity
 from impactlab.analyze.measure.states import state_at
 from impactlab.logs.load import BodyInfo
 from impactlab.physics import collision_after
@@ -57,7 +45,8 @@ COLLISION_SCHEMA = pl.Schema(
         "ke_after_J": pl.Float64,
         "ke_loss_J": pl.Float64,
         "ke_loss_frac": pl.Float64,
-        "e_measured": pl.Float64,
+        "e_velocity": pl.Float64,
+        "e_energy": pl.Float64,
         "ke_loss_predicted_J": pl.Float64,
         "v1n_after_e_mps": pl.Float64,
         "v2n_after_e_mps": pl.Float64,
@@ -87,33 +76,45 @@ def _norm(a: list[pl.Expr]) -> pl.Expr:
     return _dot(a, a).sqrt()
 
 
-def pair_states(states: pl.DataFrame, frame: pl.DataFrame, row: str, tag: str) -> pl.DataFrame:
-    """Attach body1's and body2's states at the row number in column `row` as `<col>1<tag>`,
-    `<col>2<tag>`."""
-    for k in ("1", "2"):
-        frame = state_at(states, frame, body=f"body{k}", row=row, suffix=f"{k}{tag}")
-    return frame
+def collisions(episodes: pl.DataFrame, infos: dict[str, BodyInfo]) -> pl.DataFrame:
+    """One row per contact episode of two rigid bodies of a run (see docs/analysis.md).
 
-
-def collisions(
-    contacts: pl.DataFrame, states: pl.DataFrame, infos: dict[str, BodyInfo]
-) -> pl.DataFrame:
-    """One row per contact between two free bodies (see the module docstring).
+    "Before" is both bodies' state at the first step in contact, "after" at the first step
+    after it (the recorder's, at every step: independent of the logging stride); n is the
+    contact normal then (from body1 to body2); v1n, v2n are the velocities of each body's
+    contact point along n (v + w x r).
 
     Args:
-        contacts: the run's merged contacts of kind "body" (`impacts.merge_chatter`).
-        states: `states_long` of the run.
+        episodes: the run's episodes of kind "body" (`episodes.episodes`).
         infos: the run's bodies (masses in kg).
 
     Returns:
-        Columns of `COLLISION_SCHEMA`; a contact still open at the end of the log is marked
+        Columns of `COLLISION_SCHEMA`; a contact still open at the end of the run is
         incomplete and gets no "after" values.
     """
     names = list(infos)
-    hits = contacts.filter(pl.col("body").is_in(names) & pl.col("other").is_in(names))
+    hits = episodes.filter(pl.col("body").is_in(names) & pl.col("other").is_in(names))
     if hits.is_empty():
         return pl.DataFrame(schema=COLLISION_SCHEMA)
     mass = {n: i.mass for n, i in infos.items()}
+    states = {
+        f"{f}{k}_{w}": pl.col(f"s{k}_{tag}_{f}")
+        for k in "12"
+        for w, tag in (("before", "in"), ("after", "out"))
+        for f in ("x", "y", "z", "vx", "vy", "vz", "wx", "wy", "wz")
+    }
+    n = [pl.col(f"n{c}_in") for c in "xyz"]
+
+    def normal_speed(k: str, w: str, point: str) -> pl.Expr:
+        r = [pl.col(f"p{c}_{point}") - states[f"{c}{k}_{w}"] for c in "xyz"]
+        v = [states[f"v{c}{k}_{w}"] for c in "xyz"]
+        wv = [states[f"w{c}{k}_{w}"] for c in "xyz"]
+        return _dot(n, [v[i] + _cross(wv, r)[i] for i in range(3)])
+
+    def lever(k: str) -> pl.Expr:
+        r = [pl.col(f"p{c}_in") - states[f"{c}{k}_before"] for c in "xyz"]
+        return _norm(_cross(r, n)) / _norm(r)
+
     hits = (
         hits.sort("start_t_ns")
         .rename({"body": "body1", "other": "body2"})
@@ -122,19 +123,28 @@ def collisions(
             pl.col("body1").replace_strict(mass).alias("m1_kg"),
             pl.col("body2").replace_strict(mass).alias("m2_kg"),
             *[pl.col(f"n{c}_in").alias(f"n{c}") for c in "xyz"],
-            pl.col("u1_b").alias("v1n_before_mps"),
-            pl.col("u2_b").alias("v2n_before_mps"),
-            pl.col("u1_a").alias("v1n_after_mps"),
-            pl.col("u2_a").alias("v2n_after_mps"),
-            (pl.max_horizontal("lever1", "lever2") <= CENTRAL_LEVER).alias("central"),
-            ((pl.col("end_t_ns") - pl.col("start_t_ns")) / 1e9 + pl.col("interval_s")).alias(
-                "duration_s"
-            ),
+            *[e.alias(k) for k, e in states.items()],
+            normal_speed("1", "before", "in").alias("v1n_before_mps"),
+            normal_speed("2", "before", "in").alias("v2n_before_mps"),
+            normal_speed("1", "after", "out").alias("v1n_after_mps"),
+            normal_speed("2", "after", "out").alias("v2n_after_mps"),
+            (pl.max_horizontal(lever("1"), lever("2")) <= CENTRAL_LEVER).alias("central"),
+            (pl.col("release_t_s") - pl.col("impact_t_s")).alias("duration_s"),
         )
     )
-    hits = pair_states(states, hits, "row_b", "_before")
-    hits = pair_states(states, hits, "row_a", "_after")
     return from_pair_states(hits)
+
+
+def pair_states(states: pl.DataFrame, frame: pl.DataFrame, row: str, tag: str) -> pl.DataFrame:
+    """Attach body1's and body2's logged states at the row number in column `row` as
+    `<col>1<tag>`, `<col>2<tag>`."""
+    for k in ("1", "2"):
+        frame = state_at(states, frame, body=f"body{k}", row=row, suffix=f"{k}{tag}")
+    return frame
+
+
+def _cross(a: list[pl.Expr], b: list[pl.Expr]) -> list[pl.Expr]:
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
 
 def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
@@ -147,6 +157,7 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
     m1, m2 = pl.col("m1_kg"), pl.col("m2_kg")
     complete = (
         ~pl.col("open")
+        & ~pl.col("initial")
         & pl.col("vx1_after").is_not_null()
         & pl.col("vx1_before").is_not_null()
         & (pl.col("v2n_before_mps") < pl.col("v1n_before_mps"))  # closing
@@ -174,18 +185,18 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
     dp = [pl.col(f"p{c}_after_Ns") - pl.col(f"p{c}_before_Ns") for c in "xyz"]
     scale = m1 * _norm(_vec("v", "1_before")) + m2 * _norm(_vec("v", "2_before"))
     v1, v2 = pl.col("v1n_before_mps"), pl.col("v2n_before_mps")
-    e = -(pl.col("v2n_after_mps") - pl.col("v1n_after_mps")) / (v2 - v1)
     out = out.with_columns(
         (_norm(dp) / scale).alias("momentum_rel_change"),
         (pl.col("ke_before_J") - pl.col("ke_after_J")).alias("ke_loss_J"),
-        e.alias("e_measured"),
+        e_velocity().alias("e_velocity"),
+        e_energy().alias("e_energy"),
     ).with_columns(
         (pl.col("ke_loss_J") / pl.col("ke_before_J")).alias("ke_loss_frac"),
-        ((1 - pl.col("e_measured") ** 2) * m1 * m2 * (v1 - v2) ** 2 / (2 * (m1 + m2))).alias(
+        ((1 - pl.col("e_velocity") ** 2) * m1 * m2 * (v1 - v2) ** 2 / (2 * (m1 + m2))).alias(
             "ke_loss_predicted_J"
         ),
     )
-    v1e, v2e = collision_after(m1, m2, v1, v2, pl.col("e_measured"))
+    v1e, v2e = collision_after(m1, m2, v1, v2, pl.col("e_velocity"))
     v1el, v2el = collision_after(m1, m2, v1, v2, 1.0)
     vin, _ = collision_after(m1, m2, v1, v2, 0.0)
     central = pl.col("central")
@@ -196,13 +207,14 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         pl.when(central).then(v2el).alias("v2n_after_elastic_mps"),
         pl.when(central).then(vin).alias("v_after_inelastic_mps"),
         pl.when(central).then(pl.col("ke_loss_predicted_J")).alias("ke_loss_predicted_J"),
-        (pl.col("start_t_ns") / 1e9).alias("impact_t_s"),
-        pl.when(~pl.col("open")).then(pl.col("t_a_ns") / 1e9).alias("release_t_s"),
+        pl.when(~pl.col("open")).then(pl.col("release_t_s")).alias("release_t_s"),
         complete.alias("complete"),
-        pl.when(pl.col("open"))
-        .then(pl.lit("contact still open at the end of the log"))
-        .when(~pl.col("visible"))
-        .then(pl.lit("the bodies stay in contact (no visible separation)"))
+        pl.when(pl.col("initial"))
+        .then(pl.lit("the bodies touch from the start: no impact, no 'before'"))
+        .when(pl.col("open"))
+        .then(pl.lit("contact still open at the end of the run"))
+        .when(pl.col("e_velocity") > 1)
+        .then(pl.lit(E_ABOVE_ONE))
         .when(~central)
         .then(pl.lit("eccentric impact: the 1D formulas for the outcome do not apply"))
         .otherwise(pl.lit(""))
@@ -220,7 +232,7 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         for c in COLLISION_SCHEMA
         if ("after" in c and c not in ELASTIC_COLUMNS)
         or c.startswith("ke_loss")
-        or c in ("e_measured", "momentum_rel_change")
+        or c in ("e_velocity", "momentum_rel_change")
     ]
     out = out.with_columns(
         *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in after_cols]
@@ -229,30 +241,20 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
 
 
 def with_surroundings(
-    col: pl.DataFrame,
-    contacts: pl.DataFrame,
-    gravity: float,
-    interval_s: float,
-    articulated: frozenset[str] = frozenset(),
+    col: pl.DataFrame, episodes: pl.DataFrame, gravity: float, articulated: frozenset[str]
 ) -> pl.DataFrame:
-    """The collisions with what else acted on each pair from the logged row before the
-    contact to the one after it: `touched_by`, the other bodies and surfaces (a static
-    body's geom by name) in any logged contact with either body, and "<body>'s joints" for
-    an `articulated` body of the pair, which its tree pushes ("" none), and
-    `gravity_impulse_rel`, (m1 + m2) |g| dt over that time / (|m1 v1| + |m2 v2|).
+    """The collisions with what else acted on each pair during it: `touched_by`, the other
+    bodies and surfaces in contact with either body then, and "<body>'s joints" for an
+    `articulated` body of the pair ("" none), and `gravity_impulse_rel`, (m1 + m2) |g| T
+    over the contact's duration T / (|m1 v1| + |m2 v2|).
 
     Args:
-        col: the run's collisions (`collisions`); contacts: its logged contacts
-            (`RunLog.contacts`: t_ns, geom1, geom2, body1, body2).
-        gravity: |g|, m/s^2; interval_s: the time between two logged rows.
+        col: the run's collisions (`collisions`); episodes: all its episodes.
+        gravity: |g|, m/s^2.
     """
     if col.is_empty():
         return col
-    order = np.argsort(contacts["t_ns"].to_numpy(), kind="stable")  # by channel as decoded
-    t_ns = contacts["t_ns"].to_numpy()[order]
-    b1s, b2s, g1s, g2s = (
-        contacts[c].to_numpy().astype(object)[order] for c in ("body1", "body2", "geom1", "geom2")
-    )
+    spans = episodes.select("body", "other", "start_t_ns", "end_t_ns").rows()
     touched: list[str | None] = []
     for a, b, t0, t1 in zip(
         *(col[c].to_list() for c in ("body1", "body2", "impact_t_s", "release_t_s")), strict=True
@@ -260,28 +262,24 @@ def with_surroundings(
         if t0 is None or t1 is None:
             touched.append(None)
             continue
-        lo = np.searchsorted(t_ns, round((t0 - interval_s) * 1e9), "left")
-        hi = np.searchsorted(t_ns, round(t1 * 1e9), "right")
-        c1, c2, g1, g2 = (x[lo:hi] for x in (b1s, b2s, g1s, g2s))
-        in1, in2 = (c1 == a) | (c1 == b), (c2 == a) | (c2 == b)
+        lo, hi = round(t0 * 1e9), round(t1 * 1e9)
         names = {f"{x}'s joints" for x in (a, b) if x in articulated}
-        for mine, other, geom in ((in1 & ~in2, c2, g2), (in2 & ~in1, c1, g1)):
-            names.update(np.where(other[mine] == "world", geom[mine], other[mine]).tolist())
+        for x, y, s, e in spans:
+            if e > lo and s < hi and {x, y} != {a, b} and ({x, y} & {a, b}):
+                names.update({x, y} - {a, b})
         touched.append(", ".join(sorted(names)))
     v = [np.sqrt(sum(col[f"v{k}{c}_before_mps"].to_numpy() ** 2 for c in "xyz")) for k in "12"]
     m1, m2 = col["m1_kg"].to_numpy(), col["m2_kg"].to_numpy()
-    dt = col["release_t_s"].to_numpy() - col["impact_t_s"].to_numpy() + interval_s
+    dt = col["duration_s"].to_numpy()
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = (m1 + m2) * gravity * dt / (m1 * v[0] + m2 * v[1])
-    out = col.clone()  # the columns replaced in place: no query for two columns
-    out.replace_column(out.get_column_index("touched_by"), pl.Series("touched_by", touched))
-    out.replace_column(
-        out.get_column_index("gravity_impulse_rel"),
+    return col.with_columns(
+        pl.Series("touched_by", touched, dtype=pl.String),
         pl.Series("gravity_impulse_rel", rel, dtype=pl.Float64, nan_to_null=True),
     )
-    return out
 
 
+NO_EPISODE = ("v_in_mps", "v_out_mps", "work_c_J", "work_r_J", "impact_t_s", "release_t_s")
 ELASTIC_COLUMNS = ("v1n_after_elastic_mps", "v2n_after_elastic_mps", "v_after_inelastic_mps")
 
 
@@ -322,7 +320,8 @@ def no_collision_rows(
         pl.lit(None, dtype=pl.Float64).alias("impulse_Ns"),
         pl.lit(None, dtype=pl.Float64).alias("max_penetration_m"),
         pl.lit(False).alias("open"),
-        pl.lit(True).alias("visible"),
+        pl.lit(False).alias("initial"),
+        *[pl.lit(None, dtype=pl.Float64).alias(c) for c in NO_EPISODE],
     )
     hits = pair_states(states, hits, "row_b", "_before")
     hits = pair_states(states, hits, "row_a", "_after")
@@ -338,7 +337,8 @@ def no_collision_rows(
     )
     out = from_pair_states(hits)
     return out.with_columns(
-        pl.lit(None, dtype=pl.Float64).alias("e_measured"),
+        pl.lit(None, dtype=pl.Float64).alias("e_velocity"),
+        pl.lit(None, dtype=pl.Float64).alias("e_energy"),
         pl.lit(None, dtype=pl.Float64).alias("ke_loss_predicted_J"),
         pl.lit(None, dtype=pl.Float64).alias("v1n_after_e_mps"),
         pl.lit(None, dtype=pl.Float64).alias("v2n_after_e_mps"),

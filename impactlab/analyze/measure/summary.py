@@ -1,10 +1,4 @@
-"""A run's row of the runs table: identity, state of the log, and headline results.
-
-Bounce headlines (drop height, first impact, mean e) describe one body on one surface; a run
-with bounces of several bodies or on several surfaces has them empty, with a note, and its
-numbers per body and surface are in the bounces table: bodies with different contacts are
-never averaged together.
-"""
+"""A run's row of the runs table: identity, state of the log, and headline results."""
 
 from __future__ import annotations
 
@@ -14,6 +8,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
+from impactlab.analyze.measure.phases import WORK_COLUMNS
 from impactlab.logs.load import RunLog
 
 EMPTY_ENERGY: dict[str, Any] = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
@@ -25,6 +20,8 @@ EMPTY_PHASES: dict[str, Any] = {
     "dev_max": None,
     "n_contacts": 0,
     "loss_sum": 0.0,
+    "residual": None,
+    **{c: None for c in WORK_COLUMNS},
 }
 EMPTY_BOUNCES: dict[str, Any] = {
     "n_bounces": 0,
@@ -71,11 +68,13 @@ def run_aggregates(
         pl.col("total_J").last().alias("energy_end"),
         pl.col("mujoco_diff_J").abs().max().alias("mujoco_diff_max"),
     )
-    worst = pl.col("drift_J").filter(flight).abs()  # the flight with the largest |drift|
+    drift = pl.col("residual_J").filter(flight)  # in flight the residual is the drift
+    worst = drift.abs()  # the flight with the largest |drift|
+    contact_work = pl.col("work_contact_normal_J") + pl.col("work_contact_friction_J")
     p = phases.group_by("run_id", maintain_order=True).agg(
         flight.sum().alias("n_flights"),
-        pl.col("drift_J").filter(flight).abs().max().alias("drift_max"),
-        pl.col("drift_J").filter(flight).sort_by(worst).last().alias("drift_worst"),
+        drift.abs().max().alias("drift_max"),
+        drift.sort_by(worst).last().alias("drift_worst"),
         (pl.col("end_t_s") - pl.col("start_t_s"))
         .filter(flight)
         .sort_by(worst)
@@ -83,7 +82,9 @@ def run_aggregates(
         .alias("drift_worst_T"),
         pl.col("max_dev_J").filter(flight).max().alias("dev_max"),
         contact.sum().alias("n_contacts"),
-        pl.col("loss_J").filter(contact).sum().alias("loss_sum"),
+        (-contact_work).sum().alias("loss_sum"),
+        pl.col("residual_J").sum().alias("residual"),
+        *[pl.col(c).sum() for c in WORK_COLUMNS],
     )
     bounced = pl.col("bounce").is_not_null()
     good = bounced & pl.col("complete")
@@ -174,7 +175,9 @@ def summary_row(
         "flight_drift_predicted_J": predicted_drift(run, ph["drift_worst_T"])
         if ph["n_flights"]
         else None,
-        "contact_loss_sum_J": ph["loss_sum"] if ph["n_contacts"] else 0.0,
+        "contact_loss_sum_J": ph["loss_sum"],
+        **{c: ph[c] for c in WORK_COLUMNS},
+        "residual_J": ph["residual"],
         "mujoco_diff_max_J": en["mujoco_diff_max"],
         "drop_height_m": f("apex_before_m"),
         "n_bounces": bo["n_bounces"],
@@ -184,7 +187,7 @@ def summary_row(
         "e_velocity_mean": bo["e_velocity_mean"] if single and bo["n_good"] else None,
         "e_apex_mean": bo["e_apex_mean"] if single and bo["n_good"] else None,
         "n_collisions": collisions.height - collisions["collision"].null_count(),
-        "e_collision": c("e_measured"),
+        "e_collision": c("e_velocity"),
         "v1n_before_mps": c("v1n_before_mps"),
         "v2n_before_mps": c("v2n_before_mps"),
         "v1n_after_mps": c("v1n_after_mps"),

@@ -1,0 +1,115 @@
+"""Contact episodes as the recorder found them at every step, classified; e by velocity and by work."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import polars as pl
+
+from impactlab.logs.load import RunLog
+from impactlab.physics import min_impact_speed
+
+KINDS = ("ground", "body", "other")
+"""An episode's kind: a rigid body on a surface, two rigid bodies, anything else (a flex)."""
+
+
+def e_velocity() -> pl.Expr:
+    """The coefficient of restitution by velocity: -v_out / v_in of the contact points."""
+    return -pl.col("v_out_mps") / pl.col("v_in_mps")
+
+
+def e_energy() -> pl.Expr:
+    """The energetic coefficient of restitution (Stronge): sqrt(W_r / -W_c), the normal
+    force's work while the points separate over that while they approach; at most 1 for a
+    contact that dissipates, whatever turns or drives the bodies. Empty for an open contact."""
+    ok = ~pl.col("open") & (pl.col("work_c_J") < 0) & (pl.col("work_r_J") >= 0)
+    return pl.when(ok).then((pl.col("work_r_J") / -pl.col("work_c_J")).sqrt())
+
+
+def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
+    """Every episode of the runs, one row each, with the logged rows it covers.
+
+    Args:
+        runs: decoded logs (format 3: they carry `RunLog.impacts`).
+        rows: (run_id, t_ns, row): each run's logged rows (`states.states_long`).
+
+    Returns:
+        (run_id, kind, body, other, start_t_ns, end_t_ns, impact_t_s, release_t_s,
+        v_in_mps, v_out_mps, v_min_mps, impact (arrived at v_min or faster, after the start),
+        initial (touching at the start), open, work_c_J, work_r_J, work_f_J, peak_force_N,
+        impulse_Ns, max_penetration_m, nx_out, ny_out, nz_out (the normal from the surface
+        or `body` to the other side), first_row, last_row (the logged rows inside it), and
+        the sides' states `s1_*`, `s2_*` as logged by the recorder), by run and time.
+    """
+    frames = [run.impacts for run in runs if run.impacts.height]
+    if not frames:
+        return _empty()
+    v_min = {
+        run.run_id: min_impact_speed(float(np.linalg.norm(run.gravity)), run.timestep_s)
+        for run in runs
+    }
+    raw = pl.concat(frames)
+    ground = (pl.col("kind1") == "body") & (pl.col("kind2") == "surface")
+    body = (pl.col("kind1") == "body") & (pl.col("kind2") == "body")
+    flip = pl.when(ground).then(-1.0).otherwise(1.0)  # normals from the surface to the body
+    out = raw.select(
+        "run_id",
+        pl.when(ground)
+        .then(pl.lit("ground"))
+        .when(body)
+        .then(pl.lit("body"))
+        .otherwise(pl.lit("other"))
+        .alias("kind"),
+        pl.col("side1").alias("body"),
+        pl.col("side2").alias("other"),
+        pl.col("onset_ns").alias("start_t_ns"),
+        pl.col("release_ns").alias("end_t_ns"),
+        (pl.col("onset_ns") / 1e9).alias("impact_t_s"),
+        (pl.col("release_ns") / 1e9).alias("release_t_s"),
+        "v_in_mps",
+        "v_out_mps",
+        pl.col("run_id").replace_strict(v_min, return_dtype=pl.Float64).alias("v_min_mps"),
+        (pl.col("onset_ns") == 0).alias("initial"),
+        "open",
+        pl.col("work_compression_J").alias("work_c_J"),
+        pl.col("work_restitution_J").alias("work_r_J"),
+        pl.col("work_friction_J").alias("work_f_J"),
+        "peak_force_N",
+        "impulse_Ns",
+        "max_penetration_m",
+        *[(flip * pl.col(f"n{c}_out")).alias(f"n{c}_out") for c in "xyz"],
+        *[(flip * pl.col(f"n{c}_in")).alias(f"n{c}_in") for c in "xyz"],
+        pl.col("^s[12]_(in|out)_.*$"),
+    ).with_columns(
+        (~pl.col("initial") & (pl.col("v_in_mps") <= -pl.col("v_min_mps"))).alias("impact")
+    )
+    return _with_rows(out.sort("run_id", "start_t_ns", maintain_order=True), rows)
+
+
+def _with_rows(frame: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
+    """`first_row` and `last_row`: the first logged row at or after the start and the last
+    before the release (first > last when the episode lies between two logged rows)."""
+    first = np.empty(frame.height, np.int64)
+    last = np.empty(frame.height, np.int64)
+    logged = {k[0]: f["t_ns"].to_numpy() for k, f in rows.partition_by("run_id", as_dict=True).items()}
+    ids = frame["run_id"].to_list()
+    start, end = frame["start_t_ns"].to_numpy(), frame["end_t_ns"].to_numpy()
+    for i, r in enumerate(ids):
+        t = logged.get(r, np.empty(0, np.int64))
+        first[i] = np.searchsorted(t, start[i], side="left")
+        last[i] = np.searchsorted(t, end[i], side="left") - 1
+    return frame.with_columns(pl.Series("first_row", first), pl.Series("last_row", last))
+
+
+def _empty() -> pl.DataFrame:
+    strings = ("run_id", "kind", "body", "other")
+    floats = ("impact_t_s", "release_t_s", "v_in_mps", "v_out_mps", "v_min_mps", "work_c_J")
+    floats += ("work_r_J", "work_f_J", "peak_force_N", "impulse_Ns", "max_penetration_m")
+    floats += tuple(f"n{c}_{w}" for w in ("out", "in") for c in "xyz")
+    schema: dict[str, pl.DataType] = {k: pl.String() for k in strings}
+    schema |= {"start_t_ns": pl.Int64(), "end_t_ns": pl.Int64()}
+    schema |= {k: pl.Float64() for k in floats}
+    schema |= {"initial": pl.Boolean(), "open": pl.Boolean(), "impact": pl.Boolean()}
+    schema |= {"first_row": pl.Int64(), "last_row": pl.Int64()}
+    return pl.DataFrame(schema=schema)

@@ -1,0 +1,218 @@
+"""MuJoCo's contacts and constraint forces at every simulated step, decoded per chunk."""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+_FIELDS = ("dist", "pos", "frame", "friction", "dim", "geom", "flex", "exclude", "efc_address")
+_PROBE = """<mujoco><worldbody><geom type="plane" size="1 1 1"/>
+<body pos="0 0 0.05"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>"""
+
+CONTACT_ROWS = {
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS),
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL),
+    int(mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC),
+}
+
+
+def _address(array: np.ndarray) -> int:
+    return int(array.__array_interface__["data"][0])
+
+
+def _learn_dtype() -> np.dtype:
+    """The layout of MuJoCo's `mjContact` (the fields read here), from the bindings' own
+    field views of a model with one contact: right for whatever MuJoCo version runs."""
+    model = mujoco.MjModel.from_xml_string(_PROBE)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    contact = data.contact
+    base = _address(contact.dist)
+    views = [getattr(contact, name) for name in _FIELDS]
+    return np.dtype(
+        {
+            "names": list(_FIELDS),
+            "formats": [(v.dtype, v.shape[1:]) if v.ndim > 1 else v.dtype for v in views],
+            "offsets": [_address(v) - base for v in views],
+            "itemsize": contact.dist.strides[0],
+        }
+    )
+
+
+CONTACT_DTYPE = _learn_dtype()
+
+
+class ContactTape:
+    """Copies each step's contacts and constraint rows into chunk buffers, one copy each.
+
+    MuJoCo keeps `mjData.contact` at the start of its arena; `_contacts` views it as a
+    structured array (`CONTACT_DTYPE`), so a step's contacts are copied in one operation.
+    Per constraint row: MuJoCo's force, its velocity J v at the step's start and J v' after
+    the step (`mj_mulJacVec` with the new velocity), and with `types` its constraint type.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, types: bool) -> None:
+        self.model, self.data, self.types = model, data, types
+        self._contacts: np.ndarray | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Empty the buffers for the next chunk."""
+        self.ncontact = self.nrow = 0
+        self.contact = np.empty(64, CONTACT_DTYPE)
+        self.contact_step = np.empty(64, np.int64)
+        self.force = np.empty(256)
+        self.vel = np.empty(256)
+        self.vel_after = np.empty(256)
+        self.type = np.empty(256, np.int32)
+        self.row_step = np.empty(256, np.int64)
+
+    def _view(self) -> np.ndarray:
+        """The contact array of `data` as structured records (its current contacts first)."""
+        base = _address(self.data.contact.dist)
+        size = CONTACT_DTYPE.itemsize
+        memory = (ctypes.c_char * (int(self.data.narena) // size * size)).from_address(base)
+        return np.frombuffer(memory, CONTACT_DTYPE)
+
+    def add(self, step: int, *, after: bool = True) -> None:
+        """Copy the contacts and constraint rows MuJoCo has for step `step` (its start
+        state's, as `mj_step` leaves them for every integrator but RK4), and with `after`
+        J v' for the velocity after the step (else J v again: RK4, whose four stages leave
+        another state's Jacobian)."""
+        data = self.data
+        ncon, nefc = int(data.ncon), int(data.nefc)
+        if ncon:
+            if self._contacts is None:
+                self._contacts = self._view()
+            k = self.ncontact
+            if k + ncon > self.contact.size:
+                self.contact = _grow(self.contact, k + ncon)
+                self.contact_step = _grow(self.contact_step, k + ncon)
+            self.contact[k : k + ncon] = self._contacts[:ncon]
+            self.contact_step[k : k + ncon] = step
+            self.ncontact = k + ncon
+        r = self.nrow
+        if r + nefc > self.force.size:
+            self.force, self.vel = _grow(self.force, r + nefc), _grow(self.vel, r + nefc)
+            self.vel_after = _grow(self.vel_after, r + nefc)
+            self.type, self.row_step = _grow(self.type, r + nefc), _grow(self.row_step, r + nefc)
+        self.force[r : r + nefc] = data.efc_force
+        self.vel[r : r + nefc] = data.efc_vel
+        if after:
+            mujoco.mj_mulJacVec(self.model, data, self.vel_after[r : r + nefc], data.qvel)
+        else:
+            self.vel_after[r : r + nefc] = data.efc_vel
+        if self.types:
+            self.type[r : r + nefc] = data.efc_type
+        self.row_step[r : r + nefc] = step
+        self.nrow = r + nefc
+
+    def check(self) -> None:
+        """Raise if MuJoCo moved its contact array (the view would read stale memory)."""
+        if self._contacts is not None and self.data.ncon:
+            if _address(self.data.contact.dist) != _address(self._contacts):
+                raise RuntimeError("MuJoCo's contact array moved: the recorder cannot read it")
+
+
+def _grow(array: np.ndarray, need: int) -> np.ndarray:
+    out = np.empty(max(need, 2 * array.size), array.dtype)
+    out[: array.size] = array
+    return out
+
+
+@dataclass(frozen=True)
+class StepContacts:
+    """A chunk's active contacts, one entry per contact and step (local step index).
+
+    Forces in N and velocities in m/s along the contact frame (normal from side 1 to side
+    2); `v_start`/`v_end` the relative normal velocity at the step's start and end (< 0:
+    approaching); `power_normal`/`power_friction` the power of the normal and friction
+    forces over the step (W, at the step's mean velocity). Sides are geom ids, or -1 for a
+    flex (`flex1`, `flex2` then give it).
+    """
+
+    step: np.ndarray
+    geom1: np.ndarray
+    geom2: np.ndarray
+    flex1: np.ndarray
+    flex2: np.ndarray
+    penetration: np.ndarray
+    pos: np.ndarray
+    frame: np.ndarray
+    force: np.ndarray  # (n, 3): normal, friction along the frame's two tangents
+    v_start: np.ndarray
+    v_end: np.ndarray
+    power_normal: np.ndarray
+    power_friction: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.step.size)
+
+    def take(self, keep: np.ndarray) -> StepContacts:
+        """The entries selected by `keep` (a mask or indices)."""
+        return StepContacts(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
+
+
+def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray, np.ndarray]:
+    """The tape's contacts, and each constraint row's power and type (W, per row).
+
+    A contact's rows start at its `efc_address`: one (frictionless), `dim` (elliptic: the
+    normal first) or 2 (dim - 1) (pyramidal: the edges, whose forces sum to the normal
+    force; friction j is mu_j (f_2j - f_2j+1), and the normal velocity is the mean of the
+    first two rows'). Contacts outside the constraints (`exclude`, in a margin's gap) are left
+    out. Returns (contacts, power per row, whether each row belongs to a contact).
+    """
+    raw = tape.contact[: tape.ncontact]
+    n_rows = tape.nrow
+    force, vel, after = tape.force[:n_rows], tape.vel[:n_rows], tape.vel_after[:n_rows]
+    power = force * 0.5 * (vel + after)
+    active = (raw["exclude"] == 0) & (raw["efc_address"] >= 0)
+    raw, step = raw[active], tape.contact_step[: tape.ncontact][active]
+    # each contact's first row in this chunk's row buffer: rows of one step are contiguous
+    first_row = np.searchsorted(tape.row_step[:n_rows], step) + raw["efc_address"]
+    dim = raw["dim"].astype(np.int64)
+    friction_dims = np.where(dim > 1, dim - 1, 0)
+    nrows = np.where(dim == 1, 1, 2 * friction_dims if pyramidal else dim)
+    owner = np.repeat(np.arange(raw.size), nrows)
+    rows = np.repeat(first_row - np.cumsum(nrows) + nrows, nrows) + np.arange(owner.size)
+    in_contact = np.zeros(n_rows, bool)
+    in_contact[rows] = True
+    total_power = np.bincount(owner, power[rows], raw.size)
+    f3 = np.zeros((raw.size, 3))
+    if pyramidal:
+        f3[:, 0] = np.bincount(owner, force[rows], raw.size)
+        paired = np.minimum(dim, 2) == 2  # the normal velocity: mean of the first two rows
+        second = first_row + paired
+        v_start = 0.5 * (vel[first_row] + vel[second])
+        v_end = 0.5 * (after[first_row] + after[second])
+        mu = raw["friction"]
+        for j in range(2):
+            has = friction_dims > j
+            a = first_row[has] + 2 * j
+            f3[has, 1 + j] = mu[has, j] * (force[a] - force[a + 1])
+    else:
+        f3[:, 0] = force[first_row]
+        v_start, v_end = vel[first_row], after[first_row]
+        for j in range(2):
+            has = friction_dims > j
+            f3[has, 1 + j] = force[first_row[has] + 1 + j]
+    power_normal = f3[:, 0] * 0.5 * (v_start + v_end)
+    contacts = StepContacts(
+        step=step,
+        geom1=raw["geom"][:, 0].astype(np.int64),
+        geom2=raw["geom"][:, 1].astype(np.int64),
+        flex1=raw["flex"][:, 0].astype(np.int64),
+        flex2=raw["flex"][:, 1].astype(np.int64),
+        penetration=-raw["dist"],
+        pos=raw["pos"].copy(),
+        frame=raw["frame"].copy(),
+        force=f3,
+        v_start=v_start,
+        v_end=v_end,
+        power_normal=power_normal,
+        power_friction=total_power - power_normal,
+    )
+    return contacts, power, in_contact
