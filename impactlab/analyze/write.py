@@ -280,7 +280,7 @@ def summary_figure_jobs(
             )
             jobs.append(("decay", path, key, draw))
     has_e = (all_bounces.height and all_bounces["e_velocity"].drop_nulls().len()) or (
-        collisions.height and collisions["e_measured"].drop_nulls().len()
+        collisions.height and collisions["e_velocity"].drop_nulls().len()
     )
     if has_e:
         labels = {b.run_id: b.label for b in briefs}

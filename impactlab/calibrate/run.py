@@ -250,7 +250,7 @@ def _measurement(
         t1, t2 = collision_after(c["m1_kg"], c["m2_kg"], v1, v2, p.target)
         closing = v1 - v2
         out.update(
-            e_measured=c["e_measured"],
+            e_measured=c["e_velocity"],
             v1_before_mps=v1,
             v2_before_mps=v2,
             v1_after_mps=c["v1n_after_mps"],

@@ -244,17 +244,27 @@ def decode_impacts(run_id: str, payloads: Sequence[bytes]) -> pl.DataFrame:
     for data in payloads:
         i = pb.Impact.FromString(data)
         names = (i.side1, i.kind1, i.side2, i.kind2, i.geom1, i.geom2)
-        numbers = (i.onset_ns, i.release_ns, i.v_in, i.v_out, i.work_compression)
-        numbers += (i.work_restitution, i.work_friction, i.peak_force, i.impulse)
-        vectors = [list(v) if len(v) == 3 else [None] * 3 for v in
-                   (i.point_in, i.normal_in, i.point_out, i.normal_out)]
-        states = [list(s.values) if len(s.values) == len(BODY_FIELDS) else nan13 for s in
-                  (i.side1_in, i.side2_in, i.side1_out, i.side2_out)]
-        rows.append(
-            (run_id, *names, *numbers, i.max_penetration, i.steps, i.open)
-            + tuple(x for v in vectors for x in v)
-            + tuple(x for v in states for x in v)
+        numbers = (
+            i.onset_ns,
+            i.release_ns,
+            i.v_in,
+            i.v_out,
+            i.work_compression,
+            i.work_restitution,
+            i.work_friction,
+            i.peak_force,
+            i.impulse,
         )
+        vectors = [
+            list(v) if len(v) == 3 else [None] * 3
+            for v in (i.point_in, i.normal_in, i.point_out, i.normal_out)
+        ]
+        states = [
+            list(s.values) if len(s.values) == len(BODY_FIELDS) else nan13
+            for s in (i.side1_in, i.side2_in, i.side1_out, i.side2_out)
+        ]
+        flat = [x for v in (*vectors, *states) for x in v]
+        rows.append((run_id, *names, *numbers, i.max_penetration, i.steps, i.open, *flat))
     return pl.DataFrame(rows, schema=IMPACT_SCHEMA, orient="row")
 
 

@@ -33,6 +33,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.logs import format as logformat
+from impactlab.logs.decode import IMPACT_SCHEMA
 from impactlab.logs.diff_meta import compare_attachments, compare_meta, read_attachments
 from impactlab.logs.diff_result import (
     CONTACT_TEXT_FIELDS,
@@ -48,7 +49,7 @@ from impactlab.logs.diff_result import (
     topic_order,
 )
 from impactlab.logs.load import RunLog
-from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
+from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, WORK_FIELDS
 
 __all__ = ["EXACT", "LogDiff", "Tolerance", "diff_logs"]
 
@@ -103,15 +104,12 @@ def diff_logs(
 Table = tuple[pl.DataFrame, tuple[str, ...], tuple[str, ...]]
 
 
-WORK_FIELDS = (
-    "start_ns",
-    "work_compression_J",
-    "work_restitution_J",
-    "v_start_mps",
-    "v_end_mps",
-    "open",
+IMPACT_FIELDS = tuple(
+    c
+    for c, t in IMPACT_SCHEMA.items()
+    if t in (pl.Float64, pl.Int64, pl.Boolean) and c != "release_ns"
 )
-"""The compared fields of a contact's work (`/contact_work/<g1>/<g2>`)."""
+"""The compared numbers of a contact episode (`/impacts`, one message per episode)."""
 
 
 def channel_tables(log: RunLog) -> dict[str, Table]:
@@ -139,13 +137,15 @@ def channel_tables(log: RunLog) -> dict[str, Table]:
         out[logformat.ENERGY_TOPIC] = (log.energy, ("t_ns",), ENERGY_FIELDS)
     if log.joint_energy.height:
         out[logformat.JOINT_ENERGY_TOPIC] = (log.joint_energy, ("t_ns",), ENERGY_FIELDS)
-    if log.contact_work.height:  # one message per contact, at its last step
-        work = log.contact_work.with_columns(
-            pl.col("end_ns").alias("t_ns"), pl.col("open").cast(pl.Int8)
+    if log.work.height:
+        out[logformat.WORK_TOPIC] = (log.work, ("t_ns",), WORK_FIELDS)
+    if log.impacts.height:  # one message per episode, at its release
+        impacts = log.impacts.with_columns(
+            pl.col("release_ns").alias("t_ns"),
+            pl.col("open").cast(pl.Int8),
+            pl.int_range(pl.len()).over("release_ns").alias("seq"),
         )
-        for (g1, g2), frame in work.group_by(["geom1", "geom2"], maintain_order=True):
-            topic = f"{logformat.CONTACT_WORK_TOPIC_PREFIX}{g1}/{g2}"
-            out[topic] = (frame.sort("t_ns"), ("t_ns",), WORK_FIELDS)
+        out[logformat.IMPACTS_TOPIC] = (impacts, ("t_ns", "seq"), IMPACT_FIELDS)
     if log.events.height:
         events = log.events.with_columns(pl.int_range(pl.len()).over("t_ns").alias("seq"))
         out[logformat.EVENTS_TOPIC] = (events, ("t_ns", "seq"), EVENT_FIELDS)

@@ -277,7 +277,6 @@ def _schema_data(message_type: type[Message]) -> bytes:
     return _SCHEMA_DATA[name]
 
 
-
 def _log_message(t_ns: int, level: Log.Level.ValueType, text: str) -> bytes:
     msg = Log(level=level, message=text, name="impactlab")
     msg.timestamp.FromNanoseconds(int(t_ns))

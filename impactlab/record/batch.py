@@ -93,9 +93,7 @@ class _OpenLog:
         """Write a piece's rows; on the run's last piece, finish the log and say so."""
         if piece.t_ns.size:
             assert piece.contacts is not None  # every piece with rows has their contacts
-            self.writer.write(
-                self.rows(piece.t_ns, piece.sensordata, piece.work, piece.contacts)
-            )
+            self.writer.write(self.rows(piece.t_ns, piece.sensordata, piece.work, piece.contacts))
         if piece.ending is None:
             return None
         end = piece.ending

@@ -47,11 +47,7 @@ def generalised_forces(model: mujoco.MjModel) -> list[tuple[int, str]]:
     flex = model.nflex > 0  # flex elasticity and damping act through the passive forces
     can = {
         "springs": not off & int(flags.mjDSBL_SPRING)
-        and (
-            bool(np.any(model.jnt_stiffness))
-            or bool(np.any(model.tendon_stiffness))
-            or flex
-        ),
+        and (bool(np.any(model.jnt_stiffness)) or bool(np.any(model.tendon_stiffness)) or flex),
         "damping": not off & int(flags.mjDSBL_DAMPER)
         and (bool(np.any(model.dof_damping)) or bool(np.any(model.tendon_damping)) or flex),
         "fluid": model.opt.density > 0 or model.opt.viscosity > 0,

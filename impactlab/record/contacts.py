@@ -57,6 +57,7 @@ class ContactTape:
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, types: bool) -> None:
         self.model, self.data, self.types = model, data, types
         self._contacts: np.ndarray | None = None
+        self._jacobian: tuple[int, int, tuple[np.ndarray, ...]] = (0, 0, ())
         self.reset()
 
     def reset(self) -> None:
@@ -75,13 +76,14 @@ class ContactTape:
         base = _address(self.data.contact.dist)
         size = CONTACT_DTYPE.itemsize
         memory = (ctypes.c_char * (int(self.data.narena) // size * size)).from_address(base)
-        return np.frombuffer(memory, CONTACT_DTYPE)
+        view: np.ndarray = np.frombuffer(memoryview(memory), CONTACT_DTYPE)
+        return view
 
     def add(self, step: int, *, after: bool = True) -> None:
         """Copy the contacts and constraint rows MuJoCo has for step `step` (its start
         state's, as `mj_step` leaves them for every integrator but RK4), and with `after`
-        J v' for the velocity after the step (else J v again: RK4, whose four stages leave
-        another state's Jacobian)."""
+        J v' for the velocity after the step; without (RK4, whose stages leave another
+        state's Jacobian), the Jacobian is kept for `after_step` to apply."""
         data = self.data
         ncon, nefc = int(data.ncon), int(data.nefc)
         if ncon:
@@ -104,17 +106,45 @@ class ContactTape:
         if after:
             mujoco.mj_mulJacVec(self.model, data, self.vel_after[r : r + nefc], data.qvel)
         else:
-            self.vel_after[r : r + nefc] = data.efc_vel
+            self._jacobian = (r, nefc, self._jacobian_rows())
         if self.types:
             self.type[r : r + nefc] = data.efc_type
         self.row_step[r : r + nefc] = step
         self.nrow = r + nefc
 
+    def _jacobian_rows(self) -> tuple[np.ndarray, ...]:
+        """A copy of the constraint Jacobian (dense rows, or MuJoCo's sparse rows)."""
+        data, nefc = self.data, int(self.data.nefc)
+        if mujoco.mj_isSparse(self.model):
+            nnz = data.efc_J_rownnz[:nefc].copy()
+            adr = data.efc_J_rowadr[:nefc].copy()
+            return nnz, adr, data.efc_J_colind.copy(), data.efc_J.copy()
+        return (data.efc_J[: nefc * self.model.nv].reshape(nefc, self.model.nv).copy(),)
+
+    def after_step(self, qvel: np.ndarray) -> None:
+        """J v' of the rows kept by `add(after=False)`, with the step's new velocity."""
+        r, nefc, rows = self._jacobian
+        if len(rows) == 1:
+            self.vel_after[r : r + nefc] = rows[0] @ qvel
+            return
+        nnz, adr, col, values = rows
+        end = int(adr[-1] + nnz[-1])
+        products = values[:end] * qvel[col[:end]]
+        starts = adr[nnz > 0]
+        sums = np.zeros(nefc)
+        if starts.size:
+            sums[nnz > 0] = np.add.reduceat(products, starts)
+        self.vel_after[r : r + nefc] = sums
+
     def check(self) -> None:
         """Raise if MuJoCo moved its contact array (the view would read stale memory)."""
-        if self._contacts is not None and self.data.ncon:
-            if _address(self.data.contact.dist) != _address(self._contacts):
-                raise RuntimeError("MuJoCo's contact array moved: the recorder cannot read it")
+        view = self._contacts
+        if (
+            view is not None
+            and self.data.ncon
+            and _address(self.data.contact.dist) != _address(view)
+        ):
+            raise RuntimeError("MuJoCo's contact array moved: the recorder cannot read it")
 
 
 def _grow(array: np.ndarray, need: int) -> np.ndarray:

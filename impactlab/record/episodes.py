@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -106,15 +107,11 @@ class Episodes:
         for ep in self.open.values():  # a release after the previous chunk's last step
             if np.isnan(ep.state_out).all() and ep.last == step0 - 1:
                 self._state(ep.state_out, ep, rows[0])
-        seen: set[int] = set()
         for key, pair in self._pairs(contacts).items():
-            seen.add(key)
             self._pair(key, pair, rows, step0)
         end = step0 + n - 1
-        for key in list(self.open):
-            ep = self.open[key]
-            if key not in seen and ep.confirmed <= end:
-                self.closed.append(self.open.pop(key))
+        for key in [k for k, ep in self.open.items() if ep.confirmed <= end]:
+            self.closed.append(self.open.pop(key))
         return self.closed[before:]
 
     def finish(self, last_step: int) -> list[Episode]:
@@ -156,7 +153,7 @@ class Episodes:
         point = total(contacts.pos) / count[:, None]
         geoms = np.stack([contacts.geom1[pick][starts], contacts.geom2[pick][starts]], axis=1)
         penetration = np.maximum.reduceat(pen, starts)
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in itertools.pairwise(bounds):
             out[int(group_key[a])] = _PairSteps(
                 step[starts[a:b]],
                 force[a:b],
@@ -176,7 +173,7 @@ class Episodes:
         steps = pair.steps + step0
         breaks = np.flatnonzero(np.diff(steps) > MIN_FLIGHT_STEPS) + 1
         bounds = [0, *breaks.tolist(), steps.size]
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        for a, b in itertools.pairwise(bounds):
             ep = self.open.get(key)
             if ep is not None and steps[a] - ep.last > MIN_FLIGHT_STEPS:
                 self.closed.append(self.open.pop(key))

@@ -102,7 +102,9 @@ def rigid_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> list[RigidBody]:
 def rigid_geoms(model: mujoco.MjModel, body: RigidBody) -> list[int]:
     """The collision geoms of a rigid body's members."""
     own = set(body.members)
-    return [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in own and collides(model, g)]
+    return [
+        g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in own and collides(model, g)
+    ]
 
 
 def motion(model: mujoco.MjModel, body: RigidBody) -> str:
@@ -219,7 +221,9 @@ def spread_directions(n: int = SPREAD_DIRECTIONS) -> np.ndarray:
     )
 
 
-def rest_height(model: mujoco.MjModel, data: mujoco.MjData, com: np.ndarray, geoms: list[int]) -> float:
+def rest_height(
+    model: mujoco.MjModel, data: mujoco.MjData, com: np.ndarray, geoms: list[int]
+) -> float:
     """Lowest height of the centre of mass `com` above a flat surface the geoms touch, m.
 
     `data` must hold the pose `com` is for (mj_kinematics done); see the module docstring.
@@ -265,9 +269,7 @@ def shape_name(model: mujoco.MjModel, geoms: list[int]) -> str:
 def static_potential(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     """MuJoCo's potential energy of the bodies that never move (they count in its
     `energy[0]` though they stay put), J."""
-    static = [
-        b for b in range(1, model.nbody) if int(model.body_dofnum[model.body_weldid[b]]) == 0
-    ]
+    static = [b for b in range(1, model.nbody) if int(model.body_dofnum[model.body_weldid[b]]) == 0]
     g = gravity(model)
     return float(sum(-model.body_mass[b] * g @ data.xipos[b] for b in static))
 

@@ -136,7 +136,9 @@ class Rows:
         e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
         energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
         clearance = [
-            np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
+            np.stack(
+                [sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1
+            )
             for b in inst.bodies
             if inst.clearance_of(b.name)
         ]

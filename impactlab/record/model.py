@@ -279,17 +279,17 @@ def instrument(
 
     bodies = []
     for r, name in zip(rigid, names, strict=True):
-        geoms = own[r.root]
+        mine = own[r.root]
         com = data.xpos[r.root] + data.xmat[r.root].reshape(3, 3) @ np.asarray(r.pos)
         bodies.append(
             BodyChannel(
                 name,
                 r.root,
                 adr(f"{name}:framepos"),
-                geometry.sphere_radius(plain, data, com, geoms),
-                geometry.shape_name(plain, geoms),
-                geometry.rest_height(plain, data, com, geoms) if geoms else None,
-                tuple(plain.geom(g).name for g in geoms),
+                geometry.sphere_radius(plain, data, com, mine),
+                geometry.shape_name(plain, mine),
+                geometry.rest_height(plain, data, com, mine) if mine else None,
+                tuple(plain.geom(g).name for g in mine),
                 geometry.motion(plain, r),
                 r.mass,
                 r.inertia,

@@ -157,7 +157,9 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
     options = mjcf_options(str(path), overrides, duration)
     gaps = options.stop.separation is not None
-    inst = model_from_mjcf(path, keyframe=options.keyframe, gaps=gaps)  # validate now; rebuilt when run
+    inst = model_from_mjcf(
+        path, keyframe=options.keyframe, gaps=gaps
+    )  # validate now; rebuilt when run
     check_options(options, inst, str(path))
     # the model by name and content, not by where it is: the same model gives the same run
     document: dict[str, Any] = {"mjcf": path.name, "xml_sha256": inst_digest(inst)}

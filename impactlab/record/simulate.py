@@ -1,4 +1,4 @@
-"""Simulate each run with `mj_step`, reading MuJoCo at every step; hand its rows on chunk by chunk."""
+"""Simulate each run with `mj_step`, reading MuJoCo at every step; its rows go on chunk by chunk."""
 
 from __future__ import annotations
 
@@ -146,7 +146,9 @@ class _Run:
             )
         verdict = verdict or warning
         if verdict is None and self.step0 + n >= self.total:
-            verdict = Verdict(self.total - 1, "completed", f"time limit {self.request.max_time:g} s")
+            verdict = Verdict(
+                self.total - 1, "completed", f"time limit {self.request.max_time:g} s"
+            )
         end = n if verdict is None else verdict.last_step - self.step0 + 1
         if end < n:  # the run stops inside the chunk: its contacts after the stop are not
             self.episodes.restore(saved)
@@ -179,9 +181,12 @@ class _Run:
                 mujoco.mj_checkAcc(model, data)
                 for buf, src in copies:
                     buf[i] = src
-                if data.nefc:
+                nefc = data.nefc
+                if nefc:
                     tape.add(i, after=False)
                 mujoco.mj_RungeKutta(model, data, 4)
+                if nefc:
+                    tape.after_step(qvel)
             else:
                 step(model, data)
                 for buf, src in copies:

@@ -259,9 +259,7 @@ class StopMonitor:
         if stop is None:
             return
         nbody = len(inst.bodies)
-        surfaces = {
-            int(inst.party[i]) for i in range(model.ngeom) if inst.party[i] >= nbody
-        }
+        surfaces = {int(inst.party[i]) for i in range(model.ngeom) if inst.party[i] >= nbody}
         if stop.bounces is not None:
             ground = [g for g in range(model.ngeom) if inst.party[g] >= nbody]
             free = [

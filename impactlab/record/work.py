@@ -23,7 +23,7 @@ MAX_RUN_STEPS = 100_000_000  # steps of one run (about 10 minutes of simulation)
 MAX_JOB_STEPS = 1_000_000_000  # steps of the whole job (about 2 hours on two cores)
 MAX_LOG_BYTES = 20 * 10**9  # logs written by the job
 US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (README)
-LOG_BYTES_PER_ROW = 40  # per logged row: energy and the row's share of the chunk overhead
+LOG_BYTES_PER_ROW = 80  # per logged row: energy, work and the row's share of the chunk overhead
 LOG_BYTES_PER_BODY_ROW = 130  # per logged row and body: its state, transform, clearance (zstd)
 ALLOW_FLAG = "--allow-large"
 

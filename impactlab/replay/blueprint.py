@@ -15,12 +15,11 @@ import rerun.blueprint as rrb
 from impactlab.replay.convert import TIMELINE, TRAIL_S, LoggedRun
 
 SERIES_TITLES = {
-    "gap": "height above the plane / surface gap (m)",
-    "normal_velocity": "velocity (m/s): normal, per axis; impacts and releases",
-    "velocity": None,  # shown with normal_velocity
+    "height": "height above the ground (m)",
+    "velocity": "velocity (m/s)",
     "energy": "energy (J)",
-    "momentum": "momentum, sum of m v (kg m/s; axis: +-the largest |m v| of one body)",
-    "contact_force": "contact normal force (N)",
+    "momentum": "momentum, sum of m v (kg m/s)",
+    "contact_force": "contact normal force (N); impacts, releases",
 }
 
 
@@ -77,8 +76,7 @@ def _series_views(runs: Sequence[LoggedRun]) -> list[rrb.TimeSeriesView]:
     for family, title in SERIES_TITLES.items():
         if title is None or not any(family in run.families for run in runs):
             continue
-        families = ("normal_velocity", "velocity") if family == "normal_velocity" else (family,)
-        contents = [f"+ {run.prefix}/series/{f}/**" for run in runs for f in families]
+        contents = [f"+ {run.prefix}/series/{family}/**" for run in runs]
         axis = _momentum_axis(runs) if family == "momentum" else None
         views.append(rrb.TimeSeriesView(name=title, origin="/runs", contents=contents, axis_y=axis))
     return views

@@ -11,12 +11,12 @@ Entities of a run (P = ``/runs/<run_id>``), all on the duration timeline ``sim_t
 |                                        | last `TRAIL_S` seconds)                         |
 | P/world/velocity/<body>                | velocity arrow, length = v * `VELOCITY_ARROW_S` |
 | P/world/contacts/points, .../force     | contact points and force on geom2 (scaled)      |
-| P/series/gap/<pair>                    | height above the plane / surface gap, m         |
-| P/series/normal_velocity/<pair>[/impacts, /releases] | relative normal velocity, m/s, markers |
+| P/series/height/<body>                 | height of its lowest point above the ground, m  |
 | P/series/velocity/<body>/<vx..vz>      | velocity components that are not all zero, m/s  |
 | P/series/energy/<kinetic..total>       | MuJoCo's energy, J                              |
 | P/series/momentum/<px..pz>             | sum of m v (runs with several bodies), kg m/s   |
-| P/series/contact_force/<pair>          | summed normal force, N (zero without contact)   |
+| P/series/contact_force/<pair>[/impacts, /releases] | a touching pair's summed normal     |
+|                                        | force, N (zero without contact); event markers  |
 | P/events/contacts, P/events/log        | impact / release texts; the log's own events    |
 """
 
@@ -32,7 +32,7 @@ import rerun as rr
 from impactlab.logs.drawing import body_rgba
 from impactlab.logs.geoms import ModelScene
 from impactlab.logs.load import RunLog
-from impactlab.replay.events import Event, normal_kinematics, pairs
+from impactlab.replay.events import Event, pairs
 from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene, rgba255
 
 TIMELINE = "sim_time"
@@ -256,22 +256,31 @@ def _log_series(
     colors = {} if label else body_colors(run)
     force = _normal_force(run, t_ns)
     for pair in pairs(run):
-        gap, vn = normal_kinematics(run, pair)
         part = rr.escape_entity_path_part(pair.name)
-        what = "height" if pair.first == "world" else "gap"
-        color = (
-            colors.get(pair.second) if pair.first == "world" else (PAIR_COLOR if colors else None)
-        )
-        _series(rec, f"{series}/gap/{part}", t_ns, gap, f"{label}{what} {pair.name}", color)
-        path = f"{series}/normal_velocity/{part}"
-        _series(rec, path, t_ns, vn, f"{label}v_n {pair.name}", color)
-        for kind, mark_color in (("impact", IMPACT_COLOR), ("release", RELEASE_COLOR)):
-            steps = np.array([e.step for e in events if e.kind == kind and e.pair == pair], int)
-            _markers(rec, f"{path}/{kind}s", t_ns[steps], vn[steps], f"{label}{kind}", mark_color)
         pair_force = force.get((pair.first, pair.second), np.zeros(t_ns.size))
         path = f"{series}/contact_force/{part}"
+        color = colors.get(pair.second) if pair.first not in run.bodies else None
         _series(rec, path, t_ns, pair_force, f"{label}F_n {pair.name}", color)
-        families |= {"gap", "normal_velocity", "contact_force"}
+        for kind, mark_color in (("impact", IMPACT_COLOR), ("release", RELEASE_COLOR)):
+            steps = np.array([e.step for e in events if e.kind == kind and e.pair == pair], int)
+            values = pair_force[steps]
+            _markers(rec, f"{path}/{kind}s", t_ns[steps], values, f"{label}{kind}", mark_color)
+        families.add("contact_force")
+    if run.clearance.height:
+        lowest = run.clearance.group_by("body", "t_ns").agg(pl.col("clearance_m").min())
+        for (name,), frame in lowest.sort("t_ns").group_by(["body"], maintain_order=True):
+            body = rr.escape_entity_path_part(str(name))
+            values = frame["clearance_m"].to_numpy()
+            path = f"{series}/height/{body}"
+            _series(
+                rec,
+                path,
+                frame["t_ns"].to_numpy(),
+                values,
+                f"{label}height {name}",
+                colors.get(str(name)),
+            )
+            families.add("height")
     masses = run.body_info
     momentum = np.zeros((t_ns.size, 3))
     for name, frame in run.bodies.items():
@@ -279,7 +288,7 @@ def _log_series(
         momentum += vel * (masses[name].mass if name in masses else 0.0)
         body = rr.escape_entity_path_part(name)
         for i, comp in enumerate(("vx", "vy", "vz")):
-            if np.any(vel[:, i] != 0) and not (comp == "vz" and run.plane_z is not None):
+            if np.any(vel[:, i] != 0):
                 path = f"{series}/velocity/{body}/{comp}"
                 _series(rec, path, t_ns, vel[:, i], f"{label}{comp} {name}", colors.get(name))
                 families.add("velocity")
@@ -295,20 +304,20 @@ def _log_series(
             path = f"{series}/energy/{comp}"
             _series(rec, path, t_energy, values, f"{label}{comp}", None if label else color)
         families.add("energy")
-    order = ("gap", "normal_velocity", "velocity", "energy", "momentum", "contact_force")
+    order = ("height", "velocity", "energy", "momentum", "contact_force")
     return [f for f in order if f in families]
 
 
 def _normal_force(run: RunLog, t_ns: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
-    """Per (body1, body2) as in `pairs`, the summed normal force on every step (zeros between)."""
+    """Per pair as `pairs` orders it, the summed normal force at every logged step (zeros
+    between)."""
     if run.contacts.is_empty():
         return {}
+    order = {(p.second, p.first): (p.first, p.second) for p in pairs(run)}
     summed = run.contacts.group_by("body1", "body2", "t_ns").agg(pl.col("normal_force").sum())
     out: dict[tuple[str, str], np.ndarray] = {}
     for (body1, body2), frame in summed.group_by("body1", "body2"):
-        key = (body1, body2)
-        if key not in {(p.first, p.second) for p in pairs(run)}:
-            key = (body2, body1)
+        key = order.get((str(body1), str(body2)), (str(body1), str(body2)))
         values = np.zeros(t_ns.size)
         steps = np.searchsorted(t_ns, frame["t_ns"].to_numpy())
         ok = steps < t_ns.size

@@ -1,10 +1,4 @@
-"""Impact and release events of a run: from the analysis tables when given, else from the log
-(a release's e then from the recorder's contact work: the analysis' e_energy).
-
-A contact interval is a run of consecutive logged steps on which a pair of bodies touches.
-Its impact is the first step in contact, its release the first step after it without contact
-(none when the log ends in contact). The plane is the pair partner ``world``.
-"""
+"""Impact and release events of a run: the recorder's contact episodes, or the analysis rows."""
 
 from __future__ import annotations
 
@@ -19,12 +13,11 @@ from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 
 ANALYSIS_TABLES = ("bounces", "collisions")
-WORLD = "world"
 
 
 @dataclass(frozen=True)
 class Pair:
-    """Two bodies that may touch: `first` is ``world`` for the plane."""
+    """Two parties that touched (a surface first when one is): `first`, `second`."""
 
     first: str
     second: str
@@ -32,7 +25,7 @@ class Pair:
     @property
     def name(self) -> str:
         """A readable label, also used as an entity path part: ``plane-ball``, ``ball1-ball2``."""
-        return f"{'plane' if self.first == WORLD else self.first}-{self.second}"
+        return f"{self.first}-{self.second}"
 
 
 @dataclass(frozen=True)
@@ -57,132 +50,43 @@ class Event:
     details: str = ""
 
 
-@dataclass(frozen=True)
-class Interval:
-    """Contact of one pair over logged steps `start`..`end` (inclusive).
-
-    `v_in_mps` / `v_out_mps`: relative normal velocity on the step before and after
-    (negative: approaching); `release` is None when the log ends in contact.
-    """
-
-    pair: Pair
-    start: int
-    end: int
-    release: int | None
-    v_in_mps: float
-    v_out_mps: float | None
-
-
 def pairs(run: RunLog) -> list[Pair]:
-    """Plane-body pairs (when the run has a plane), then body-body pairs in log order."""
-    names = list(run.bodies)
-    out = [Pair(WORLD, b) for b in names] if run.plane_z is not None else []
-    return out + [Pair(a, b) for i, a in enumerate(names) for b in names[i + 1 :]]
+    """The pairs of parties with a contact episode in the log, in order of their first."""
+    out: dict[Pair, None] = {}
+    for ep in run.impacts.sort("onset_ns").iter_rows(named=True):
+        out.setdefault(_pair(ep), None)
+    return list(out)
 
 
-def normal_kinematics(run: RunLog, pair: Pair) -> tuple[np.ndarray, np.ndarray]:
-    """Surface gap (m) and relative normal velocity (m/s, negative: approaching), (nstep,) each.
-
-    For the plane: height of the lowest point above the plane and vz. For two spheres: distance
-    of the centres minus both radii, and (v2 - v1) along the line from the first to the second.
-    """
-    radius = {name: b.radius or 0.0 for name, b in run.body_info.items()}  # 0: unknown
-    b = run.bodies[pair.second].select("x", "y", "z", "vx", "vy", "vz").to_numpy()
-    r2 = radius.get(pair.second, 0.0)
-    if pair.first == WORLD:
-        return b[:, 2] - r2 - float(run.plane_z or 0.0), b[:, 5]
-    a = run.bodies[pair.first].select("x", "y", "z", "vx", "vy", "vz").to_numpy()
-    d = b[:, :3] - a[:, :3]
-    dist = np.linalg.norm(d, axis=1)
-    n = d / np.where(dist > 0, dist, 1.0)[:, None]
-    gap = dist - r2 - radius.get(pair.first, 0.0)
-    return gap, np.einsum("ij,ij->i", b[:, 3:] - a[:, 3:], n)
-
-
-def contact_steps(run: RunLog, t_ns: np.ndarray) -> dict[Pair, np.ndarray]:
-    """Per pair, the sorted unique indices of the logged steps with contact."""
-    known = {(p.first, p.second): p for p in pairs(run)}
-    out: dict[Pair, np.ndarray] = {}
-    if run.contacts.is_empty():
-        return out
-    grouped = run.contacts.group_by("body1", "body2").agg(pl.col("t_ns").unique().sort())
-    for body1, body2, times in grouped.iter_rows():
-        pair = known.get((body1, body2)) or known.get((body2, body1))
-        if pair is None:
-            continue
-        steps = np.searchsorted(t_ns, np.asarray(times, dtype=np.int64))
-        steps = steps[(steps < t_ns.size)]
-        out[pair] = np.union1d(out.get(pair, np.empty(0, np.int64)), steps)
-    return dict(sorted(out.items(), key=lambda kv: kv[0].name))
-
-
-def contact_intervals(run: RunLog, t_ns: np.ndarray) -> list[Interval]:
-    """Every contact interval of every pair, sorted by impact step."""
-    out = []
-    for pair, steps in contact_steps(run, t_ns).items():
-        _, vn = normal_kinematics(run, pair)
-        breaks = np.flatnonzero(np.diff(steps) > 1)
-        starts = np.concatenate([steps[:1], steps[breaks + 1]])
-        ends = np.concatenate([steps[breaks], steps[-1:]])
-        for s, e in zip(starts.tolist(), ends.tolist(), strict=True):
-            release = e + 1 if e + 1 < t_ns.size else None
-            v_out = float(vn[release]) if release is not None else None
-            out.append(Interval(pair, s, e, release, float(vn[max(s - 1, 0)]), v_out))
-    return sorted(out, key=lambda i: (i.start, i.pair.name))
+def _pair(ep: Mapping[str, object]) -> Pair:
+    """An episode's pair: a surface first (as the bounces name it), else the recorder's order."""
+    if ep["kind2"] == "surface":
+        return Pair(str(ep["side2"]), str(ep["side1"]))
+    return Pair(str(ep["side1"]), str(ep["side2"]))
 
 
 def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
-    """Impact and release events derived from the log's contacts, with the centres' v_in and
-    v_out; a release's e is the energetic coefficient from the work the recorder summed over
-    the contact's every step (the log's `/contact_work`, the analysis' e_energy), never a
-    ratio of the centres' velocities (wrong for a turning body; logs without the work: none)."""
+    """Impact and release events of the log's contact episodes, at the logged steps nearest
+    the recorder's onset and release: v_in at the impact, e = -v_out / v_in (the analysis'
+    e_velocity, the same numbers) at the release, every number of the episode one click away."""
     events = []
-    for iv in contact_intervals(run, t_ns):
-        who = iv.pair.name
-        text = f"impact {who}: v_in = {iv.v_in_mps:.3g} m/s"
-        events.append(Event(iv.start, int(t_ns[iv.start]), "impact", iv.pair, text, _v(iv)))
-        if iv.release is not None:
-            work = _work(run, iv, t_ns)
-            details = _v(iv, out=True) + (work[1] if work else "")
-            text = f"release {who}: " + (
-                f"e = {work[0]:.3g} (energy)" if work else f"v_out = {iv.v_out_mps:.3g} m/s"
+    for ep in run.impacts.iter_rows(named=True):
+        pair = _pair(ep)
+        v_in, v_out = float(ep["v_in_mps"]), float(ep["v_out_mps"])
+        details = f"v_in = {v_in:.4g} m/s, v_out = {v_out:.4g} m/s"
+        w_c, w_r = ep["work_compression_J"], ep["work_restitution_J"]
+        if not ep["open"] and w_c < 0 <= w_r:
+            details += (
+                f", e_energy = {np.sqrt(w_r / -w_c):.4g} (work {w_c:.4g} J in, {w_r:.4g} J out)"
             )
-            events.append(
-                Event(iv.release, int(t_ns[iv.release]), "release", iv.pair, text, details)
-            )
+        impact = _nearest_step(t_ns, ep["onset_ns"] / 1e9)
+        text = f"impact {pair.name}: v_in = {v_in:.3g} m/s"
+        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, details))
+        if not ep["open"] and v_in < 0:
+            release = _nearest_step(t_ns, ep["release_ns"] / 1e9)
+            text = f"release {pair.name}: e = {-v_out / v_in:.3g}"
+            events.append(Event(release, int(t_ns[release]), "release", pair, text, details))
     return sorted(events, key=lambda e: e.step)
-
-
-def _work(run: RunLog, iv: Interval, t_ns: np.ndarray) -> tuple[float, str] | None:
-    """The energetic e of an interval and its numbers, from the recorded contacts of its pair
-    that start after the logged step before it and no later than its last one."""
-    work = run.contact_work
-    if work.is_empty():
-        return None
-    a, b = iv.pair.first, iv.pair.second
-    lo = int(t_ns[iv.start - 1]) if iv.start > 0 else -1
-    mine = work.filter(
-        (
-            ((pl.col("body1") == a) & (pl.col("body2") == b))
-            | ((pl.col("body1") == b) & (pl.col("body2") == a))
-        )
-        & (pl.col("start_ns") > lo)
-        & (pl.col("start_ns") <= int(t_ns[iv.end]))
-    )
-    w_c, w_r = mine.select(
-        pl.col("work_compression_J").sum(), pl.col("work_restitution_J").sum()
-    ).row(0)
-    if mine.is_empty() or mine["open"].any() or not w_c < 0:
-        return None
-    e = float(np.sqrt(w_r / -w_c))
-    return e, f", e_energy = {e:.4g} (work {w_c:.4g} J in, {w_r:.4g} J out)"
-
-
-def _v(iv: Interval, *, out: bool = False) -> str:
-    text = f"v_in = {iv.v_in_mps:.4g} m/s"
-    if out and iv.v_out_mps is not None:
-        text += f", v_out = {iv.v_out_mps:.4g} m/s"
-    return text
 
 
 def load_analysis(folder: Path) -> dict[str, pl.DataFrame]:
@@ -216,8 +120,8 @@ def analysis_events(
     """Events from the analysis rows of this run (None when no table has a row for it).
 
     Each row gives an impact at `impact_t_s` and, when not null, a release at `release_t_s`,
-    snapped to the nearest logged step. The texts carry the row's numbers, and the log's
-    v_in / v_out when a contact interval of the log starts within two steps of the impact.
+    snapped to the nearest logged step. The texts carry the row's numbers; the pair is the
+    log's episode that starts then.
     """
     rows = [
         (name, row)
@@ -226,36 +130,32 @@ def analysis_events(
     ]
     if not rows:
         return None
-    intervals = contact_intervals(run, t_ns)
-    only = pairs(run)[0] if len(pairs(run)) == 1 else None
+    onsets = run.impacts["onset_ns"].to_numpy()
+    found = [_pair(ep) for ep in run.impacts.iter_rows(named=True)]
+    only = found[0] if len(set(found)) == 1 else None
     events = []
     for table, row in rows:
         if row.get("impact_t_s") is None:  # a row saying why nothing happened (no impact)
             continue
         impact = _nearest_step(t_ns, row["impact_t_s"])
-        iv = min(intervals, key=lambda i: abs(i.start - impact), default=None)
-        iv = iv if iv is not None and abs(iv.start - impact) <= 2 else None
-        pair = iv.pair if iv is not None else only
+        near = np.flatnonzero(np.abs(onsets - float(row["impact_t_s"]) * 1e9) < 1e3)  # 1 us
+        pair = found[int(near[0])] if near.size else only
         kind = table.removesuffix("s")
         number = row.get(kind)
         who = f"{kind}{f' {number}' if isinstance(number, int) else ''}"
         who = f"{who} {pair.name if pair else ''}".rstrip()
         numbers = _numbers(row)
         headline = _headline(row)
-        extra = f"; log: {_v(iv)}" if iv else ""
         text = f"impact {who}" + (f": {headline}" if headline else "")
-        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, numbers + extra))
+        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, numbers))
         if row.get("release_t_s") is not None:
             release = _nearest_step(t_ns, row["release_t_s"])
-            extra = f"; log: {_v(iv, out=True)}" if iv else ""
             text = f"release {who}" + (f": {headline}" if headline else "")
-            events.append(
-                Event(release, int(t_ns[release]), "release", pair, text, numbers + extra)
-            )
+            events.append(Event(release, int(t_ns[release]), "release", pair, text, numbers))
     return sorted(events, key=lambda e: e.step)
 
 
-HEADLINE_COLUMNS = ("e_velocity", "e_measured", "e")
+HEADLINE_COLUMNS = ("e_velocity", "e")
 """The analysis column an event's short text shows (the first present), its restitution."""
 
 

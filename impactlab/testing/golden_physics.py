@@ -68,7 +68,7 @@ BOUNCE_QUANTITIES = (
     Quantity("impact_t_s", "impact at", "s", "time"),
 )
 COLLISION_QUANTITIES = (
-    Quantity("e_measured", "e", "", "e"),
+    Quantity("e_velocity", "e", "", "e"),
     Quantity("v1n_before_mps", "v1", "m/s", "speed"),
     Quantity("v2n_before_mps", "v2", "m/s", "speed"),
     Quantity("v1n_after_mps", "v1'", "m/s", "speed"),

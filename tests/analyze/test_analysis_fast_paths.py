@@ -1,6 +1,6 @@
 """The analysis' fast paths (taken on frames as the recorder writes them) give what their
-general path gives on the same data in any order: state lookups, MuJoCo's energy at given
-times, in-contact flags, the split of rows by run, and a table written as one part."""
+general path gives on the same data in any order: MuJoCo's energy at given times, and a table written as one
+part."""
 
 from __future__ import annotations
 
@@ -11,11 +11,7 @@ import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze.measure.analysis import is_in_sorted
-from impactlab.analyze.measure.contact_intervals import _run_blocks
 from impactlab.analyze.measure.energy import _mujoco_at
-from impactlab.analyze.measure.state_table import StateTable
-from impactlab.analyze.measure.states import states_long
 from impactlab.analyze.tables.combine import _join, _relaxed
 from impactlab.files import write_parquet
 from impactlab.logs.load import load_log
@@ -28,28 +24,6 @@ def runs():
     logs = sorted(GOLDEN.glob("*.mcap"))
     assert len(logs) >= 4
     return [load_log(p) for p in logs]
-
-
-def test_state_lookups_do_not_depend_on_the_row_order(runs):
-    """StateTable over states_long (keys already sorted: no sort) and over the same rows
-    shuffled (the general path: ranked and sorted) finds the same states, NaN where none."""
-    states, _ = states_long(runs)
-    shuffled = states[np.random.default_rng(1).permutation(states.height)]
-    blocks = states.select("run_id", "body").unique(maintain_order=True).rows()
-    asked = [(r, b, row) for r, b in blocks for row in (-1, 0, 1, 7, 10**6)]
-    asked += [(blocks[0][0], "no such body", 0), (blocks[0][0], None, 0)]
-    ids, bodies, rows = (list(x) for x in zip(*asked, strict=True))
-    fast = StateTable(states)
-    general = StateTable(shuffled)
-    assert fast.order is None and general.order is not None
-    a = fast.at(ids, bodies, np.array(rows, dtype=float))
-    b = general.at(ids, bodies, np.array(rows, dtype=float))
-    for name in ("t", "x", "q", "v", "w"):
-        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
-    assert np.isfinite(a.t).sum() == 3 * len(blocks)  # rows 0, 1 and 7 of every body
-    first = states.filter(pl.col("row") == 7).row(0, named=True)
-    i = asked.index((first["run_id"], first["body"], 7))
-    assert a.x[i].tolist() == [first["x"], first["y"], first["z"]]
 
 
 def test_mujoco_energy_at_the_logged_times_equals_the_searched_one(runs):
@@ -68,23 +42,6 @@ def test_mujoco_energy_at_the_logged_times_equals_the_searched_one(runs):
     nulls = energy.with_columns(null_at_3.alias("total"))
     values, found = _mujoco_at(nulls, t, 0.5)
     assert not found[3] and np.isnan(values[3]) and found.sum() == t.size - 1
-
-
-def test_in_contact_flags_equal_numpy_isin():
-    rng = np.random.default_rng(7)
-    for size in (0, 1, 50):
-        values = rng.integers(0, 100, 300)
-        inside = np.sort(rng.choice(100, size=size, replace=False))
-        np.testing.assert_array_equal(is_in_sorted(values, inside), np.isin(values, inside))
-
-
-def test_rows_split_by_run_in_blocks_or_interleaved():
-    rows = pl.DataFrame({"run_id": ["a", "a", "b", "b", "b"], "t_ns": [1, 2, 1, 2, 3]})
-    split = _run_blocks(rows, rows["t_ns"].to_numpy())
-    assert [(r, v.tolist()) for r, v in split] == [("a", [1, 2]), ("b", [1, 2, 3])]
-    mixed = rows[[0, 2, 1, 3, 4]]
-    split = _run_blocks(mixed, mixed["t_ns"].to_numpy())
-    assert [(r, v.tolist()) for r, v in split] == [("a", [1, 2]), ("b", [1, 2, 3])]
 
 
 def test_one_part_is_renamed_and_two_are_joined(tmp_path):

@@ -20,7 +20,6 @@ from impactlab.analyze import batch as batch_module
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
 from impactlab.analyze.measure import analysis as analysis_module
 from impactlab.analyze.measure.analysis import RunAnalysis, analyze_run, analyze_runs
-from impactlab.analyze.measure.contact_intervals import with_rows
 from impactlab.analyze.tables import decimate as outputs
 from impactlab.errors import LogError
 from impactlab.logs.load import load_log
@@ -166,33 +165,19 @@ def test_energy_decimated_from_blocks_as_by_groups(monkeypatch):
         assert_frame_equal(general.energy, outputs.decimate(shuffled.energy, max_rows=50))
 
 
-def test_step_rows_are_an_inner_join_on_run_and_time():
-    """A contact logged at a time its run has no state for is left out, as a join would."""
-    rows = pl.DataFrame(
-        {"run_id": ["b", "b", "b", "a", "a"], "t_ns": [0, 10, 20, 5, 15], "row": [0, 1, 2, 0, 1]}
-    )
-    steps = pl.DataFrame(
-        {"run_id": ["a", "a", "a", "b", "b", "c"], "t_ns": [5, 7, 15, 20, 0, 0], "v": range(6)}
-    )
-    expected = steps.join(rows, on=["run_id", "t_ns"], how="inner", maintain_order="left")
-    assert_frame_equal(with_rows(steps, rows), expected)
-    assert with_rows(steps, rows)["v"].to_list() == [0, 2, 3, 4]
-    assert with_rows(steps.clear(), rows).columns == [*steps.columns, "row"]
-
-
 def test_runs_whose_frames_do_not_stack_are_analyzed_each_alone(alone):
-    """A log whose contact channel has another column type (a foreign producer) cannot be
+    """A log whose episodes have another column type (a foreign producer) cannot be
     stacked with the others: the batch falls back to one run at a time, same results."""
     runs = [load_log(p) for p in LOGS]
     drops = [i for i, p in enumerate(LOGS) if p.stem.startswith("drop_")]
     assert len(drops) == 2  # two runs of one kind (a ball on the plane): stacked together
     odd = runs[drops[0]]
     runs[drops[0]] = dataclasses.replace(
-        odd, contacts=odd.contacts.with_columns(pl.col("point").cast(pl.Int64))
+        odd, impacts=odd.impacts.with_columns(pl.col("steps").cast(pl.Int32))
     )
     grounds = {r.run_id: analysis_module._check(r) for r in runs}
     with pytest.raises(pl.exceptions.SchemaError):
-        analysis_module._contacts([runs[i] for i in drops], grounds)
+        analysis_module._analyze([runs[i] for i in drops], grounds)
     for a, b in zip(analyze_runs(runs), alone, strict=True):
         same(a, b)
 
@@ -219,7 +204,7 @@ def bounce(name: str, integrator: str, g: tuple[float, float], mass: float, ever
 
 def test_runs_of_different_physics_together(record_spec):
     """Gravity (tilted, weaker), integrators and logging strides differ per run: each run's
-    own are used in the batch (the impact speeds, v_min, apexes depend on them)."""
+    own are used in the batch (the apexes depend on them, v_min on gravity and timestep)."""
     cases = [
         dict(name="batch_euler", integrator="Euler", g=(0.0, -9.81), mass=1.0, every=1),
         dict(name="batch_rk4", integrator="RK4", g=(0.0, -9.81), mass=2.0, every=3),
@@ -232,24 +217,9 @@ def test_runs_of_different_physics_together(record_spec):
     for a, b in zip(together, alone, strict=True):
         same(a, b)
     v_min = [a.intervals["v_min_mps"][0] for a in together]
-    assert len(set(v_min)) == len(cases)  # each run's own gravity and logging stride
+    physics = {(c["g"], c.get("timestep")) for c in cases}
+    assert len(set(v_min)) == len(physics)  # each run's own gravity and timestep
     assert all(a.bounces.filter(pl.col("complete")).height >= 1 for a in together)
-
-
-def test_contacts_in_any_row_order_give_the_same_analysis(alone):
-    """Contact rows as decoded come by pair and time (no sort needed); in any other order
-    (a run built by hand, a box's points shuffled) they are sorted first: same results."""
-    runs = [load_log(p) for p in LOGS]
-    shuffled = [
-        dataclasses.replace(r, contacts=r.contacts.sample(fraction=1.0, shuffle=True, seed=7))
-        for r in runs
-    ]
-    assert any(
-        not r.contacts["t_ns"].is_sorted() for r in shuffled if r.contacts.height
-    )  # really out of order
-    for a, b in zip(analyze_runs(shuffled), alone, strict=True):
-        for name in ("intervals", "bounces", "collisions", "phases"):
-            assert_frame_equal(getattr(a, name), getattr(b, name), rel_tol=1e-12, abs_tol=1e-15)
 
 
 def test_bodies_logged_at_different_times_sum_by_time():

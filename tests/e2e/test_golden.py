@@ -140,22 +140,23 @@ def test_official_reader_agrees_with_load(golden: Golden):
         g1, g2 = topic.removeprefix(logformat.CONTACT_TOPIC_PREFIX).split("/")
         n = run.contacts.filter(geom1=g1, geom2=g2)["t_ns"].n_unique()
         assert n == counts[topic]
-    work = sorted(
-        ((t, m) for tp, t, m in messages if tp.startswith(logformat.CONTACT_WORK_TOPIC_PREFIX)),
-        key=lambda x: x[0],
-    )
-    assert work, "every golden run has contacts, each with its work"
-    frame = run.contact_work.sort("end_ns")
-    assert frame["end_ns"].to_list() == [t for t, _ in work] == [m.end_ns for _, m in work]
+    impacts = [(t, m) for tp, t, m in messages if tp == logformat.IMPACTS_TOPIC]
+    assert impacts, "every golden run has contacts, each an episode"
+    frame = run.impacts
+    assert frame["release_ns"].to_list() == [t for t, _ in impacts]
     for name, column in [
-        ("start_ns", "start_ns"),
+        ("onset_ns", "onset_ns"),
+        ("side1", "side1"),
+        ("side2", "side2"),
         ("work_compression", "work_compression_J"),
         ("work_restitution", "work_restitution_J"),
-        ("v_start", "v_start_mps"),
-        ("v_end", "v_end_mps"),
+        ("v_in", "v_in_mps"),
+        ("v_out", "v_out_mps"),
         ("open", "open"),
     ]:
-        assert frame[column].to_list() == [getattr(m, name) for _, m in work], name
+        assert frame[column].to_list() == [getattr(m, name) for _, m in impacts], name
+    work = [m for tp, _, m in messages if tp == logformat.WORK_TOPIC]
+    assert run.work["contact_normal"].to_list() == [m.contact_normal for m in work]
     events = [m.message for tp, _, m in messages if tp == logformat.EVENTS_TOPIC]
     assert run.events["message"].to_list() == events
     assert events[0] == f"completed: {run.meta['reason']}"

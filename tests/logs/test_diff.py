@@ -110,7 +110,7 @@ def base(tmp_path_factory) -> Path:
 def test_identical_logs_are_equal(base, capsys):
     code, out, err = run_cli(capsys, base, base)
     assert (code, err) == (0, "")
-    assert out.startswith(f"{base} and {base} are equal within atol 1e-09, rtol 1e-09 (6 channels,")
+    assert out.startswith(f"{base} and {base} are equal within atol 1e-09, rtol 1e-09 (7 channels,")
 
 
 def test_recording_twice_gives_bitwise_equal_logs(base, tmp_path, capsys):

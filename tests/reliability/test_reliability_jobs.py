@@ -103,15 +103,14 @@ def test_penetration_bound(tmp_path, capsys):
 def test_non_finite_state(tmp_path, capsys, monkeypatch):
     """A state that becomes NaN (injected into one run of a batch at step 100) stops
     that run as unstable with the rows before it; the batch's other runs are unaffected."""
-    real = simulate_module._advance
+    real = simulate_module._Run._steps
 
-    def poisoned(a, rows, last_state, step0, *rest):
-        if abs(a.request.inst.model.body_mass[1] - 2.0) < 1e-9 and step0 == 0:
-            rows = rows.copy()
-            rows[100:] = np.nan  # what the rollout returns once the state has blown up
-        return real(a, rows, last_state, step0, *rest)
+    def poisoned(run, n):
+        real(run, n)
+        if abs(run.model.body_mass[1] - 2.0) < 1e-9 and run.step0 == 0:
+            run.rows[100:n] = np.nan  # what MuJoCo's sensors read once the state blew up
 
-    monkeypatch.setattr(simulate_module, "_advance", poisoned)
+    monkeypatch.setattr(simulate_module._Run, "_steps", poisoned)
     spec = spec_file(tmp_path, "nan", extra='[sweep]\n"ball.mass" = [1.0, 2.0, 3.0]')
     out = tmp_path / "logs"
     code = main(["record", str(spec), "-o", str(out)])

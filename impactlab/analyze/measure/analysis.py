@@ -154,7 +154,7 @@ def _batch_or_each(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAn
     """The runs analyzed together; if that fails (one's metadata fails on the way, or runs
     whose frames cannot be stacked), each on its own, so that an error is that run's alone."""
     try:
-        return _analyze(runs, grounds)
+        return list[RunAnalysis | LogError](_analyze(runs, grounds))
     except LogError as exc:
         if len(runs) == 1:
             return [exc]
@@ -322,7 +322,9 @@ def _with_no_bounce_rows(
         (
             run.run_id,
             name,
-            no_bounce_reason(first.get((run.run_id, name)), states_of.get(run.run_id, pl.DataFrame())),
+            no_bounce_reason(
+                first.get((run.run_id, name)), states_of.get(run.run_id, pl.DataFrame())
+            ),
         )
         for run, name in missing
     ]
@@ -341,10 +343,9 @@ def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:
         return f"no contact with the ground in the {duration_s(states):.4g} s logged"
     if first["initial"]:
         return (
-            f"at rest, sliding or rolling on {first['other']} from the start: "
-            "no impact, no bounce"
+            f"at rest, sliding or rolling on {first['other']} from the start: no impact, no bounce"
         )
     return (
-        f"touches {first['other']} no faster than v_min = {first['v_min_mps']:.3g} m/s and "
-        "stays: a resting, sliding or rolling contact, no bounce"
+        f"at rest, sliding or rolling on {first['other']}: it arrived no faster than "
+        f"v_min = {first['v_min_mps']:.3g} m/s and stayed, no bounce"
     )

@@ -109,9 +109,11 @@ def bounces(
     ballistic = ~pl.col("articulated")
     level = ~pl.col("turning_after").fill_null(True)
     apex_after = complete & pl.col("after_reached").fill_null(False) & level & ballistic
-    apex_before = pl.col("before_reached").fill_null(False) & ~pl.col(
-        "turning_before"
-    ).fill_null(True) & ballistic
+    apex_before = (
+        pl.col("before_reached").fill_null(False)
+        & ~pl.col("turning_before").fill_null(True)
+        & ballistic
+    )
     e_v = pl.when(complete).then(e_velocity())
     return (
         rows.with_columns(
@@ -125,7 +127,9 @@ def bounces(
             "bounce",
             "impact_t_s",
             pl.when(complete).then(pl.col("release_t_s")).alias("release_t_s"),
-            pl.when(complete).then(pl.col("release_t_s") - pl.col("impact_t_s")).alias("duration_s"),
+            pl.when(complete)
+            .then(pl.col("release_t_s") - pl.col("impact_t_s"))
+            .alias("duration_s"),
             "v_in_mps",
             pl.when(complete).then(pl.col("v_out_mps")).alias("v_out_mps"),
             e_v.alias("e_velocity"),

@@ -1,4 +1,4 @@
-"""Contact episodes as the recorder found them at every step, classified; e by velocity and by work."""
+"""Contact episodes as the recorder found them at every step, classified; e by velocity and work."""
 
 from __future__ import annotations
 
@@ -38,9 +38,10 @@ def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
         (run_id, kind, body, other, start_t_ns, end_t_ns, impact_t_s, release_t_s,
         v_in_mps, v_out_mps, v_min_mps, impact (arrived at v_min or faster, after the start),
         initial (touching at the start), open, work_c_J, work_r_J, work_f_J, peak_force_N,
-        impulse_Ns, max_penetration_m, nx_out, ny_out, nz_out (the normal from the surface
-        or `body` to the other side), first_row, last_row (the logged rows inside it), and
-        the sides' states `s1_*`, `s2_*` as logged by the recorder), by run and time.
+        impulse_Ns, max_penetration_m, the normal from the surface or `body` to the other
+        side at the first and last step (nx_in .. nz_out) and the contact point then (px_in ..
+        pz_out), first_row, last_row (the logged rows inside it), and the sides' states
+        `s1_*`, `s2_*` as recorded), by run and time.
     """
     frames = [run.impacts for run in runs if run.impacts.height]
     if not frames:
@@ -80,6 +81,7 @@ def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
         "max_penetration_m",
         *[(flip * pl.col(f"n{c}_out")).alias(f"n{c}_out") for c in "xyz"],
         *[(flip * pl.col(f"n{c}_in")).alias(f"n{c}_in") for c in "xyz"],
+        pl.col("^p[xyz]_(in|out)$"),
         pl.col("^s[12]_(in|out)_.*$"),
     ).with_columns(
         (~pl.col("initial") & (pl.col("v_in_mps") <= -pl.col("v_min_mps"))).alias("impact")
@@ -92,7 +94,9 @@ def _with_rows(frame: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
     before the release (first > last when the episode lies between two logged rows)."""
     first = np.empty(frame.height, np.int64)
     last = np.empty(frame.height, np.int64)
-    logged = {k[0]: f["t_ns"].to_numpy() for k, f in rows.partition_by("run_id", as_dict=True).items()}
+    logged = {
+        k[0]: f["t_ns"].to_numpy() for k, f in rows.partition_by("run_id", as_dict=True).items()
+    }
     ids = frame["run_id"].to_list()
     start, end = frame["start_t_ns"].to_numpy(), frame["end_t_ns"].to_numpy()
     for i, r in enumerate(ids):
@@ -104,9 +108,10 @@ def _with_rows(frame: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
 
 def _empty() -> pl.DataFrame:
     strings = ("run_id", "kind", "body", "other")
-    floats = ("impact_t_s", "release_t_s", "v_in_mps", "v_out_mps", "v_min_mps", "work_c_J")
-    floats += ("work_r_J", "work_f_J", "peak_force_N", "impulse_Ns", "max_penetration_m")
-    floats += tuple(f"n{c}_{w}" for w in ("out", "in") for c in "xyz")
+    floats: tuple[str, ...] = ("impact_t_s", "release_t_s", "v_in_mps", "v_out_mps", "v_min_mps")
+    floats += ("work_c_J", "work_r_J", "work_f_J", "peak_force_N", "impulse_Ns")
+    floats += ("max_penetration_m",)
+    floats += tuple(f"{v}{c}_{w}" for v in "np" for w in ("out", "in") for c in "xyz")
     schema: dict[str, pl.DataType] = {k: pl.String() for k in strings}
     schema |= {"start_t_ns": pl.Int64(), "end_t_ns": pl.Int64()}
     schema |= {k: pl.Float64() for k in floats}

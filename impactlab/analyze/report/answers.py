@@ -171,7 +171,7 @@ def _collision_sentence(r: dict[str, Any], run: dict[str, Any] | None) -> str:
         out += f"; the kinetic energy falls from {before:.4g} J to {after:.4g} J"
         out += f" ({frac * 100:.1f} % lost)" if F.defined(frac) else ""
     out += "."
-    e, predicted = r["e_measured"], r["ke_loss_predicted_J"]
+    e, predicted = r["e_velocity"], r["ke_loss_predicted_J"]
     if F.defined(e):
         out += f" Measured e = {e:.3f}"
         out += (

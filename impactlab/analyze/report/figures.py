@@ -289,7 +289,7 @@ def restitution_figure(
     if c.height:
         ax.plot(
             c["v1n_before_mps"] - c["v2n_before_mps"],
-            c["e_measured"],
+            c["e_velocity"],
             "s",
             color="k",
             label="body-body collisions (closing speed)",

@@ -58,7 +58,7 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
         return None
     col = collisions.filter(pl.col("run_id").is_in(ids.implode()))
     if col.height:
-        done = col.filter(pl.col("complete") & pl.col("e_measured").is_not_null())
+        done = col.filter(pl.col("complete") & pl.col("e_velocity").is_not_null())
         if done.is_empty():
             row = col.row(0, named=True)
             after = [
@@ -80,7 +80,7 @@ def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> s
             if rels.len()
             else "momentum change not measured"
         )
-        words = f"e = {_span(done['e_measured'])} over {done.height} collision(s), {momentum}"
+        words = f"e = {_span(done['e_velocity'])} over {done.height} collision(s), {momentum}"
         if done.height > 1:  # a sweep: how close it comes to the elastic answer
             el1 = done["v1n_after_elastic_mps"][0]
             gap = F.elastic_gap(done["v1n_after_mps"].to_list(), el1)

@@ -217,7 +217,7 @@ def collision_line(collisions: pl.DataFrame, runs: pl.DataFrame | None = None) -
             f"In run {_who(r)} the kinetic energy falls by {before - after:.4g} J "
             f"({before:.4g} J -> {after:.4g} J)"
         )
-        e, predicted = r["e_measured"], r["ke_loss_predicted_J"]
+        e, predicted = r["e_velocity"], r["ke_loss_predicted_J"]
         if F.defined(e) and F.defined(predicted):
             out += f"; the 1D formula with the measured e = {e:.3f} predicts {predicted:.4g} J."
         else:

@@ -299,7 +299,7 @@ def report_parts(
                     "v2n_before_mps",
                     "v1n_after_mps",
                     "v2n_after_mps",
-                    "e_measured",
+                    "e_velocity",
                     "momentum_rel_change",
                     "ke_before_J",
                     "ke_after_J",

@@ -28,8 +28,8 @@ def test_momentum_conserved(hit):
 def test_restitution_and_energy_loss(hit):
     """e within 0.01 of the closed form; KE loss = (1 - e^2) m1 m2 (v1 - v2)^2 / (2 (m1 + m2))."""
     row = hit.collisions.row(0, named=True)
-    assert abs(row["e_measured"] - schwager_poeschel(ZETA)) < 0.01
-    expected = (1 - row["e_measured"] ** 2) * M1 * M2 * (V1 - V2) ** 2 / (2 * (M1 + M2))
+    assert abs(row["e_velocity"] - schwager_poeschel(ZETA)) < 0.01
+    expected = (1 - row["e_velocity"] ** 2) * M1 * M2 * (V1 - V2) ** 2 / (2 * (M1 + M2))
     assert row["ke_loss_J"] == pytest.approx(expected, rel=1e-9)
     assert row["ke_loss_predicted_J"] == pytest.approx(row["ke_loss_J"], rel=1e-9)
     assert row["v1n_after_e_mps"] == pytest.approx(row["v1n_after_mps"], abs=1e-9)
@@ -51,7 +51,7 @@ def test_no_collision_gives_a_row_with_the_reason(record_spec):
     a = analyze_run(load_log(path))
     assert a.collisions.height == 1
     row = a.collisions.row(0, named=True)
-    assert not row["complete"] and row["e_measured"] is None
+    assert not row["complete"] and row["e_velocity"] is None
     assert "never happened" in row["note"]
     assert row["v1x_after_mps"] == pytest.approx(V1)  # "after" equals "before"
     assert a.summary["note"]

@@ -18,6 +18,7 @@ import impactlab
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.report import answers
 from impactlab.cli import main
+from impactlab.errors import LogError
 from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log
 
@@ -68,12 +69,15 @@ def test_chatter_at_rest_is_one_resting_contact(pairs):
     a = pairs.bounces.filter(pl.col("body") == "a").sort("bounce")
     last = a.row(-1, named=True)
     assert not last["complete"] and last["e_velocity"] is None
-    assert last["n_raw_contacts"] > 10  # the flicker, merged
     assert last["note"].startswith("still in contact with plane")
-    assert a.filter(pl.col("complete"))["n_raw_contacts"].max() == 1
+    # every contact of a with the plane before it is an impact: the flicker is merged
+    episodes = pairs.intervals.filter(pl.col("body") == "a")
+    assert episodes.filter(~pl.col("open"))["impact"].all()
+    assert episodes.height == a.height
     # the bounces before rest are real flights: each rises as high as its release speed says
-    flights = a.filter(pl.col("apex_m").is_not_null())
-    np.testing.assert_allclose(flights["apex_m"], flights["apex_predicted_m"], rtol=1e-6)
+    flights = a.filter(pl.col("apex_m").is_not_null())  # to one step's speed change, g dt
+    dv = 2 * G * 0.000005 / flights["v_out_mps"].to_numpy()
+    assert (np.abs(flights["apex_m"] / flights["apex_predicted_m"] - 1) <= dv).all()
 
 
 @pytest.mark.slow
@@ -126,7 +130,7 @@ def test_resting_rolling_and_sliding_balls_make_no_bounce(record_spec, v, w):
     assert a.summary["n_bounces"] == 0
     (row,) = a.bounces.rows(named=True)
     assert row["bounce"] is None and row["body"] == "ball"
-    assert row["note"].startswith("at rest, sliding or rolling on plane from the first logged step")
+    assert row["note"].startswith("at rest, sliding or rolling on plane")
     assert a.summary["energy_initial_J"] == pytest.approx(
         0.5 * (v * v) + 0.5 * 0.004 * w * w, abs=1e-12
     )
@@ -254,27 +258,20 @@ def test_a_collision_that_was_expected_and_did_not_happen_says_so(record_model):
     assert col.height == 1 and "never happened" in col["note"][0]
 
 
-def test_older_logs_are_analyzed_as_before(tmp_path):
-    """A log written before surfaces and clearances were recorded (format 1, spheres on a
-    plane): the plane and the spheres' clearances come from its metadata, with the same
-    numbers as a log recorded today from the model it carries (its attachment), with the
-    same run options."""
+def test_older_logs_are_refused_with_how_to_record_them_again(tmp_path):
+    """A log of format 1 (written before the recorder found contacts at every step) is not
+    analyzed: one line names its format and what to do; the model it carries records again
+    and that log is analyzed."""
     old = tmp_path / "old.mcap"
     shutil.copyfile(GOLDEN / "format1" / "drop_restitution.mcap", old)
     run = load_log(old)
-    assert run.surfaces is None and run.clearance.is_empty()
+    with pytest.raises(LogError, match=r"a log of format 1: .* record the run again"):
+        analyze_run(run)
     model = tmp_path / "model.xml"
     model.write_bytes(read_attachments(old)["model.xml"])
     options = [f"logging.every={run.meta['log_every']}", "stop.bounces=1"]
     (today,) = impactlab.record(model, out=tmp_path / "today", duration=1.0, overrides=options)
-    then, now = analyze_run(run), analyze_run(load_log(today.path))
-    for col in ("v_in_mps", "v_out_mps", "e_velocity", "apex_before_m"):
-        np.testing.assert_allclose(then.bounces[col], now.bounces[col], rtol=1e-12, err_msg=col)
-    # the old recorder did not log the step it stopped on, the apex: said, not guessed
-    assert then.bounces["apex_m"][0] is None and now.bounces["apex_m"][0] is not None
-    assert then.bounces["note"][0] == "the log ends before the apex after this bounce"
-    assert then.summary["energy_initial_J"] == pytest.approx(
-        now.summary["energy_initial_J"], rel=1e-12
-    )
-    assert then.summary["mujoco_diff_max_J"] < 1e-9
-    assert math.isclose(then.summary["drop_height_m"], 0.05, abs_tol=1e-12)
+    now = analyze_run(load_log(today.path))
+    assert now.bounces["apex_m"][0] is not None
+    assert now.summary["mujoco_diff_max_J"] < 1e-9
+    assert math.isclose(now.summary["drop_height_m"], 0.05, abs_tol=1e-12)

@@ -82,7 +82,7 @@ def _collision(run_id: str = "c1", **values) -> dict:
         "ke_before_J": 2.5,
         "ke_after_J": 1.0,
         "ke_loss_frac": 0.6,
-        "e_measured": 0.5,
+        "e_velocity": 0.5,
         "ke_loss_predicted_J": 1.5,
         "v1n_after_mps": 0.25,
         "v2n_after_mps": 1.75,
@@ -264,7 +264,7 @@ def test_negative_ranges_read_and_absurd_percentages_become_joules():
 def test_undefined_quantities_are_left_out_with_the_reason():
     eccentric = _collision(
         momentum_rel_change=None,
-        e_measured=None,
+        e_velocity=None,
         ke_loss_predicted_J=None,
         ke_after_J=None,
         ke_loss_frac=None,
@@ -273,7 +273,7 @@ def test_undefined_quantities_are_left_out_with_the_reason():
         v_after_inelastic_mps=None,
         note="eccentric impact: the 1D formulas for the outcome do not apply",
     )
-    col = _collisions(eccentric, _collision(e_measured=0.3, ke_loss_predicted_J=None))
+    col = _collisions(eccentric, _collision(e_velocity=0.3, ke_loss_predicted_J=None))
     runs = _runs(_run("c1"))
     text = " ".join([*answers.collision_answer(col, runs), collision_line(col, runs)])
     assert "momentum change is not measured" in text
@@ -343,7 +343,7 @@ def test_the_handout_section_keeps_momentum_only_when_it_is_kept():
         {"run_id": ["w1", "c1"], "experiment": ["collision_as_written", "collision"]}
     )
     col = _collisions(
-        _collision("w1", complete=False, e_measured=None, note="the collision never happened"),
+        _collision("w1", complete=False, e_velocity=None, note="the collision never happened"),
         _collision("c1", momentum_rel_change=0.3),
     )
     text = "\n".join(as_written_section(runs, col))

@@ -19,7 +19,7 @@ COLLISIONS = pl.DataFrame(
     {
         "run_id": ["w1", "c1"],
         "complete": [False, True],
-        "e_measured": [None, 0.136],
+        "e_velocity": [None, 0.136],
         "note": ["the collision never happened", ""],
         "v1n_after_mps": [2.0, 0.2],
         "v2n_after_mps": [-1.0, 0.7],
@@ -124,7 +124,7 @@ def test_restitution_figure_of_collisions_without_a_bounce(monkeypatch, tmp_path
     seen = []
     monkeypatch.setattr(figures, "save_figure", lambda fig, path: seen.append(fig) or path)
     collisions = pl.DataFrame(
-        {"complete": [True], "v1n_before_mps": [2.0], "v2n_before_mps": [-1.0], "e_measured": [0.8]}
+        {"complete": [True], "v1n_before_mps": [2.0], "v2n_before_mps": [-1.0], "e_velocity": [0.8]}
     )
     figures.restitution_figure(
         pl.DataFrame(schema={"complete": pl.Boolean}),
