@@ -14,7 +14,7 @@ from typing import Any, TypeGuard
 
 import polars as pl
 
-from impactlab.analyze.report.blocks import number, percent, quantity
+from impactlab.analyze.report.blocks import number, quantity
 from impactlab.physics import SEMI_IMPLICIT
 
 MOMENTUM_CONSERVED_REL = 1e-6

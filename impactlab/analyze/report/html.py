@@ -9,7 +9,7 @@ from __future__ import annotations
 import base64
 import os
 import stat
-from html import escape
+from html import escape as _escape
 from pathlib import Path
 from urllib.parse import quote
 
@@ -27,6 +27,7 @@ from impactlab.analyze.report.blocks import (
     cell,
     rows_shown,
 )
+from impactlab.text import visible
 
 CSP = (
     "default-src 'none'; img-src data:; style-src 'unsafe-inline'; base-uri 'none'; "
@@ -61,6 +62,11 @@ nav ul { columns: 2; }
   a { color: inherit; text-decoration: none; }
 }
 """
+
+
+def escape(text: str) -> str:
+    """Text as HTML that shows exactly it: markup escaped, control characters as escapes."""
+    return _escape(visible(text))
 
 
 def html(doc: Document, folder: Path) -> str:
