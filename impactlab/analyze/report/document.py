@@ -66,7 +66,9 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
         f"{t.runs.height} runs analyzed from the logs of {n_exp} experiments"
         + (f"; {len(t.failed)} input(s) could not be read" if t.failed else "")
         + (f"; {_repeats(t)}" if t.same else "")
-        + ". Units: SI. Every table and figure, the method and the files are in "
+        + ". Units: SI."
+        + ("" if any(t.figures.values()) else " No figures were drawn (--no-figures).")
+        + " Every table and figure, the method and the files are in "
     )
     doc = Document(TITLE, [Paragraph((intro, Link("the appendix", questions.APPENDIX), "."))])
     doc.blocks += _problems(t)

@@ -218,7 +218,7 @@ def restitution_figure(
     mine = pl.col("run_id").is_in(list(experiments))
     b = bounces.filter(pl.col("complete") & mine) if bounces.height else bounces
     c = collisions.filter(pl.col("complete") & mine) if collisions.height else collisions
-    ids = [*b["run_id"].to_list(), *c["run_id"].to_list()] if b.height or c.height else []
+    ids = [*(b["run_id"] if b.height else []), *(c["run_id"] if c.height else [])]
     names = list(dict.fromkeys(experiments[r] for r in ids))
     for i, name in enumerate(names):
         runs = [r for r, e in experiments.items() if e == name]

@@ -213,6 +213,25 @@ def elastic_gap(v1_after: Iterable[Any], v1_elastic: Any) -> float | None:
     return min(gaps) if gaps else None
 
 
+def at_rest(ground: pl.DataFrame) -> list[str]:
+    """Why runs that end at rest end early and slightly below zero energy."""
+    rest = ground.filter(pl.col("reason") == "bodies at rest")
+    if rest.is_empty():
+        return []
+    r = rest.row(0, named=True)
+    out = (
+        f"{rest.height} run(s) stop once every body is at rest, {r.get('run') or r['run_id']} at "
+        f"{quantity(r['duration_s'], 's')}."
+    )
+    if defined(r["energy_final_J"]) and r["energy_final_J"] < 0:
+        out += (
+            f" Its final energy is slightly negative ({quantity(r['energy_final_J'], 'J')}): the "
+            "ball rests a fraction of a millimetre into MuJoCo's soft contact, below the "
+            "surface where potential energy is zero."
+        )
+    return [out]
+
+
 WORDING_ERRORS: tuple[type[Exception], ...] = (
     TypeError,
     ValueError,

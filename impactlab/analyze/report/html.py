@@ -55,7 +55,9 @@ nav ul { columns: 2; }
 @page { size: A4; margin: 14mm 14mm 16mm; }
 @media print {
   body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
-  table { font-size: 8pt; page-break-inside: auto; }
+  table { font-size: 7.5pt; page-break-inside: auto; }
+  td { overflow-wrap: anywhere; }
+  td, th { padding: 0.1rem 0.25rem; }
   tr, figure, img { page-break-inside: avoid; break-inside: avoid; }
   h2, h3 { page-break-after: avoid; break-after: avoid; }
   figure img { max-height: 95mm; width: auto; max-width: 100%; }

@@ -136,32 +136,13 @@ def energy(t: Tables) -> Answer:
         "A semi-implicit integrator (Euler, as in the handout) loses m g² dt T / 2 in a flight "
         "of T seconds: that is the drift predicted beside each run's below."
     )
-    evidence: list[Block] = [Bullets(tuple((s,) for s in (why, *_at_rest(ground))))]
+    evidence: list[Block] = [Bullets(tuple((s,) for s in (why, *F.at_rest(ground))))]
     evidence += _table(table, cols, footnotes)
     order = ["n_bounces_complete", "drop_height_m"]
     best = ground.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
     evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
     return Answer([Strong(lead)], evidence, verdict)
-
-
-def _at_rest(ground: pl.DataFrame) -> list[str]:
-    """Why runs that end at rest end early and slightly below zero energy."""
-    rest = ground.filter(pl.col("reason") == "bodies at rest")
-    if rest.is_empty():
-        return []
-    r = rest.row(0, named=True)
-    out = (
-        f"{rest.height} run(s) stop once every body is at rest, {_who(r)} at "
-        f"{quantity(r['duration_s'], 's')}."
-    )
-    if F.defined(r["energy_final_J"]) and r["energy_final_J"] < 0:
-        out += (
-            f" Its final energy is slightly negative ({quantity(r['energy_final_J'], 'J')}): the "
-            "ball rests a fraction of a millimetre into MuJoCo's soft contact, below the "
-            "surface where potential energy is zero."
-        )
-    return [out]
 
 
 def restitution(t: Tables) -> Answer:
@@ -281,10 +262,10 @@ def collision(t: Tables) -> Answer:
     alone = done.join(t.runs.select("run_id", "experiment"), on="run_id")
     alone = alone.filter(pl.len().over("experiment") == 1)
     main = (alone if alone.height else done).row(0, named=True)
-    before, after, e = main["ke_before_J"], main["ke_after_J"], main["e_measured"]
-    predicted = main["ke_loss_predicted_J"]
+    keys = ("ke_before_J", "ke_after_J", "e_measured", "ke_loss_predicted_J")
     lead: list[Span] = [Strong(momentum + ".")]
-    if all(F.defined(x) for x in (before, after, e, predicted)):
+    if all(F.defined(main.get(k)) for k in keys):
+        before, after, e, predicted = (float(main[k]) for k in keys)
         lead = [
             Strong(
                 f"{momentum}, and the kinetic energy lost in {_who(main)}, "
@@ -311,9 +292,17 @@ def collision(t: Tables) -> Answer:
 
 def _outcomes(c: dict[str, Any]) -> list[Block]:
     """The measured outcome of a collision beside the elastic and perfectly inelastic ones."""
-    m1, m2, v1, v2 = c["m1_kg"], c["m2_kg"], c["v1n_before_mps"], c["v2n_before_mps"]
-    if not all(F.defined(x) for x in (m1, m2, v1, v2, c["v1n_after_mps"], c["v2n_after_mps"])):
+    needed = (
+        "m1_kg",
+        "m2_kg",
+        "v1n_before_mps",
+        "v2n_before_mps",
+        "v1n_after_mps",
+        "v2n_after_mps",
+    )
+    if not all(F.defined(c.get(k)) for k in needed) or not c["m1_kg"] + c["m2_kg"]:
         return []
+    m1, m2, v1, v2 = (float(c[k]) for k in needed[:4])
     outcomes = [("measured", c["e_measured"], c["v1n_after_mps"], c["v2n_after_mps"])]
     for name, e in (("elastic", 1.0), ("perfectly inelastic", 0.0)):
         outcomes.append((name, e, *collision_after(m1, m2, v1, v2, e)))
