@@ -3,9 +3,9 @@
 The specs are those of `experiments` (by default `experiments/` in the working folder, or,
 when that holds none, the handout's experiments shipped with impactlab). Logs go to
 OUT/logs, tables, figures and the report (report.md, and report.html with the figures
-embedded) to OUT/results, one Rerun recording per run to OUT/results/replays (linked from
-the report). Complete logs from an earlier run of
-the same specs are reused.
+embedded; the details in report-appendix.md/.html) to OUT/results, one Rerun recording per
+run to OUT/results/replays (linked from the appendix, with the calibration). Complete logs
+from an earlier run of the same specs are reused.
 """
 
 from __future__ import annotations
@@ -17,11 +17,10 @@ from typing import TYPE_CHECKING
 
 from impactlab.errors import SpecError
 from impactlab.executors.base import Executor
-from impactlab.files import write_text
 from impactlab.progress import Progress, say
-from impactlab.text import md_link, md_text
 
 if TYPE_CHECKING:
+    from impactlab.analyze import Block
     from impactlab.calibrate import CalibrationResult
 
 DEFAULT_EXPERIMENTS = Path("experiments")
@@ -60,7 +59,7 @@ def run_lab(
             calibration run here.
         progress: receives every stage's progress and lines; None: silent.
     """
-    from impactlab.analyze import analyze, write_report_html
+    from impactlab.analyze import analyze, append_report_sections
     from impactlab.record import plan, record
 
     specs = _specs(experiments, progress)
@@ -78,7 +77,7 @@ def run_lab(
         logs, out=results_dir, figures=True, report=True, executor=executor, progress=progress
     )
     report = results_dir / "report.md"
-    sections = [report.read_text(encoding="utf-8")]
+    sections: list[Block] = []
     replays: list[Path] = []
     if replay:
         from impactlab.replay import replay as write_replays
@@ -87,7 +86,7 @@ def run_lab(
         replays = write_replays(
             logs, out=results_dir / "replays", analysis=results_dir, progress=progress
         )
-        sections.append(_replays_section(report, replays))
+        sections += _replays_section(results_dir, replays)
     if calibration != "none":
         from impactlab.calibrate import run_calibration
 
@@ -95,9 +94,9 @@ def run_lab(
         say(progress, "lab", f"calibrating restitution ({calibration} grid) into {where}/")
         echo = (lambda line: say(progress, "calibrate", line)) if progress else (lambda _: None)
         calibrated = run_calibration(where, grid=calibration, echo=echo)
-        sections.append(_calibration_section(report, calibrated))
-    write_text(report, "".join(sections))
-    write_report_html(report)
+        sections += _calibration_section(calibrated)
+    if sections:
+        append_report_sections(results_dir / "report-appendix.md", sections)
     failed = bool(recorded.exit_code or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
 
@@ -128,62 +127,64 @@ def _specs(experiments: Path | None, progress: Progress | None) -> list[Path]:
     return specs
 
 
-def _calibration_section(report: Path, result: CalibrationResult) -> str:
-    """The report's section on the calibration: summary and figures."""
-    lines = [
-        "",
-        "## Calibration: target against measured restitution",
-        "",
-        f"Contacts asking for `restitution = e`, recorded and measured by this analysis over "
-        f"the {result.grid.name} grid ({result.grid.n_runs} runs); the bound is "
-        "|e_measured - e_target| <= 0.005 at every impact speed in the contact's speed range "
-        "(single impacts at 1..10 m/s, and every bounce of multi-bounce drops).",
-        "",
-        "| contact | runs | max abs error | mean abs error | max penetration / radius | worst |",
-        "|---|---|---|---|---|---|",
-    ]
+def _calibration_section(result: CalibrationResult) -> list[Block]:
+    """The appendix's section on the calibration: its summary table and figures."""
+    import polars as pl
+
+    from impactlab.analyze import Column, Figure, Heading, Link, Paragraph, Table
+
+    rows = []
     names = {"plane": "ball-plane, gravity", "ball": "ball-ball, zero gravity"}
     for kind, name in names.items():
         entry = result.summary.get(kind)
-        if not entry:
-            continue
-        w = entry.get("worst") or {}
-        worst = (
-            f"e = {w['target']:g} at {w['speed_mps']:g} m/s: measured {w['e_measured']:.5f}"
-            if w
-            else "-"
-        )
-        lines.append(
-            f"| {name} | {entry['runs']} | {entry['max_abs_error']:.5f} | "
-            f"{entry['mean_abs_error']:.4f} | {entry['max_penetration_frac']:.4f} | {worst} |"
-        )
+        if entry:
+            w = entry.get("worst") or {}
+            worst = f"e = {w['target']:g} at {w['speed_mps']:g} m/s" if w else ""
+            rows.append((name, entry["runs"], entry["max_abs_error"], entry["mean_abs_error"],
+                         entry["max_penetration_frac"], worst))  # fmt: skip
     mb = result.summary.get("bounces")
     if mb and mb["in_range"]:
         w = mb["worst_in_range"]
-        lines.append(
-            f"| every bounce of {mb['runs']} drops, gravity | {mb['in_range']} bounces in range "
-            f"| {mb['max_abs_error_in_range']:.5f} | | {mb['max_penetration_frac_in_range']:.4f} "
-            f"| bounce {w['bounce']} at {w['v_in_mps']:.3g} m/s: measured {w['e_measured']:.5f}; "
-            f"{mb['below_range']} below the range within "
-            f"{mb['max_abs_diff_predicted_below'] or 0:.4f} of the prediction |"
-        )
-    lines.append("")
-    lines += [f"![calibration]({os.path.relpath(f, report.parent)})" for f in result.figures]
+        rows.append((f"every bounce of {mb['runs']} drops in range", mb["in_range"],
+                     mb["max_abs_error_in_range"], None, mb["max_penetration_frac_in_range"],
+                     f"bounce {w['bounce']} at {w['v_in_mps']:.3g} m/s"))  # fmt: skip
+    frame = pl.DataFrame(
+        rows, orient="row", schema=["contact", "runs", "max", "mean", "pen", "worst"]
+    )
+    columns = (
+        Column("contact", "Contact"),
+        Column("runs", "Runs"),
+        Column("max", "Largest |e - target|"),
+        Column("mean", "Mean |e - target|"),
+        Column("pen", "Largest penetration / radius"),
+        Column("worst", "Worst at"),
+    )
     details = result.out_dir / "calibration.md"
-    lines += ["", f"Every point: [{details.name}]({os.path.relpath(details, report.parent)})."]
-    return "\n".join(lines) + "\n"
+    where = os.path.relpath(details, result.out_dir.parent)
+    return [
+        Heading("Calibration: target against measured restitution"),
+        Paragraph(
+            (
+                f"Contacts asking for restitution = e, recorded and measured by this analysis over "
+                f"the {result.grid.name} grid ({result.grid.n_runs} runs); the bound is "
+                "|e - target| ≤ 0.005 at every impact speed of the contact's speed range. Every "
+                "point: ",
+                Link(details.name, where),
+                ".",
+            )
+        ),
+        Table(frame, columns),
+        *[Figure(f, "Calibration") for f in result.figures],
+    ]
 
 
-def _replays_section(report: Path, replays: list[Path]) -> str:
-    """The report's section linking each run's Rerun recording."""
-    lines = [
-        "",
-        "## Replays",
-        "",
-        "One Rerun recording per run (open with `rerun FILE.rrd`; see docs/replay.md):",
-        "",
+def _replays_section(results: Path, replays: list[Path]) -> list[Block]:
+    """The appendix's section linking each run's Rerun recording."""
+    from impactlab.analyze import Bullets, Heading, Link, Paragraph
+
+    links = tuple((Link(p.stem, os.path.relpath(p, results)),) for p in replays)
+    return [
+        Heading("Replays"),
+        Paragraph(("One Rerun recording per run (open with rerun FILE.rrd; see docs/replay.md):",)),
+        Bullets(links),
     ]
-    lines += [
-        f"- [{md_text(p.stem)}]({md_link(os.path.relpath(p, report.parent))})" for p in replays
-    ]
-    return "\n".join(lines) + "\n"

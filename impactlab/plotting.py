@@ -1,31 +1,57 @@
-"""Matplotlib set up for files (Agg backend) and figures saved atomically as PNG."""
+"""Figures drawn to PNG files on their own Agg canvas: no pyplot, no backend or style changed."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
+from functools import wraps
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Any, Literal, ParamSpec, TypeVar
 
 import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 
 from impactlab.files import atomic_path
 
-if TYPE_CHECKING:
-    from matplotlib.figure import Figure
-
-matplotlib.rcParams["text.parse_math"] = False  # a name with `$` is text, never mathtext
-
-__all__ = ["DPI", "plt", "png_text", "save_figure"]
-
 DPI = 110
+DEFAULTS = {
+    k: v for k, v in matplotlib.rcParamsDefault.items() if k not in ("backend", "interactive")
+}
+"""Matplotlib's own style: the figures look the same whatever style the user has set."""
+
 _PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
+P = ParamSpec("P")
+R = TypeVar("R")
+
+
+def styled(draw: Callable[P, R]) -> Callable[P, R]:
+    """Decorate a drawing function: it draws in matplotlib's default style (`DEFAULTS`),
+    whatever the user's, which is left as it was."""
+
+    @wraps(draw)
+    def drawing(*args: P.args, **kwargs: P.kwargs) -> R:
+        with matplotlib.rc_context(DEFAULTS):
+            return draw(*args, **kwargs)
+
+    return drawing
+
+
+def subplots(
+    nrows: int = 1,
+    ncols: int = 1,
+    *,
+    figsize: tuple[float, float],
+    layout: Literal["constrained"] | None = None,
+    **options: Any,
+) -> tuple[Figure, Any]:
+    """A new figure on an Agg canvas of its own (not pyplot's) and its axes, as
+    `pyplot.subplots` returns them."""
+    fig = Figure(figsize=figsize, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig, fig.subplots(nrows, ncols, **options)
 
 
 @contextmanager
@@ -38,48 +64,42 @@ def png_text(text: dict[str, str]) -> Iterator[None]:
         _PNG_TEXT.reset(token)
 
 
+def plain(text: object) -> str:
+    """Text for a figure drawn as written: a name's `$` never starts math text."""
+    return str(text).replace("$", r"\$")
+
+
 def save_figure(fig: Figure, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
-    """Save as PNG under a temporary name, rename into place, close. Returns `path`.
+    """Save as PNG under a temporary name, then rename into place. Returns `path`.
 
     The layout is `tight_layout`, or with `tight_bbox` the saved box is cut to the artists
     (for figures whose colour bar spans several axes).
     """
     path.parent.mkdir(parents=True, exist_ok=True)
-    # laid out at the resolution it is saved at: the layout's text measures are then those
-    # of the saving (one renderer, its caches warm) instead of measured again (16% of an
-    # energy figure's time; the layout moves by less than a pixel)
-    fig.set_dpi(dpi)
-    if not tight_bbox:
-        fig.tight_layout()
-        fig.set_layout_engine(None)  # laid out: saving then draws once, not twice
-    try:
-        with atomic_path(path) as tmp:
-            if tight_bbox:
-                fig.savefig(
-                    tmp, dpi=dpi, format="png", bbox_inches="tight", metadata=_PNG_TEXT.get()
-                )
-            else:
-                _write_png(fig, tmp)
-    finally:
-        plt.close(fig)
+    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
+    fig.set_dpi(dpi)  # laid out at the resolution it is saved at: text measured once
+    with atomic_path(path) as tmp:
+        if tight_bbox:
+            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight", metadata=_PNG_TEXT.get())
+        else:
+            fig.tight_layout()
+            fig.set_layout_engine(None)  # laid out: drawn once, not twice
+            _write_png(canvas, tmp)
     return path
 
 
-def _write_png(fig: Figure, path: Path) -> None:
-    """Draw `fig` at its resolution and write it as `savefig` would (the same pixels and PNG
-    text entries), as RGB when it is opaque: a third less to compress than RGBA (about
-    35% less encoding time, 10% smaller files)."""
+def _write_png(canvas: FigureCanvasAgg, path: Path) -> None:
+    """Draw and write the figure as RGB when it is opaque (a third less to compress than
+    RGBA: about 35 % less encoding time, 10 % smaller files)."""
     from PIL import Image
     from PIL.PngImagePlugin import PngInfo
 
-    canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
     canvas.draw()  # type: ignore[no-untyped-call]
     rgba = np.asarray(canvas.buffer_rgba())  # type: ignore[no-untyped-call]
     image = Image.fromarray(rgba, "RGBA")
     if bool((rgba[..., 3] == 255).all()):
         image = image.convert("RGB")
     info = PngInfo()
-    text = {"Software": f"Matplotlib version{matplotlib.__version__}, https://matplotlib.org/"}
-    for key, value in {**text, **(_PNG_TEXT.get() or {})}.items():
+    for key, value in (_PNG_TEXT.get() or {}).items():
         info.add_text(key, value)
-    image.save(path, format="png", pnginfo=info, dpi=(fig.dpi, fig.dpi))
+    image.save(path, format="png", pnginfo=info, dpi=(canvas.figure.dpi, canvas.figure.dpi))

@@ -50,13 +50,14 @@ def one_line(text: str) -> str:
     return visible(text)
 
 
-def md_text(text: object) -> str:
+def md_text(text: object, *, line_start: bool = True) -> str:
     """Untrusted text as Markdown that renders as exactly that text, on one line: control
     characters (newlines too) shown as escapes, Markdown punctuation backslash-escaped (`|`
-    too, so it also fits a table cell), a leading `#`, `-`, `+`, `=` or `1.` escaped."""
+    too, so it also fits a table cell), and, for text that starts a line (`line_start`), a
+    leading `#`, `-`, `+`, `=` or `1.` escaped (inside a line or a table cell they are text)."""
     out = _MD_ALWAYS.sub(r"\\\g<0>", visible(str(text)))
     out = _MD_UNDERSCORE.sub(r"\\_", out)
-    start = _MD_START.match(out)
+    start = _MD_START.match(out) if line_start else None
     if start is not None:
         at = start.start(2) if start.group(2) else start.start(4)
         out = out[:at] + "\\" + out[at:]

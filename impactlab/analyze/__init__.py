@@ -3,11 +3,11 @@
 Owns: the quantities of one run (`ground`, `contacts`, `impacts` with `kinematics`,
 `flights`, `bounces`, `collisions`, `energy`, `analysis`, `summary`; see docs/analysis.md),
 the tables over many runs (`tables`, `studies`), the analysis job (`job`, `batch`) and what it
-writes (`write`, `figures`, `run_figures`, `report`, `answers`, `html`: the report as one
-self-contained page).
+writes (`write`, `report`: figures, and the report and its appendix as blocks written to
+Markdown and to self-contained HTML pages; tools add sections with `append_report_sections`).
 
 May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
-polars, matplotlib, markdown-it. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
+polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
 `impactlab.replay`, `impactlab.calibrate`: the analysis reads only the logs.
 
 This package is also the function `impactlab.analyze(...)` (see `analyze` below).
@@ -26,7 +26,15 @@ if TYPE_CHECKING:
     from impactlab.analyze.measure.analysis import RunAnalysis as RunAnalysis
     from impactlab.analyze.measure.analysis import analyze_run as analyze_run
     from impactlab.analyze.measure.analysis import analyze_runs as analyze_runs
-    from impactlab.analyze.report.html import write_report_html as write_report_html
+    from impactlab.analyze.report.blocks import Block as Block
+    from impactlab.analyze.report.blocks import Bullets as Bullets
+    from impactlab.analyze.report.blocks import Column as Column
+    from impactlab.analyze.report.blocks import Figure as Figure
+    from impactlab.analyze.report.blocks import Heading as Heading
+    from impactlab.analyze.report.blocks import Link as Link
+    from impactlab.analyze.report.blocks import Paragraph as Paragraph
+    from impactlab.analyze.report.blocks import Table as Table
+    from impactlab.analyze.report.document import append_report_sections as append_report_sections
     from impactlab.analyze.tables.combine import AnalysisResult as AnalysisResult
     from impactlab.executors.base import Executor
     from impactlab.progress import Progress
@@ -40,7 +48,15 @@ if not TYPE_CHECKING:  # a type checker sees the imports above
             "analyze_run": "impactlab.analyze.measure.analysis",
             "analyze_runs": "impactlab.analyze.measure.analysis",
             "run_analysis": "impactlab.analyze.job",
-            "write_report_html": "impactlab.analyze.report.html",
+            "append_report_sections": "impactlab.analyze.report.document",
+            "Block": "impactlab.analyze.report.blocks",
+            "Bullets": "impactlab.analyze.report.blocks",
+            "Column": "impactlab.analyze.report.blocks",
+            "Figure": "impactlab.analyze.report.blocks",
+            "Heading": "impactlab.analyze.report.blocks",
+            "Link": "impactlab.analyze.report.blocks",
+            "Paragraph": "impactlab.analyze.report.blocks",
+            "Table": "impactlab.analyze.report.blocks",
         },
     )
 

@@ -13,8 +13,9 @@ from pathlib import Path
 
 from impactlab.analyze.batch import AnalyzedLog, analyze_logs
 from impactlab.analyze.publish import publish, staged
+from impactlab.analyze.report.context import RunBrief, brief
 from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
-from impactlab.analyze.write import RunBrief, brief, write_all
+from impactlab.analyze.write import write_all
 from impactlab.executors.base import Executor
 from impactlab.files import check_writable
 from impactlab.logs.inputs import require_log_names
@@ -93,8 +94,7 @@ def _analysis(
         if d.analysis.run.partial:
             problems = "; ".join(d.analysis.run.problems)
             partial.append(f"impactlab: warning: {d.analysis.run.path}: partial log ({problems})")
-        if draw:
-            briefs.append(brief(d.analysis))
+        briefs.append(brief(d.analysis))
         if d.figures:
             run_figs.append(d.figures)
 

@@ -1,58 +1,29 @@
-"""Write an analysis: Parquet tables, summary.json, the summary figures and report.md."""
+"""Write an analysis: Parquet tables, summary.json, the summary figures and the report."""
 
 from __future__ import annotations
 
 import contextlib
 import functools
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import polars as pl
 
-from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.analyze.report import answers
+from impactlab.analyze.report.context import RunBrief, Tables, labelled, repeated_runs
 from impactlab.analyze.report.decimate_lines import LINE_BINS
-from impactlab.analyze.report.html import write_report_html
-from impactlab.analyze.report.markdown import report_parts
-from impactlab.analyze.report.run_figures import draw_named, run_label
+from impactlab.analyze.report.document import answers, summary_answers, write_reports
+from impactlab.analyze.report.run_figures import draw_named
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
-from impactlab.files import atomic_path, write_json_stream, write_parquet
+from impactlab.files import write_json_stream, write_parquet
 from impactlab.text import file_part
 
 SUMMARY_SLICE = 1000
 """summary.json lists the runs from slices of this many rows of the runs table."""
-
-
-@dataclass(frozen=True)
-class RunBrief:
-    """What the summary figures need of one run (a few strings and numbers, whatever its
-    length): its id, experiment, readable label, whether it has ground surfaces, the
-    restitution targets of its calibrated pairs and its bodies' masses."""
-
-    run_id: str
-    experiment: str
-    label: str
-    grounded: bool
-    targets: tuple[float, ...]
-    masses: tuple[float, ...]
-
-
-def brief(a: RunAnalysis) -> RunBrief:
-    """The run's `RunBrief`."""
-    return RunBrief(
-        run_id=a.run.run_id,
-        experiment=a.run.experiment,
-        label=run_label(a),
-        grounded=a.ground is not None and bool(a.ground.surfaces),
-        targets=tuple(sorted({t.restitution for t in a.run.contact_targets})),
-        masses=tuple(info.mass for info in a.run.body_info.values()),
-    )
 
 
 def write_all(
@@ -94,77 +65,53 @@ def write_all(
             files.append(source)
         else:
             files.append(write_parquet(result.table(name), out / f"{name}.parquet"))
-    tables = tuple(result.table(n) for n in ("bounces", "collisions", "phases"))
-    bounces, collisions, _ = tables
+    bounces, collisions, phases = (result.table(n) for n in ("bounces", "collisions", "phases"))
     params = {name: study_parameters(result.runs, name) for name in result.studies}
-    stride_note = _stride_note(result)
     figs: dict[str, list[Path]] = {}
     for made in run_figs:
         for kind, path in made:
             figs.setdefault(kind, []).append(path)
+    same = repeated_runs(result.runs, params)  # each run drawn and reported once
+    shown = [b for b in briefs if b.run_id not in same]
     jobs = []
     if figures:
-        fig_dir = out / "figures"
-        jobs = summary_figure_jobs((bounces, collisions), result.studies, briefs, params, fig_dir)
+        jobs = summary_figure_jobs(
+            (bounces, collisions), result.studies, shown, params, out / "figures"
+        )
         for kind, path, _, _ in jobs:
             figs.setdefault(kind, []).append(path)
     files += [p for ps in figs.values() for p in ps]
-    # the summary figures are drawn (in the workers, when they are up) while the tables,
-    # report.md and summary.json are written here; report.html embeds them, so it waits
-    with _drawing([job[1:] for job in jobs], previous, executor) as drawn:
-        _write_report_and_summary(
-            result, tables, out, figs, params, stride_note, report, files, drawn
+    t = labelled(
+        Tables(
+            result.runs,
+            bounces,
+            collisions,
+            phases,
+            result.studies,
+            params,
+            {b.run_id: b for b in briefs},
+            figs,
+            list(result.failed),
+            _stride_note(result),
         )
-    return files
-
-
-def _write_report_and_summary(
-    result: AnalysisResult,
-    tables: tuple[pl.DataFrame, ...],
-    out: Path,
-    figs: dict[str, list[Path]],
-    params: dict[str, list[str]],
-    stride_note: str,
-    report: bool,
-    files: list[Path],
-    drawn: Callable[[], None],
-) -> None:
-    """Write report.md, summary.json and (once `drawn` returns: the figures are there)
-    report.html into `out`, adding them to `files`; `tables`: bounces, collisions, phases."""
-    bounces, collisions, phases = tables
-    if report:
-        parts = report_parts(
-            out_dir=out,
-            runs=result.runs,
-            bounces=bounces,
-            collisions=collisions,
-            phases=phases,
-            studies=result.studies,
-            params=params,
-            figures=figs,
-            failed=result.failed,
-            energy_stride_note=stride_note,
-        )
-        files.append(write_lines(out / "report.md", parts))
-        del parts
+    )
+    replies = answers(t)
     summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
         "runs": _rows(result.runs),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
         "studies": {name: _rows(s) for name, s in result.studies.items()},
         "study_parameters": params,
-        "answers": {
-            "energy": answers.energy_answer(result.runs),
-            "e_constant_across_bounces": answers.constancy_answer(result.runs, bounces),
-            "e_against_drop_height": answers.height_answer(result.studies),
-            "collision": answers.collision_answer(collisions, result.runs),
-            "parameter_study": answers.study_answer(result.studies, params),
-        },
-        "energy_table": stride_note,
+        "answers": summary_answers(replies),
+        "energy_table": t.energy_note,
     }
-    files.append(write_json_stream(out / "summary.json", summary))
-    drawn()
+    # the summary figures are drawn (in the workers, when they are up) while summary.json is
+    # written here; the report embeds them, so it waits
+    with _drawing([job[1:] for job in jobs], previous, executor) as drawn:
+        files.append(write_json_stream(out / "summary.json", summary))
+        drawn()
     if report:
-        files.append(write_report_html(out / "report.md"))
+        files += write_reports(t, out, replies)
+    return files
 
 
 @contextlib.contextmanager
@@ -196,14 +143,6 @@ def _drawing(
     drawn()
 
 
-def write_lines(path: Path, parts: Iterable[str]) -> Path:
-    """Write `parts` joined by newlines, atomically, without joining them in memory."""
-    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
-        for i, part in enumerate(parts):
-            stream.write(f"\n{part}" if i else part)
-    return path
-
-
 def _rows(frame: pl.DataFrame) -> Iterator[dict[str, Any]]:
     """The frame's rows as dicts, SUMMARY_SLICE rows converted at a time."""
     for start in range(0, frame.height, SUMMARY_SLICE):
@@ -214,35 +153,12 @@ def _stride_note(result: AnalysisResult) -> str:
     rows, n_max = result.energy_logged
     kept = result.scan("energy").select(pl.len()).collect().item()
     return (
-        f"`energy.parquet` keeps every k-th logged step per run and body (k chosen so that at "
+        f"energy.parquet keeps every k-th logged step per run and body (k chosen so that at "
         f"most about {ENERGY_ROWS_PER_RUN} rows remain; here the longest run has {n_max} rows, "
         f"{kept} of {rows} rows kept); all quantities use every logged step, and the "
         f"figures' lines of more than {2 * LINE_BINS} points show the lowest and highest "
         f"point of each of {LINE_BINS} runs of steps."
     )
-
-
-def summary_figures(
-    tables: tuple[pl.DataFrame, pl.DataFrame],
-    studies: dict[str, pl.DataFrame],
-    briefs: Sequence[RunBrief],
-    params: dict[str, list[str]],
-    fig_dir: Path,
-    previous: Path | None = None,
-    executor: Executor | None = None,
-) -> dict[str, list[Path]]:
-    """Draw the figures over many runs (bounce decay, restitution, studies) from the bounces
-    and collisions `tables`, by kind; those whose inputs did not change are copied from
-    `previous`, the others drawn in the executor's workers when it has some
-    (`figure_cache.draw_all`)."""
-    from impactlab.analyze.report.figure_cache import draw_all
-
-    jobs = summary_figure_jobs(tables, studies, briefs, params, fig_dir)
-    paths = draw_all([job[1:] for job in jobs], previous, executor)
-    figs: dict[str, list[Path]] = {}
-    for (kind, *_), path in zip(jobs, paths, strict=True):
-        figs.setdefault(kind, []).append(path)
-    return figs
 
 
 def summary_figure_jobs(
@@ -252,7 +168,7 @@ def summary_figure_jobs(
     params: dict[str, list[str]],
     fig_dir: Path,
 ) -> list[tuple[str, Path, str, Callable[[], Path]]]:
-    """The figures over many runs to draw (`summary_figures`), nothing drawn yet: (kind,
+    """The figures over many runs to draw, nothing drawn yet: (kind,
     path, key, drawing) of each."""
     from impactlab.analyze.report.figure_cache import figure_key
 
@@ -283,28 +199,24 @@ def summary_figure_jobs(
         collisions.height and collisions["e_velocity"].drop_nulls().len()
     )
     if has_e:
-        labels = {b.run_id: b.label for b in briefs}
-        bounces = (
-            all_bounces if all_bounces.height else pl.DataFrame(schema={"complete": pl.Boolean})
-        )
         experiments = {b.run_id: b.experiment for b in briefs}
         targets = _targets(briefs)
         path = fig_dir / "restitution-vs-speed.png"
-        key = figure_key("restitution", bounces, collisions, labels, experiments, targets)
+        key = figure_key("restitution", all_bounces, collisions, experiments, targets)
         draw = functools.partial(
             draw_named,
             "restitution_figure",
-            bounces,
+            all_bounces,
             collisions,
-            labels,
+            experiments,
             path=path.absolute(),
-            experiments=experiments,
             targets=targets,
         )
         jobs.append(("restitution", path, key, draw))
     for name, study in studies.items():
-        param = params[name][0]
-        group = by_exp[name]
+        param, group = params[name][0], by_exp.get(name, [])
+        if not group:
+            continue
         if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
             path, title = fig_dir / f"study-{file_part(name)}.png", f"Parameter study: {name}"
             m1, m2 = group[0].masses[:2]

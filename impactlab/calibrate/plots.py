@@ -12,7 +12,7 @@ import numpy as np
 import polars as pl
 from matplotlib.lines import Line2D
 
-from impactlab.plotting import plt, save_figure
+from impactlab.plotting import save_figure, styled, subplots
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -58,6 +58,7 @@ def _scatter(
     return sc
 
 
+@styled
 def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
     """Target vs measured e (top) and the error vs target (bottom), ball-plane and ball-ball.
 
@@ -78,8 +79,8 @@ def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
         else (1.0, 10.0)
     )
     norm = matplotlib.colors.LogNorm(vmin=lo, vmax=max(hi, lo * 1.01))
-    cmap = plt.get_cmap("viridis")
-    fig, axes = plt.subplots(2, 2, figsize=(13, 9), squeeze=False, layout="constrained")
+    cmap = matplotlib.colormaps.get_cmap("viridis")
+    fig, axes = subplots(2, 2, figsize=(13, 9), squeeze=False, layout="constrained")
     sc = None
     for col, (kind, label, shape_col, shape_label) in enumerate(kinds):
         part = frame.filter(pl.col("kind") == kind)
@@ -118,6 +119,7 @@ def calibration_figure(points: pl.DataFrame, *, title: str, path: Path) -> Path:
     return save_figure(fig, path, tight_bbox=True)
 
 
+@styled
 def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, path: Path) -> Path:
     """Measured e vs impact speed on the floor (top) and e - target (bottom), with predictions.
 
@@ -126,11 +128,11 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
         curves: (target, speed_mps, e_pred_release, e_pred_surface), dense in speed.
     """
     low = points.filter(pl.col("kind") == "lowspeed").sort("target", "speed_mps")
-    fig, (ax, ax_d) = plt.subplots(
+    fig, (ax, ax_d) = subplots(
         2, 1, figsize=(9, 9), sharex=True, gridspec_kw={"height_ratios": [3, 2]}
     )
     targets = sorted(low["target"].unique().to_list())
-    colors = plt.get_cmap("tab10")
+    colors = matplotlib.colormaps.get_cmap("tab10")
     for i, target in enumerate(targets):
         c = colors(i % 10)
         part = low.filter(pl.col("target") == target)
@@ -170,6 +172,7 @@ def lowspeed_figure(points: pl.DataFrame, curves: pl.DataFrame, *, title: str, p
     return save_figure(fig, path)
 
 
+@styled
 def bounces_figure(frame: pl.DataFrame, curves: pl.DataFrame, *, title: str, path: Path) -> Path:
     """e - target against impact speed for every bounce of the multi-bounce drops.
 
@@ -177,10 +180,10 @@ def bounces_figure(frame: pl.DataFrame, curves: pl.DataFrame, *, title: str, pat
     segment), open ones below it; the line is the designer's prediction (step emulation, mean
     over contact-onset phases), the band the tolerance.
     """
-    fig, ax = plt.subplots(figsize=(10, 6))
+    fig, ax = subplots(figsize=(10, 6))
     ax.axhspan(-TOLERANCE, TOLERANCE, color="tab:green", alpha=0.12, label="±0.005")
     ax.axhline(0.0, color="0.5", lw=1)
-    colors = plt.get_cmap("tab10")
+    colors = matplotlib.colormaps.get_cmap("tab10")
     for i, name in enumerate(sorted(frame["name"].unique().to_list())):
         c = colors(i % 10)
         part = frame.filter(pl.col("name") == name).sort("v_in_mps")

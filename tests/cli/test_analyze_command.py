@@ -57,8 +57,9 @@ def test_outputs_written(logs, tmp_path):
             }
             assert target[1:] in slugs, target
             continue
-        assert (out / target).is_file(), target  # relative image links resolve
-    assert "never happened" in report  # the run without a collision is reported, with reason
+        assert (out / target.split("#")[0]).is_file(), target  # relative links resolve
+    appendix = (out / "report-appendix.md").read_text()
+    assert "never happened" in appendix  # the run without a collision is reported, with reason
     pngs = sorted(p.name for p in (out / "figures").glob("*.png"))
     assert any(p.startswith("energy-") for p in pngs)
     assert any(p.startswith("collision-") for p in pngs)
@@ -162,4 +163,4 @@ def test_no_figures_writes_the_tables_and_no_figure(logs, tmp_path, capsys):
     assert not list(out.rglob("*.png"))
     report = (out / "report.md").read_text()
     assert "![" not in report  # no image link (in-page links stay)
-    assert "| Visualisation | 10 | not answered: this analysis drew no figures" in report
+    assert "No figures were drawn (--no-figures)." in report

@@ -32,12 +32,13 @@ def test_lab_records_analyzes_and_links_replays(tmp_path, capsys):
     logs = sorted((out / "logs").glob("*.mcap"))
     assert [p.name.split("-")[0] for p in logs] == ["tiny_collision", "tiny_drop"]
     report = (out / "results" / "report.md").read_text()
-    for section in ("## Step 1: energy", "## Step 2: restitution", "## Step 3: collision"):
+    for section in ("## Step 1: Is energy", "## Step 2: Is e constant", "## Step 3: Is momentum"):
         assert section in report
+    appendix = (out / "results" / "report-appendix.md").read_text()
     replays = sorted((out / "results" / "replays").glob("*.rrd"))
     assert [p.stem for p in replays] == [p.stem for p in logs]
     for p in replays:
-        assert f"(replays/{p.name})" in report
+        assert f"(replays/{p.name})" in appendix
     # a second run into the same folder reuses every log and gives the same report and tables
     first = _outputs(out)
     assert main(args) == 0

@@ -1,3 +1,2 @@
-"""The report: findings chosen by thresholds on the numbers (`findings`), the sentences that
-answer the handout (`headline`, `answers`, `handout`), report.md (`markdown`) and
-report.html (`html`), figures and their cache."""
+"""The report: blocks built from the tables, one function per handout question, written to
+Markdown and HTML; the figures and their cache."""

@@ -1,29 +1,22 @@
-"""Figures (matplotlib, Agg backend) drawn from the analysis frames; no physics is computed here.
-
-Every function takes frames, a title and an output path, writes one PNG and returns its path.
-"""
+"""Figures drawn from the analysis frames (each: frames, a title, a path -> one PNG)."""
 
 from __future__ import annotations
 
-import threading
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import matplotlib
 import matplotlib.ticker
 import numpy as np
 import polars as pl
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 from impactlab.analyze.measure.bounces import TURNING
 from impactlab.analyze.report.decimate_lines import thinned
-from impactlab.plotting import plt, save_figure
+from impactlab.plotting import plain, save_figure, styled, subplots
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.collections import Collection
-    from matplotlib.lines import Line2D
 
 MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
 MAX_SPEED_LABELS = 8  # a study figure writes the impact speed of at most this many runs
@@ -55,72 +48,23 @@ def _energy_lines(energy: pl.DataFrame) -> tuple[list[tuple[str, Any, Any]], lis
     return heights, [thinned(t, y.to_numpy()) for y in ys]
 
 
-@dataclass
-class _Drawn:
-    """An energy figure kept to draw the next run's into: its axes and artists."""
-
-    fig: Figure
-    axes: tuple[Axes, Axes]
-    lines: list[Line2D]
-    shades: list[Collection | None]
-
-
-_ENERGY: dict[tuple[tuple[str, ...], int, bool], _Drawn] = {}
-_ENERGY_LOCK = threading.Lock()
-KEPT_FIGURES = 4
-"""At most this many energy figures (of different bodies or lines) are kept (3 MB each)."""
-
-
+@styled
 def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, path: Path) -> Path:
-    """Height above the contact height per body (top) and the run's energies (bottom).
-
-    The figure is kept and the next run's with the same bodies, lines and shading is drawn
-    into it (its lines' data, limits, title and shading replaced): the axes, ticks, legends
-    and text measures are built once per process, not once per run.
+    """Height above the contact height per body (top) and the run's energies (bottom), over
+    the logged time only.
 
     Args:
         energy: `run_energy` of one run.
         contacts: the run's contact phases (start_t_s, end_t_s), shaded.
     """
     heights, energies = _energy_lines(energy)
-    shape = (tuple(b for b, _, _ in heights), len(energies), bool(contacts.height))
-    with _ENERGY_LOCK:
-        kept = _ENERGY.pop(shape, None)  # back in only once drawn: never half-filled
-        if kept is None:
-            kept = _new_energy_figure(heights, energies, contacts, title)
-        else:
-            for line, (*_, x, y) in zip(kept.lines, [*heights, *energies], strict=True):
-                line.set_data(x, y)
-            kept.axes[0].set_title(title)
-            for ax in kept.axes:
-                ax.relim()  # the lines' limits; the shading's are added as it is drawn
-            for i, ax in enumerate(kept.axes):
-                old = kept.shades[i]
-                if old is not None:
-                    old.remove()
-                kept.shades[i] = _shade_contacts(ax, contacts)
-                ax.autoscale_view()
-        path = save_figure(kept.fig, path)
-        while len(_ENERGY) >= KEPT_FIGURES:  # the least recently drawn goes
-            _ENERGY.pop(next(iter(_ENERGY)))
-        _ENERGY[shape] = kept
-        return path
-
-
-def _new_energy_figure(
-    heights: list[tuple[str, Any, Any]], energies: list[Any], contacts: pl.DataFrame, title: str
-) -> _Drawn:
-    """An energy figure (`energy_figure`) drawn from the start."""
-    fig = Figure(figsize=(9, 7))
-    FigureCanvasAgg(fig)  # its renderer lays the figure out and draws it
-    ax_h, ax_e = fig.subplots(2, 1, sharex=True)
+    fig, (ax_h, ax_e) = subplots(2, 1, figsize=(9, 7), sharex=True)
     for body, t, h in heights:
-        ax_h.plot(t, h, label=body)
-    shades = [_shade_contacts(ax_h, contacts)]
+        ax_h.plot(t, h, label=plain(body))
+    _shade_contacts(ax_h, contacts)
     ax_h.set_ylabel("lowest point above the ground (m)")
-    ax_h.set_title(title)
+    ax_h.set_title(plain(title))
     ax_h.legend(loc="upper right")
-    ax_h.grid(True, alpha=0.3)
     styles: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         ((), {"label": "kinetic", "alpha": 0.8}),
         ((), {"label": "potential (zero at rest on the ground)", "alpha": 0.8}),
@@ -129,14 +73,19 @@ def _new_energy_figure(
     ]
     for (t, y), (fmt, style) in zip(energies, styles, strict=False):
         ax_e.plot(t, y, *fmt, **style)
-    shades.append(_shade_contacts(ax_e, contacts))
+    _shade_contacts(ax_e, contacts)
     ax_e.set_xlabel("time (s)")
     ax_e.set_ylabel("energy (J)")
     ax_e.legend(loc="center right")
-    ax_e.grid(True, alpha=0.3)
-    return _Drawn(fig, (ax_h, ax_e), [*ax_h.get_lines(), *ax_e.get_lines()], shades)
+    times = energy["t_s"]
+    if times.len():
+        ax_e.set_xlim(float(times.min()), float(times.max()))  # type: ignore[arg-type]
+    for ax in (ax_h, ax_e):
+        ax.grid(True, alpha=0.3)
+    return save_figure(fig, path)
 
 
+@styled
 def bounce_decay_figure(
     bounces: pl.DataFrame, labels: dict[str, str], *, title: str, path: Path
 ) -> Path:
@@ -147,7 +96,7 @@ def bounce_decay_figure(
             apex_m).
         labels: run_id -> legend label.
     """
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = subplots(figsize=(8, 5))
     rows = bounces.filter(
         pl.col("run_id").is_in(list(labels)) & pl.col("bounce").is_not_null()
     ).sort("bounce")
@@ -155,7 +104,7 @@ def bounce_decay_figure(
     keys = [(str(r), str(b), str(s)) for r, b, s in groups]
     several = len({(b, s) for _, b, s in keys}) > 1
     legend = len(keys) <= MAX_LEGEND_RUNS
-    colors = plt.cm.viridis(np.linspace(0, 1, max(len(keys), 1)))
+    colors = matplotlib.colormaps["viridis"](np.linspace(0, 1, max(len(keys), 1)))
     drawn = set()
     for i, ((run_id, body, surface), mine) in enumerate(zip(keys, groups.values(), strict=True)):
         n = [0, *mine["bounce"].to_list()]
@@ -164,7 +113,7 @@ def bounce_decay_figure(
         # the last contact of a run that comes to rest has no apex: show it at 0 (resting)
         if mine["apex_m"][-1] is None and not mine["complete"][-1]:
             pts.append((n[-1], 0.0))
-        label = labels[run_id] + (f", {body} on {surface}" if several else "")
+        label = plain(labels[run_id] + (f", {body} on {surface}" if several else ""))
         start = f" (h0 = {h[0]:.3g} m)" if h[0] is not None else ""
         if len(pts) < 2 and mine["apex_m"].is_null().all():
             start += ": no apex measured after a bounce" + (
@@ -180,19 +129,20 @@ def bounce_decay_figure(
             drawn.add(run_id)
     for run_id, label in labels.items():
         if run_id not in drawn and legend:
-            ax.plot([], [], "o-", label=f"{label}: no bounce with a measured apex")
+            ax.plot([], [], "o-", label=plain(f"{label}: no bounce with a measured apex"))
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_xlim(-0.5, max(1, int(rows.select(pl.col("bounce").max()).item() or 0)) + 0.5)
     ax.set_yscale("symlog", linthresh=1e-3)
     ax.set_xlabel("bounce number (0: drop)")
     ax.set_ylabel("apex of the lowest point above the surface (m; 0: at rest)")
-    ax.set_title(title if legend else f"{title}\n{len(keys)} runs, coloured in sweep order")
+    ax.set_title(plain(title if legend else f"{title}\n{len(keys)} runs, coloured in sweep order"))
     if legend:
         ax.legend()
     ax.grid(True, which="both", alpha=0.3)
     return save_figure(fig, path)
 
 
+@styled
 def collision_figure(
     states: pl.DataFrame,
     row: dict[str, Any],
@@ -209,15 +159,15 @@ def collision_figure(
         contacts: contact phases of the run (start_t_s, end_t_s), shaded.
     """
     n = np.array([row["nx"], row["ny"], row["nz"]], dtype=float)
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
+    fig, axes = subplots(3, 1, figsize=(9, 8), sharex=True)
     p = None
     for k in ("1", "2"):
         s = states.filter(pl.col("body") == row[f"body{k}"]).sort("t_ns")
         pos = s.select("x", "y", "z").to_numpy() @ n
         vel = s.select("vx", "vy", "vz").to_numpy()
         t = s["t_s"].to_numpy()
-        axes[0].plot(*thinned(t, pos), label=row[f"body{k}"])
-        axes[1].plot(*thinned(t, vel @ n), label=row[f"body{k}"])
+        axes[0].plot(*thinned(t, pos), label=plain(row[f"body{k}"]))
+        axes[1].plot(*thinned(t, vel @ n), label=plain(row[f"body{k}"]))
         mom = row[f"m{k}_kg"] * vel
         p = mom if p is None else p + mom
     p0 = np.array([row["px_before_Ns"], row["py_before_Ns"], row["pz_before_Ns"]])
@@ -229,14 +179,14 @@ def collision_figure(
     ):
         if row.get(key) is not None:
             axes[1].axhline(
-                row[key], color="tab:blue", ls=style, lw=1, label=f"{row['body1']} {lab}"
+                row[key], color="tab:blue", ls=style, lw=1, label=plain(f"{row['body1']} {lab}")
             )
             axes[1].axhline(
                 row[key.replace("v1n", "v2n")],
                 color="tab:orange",
                 ls=style,
                 lw=1,
-                label=f"{row['body2']} {lab}",
+                label=plain(f"{row['body2']} {lab}"),
             )
     for ax in axes:
         _shade_contacts(ax, contacts)
@@ -248,61 +198,63 @@ def collision_figure(
     span = max(1e-9, abs(p0 @ n)) * 1e-6
     axes[2].set_ylim(p0 @ n - max(span, 0.05), p0 @ n + max(span, 0.05))
     axes[2].set_xlabel("time (s)")
-    axes[0].set_title(title)
+    axes[0].set_title(plain(title))
     return save_figure(fig, path)
 
 
+@styled
 def restitution_figure(
     bounces: pl.DataFrame,
     collisions: pl.DataFrame,
-    labels: dict[str, str],
+    experiments: dict[str, str],
     *,
     path: Path,
-    experiments: dict[str, str] | None = None,
     targets: dict[str, list[float]] | None = None,
 ) -> Path:
-    """e against impact speed: one colour per experiment (`experiments`: run_id -> name; else
-    per run), o from velocities, x from apexes, the experiment's target e (`targets`:
-    name -> targets asked for) as a dashed line of its colour; body-body collisions as black
-    squares."""
-    fig, ax = plt.subplots(figsize=(8, 5))
-    b = (  # no bounce at all (body-body collisions only): a frame without the columns
-        bounces.filter(pl.col("complete") & pl.col("run_id").is_in(list(labels)))
-        if bounces.height
-        else bounces
-    )
-    group = experiments or labels
-    names = list(dict.fromkeys(group[r] for r in b["run_id"].to_list())) if b.height else []
+    """e against impact speed, one colour per experiment (`experiments`: run_id -> name):
+    o from velocities and x from apexes of each bounce, squares for two-body collisions (at
+    their closing speed), the experiment's target e (`targets`: name -> targets) dashed."""
+    fig, ax = subplots(figsize=(8, 5))
+    mine = pl.col("run_id").is_in(list(experiments))
+    b = bounces.filter(pl.col("complete") & mine) if bounces.height else bounces
+    c = collisions.filter(pl.col("complete") & mine) if collisions.height else collisions
+    ids = [*(b["run_id"] if b.height else []), *(c["run_id"] if c.height else [])]
+    names = list(dict.fromkeys(experiments[r] for r in ids))
     for i, name in enumerate(names):
-        runs = [r for r in labels if group.get(r) == name]
-        rows = b.filter(pl.col("run_id").is_in(runs))
+        runs = [r for r, e in experiments.items() if e == name]
         color = f"C{i % 10}"
-        ax.plot(-rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=name)
-        apex = rows.filter(pl.col("e_apex").is_not_null())
-        ax.plot(-apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color)
+        rows = b.filter(pl.col("run_id").is_in(runs)) if b.height else b
+        if rows.height:
+            ax.plot(-rows["v_in_mps"], rows["e_velocity"], "o", color=color, label=plain(name))
+            apex = rows.filter(pl.col("e_apex").is_not_null())
+            ax.plot(-apex["v_in_mps"], apex["e_apex"], "x", ms=9, color=color)
+        pairs = c.filter(pl.col("run_id").is_in(runs)) if c.height else c
+        if pairs.height:
+            speed = pairs["v1n_before_mps"] - pairs["v2n_before_mps"]
+            ax.plot(
+                speed, pairs["e_velocity"], "s", color=color, label=plain(f"{name} (collisions)")
+            )
         for j, target in enumerate((targets or {}).get(name, [])):
-            ax.axhline(target, ls="--", lw=1, color=color, label=None if j else f"{name}: target")
+            ax.axhline(
+                target, ls="--", lw=1, color=color, label=None if j else plain(f"{name}: target")
+            )
     if names:
-        ax.plot([], [], "o", color="0.4", label="o: e from velocities in and out")
-        ax.plot([], [], "x", color="0.4", label="x: e from apex heights")
-    c = collisions.filter(pl.col("complete")) if collisions.height else collisions
-    if c.height:
-        ax.plot(
-            c["v1n_before_mps"] - c["v2n_before_mps"],
-            c["e_velocity"],
-            "s",
-            color="k",
-            label="body-body collisions (closing speed)",
-        )
-    ax.set_xlabel("impact speed of the contact point along the normal (m/s)")
+        for marker, words in (
+            ("o", "e from velocities"),
+            ("x", "e from apex heights"),
+            ("s", "two-body collision"),
+        ):
+            ax.plot([], [], marker, color="0.3", label=f"{marker}: {words}")
+    ax.set_xlabel("impact (closing) speed of the contact point along the normal (m/s)")
     ax.set_ylabel("coefficient of restitution e")
     ax.set_ylim(0, 1.05)
     ax.set_title("Restitution against impact speed")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     return save_figure(fig, path)
 
 
+@styled
 def collision_study_figure(
     study: pl.DataFrame, param: str, *, title: str, m1: float, m2: float, path: Path
 ) -> Path:
@@ -313,7 +265,7 @@ def collision_study_figure(
         param: the swept parameter column.
         m1, m2: the masses (kg) of the analytic curves.
     """
-    fig, (ax, ax_p) = plt.subplots(1, 2, figsize=(12, 5))
+    fig, (ax, ax_p) = subplots(1, 2, figsize=(12, 5))
     rows = study.filter(pl.col("e_collision").is_not_null())
     v1, v2 = rows["v1n_before_mps"][0], rows["v2n_before_mps"][0]
     e = np.linspace(0, 1, 101)
@@ -334,30 +286,33 @@ def collision_study_figure(
     )
     ax.set_xlabel("coefficient of restitution e")
     ax.set_ylabel("velocity after, along the line of centres (m/s)")
-    ax.set_title(f"{title}\nm1 = {m1:g} kg, m2 = {m2:g} kg, v1 = {v1:g} m/s, v2 = {v2:g} m/s")
+    ax.set_title(
+        plain(f"{title}\nm1 = {m1:g} kg, m2 = {m2:g} kg, v1 = {v1:g} m/s, v2 = {v2:g} m/s")
+    )
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     ax_p.plot(rows[param], rows["e_collision"], "o-", label="measured e")
     ax_p.axhline(1.0, color="k", ls=":", label="elastic (e = 1)")
     ax_p.set_ylim(0, 1.05)
-    ax_p.set_xlabel(param)
+    ax_p.set_xlabel(plain(param))
     ax_p.set_ylabel("measured e")
-    ax_p.set_title(f"e against the swept {param}")
+    ax_p.set_title(plain(f"e against the swept {param}"))
     ax_p.grid(True, alpha=0.3)
     ax_p.legend(fontsize=8)
     return save_figure(fig, path)
 
 
+@styled
 def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Path) -> Path:
     """First-bounce e against the drop height (m) of the lowest point, or against the swept
     parameter when the study has no drop height; runs without a rebound are marked at e = 0."""
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig, ax = subplots(figsize=(8, 5))
     x_col = "drop_height_m" if "drop_height_m" in study.columns else param
     rows = study.filter(pl.col(x_col).is_not_null()).sort(x_col)
     x_label = (
         "drop height of the ball's lowest point above the ground (m)"
         if x_col == "drop_height_m"
-        else param
+        else plain(param)
     )
     ax.plot(rows[x_col], rows["e_velocity_first"], "o-", label="e of the first bounce (velocities)")
     if "e_apex_mean" in rows.columns:
@@ -394,7 +349,7 @@ def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Pa
     ax.set_ylabel("coefficient of restitution e")
     top = float(rows.select(pl.col("e_velocity_first").max()).item() or 0)
     ax.set_ylim(-0.03 * max(0.2, top * 1.5), max(0.2, top * 1.5))
-    ax.set_title(f"{title}\n(grey: impact speed at the first contact{shown})")
+    ax.set_title(plain(f"{title}\n(grey: impact speed at the first contact{shown})"))
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     return save_figure(fig, path)

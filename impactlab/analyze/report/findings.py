@@ -1,22 +1,21 @@
-"""The thresholds behind the report's findings, and the words they choose.
+"""The thresholds that choose the report's words, and the findings they choose.
 
-A sentence of the report that states a finding (conserved, constant, drift, loss) is chosen
-here by a named threshold on the number it quotes and on the run's conditions (its
-integrator, what else touched the bodies); a quantity that is not defined (None, NaN) is
-left out with the reason, never formatted. docs/analysis.md lists every threshold and why.
+A sentence that states a finding (conserved, constant, a drift, a loss) is chosen here by a
+named threshold on the number it quotes and on the run's conditions (its integrator, what else
+touched the bodies); an undefined quantity (None, NaN) is left out with the reason, never
+formatted. docs/analysis.md lists every threshold and why.
 """
 
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Callable, Iterable, Iterator
-from typing import Any, ParamSpec, TypeGuard, TypeVar
+from collections.abc import Callable, Iterable
+from typing import Any, TypeGuard
 
 import polars as pl
 
-from impactlab.physics import SEMI_IMPLICIT  # MuJoCo's semi-implicit integrators
-from impactlab.text import md_text
+from impactlab.analyze.report.blocks import number, quantity
+from impactlab.physics import SEMI_IMPLICIT
 
 MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which momentum is called
@@ -25,9 +24,9 @@ keeps its momentum to rounding (1e-16 .. 1e-14 in the collision experiments); a 
 1e-6 is an impulse from something else (gravity, another contact, a constraint)."""
 
 E_CONSTANT_SPREAD = 0.02
-"""Spread (max - min) of e over a body's complete bounces on one surface below which e is
-called constant across bounces (and between drop heights): twice the third decimal the
-report quotes e with, well above the 1e-15 by which e depends on the logging rate."""
+"""Spread (max - min) of e over a body's complete bounces on one surface, or over drop
+heights, below which e is called constant: twice the third decimal e is quoted with, well
+above the 1e-15 by which e depends on the logging rate."""
 
 E_KNOB_SPREAD = 0.05
 """Spread of the collision e over a parameter sweep below which e is called independent of
@@ -50,27 +49,24 @@ energy, is zero for the report: the analysis' energy agrees with MuJoCo's own to
 PERCENT_MAX = 1.05
 """A change is written as a fraction of the initial energy only up to 105 % of it: a loss a
 little above 100 % is a body resting a fraction of a millimetre inside the soft contact,
-below its zero of potential energy; beyond that the initial energy is too small a reference
-to be read, and the change is written in joules."""
+below its zero of potential energy; beyond that the initial energy is too small a reference."""
 
 HIDDEN_PARTS_J = 1e-6
-"""When MuJoCo's total energy differs from the analysis' (every logged body and the joints'
-rotor and spring energy) by more than this, the model has parts the analysis does not
-follow (in logs written before every moving body was logged: a hinged arm, a slider),
-which may touch or pull the bodies without a contact the analysis sees."""
+"""When MuJoCo's total energy differs from the analysis' by more than this, the model has
+parts the analysis does not follow (a hinged arm, a slider), which may touch or pull the
+bodies without a contact the analysis sees."""
 
 
-def method_line() -> str:
-    """The report's Method bullet on how findings are worded, with the thresholds' values."""
+def method_sentence() -> str:
+    """How findings are worded, with the thresholds' values."""
     return (
-        "**Findings** (conserved, constant, a drift the integrator explains) are chosen by "
-        "stated thresholds on the numbers quoted: momentum is conserved below "
-        f"{MOMENTUM_CONSERVED_REL:g} relative change for a pair nothing else touched; e is "
-        f"constant when its spread is below {E_CONSTANT_SPREAD:g}; a flight drift is the "
-        f"integrator's within a factor {DRIFT_FACTOR:g} of m g^2 dt T / 2 for the semi-implicit "
-        f"integrators ({', '.join(SEMI_IMPLICIT)}; RK4 has none); energies below "
-        f"{NEGLIGIBLE_ENERGY_J:g} J are zero; percentages of the initial energy only up to "
-        f"{PERCENT_MAX * 100:.0f} % (docs/analysis.md lists every threshold)."
+        "Findings (conserved, constant, a drift the integrator explains) are chosen by stated "
+        f"thresholds on the numbers quoted: momentum is conserved below {number(1e-6)} "
+        "relative change for a pair nothing else touched; e is constant when its spread is "
+        f"below {E_CONSTANT_SPREAD:g}; a flight drift is the integrator's within a factor "
+        f"{DRIFT_FACTOR:g} of m g² dt T / 2 for the semi-implicit integrators "
+        f"({', '.join(SEMI_IMPLICIT)}; RK4 has none); energies below {number(1e-9)} J are "
+        f"zero; percentages of the initial energy only up to {PERCENT_MAX * 100:.0f} %."
     )
 
 
@@ -79,131 +75,80 @@ def defined(x: Any) -> TypeGuard[float]:
     return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
-    """`x` formatted with its unit; call only for a defined value (`defined`)."""
-    return f"{format(x, fmt)}{' ' + unit if unit else ''}"
-
-
-def span(values: Iterable[Any], fmt: str = ".3g", unit: str = "") -> str | None:
-    """The range of the defined values in words ("0.5-0.9 m/s", "from -2.1 % to -0.5 %",
-    one value when all read the same); None when no value is defined."""
-    xs = [x for x in values if defined(x)]
-    if not xs:
-        return None
-    lo, hi = num(min(xs), fmt), num(max(xs), fmt)
-    tail = f" {unit}" if unit else ""
-    if lo == hi:
-        return f"{lo}{tail}"
-    if min(xs) < 0:
-        return f"from {lo}{tail} to {hi}{tail}"
-    return f"{lo}-{hi}{tail}"
-
-
 def negligible(x: float, reference: Any = None) -> bool:
     """Whether the energy `x` (J) is zero for the report (`NEGLIGIBLE_ENERGY_J`)."""
     scale = abs(reference) if defined(reference) else 0.0
     return abs(x) <= max(NEGLIGIBLE_ENERGY_J, NEGLIGIBLE_ENERGY_J * scale)
 
 
-def of_initial(change: Any, initial: Any, fmt: str = ".1f") -> str:
-    """An energy change (J) as a percentage of the initial energy, or in joules with the
-    reason when the initial energy is zero or the percentage would exceed `PERCENT_MAX`."""
-    if not defined(change):
-        return "not measured"
-    joules = f"{change:.4g} J"
-    if not defined(initial):
-        return f"{joules} (the initial energy is not known, so no percentage)"
-    if negligible(initial):
-        return f"{joules} (the initial energy is zero, so no percentage of it)"
+def share(change: Any, initial: Any) -> float | None:
+    """`change` as a fraction of `initial`, when that reads (`PERCENT_MAX`), else None."""
+    if not defined(change) or not defined(initial) or negligible(initial):
+        return None
     frac = change / initial
-    if abs(frac) > PERCENT_MAX:
-        return (
-            f"{joules} (more than {PERCENT_MAX * 100:.0f} % of the initial {initial:.3g} J: "
-            "too small a reference for a percentage)"
-        )
-    return f"{frac * 100:{fmt}} % of the initial {initial:.4g} J ({joules})"
+    return frac if abs(frac) <= PERCENT_MAX else None
 
 
-def _drift(row: dict[str, Any]) -> Any:
-    drift = row.get("flight_drift_J")
-    return drift if defined(drift) else row.get("flight_drift_max_J")
+def change(start: Any, end: Any) -> float | None:
+    """start - end, when both are defined."""
+    return start - end if defined(start) and defined(end) else None
+
+
+def drift(row: dict[str, Any]) -> Any:
+    """A runs-table row's largest flight drift, J (signed when known)."""
+    value = row.get("flight_drift_J")
+    return value if defined(value) else row.get("flight_drift_max_J")
 
 
 def drift_kind(row: dict[str, Any]) -> str:
-    """A runs-table row's largest flight drift: "none" (no flight), "negligible" (below
-    `NEGLIGIBLE_ENERGY_J`), "integrator" (the semi-implicit drift, within `DRIFT_FACTOR`)
-    or "unexplained" (RK4, a gain, beyond the factor, or no prediction)."""
-    drift = _drift(row)
-    if not defined(drift):
+    """A run's largest flight drift: "none" (no flight), "negligible" (`NEGLIGIBLE_ENERGY_J`),
+    "integrator" (the semi-implicit drift, within `DRIFT_FACTOR` of its prediction) or
+    "unexplained" (RK4, a gain, beyond the factor, or no prediction)."""
+    value = drift(row)
+    if not defined(value):
         return "none"
-    if negligible(drift, row.get("energy_initial_J")):
+    if negligible(value, row.get("energy_initial_J")):
         return "negligible"
     predicted = row.get("flight_drift_predicted_J")
     if row.get("integrator") not in SEMI_IMPLICIT or not defined(predicted) or not predicted:
         return "unexplained"
-    ratio = drift / predicted
-    return "integrator" if 1.0 / DRIFT_FACTOR <= ratio <= DRIFT_FACTOR else "unexplained"
+    return "integrator" if 1 / DRIFT_FACTOR <= value / predicted <= DRIFT_FACTOR else "unexplained"
+
+
+DRIFT_WORDS = {
+    "none": "no flight",
+    "negligible": "conserved",
+    "integrator": "integrator's drift",
+    "unexplained": "not explained",
+}
 
 
 def drift_finding(row: dict[str, Any]) -> str:
-    """What a run's largest flight drift is, and whether its integrator explains it.
-
-    Reads `flight_drift_J` (signed, the flight with the largest |drift|; else
-    `flight_drift_max_J`), `flight_drift_predicted_J` (the integrator's prediction for that
-    flight), `integrator` and `energy_initial_J` of a runs-table row.
-    """
-    kind, drift = drift_kind(row), _drift(row)
-    if kind == "none":
-        return "no flight phase to test conservation on"
+    """Why a run's flight drift is, or is not, the integrator's (a sentence)."""
+    kind, value = drift_kind(row), drift(row)
     integrator = row.get("integrator") or "an unrecorded integrator"
     predicted = row.get("flight_drift_predicted_J")
-    size = of_initial(drift, row.get("energy_initial_J"), ".3g")
+    if kind == "none":
+        return "No flight phase to test conservation on."
+    size = quantity(value, "J")
     if kind == "negligible":
-        return (
-            f"the total energy is conserved in flight: its largest flight drift is "
-            f"{drift:.2g} J, below {NEGLIGIBLE_ENERGY_J:g} J ({integrator})"
-        )
+        return f"The largest flight drift, {size}, is below {number(1e-9)} J: conserved."
     if integrator == "RK4":
-        return (
-            f"the largest flight drift is {size}; the run used RK4, which has no energy drift "
-            "in a free flight under uniform gravity, so the drift is not explained by the "
-            "integrator (something else acts in flight)"
-        )
-    if not defined(predicted) or integrator not in SEMI_IMPLICIT:
-        return (
-            f"the largest flight drift is {size}; the drift {integrator} predicts is not "
-            "known, so it is not explained by the integrator"
-        )
-    if not predicted:
-        return (
-            f"the largest flight drift is {size}; without gravity {integrator} has no drift in "
-            "a free flight, so it is not explained by the integrator (something else acts in "
-            "flight)"
-        )
-    formula = f"m g^2 dt T / 2 = {abs(predicted):.3g} J"
-    if kind == "integrator":
-        return (
-            f"the largest flight drift is {size}, the semi-implicit drift of {integrator} "
-            f"({formula} for that flight, within a factor {DRIFT_FACTOR:g}), not a physical loss"
-        )
-    if drift > 0:
-        how = f"a gain, where {integrator}'s semi-implicit step predicts a loss of {formula}"
+        why = "RK4 has no energy drift in a free flight, so something else acts in flight"
+    elif not defined(predicted) or integrator not in SEMI_IMPLICIT:
+        why = f"the drift {integrator} predicts is not known"
+    elif not predicted:
+        why = f"without gravity {integrator} has no drift in flight: something else acts"
     else:
-        how = (
-            f"{drift / predicted:.3g} times the loss of {formula} that {integrator}'s "
-            "semi-implicit step predicts"
-        )
-    return (
-        f"the largest flight drift is {size}, {how} for that flight: not explained by the "
-        "integrator (something else acts in flight)"
-    )
-
-
-def spread_finding(spread: float) -> str:
-    """Whether e is constant across bounces, given its spread (max - min)."""
-    if spread < E_CONSTANT_SPREAD:
-        return f"constant (spread {spread:.3f}, below {E_CONSTANT_SPREAD:g})"
-    return f"not constant: it varies by {spread:.3f} (max - min, above {E_CONSTANT_SPREAD:g})"
+        formula = f"m g² dt T / 2 = {quantity(abs(predicted), 'J')}"
+        if kind == "integrator":
+            return (
+                f"The largest flight drift, {size}, is {integrator}'s semi-implicit drift "
+                f"({formula}, within a factor {DRIFT_FACTOR:g}), not a physical loss."
+            )
+        how = "a gain" if value > 0 else f"{number(value / predicted)} times the predicted loss"
+        why = f"it is {how} ({formula}): something else acts in flight"
+    return f"The largest flight drift, {size}, is not explained by the integrator: {why}."
 
 
 def momentum_kind(col: dict[str, Any], run: dict[str, Any] | None = None) -> str:
@@ -215,91 +160,76 @@ def momentum_kind(col: dict[str, Any], run: dict[str, Any] | None = None) -> str
         return "unmeasured"
     if rel >= MOMENTUM_CONSERVED_REL:
         return "not conserved"
-    others, unknown = _acting(col, run)
+    others, unknown = acting(col, run)
     return "untested" if others or unknown else "conserved"
 
 
-def _acting(col: dict[str, Any], run: dict[str, Any] | None) -> tuple[list[str], bool]:
+def acting(col: dict[str, Any], run: dict[str, Any] | None) -> tuple[list[str], bool]:
     """What else acted on a collision's pair (in words), and whether the tables cannot tell."""
     others = []
     touched = col.get("touched_by")
     if touched:
-        others.append(f"{md_text(touched)} touched the pair during the collision")
+        others.append(f"{touched} touched the pair during the collision")
     gravity = col.get("gravity_impulse_rel")
     if defined(gravity) and gravity >= MOMENTUM_CONSERVED_REL:
-        others.append(
-            f"gravity's impulse over the contact, (m1 + m2) g dt, is {gravity:.2g} times "
-            "|m1 v1| + |m2 v2|"
-        )
+        others.append(f"gravity's impulse over the contact is {number(gravity, 2)} of the momentum")
     hidden = (run or {}).get("mujoco_diff_max_J")
     if defined(hidden) and hidden > HIDDEN_PARTS_J:
         others.append(
-            f"the model has moving parts the analysis does not follow (MuJoCo's energy "
-            f"differs from the logged bodies' by {hidden:.3g} J)"
+            "the model has moving parts the analysis does not follow (MuJoCo's energy differs "
+            f"from the logged bodies' by {quantity(hidden, 'J')})"
         )
     return others, touched is None or not defined(gravity)
 
 
-RUN_FIELDS = ("mujoco_diff_max_J",)
-"""The runs-table columns `momentum_kind` and `momentum_finding` read of a collision's run."""
-
-
-def momentum_runs(runs: pl.DataFrame | None, collisions: pl.DataFrame) -> dict[str, dict[str, Any]]:
-    """The row of each run that has a collision in `collisions`, as `momentum_kind` and
-    `momentum_finding` read it (run id -> those of RUN_FIELDS the table has): a few numbers
-    per colliding run, not every column of every run."""
-    if runs is None or collisions.is_empty():
-        return {}
-    fields = [c for c in RUN_FIELDS if c in runs.columns]
-    mine = runs.filter(pl.col("run_id").is_in(collisions["run_id"].unique().implode()))
-    return {
-        r["run_id"]: {c: r[c] for c in fields}
-        for r in mine.select("run_id", *fields).iter_rows(named=True)
-    }
-
-
 def momentum_finding(col: dict[str, Any], run: dict[str, Any] | None = None) -> str:
-    """Whether one collision conserves momentum, in words: its relative change against
-    `MOMENTUM_CONSERVED_REL` and what else acted on the pair (`touched_by`,
-    `gravity_impulse_rel` of the collisions table; the run's `mujoco_diff_max_J`)."""
+    """Whether one collision conserves momentum, in words."""
     kind = momentum_kind(col, run)
     if kind == "unmeasured":
-        return "the momentum change is not measured (no state before or after the contact)"
-    rel = col["momentum_rel_change"]
-    others, _ = _acting(col, run)
-    threshold = f"{MOMENTUM_CONSERVED_REL:g}"
+        return "The momentum change is not measured (no state before or after the contact)."
+    rel = number(col["momentum_rel_change"], 2)
+    others, _ = acting(col, run)
     if kind == "conserved":
-        return (
-            f"momentum is conserved: it changes by {rel:.2g} (relative, below {threshold}) "
-            "and nothing else touched the pair"
-        )
+        return f"Momentum is conserved: it changes by {rel} (relative) and nothing else acted."
     if kind == "untested":
-        if others:
-            return (
-                f"momentum changes by {rel:.2g} (relative, below {threshold}), but the pair is "
-                "not isolated (" + "; ".join(others) + "), so this does not test conservation"
-            )
-        return (
-            f"momentum changes by {rel:.2g} (relative, below {threshold}); the tables do not "
-            "say whether anything else acted on the pair, so conservation is not claimed"
-        )
-    why = (
-        "; ".join(others)
-        if others
-        else "no other contact the log shows touched the pair, so the cause is not in the log "
-        "(a constraint, a joint or an actuator)"
-    )
-    head = f"momentum is not conserved: it changes by {rel:.2g} (relative, above {threshold})"
-    return f"{head}: {why}"
+        why = "; ".join(others) or "the tables do not say whether anything else acted"
+        return f"Momentum changes by {rel} (relative), but this does not test conservation: {why}."
+    why = "; ".join(others) or "no contact the log shows explains it (a constraint, a joint?)"
+    return f"Momentum is not conserved: it changes by {rel} (relative): {why}."
+
+
+def run_rows(runs: pl.DataFrame, ids: pl.Series) -> dict[str, dict[str, Any]]:
+    """The runs-table rows of `ids`, by run id (what `momentum_kind` reads of a run)."""
+    mine = runs.filter(pl.col("run_id").is_in(ids.unique().implode()))
+    return {r["run_id"]: r for r in mine.iter_rows(named=True)}
 
 
 def elastic_gap(v1_after: Iterable[Any], v1_elastic: Any) -> float | None:
     """The smallest |v1' - v1'_elastic| / |v1'_elastic| over a sweep's runs; None when the
-    elastic answer is not defined (an eccentric impact) or zero (no fraction of it)."""
+    elastic answer is not defined (an eccentric impact) or zero."""
     if not defined(v1_elastic) or abs(v1_elastic) < 1e-12:
         return None
     gaps = [abs(v - v1_elastic) / abs(v1_elastic) for v in v1_after if defined(v)]
     return min(gaps) if gaps else None
+
+
+def at_rest(ground: pl.DataFrame) -> list[str]:
+    """Why runs that end at rest end early and slightly below zero energy."""
+    rest = ground.filter(pl.col("reason") == "bodies at rest")
+    if rest.is_empty():
+        return []
+    r = rest.row(0, named=True)
+    out = (
+        f"{rest.height} run(s) stop once every body is at rest, {r.get('run') or r['run_id']} at "
+        f"{quantity(r['duration_s'], 's')}."
+    )
+    if defined(r["energy_final_J"]) and r["energy_final_J"] < 0:
+        out += (
+            f" Its final energy is slightly negative ({quantity(r['energy_final_J'], 'J')}): the "
+            "ball rests a fraction of a millimetre into MuJoCo's soft contact, below the "
+            "surface where potential energy is zero."
+        )
+    return [out]
 
 
 WORDING_ERRORS: tuple[type[Exception], ...] = (
@@ -309,64 +239,21 @@ WORDING_ERRORS: tuple[type[Exception], ...] = (
     LookupError,
     pl.exceptions.PolarsError,
 )
-"""The faults a sentence builder can hit on numbers it did not expect (a None formatted, a
-missing column): caught per run (`each`) or per answer (`guard_lines`, `guard_line`)."""
+"""The faults wording can hit on numbers it did not expect (a None formatted, a column
+missing): caught per run (`each`) and per question (`report.document`), so one fault costs
+one cell or one answer, never the analysis."""
 
 
-def _failed(what: str, exc: Exception) -> str:
-    return f"{what}: this finding could not be worded ({type(exc).__name__}: {exc})."
+def failed(what: str, exc: Exception) -> str:
+    return f"{what}: could not be worded ({type(exc).__name__}: {exc})"
 
 
-def each(
-    rows: Iterable[dict[str, Any]], sentence: Callable[[dict[str, Any]], str]
-) -> Iterator[str]:
-    """`sentence` of each row, made as it is read; a row whose sentence fails gets a sentence
-    naming it and the error, so a fault in one run's wording stays that run's and the report
-    is still written."""
+def each(rows: Iterable[dict[str, Any]], word: Callable[[dict[str, Any]], str]) -> list[str]:
+    """`word` of each row; a row whose wording fails gets the error instead."""
+    out = []
     for r in rows:
         try:
-            yield sentence(r)
+            out.append(word(r))
         except WORDING_ERRORS as exc:
-            yield _failed(str(r.get("run") or r.get("run_id") or "a run"), exc)
-
-
-def guard_lines(
-    what: str,
-) -> Callable[[Callable[..., Iterable[str]]], Callable[..., Iterator[str]]]:
-    """Decorate an answer builder (sentences, as a list or made one by one): the answer is
-    made as it is read (a sweep's answer of one sentence per run is never held whole), and a
-    fault becomes one sentence naming `what` and the error instead of ending the whole
-    analysis (after the sentences made before it)."""
-
-    def wrap(build: Callable[..., Iterable[str]]) -> Callable[..., Iterator[str]]:
-        @functools.wraps(build)
-        def guarded(*args: Any, **kwargs: Any) -> Iterator[str]:
-            try:
-                yield from build(*args, **kwargs)
-            except WORDING_ERRORS as exc:
-                yield _failed(what, exc)
-
-        return guarded
-
-    return wrap
-
-
-P = ParamSpec("P")
-Answer = TypeVar("Answer", str, str | None)
-
-
-def guard_line(what: str) -> Callable[[Callable[P, Answer]], Callable[P, Answer]]:
-    """Decorate a headline builder (one answer): a fault becomes "Not answered" with `what`
-    and the error instead of ending the whole analysis."""
-
-    def wrap(build: Callable[P, Answer]) -> Callable[P, Answer]:
-        @functools.wraps(build)
-        def guarded(*args: P.args, **kwargs: P.kwargs) -> Answer:
-            try:
-                return build(*args, **kwargs)
-            except WORDING_ERRORS as exc:
-                return "Not answered: " + _failed(what, exc)
-
-        return guarded
-
-    return wrap
+            out.append(failed(str(r.get("run") or r.get("run_id") or "a run"), exc))
+    return out

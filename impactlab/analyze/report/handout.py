@@ -1,18 +1,12 @@
-"""The handout's scripts as written, beside the corrected runs: what each gives and why.
-
-The lab records the handout's own experiments next to the corrected ones (`drop` with the
-handout's contact beside `drop_restitution`, `collision_as_written` stopped at the handout's
-0.5 s beside `collision`, the handout's `collision_sweep` over solimp[0] beside
-`collision_sweep_restitution`). Every number here is read from the analysis tables of those
-runs; a row whose runs were not analyzed is left out.
-"""
+"""The handout's scripts as written, beside the corrected runs: what each gives and why."""
 
 from __future__ import annotations
 
 import polars as pl
 
 from impactlab.analyze.report import findings as F
-from impactlab.text import md_text
+from impactlab.analyze.report.blocks import Block, Column, Heading, Paragraph, Table, number, span
+from impactlab.analyze.report.context import Tables
 
 PAIRS = (
     (
@@ -39,80 +33,72 @@ PAIRS = (
         "collision_sweep",
         "collision_sweep_restitution",
         "The handout sweeps solimp[0], the constraint's impedance, which does not set "
-        "restitution (MuJoCo has no restitution parameter): e stays near 0.15 and the elastic "
-        "answer is never approached. The corrected sweep asks for restitution = 0.5 ... 0.99, "
-        "which impactlab turns into a calibrated solref.",
+        "restitution (MuJoCo has no restitution parameter): e stays near 0.15 and |v1'_elastic| "
+        "is never approached. The corrected sweep asks for restitution = 0.5 ... 0.99, which "
+        "impactlab turns into a calibrated solref.",
     ),
 )
+"""(step, the handout's experiment, the corrected one, what went wrong)."""
 
 
-def _span(values: pl.Series, digits: int = 3) -> str:
-    return F.span(values.to_list(), f".{digits}f") or "not measured"
-
-
-@F.guard_line("this experiment's result")
-def measured(experiment: str, runs: pl.DataFrame, collisions: pl.DataFrame) -> str | None:
+def measured(experiment: str, t: Tables) -> str | None:
     """What the experiment's runs gave, in a few words with their numbers (None: no runs)."""
-    ids = runs.filter(pl.col("experiment") == experiment)["run_id"]
+    ids = t.runs.filter(pl.col("experiment") == experiment)["run_id"]
     if ids.is_empty():
         return None
-    col = collisions.filter(pl.col("run_id").is_in(ids.implode()))
+    col = t.collisions.filter(pl.col("run_id").is_in(ids.implode()))
     if col.height:
         done = col.filter(pl.col("complete") & pl.col("e_velocity").is_not_null())
         if done.is_empty():
             row = col.row(0, named=True)
             after = [
-                f"{name}' = {row[c]:.3g} m/s"
+                f"{name}' = {number(row[c])} m/s"
                 for name, c in (("v1", "v1n_after_mps"), ("v2", "v2n_after_mps"))
                 if F.defined(row[c])
             ]
-            return f"no collision: {md_text(row['note'])}" + (
-                f"; {', '.join(after)}" if after else ""
-            )
-        by_run = F.momentum_runs(runs, done)
+            return f"no collision: {row['note']}" + (f"; {', '.join(after)}" if after else "")
+        by_run = F.run_rows(t.runs, done["run_id"])
         kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.iter_rows(named=True)]
-        rels = done["momentum_rel_change"].drop_nulls()
-        top = rels.to_frame().max().item()
+        top = done.select(pl.col("momentum_rel_change").max()).item()
         momentum = (
-            f"momentum kept to {top:.1g} (relative)"
+            f"momentum kept to {number(top, 1)} (relative)"
             if all(k == "conserved" for k in kinds)
-            else f"momentum changes by up to {top:.2g} (relative)"
-            if rels.len()
+            else f"momentum changes by up to {number(top, 2)} (relative)"
+            if top is not None
             else "momentum change not measured"
         )
-        words = f"e = {_span(done['e_velocity'])} over {done.height} collision(s), {momentum}"
-        if done.height > 1:  # a sweep: how close it comes to the elastic answer
-            el1 = done["v1n_after_elastic_mps"][0]
-            gap = F.elastic_gap(done["v1n_after_mps"].to_list(), el1)
-            if gap is not None:
-                words += (
-                    f"; the closest v1' is {gap * 100:.0f} % of |v1'_elastic| = {abs(el1):.3f} "
-                    "m/s from the elastic answer"
-                )
+        words = (
+            f"e = {span(done['e_velocity'].to_list())} in {done.height} collision(s), {momentum}"
+        )
+        gap = F.elastic_gap(done["v1n_after_mps"].to_list(), done["v1n_after_elastic_mps"][0])
+        if done.height > 1 and gap is not None:
+            words += f"; closest v1' {number(gap * 100, 2)} % from the elastic answer"
         return words
-    mine = runs.filter(pl.col("experiment") == experiment)
-    e = mine["e_velocity_first"].drop_nulls()
+    e = t.runs.filter(pl.col("experiment") == experiment)["e_velocity_first"].drop_nulls()
     if e.is_empty():
-        return f"no rebound in {mine.height} run(s)"
-    return f"e = {_span(e)} at the first impact ({e.len()} of {mine.height} run(s) rebound)"
+        return f"no rebound in {ids.len()} run(s)"
+    return f"e = {span(e.to_list())} at the first impact ({e.len()} of {ids.len()} runs rebound)"
 
 
-def as_written_section(runs: pl.DataFrame, collisions: pl.DataFrame) -> list[str]:
-    """Markdown lines: the handout's scripts as written beside the corrected runs ([]: none)."""
+def as_written(t: Tables) -> list[Block]:
+    """The section on the handout's scripts as written ([]: none of them was run)."""
     rows = []
     for step, written, corrected, why in PAIRS:
-        before = measured(written, runs, collisions)
-        after = measured(corrected, runs, collisions)
-        if before is None or after is None:
-            continue
-        rows.append(f"| {step} | `{written}`: {before} | `{corrected}`: {after} | {why} |")
+        before, after = measured(written, t), measured(corrected, t)
+        if before is not None and after is not None:
+            rows.append((step, f"{written}: {before}", f"{corrected}: {after}", why))
     if not rows:
         return []
+    frame = pl.DataFrame(rows, schema=["step", "written", "corrected", "why"], orient="row")
+    frame = frame.with_columns(pl.Series("note", [str(i) for i in range(1, len(rows) + 1)]))
+    cols = (
+        Column("step", "Step"),
+        Column("written", "As written"),
+        Column("corrected", "Corrected"),
+        Column("note", "Why: note"),
+    )
     return [
-        "\n## The handout as written\n",
-        "The handout's scripts, run as written, next to the corrected runs (measured here):\n",
-        "| Step | As written | Corrected | What went wrong |",
-        "|---|---|---|---|",
-        *rows,
-        "",
+        Heading("The handout as written"),
+        Paragraph(("The handout's scripts run as written, beside the corrected runs:",)),
+        Table(frame, cols, notes=tuple(r[3] for r in rows)),
     ]

@@ -24,7 +24,8 @@ def contact_words(targets: Sequence[PairTarget], shared: GeomContact | None) -> 
     if targets:
         return "restitution " + ", ".join(f"{t.pair} = {t.restitution:g}" for t in targets)
     if shared is not None:
-        return f"solref {list(shared.solref)}, solimp {list(shared.solimp)}"
+        solref, solimp = (" ".join(f"{x:g}" for x in v) for v in (shared.solref, shared.solimp))
+        return f"solref {solref}; solimp {solimp}"
     return ""
 
 

@@ -16,7 +16,8 @@ from specs import ball, drop, spec, toml
 
 import impactlab
 from impactlab.analyze.measure.analysis import analyze_run
-from impactlab.analyze.report import answers
+from impactlab.analyze.report import questions
+from impactlab.analyze.report.context import Tables, labelled
 from impactlab.cli import main
 from impactlab.errors import LogError
 from impactlab.logs.diff import read_attachments
@@ -55,9 +56,9 @@ def test_each_ball_keeps_its_own_e(pairs):
         assert fast["e_velocity"].max() - fast["e_velocity"].min() < 0.01
         assert ((mine["e_velocity"] > 0) & (mine["e_velocity"] < 1)).all()
         assert (mine["surface"] == "plane").all()
-    sentences = list(answers.constancy_answer(pl.DataFrame([pairs.summary]), b))
-    assert len(sentences) == 2
-    assert "a on plane" in sentences[0] and "b on plane" in sentences[1]
+    tables = Tables(pl.DataFrame([pairs.summary]), b, pl.DataFrame(), pl.DataFrame(), {}, {})
+    (lead, *_) = questions.restitution(labelled(tables)).lead
+    assert str(getattr(lead, "text", lead)).startswith("Yes, e is constant across bounces")
     assert pairs.summary["e_velocity_mean"] is None  # never an average over both balls
     assert "2 body-surface pairs" in pairs.summary["note"]
 
@@ -162,7 +163,7 @@ def test_a_ball_at_rest_on_the_plane_is_analyzed_with_figures(tmp_path, capsys):
     assert "Traceback" not in err
     assert list((results / "figures").glob("energy-*.png"))
     assert not list((results / "figures").glob("bounce-decay-*.png"))  # no bounce, no decay
-    assert "at rest, sliding or rolling on plane" in (results / "report.md").read_text()
+    assert "at rest, sliding or rolling on plane" in (results / "report-appendix.md").read_text()
 
 
 TABLE = """<mujoco model="table">

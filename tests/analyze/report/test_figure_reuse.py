@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
-import pytest
-from PIL import Image
 
 from impactlab.analyze.report.decimate_lines import minmax_indices, thinned
 
@@ -53,32 +51,3 @@ def _energy(run: str, drop: float, n: int = 3000) -> pl.DataFrame:
         }
     )
     return pl.concat([body, total], how="diagonal").with_columns(run_id=pl.lit(run))
-
-
-@pytest.mark.slow
-def test_an_energy_figure_drawn_into_the_kept_one_matches_a_new_one(tmp_path):
-    from impactlab.analyze.report import figures
-
-    contacts = [
-        pl.DataFrame({"start_t_s": [0.4, 0.9], "end_t_s": [0.45, 0.95]}),
-        pl.DataFrame({"start_t_s": [0.6], "end_t_s": [0.62]}),
-    ]
-    figures._ENERGY.clear()
-    figures.energy_figure(_energy("a", 1.0), contacts[0], title="a\nfirst", path=tmp_path / "a.png")
-    (kept,) = figures._ENERGY.values()
-    reused = figures.energy_figure(
-        _energy("b", 3.0), contacts[1], title="b\nsecond", path=tmp_path / "b1.png"
-    )
-    seen = [(ax.get_xlim(), ax.get_ylim(), ax.get_title()) for ax in kept.fig.axes]
-    figures._ENERGY.clear()
-    fresh = figures.energy_figure(
-        _energy("b", 3.0), contacts[1], title="b\nsecond", path=tmp_path / "b2.png"
-    )
-    (new,) = figures._ENERGY.values()
-    assert new is not kept
-    assert seen == [(ax.get_xlim(), ax.get_ylim(), ax.get_title()) for ax in new.fig.axes]
-    assert [len(ax.collections) for ax in new.fig.axes] == [1, 1]  # the old shading is gone
-    one, two = (np.asarray(Image.open(p).convert("RGB"), dtype=int) for p in (reused, fresh))
-    assert one.shape == two.shape
-    differ = np.abs(one - two).max(axis=2) > 0
-    assert differ.mean() < 0.01  # the layout may move by a pixel, nothing else

@@ -5,8 +5,10 @@ from __future__ import annotations
 import polars as pl
 import pytest
 
-from impactlab.analyze.report.handout import as_written_section
-from impactlab.analyze.report.headline import rest_line
+from impactlab.analyze.report.blocks import Table
+from impactlab.analyze.report.context import Tables
+from impactlab.analyze.report.findings import at_rest as _at_rest
+from impactlab.analyze.report.handout import as_written
 
 RUNS = pl.DataFrame(
     {
@@ -31,23 +33,38 @@ COLLISIONS = pl.DataFrame(
 )
 
 
+def tables(runs: pl.DataFrame, collisions: pl.DataFrame) -> Tables:
+    return Tables(runs, pl.DataFrame(), collisions, pl.DataFrame(), {}, {})
+
+
 def test_each_step_as_written_beside_its_correction_with_numbers_and_why():
-    text = "\n".join(as_written_section(RUNS, COLLISIONS))
-    assert "## The handout as written" in text
-    drops = next(line for line in text.splitlines() if line.startswith("| Steps 1-2"))
-    assert "e = 0.044 at the first impact (1 of 2 run(s) rebound)" in drops
-    assert "e = 0.800 at the first impact (1 of 1 run(s) rebound)" in drops
-    assert "0.1 m/s velocity threshold" in drops
-    step3 = next(line for line in text.splitlines() if line.startswith("| Step 3"))
-    assert "no collision: the collision never happened; v1' = 2 m/s" in step3
-    assert "e = 0.136 over 1 collision(s), momentum kept to 1e-15" in step3
-    assert "meet at 0.6 s" in step3
-    assert "Step 4" not in text  # neither sweep was analyzed: no row, no invented numbers
+    heading, _, table = as_written(tables(RUNS, COLLISIONS))
+    assert isinstance(table, Table) and heading.text == "The handout as written"
+    drops, step3 = table.frame.iter_rows(named=True)
+    assert drops["written"] == "drop: e = 0.0440 at the first impact (1 of 2 runs rebound)"
+    assert (
+        drops["corrected"]
+        == "drop_restitution: e = 0.800 at the first impact (1 of 1 runs rebound)"
+    )
+    assert "0.1 m/s velocity threshold" in table.notes[0]
+    assert "no collision: the collision never happened; v1' = 2.00 m/s" in step3["written"]
+    assert "e = 0.136 in 1 collision(s), momentum kept to 1 \u00d7 10⁻¹⁵" in step3["corrected"]
+    assert "meet at 0.6 s" in table.notes[1]
+    assert table.frame.height == 2  # neither sweep was analyzed: no row, no invented numbers
 
 
 def test_no_handout_experiments_no_section():
     runs = RUNS.with_columns(pl.lit("mine").alias("experiment"))
-    assert as_written_section(runs, COLLISIONS) == []
+    assert as_written(tables(runs, COLLISIONS)) == []
+
+
+def test_a_collision_that_changes_momentum_is_not_said_to_keep_it():
+    runs = pl.DataFrame(
+        {"run_id": ["w1", "c1"], "experiment": ["collision_as_written", "collision"]}
+    )
+    col = COLLISIONS.with_columns(pl.Series("momentum_rel_change", [None, 0.3]))
+    (_, _, table) = as_written(tables(runs, col))
+    assert "momentum changes by up to 0.30 (relative)" in table.frame["corrected"][0]
 
 
 def test_runs_at_rest_say_why_they_end_early_and_below_zero():
@@ -60,11 +77,10 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
             "energy_final_J": [-0.00357, 0.1],
         }
     )
-    line = rest_line(ground)
-    assert "1 run(s) stop once every body is at rest" in line
-    assert '"free_fall-1" ends at 1.15 s (the handout runs 2 s' in line
+    (line,) = _at_rest(ground)
+    assert line.startswith("1 run(s) stop once every body is at rest, free_fall-1 at 1.15 s.")
     assert "(-0.00357 J)" in line and "soft contact" in line
-    assert rest_line(ground.filter(pl.col("reason") != "bodies at rest")) == ""
+    assert _at_rest(ground.filter(pl.col("reason") != "bodies at rest")) == []
 
 
 @pytest.mark.slow
@@ -75,7 +91,7 @@ def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     raw = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001))
     one = [PairTarget("plane", "a", 0.8, (1.0, 2.0)), PairTarget("plane", "b", 0.8, None)]
     assert contact_words(one, raw) == "restitution = 0.8"
-    assert contact_words([], raw) == "solref [0.02, 1.0], solimp [0.9, 0.95, 0.001]"
+    assert contact_words([], raw) == "solref 0.02 1; solimp 0.9 0.95 0.001"
     pairs = [PairTarget("a", "plane", 0.42, None), PairTarget("b", "plane", 0.0, None)]
     assert contact_words(pairs, None) == "restitution a/plane = 0.42, b/plane = 0"
     assert contact_words([], None) == ""
@@ -102,9 +118,8 @@ def test_restitution_figure_draws_each_experiments_target(monkeypatch, tmp_path)
     figures.restitution_figure(
         bounces,
         pl.DataFrame(),
-        {"a": "a", "b": "b"},
+        {"a": "drop_restitution", "b": "drop"},
         path=tmp_path / "r.png",
-        experiments={"a": "drop_restitution", "b": "drop"},
         targets={"drop_restitution": [0.8]},
     )
     (ax,) = seen[0].axes
@@ -124,16 +139,17 @@ def test_restitution_figure_of_collisions_without_a_bounce(monkeypatch, tmp_path
     seen = []
     monkeypatch.setattr(figures, "save_figure", lambda fig, path: seen.append(fig) or path)
     collisions = pl.DataFrame(
-        {"complete": [True], "v1n_before_mps": [2.0], "v2n_before_mps": [-1.0], "e_velocity": [0.8]}
+        {
+            "run_id": ["a"],
+            "complete": [True],
+            "v1n_before_mps": [2.0],
+            "v2n_before_mps": [-1.0],
+            "e_velocity": [0.8],
+        }
     )
-    figures.restitution_figure(
-        pl.DataFrame(schema={"complete": pl.Boolean}),
-        collisions,
-        {"a": "a"},
-        path=tmp_path / "r.png",
-    )
+    figures.restitution_figure(pl.DataFrame(), collisions, {"a": "a"}, path=tmp_path / "r.png")
     (ax,) = seen[0].axes
-    (line,) = ax.get_lines()
+    line = ax.get_lines()[0]  # then the marker families' legend entries, empty
     assert (tuple(line.get_xdata()), tuple(line.get_ydata())) == ((3.0,), (0.8,))
 
 

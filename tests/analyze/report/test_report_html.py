@@ -12,13 +12,12 @@ import tempfile
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
-import numpy as np
 import paths
 import pytest
 from matplotlib import image
 
 from impactlab.analyze.job import run_analysis
-from impactlab.analyze.report.html import CSP, report_html
+from impactlab.analyze.report.html import CSP
 
 GOLDEN = paths.GOLDEN / "logs"
 CHECK = """<script>
@@ -29,6 +28,7 @@ window.addEventListener("load", () => {
     images: [...document.images].map((i) => [i.alt, i.complete, i.naturalWidth]),
     missing: anchors.filter((h) => !ids.has(decodeURIComponent(h.slice(1)))),
     tables: document.querySelectorAll("table").length,
+    figures_missing: document.body.innerText.split("Figure not shown").length - 1,
   });
 });
 </script>"""
@@ -66,19 +66,6 @@ def results(tmp_path_factory) -> Path:
     return out
 
 
-def test_images_are_embedded_and_headings_named_as_on_github(tmp_path):
-    (tmp_path / "figures").mkdir()
-    image.imsave(tmp_path / "figures/a.png", np.random.default_rng(0).random((20, 30)))
-    page = report_html(
-        "# Report\n\n## Step 1: energy (25 points)\n\n[see](#step-1-energy-25-points)\n\n"
-        "![a](figures/a.png)\n\n![gone](figures/gone.png)\n",
-        tmp_path,
-    )
-    assert '<h2 id="step-1-energy-25-points">' in page
-    assert 'src="data:image/png;base64,' in page and 'src="figures/a.png"' not in page
-    assert "Figures missing when this page was made" in page and "figures/gone.png" in page
-
-
 @pytest.mark.slow
 def test_report_html_opens_in_chromium_with_every_figure_and_link(results, tmp_path):
     page = results / "report.html"
@@ -99,6 +86,7 @@ def test_report_html_opens_in_chromium_with_every_figure_and_link(results, tmp_p
     assert found, "the page's load handler did not run"
     check = json.loads(html.unescape(found.group(1)))
     markdown_images = len(re.findall(r"!\[", (results / "report.md").read_text()))
+    assert check["figures_missing"] == 0
     assert len(check["images"]) == markdown_images > 0
     assert all(complete and width > 100 for _, complete, width in check["images"]), check
     assert check["missing"] == [] and check["tables"] > 0

@@ -1,0 +1,385 @@
+"""The handout's four questions, one function each: the answer's blocks (a first sentence that
+answers with its number, the evidence, one figure) and a short verdict for the conclusion."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import polars as pl
+
+from impactlab.analyze.report import findings as F
+from impactlab.analyze.report.blocks import (
+    Block,
+    Bullets,
+    Column,
+    Figure,
+    Link,
+    Paragraph,
+    Span,
+    Strong,
+    Table,
+    footnoted,
+    number,
+    percent,
+    quantity,
+    span,
+)
+from impactlab.analyze.report.context import Tables, columns
+from impactlab.physics import collision_after
+from impactlab.text import file_part
+
+MAIN_ROWS = 12
+"""Rows a table of the answers shows; all of them are in the appendix."""
+APPENDIX = "report-appendix.md"
+
+
+@dataclass
+class Answer:
+    """A question's answer: its lead (whose first sentence answers the question), the
+    evidence, and a short verdict for the conclusion."""
+
+    lead: list[Span]
+    evidence: list[Block] = field(default_factory=list)
+    verdict: str = ""
+
+    @property
+    def blocks(self) -> list[Block]:
+        return [Paragraph(tuple(self.lead)), *self.evidence]
+
+
+def not_answered(why: str) -> Answer:
+    return Answer([Strong(f"Not answered: {why}.")], verdict=f"Not answered: {why}.")
+
+
+def _table(
+    frame: pl.DataFrame, cols: tuple[Column, ...], notes: tuple[str, ...] = ()
+) -> list[Block]:
+    """A table of an answer: at most MAIN_ROWS rows, then where the others are."""
+    out: list[Block] = [Table(frame.head(MAIN_ROWS), cols, notes)]
+    if frame.height > MAIN_ROWS:
+        more = f"The first {MAIN_ROWS} of {frame.height} rows; all of them are in "
+        out.append(Paragraph((more, Link("the appendix", APPENDIX), ".")))
+    return out
+
+
+def _figure(t: Tables, kind: str, name: str, caption: str) -> list[Block]:
+    shown = t.figure(kind, name)
+    return [] if shown is None else [Figure(shown, caption)]
+
+
+def _who(row: dict[str, Any]) -> str:
+    return str(row.get("run") or row["run_id"])
+
+
+def _targets(t: Tables) -> pl.Expr:
+    """Each run's target e (the calibrated pairs'), as text; "" when not calibrated."""
+    words = {r: ", ".join(f"{e:g}" for e in b.targets) for r, b in t.briefs.items()}
+    return pl.col("run_id").replace_strict(words, default="", return_dtype=pl.String)
+
+
+def energy(t: Tables) -> Answer:
+    """Step 1: is the energy conserved in flight and lost at the contacts?"""
+    ground = t.runs.filter(pl.col("ground") & pl.col("energy_initial_J").is_not_null())
+    if ground.is_empty():
+        return not_answered("no run has a ground to fall onto, so no contact loses energy")
+    rows = list(ground.iter_rows(named=True))
+    kinds = F.each(rows, F.drift_kind)
+    gone = [
+        F.share(F.change(r["energy_initial_J"], r["energy_final_J"]), r["energy_initial_J"])
+        for r in rows
+    ]
+    lost = span([g * 100 for g in gone if g is not None], "%")
+    end = f"{lost} of it is gone by the end" if lost else "the energy at the end is not measured"
+    flown = [r for r, k in zip(rows, kinds, strict=True) if k != "none"]
+    odd = [
+        r for r, k in zip(rows, kinds, strict=True) if k not in F.DRIFT_WORDS or k == "unexplained"
+    ]
+    if not flown:
+        lead = f"Not answered for the flight: no run has one; at the contacts {end}."
+        verdict = "Energy: no flight to test conservation on."
+    elif not odd:
+        worst = max(flown, key=lambda r: abs(F.drift(r) / r["energy_initial_J"]))
+        rel = percent(abs(F.drift(worst) / worst["energy_initial_J"]))
+        lead = (
+            f"Yes: in flight the total energy is conserved up to the integrator's drift (at "
+            f"most {rel} of it), and at the contacts it is lost: {end}."
+        )
+        verdict = (
+            f"Energy is conserved in flight up to the integrator's drift (at most {rel}) and "
+            "lost at the contacts."
+        )
+    else:
+        lead = (
+            f"Not in every run: in {len(odd)} of {len(flown)} runs with a flight the energy "
+            f"changes in flight by more than the integrator explains ({_who(odd[0])}: "
+            f"{quantity(F.drift(odd[0]), 'J')}); at the contacts {end}."
+        )
+        verdict = f"Energy: in {len(odd)} of {len(flown)} runs the flight drift is unexplained."
+    notes = F.each(rows, lambda r: F.drift_finding(r) if F.drift_kind(r) == "unexplained" else "")
+    table, footnotes = footnoted(
+        ground.with_columns(
+            pl.Series("gone", [None if g is None else g * 100 for g in gone], dtype=pl.Float64),
+            pl.Series("flight", [F.DRIFT_WORDS.get(k, k) for k in kinds], dtype=pl.String),
+            pl.Series("note", notes, dtype=pl.String),
+        ),
+        "note",
+    )
+    cols = (
+        *columns(table, "run", "energy_initial_J", "contact_loss_sum_J"),
+        *columns(table, "flight_drift_J", "flight_drift_predicted_J"),
+        Column("gone", "Gone at the end", "%"),
+        Column("flight", "In flight"),
+        Column("note", "Note"),
+    )
+    why = (
+        "A semi-implicit integrator (Euler, as in the handout) loses m g² dt T / 2 in a flight "
+        "of T seconds: that is the drift predicted beside each run's below."
+    )
+    evidence: list[Block] = [Bullets(tuple((s,) for s in (why, *F.at_rest(ground))))]
+    evidence += _table(table, cols, footnotes)
+    order = ["n_bounces_complete", "drop_height_m"]
+    best = ground.sort(order, descending=True, nulls_last=True).row(0, named=True)
+    caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
+    evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
+    return Answer([Strong(lead)], evidence, verdict)
+
+
+def restitution(t: Tables) -> Answer:
+    """Step 2: is e constant across bounces, and does it depend on the drop height?"""
+    if t.bounces.is_empty():
+        return not_answered("no run has a bounce")
+    done = t.bounces.filter(pl.col("complete") & pl.col("e_velocity").is_not_null())
+    e = pl.col("e_velocity")
+    spread = (
+        done.group_by("run_id", "run", "body", "surface", maintain_order=True)
+        .agg(pl.len().alias("n"), (e.max() - e.min()).alias("s"))
+        .filter(pl.col("n") >= 2)
+    )
+    limit = f"{F.E_CONSTANT_SPREAD:g}"
+    if spread.is_empty():
+        across = "Constancy across bounces is not tested (no run has two complete bounces)"
+        short = "not tested across bounces"
+    else:
+        worst = spread.sort("s", descending=True).row(0, named=True)
+        most = number(worst["s"], 2)
+        if worst["s"] < F.E_CONSTANT_SPREAD:
+            across = f"Yes, e is constant across bounces (spread at most {most}, below {limit})"
+            short = f"constant across bounces (spread at most {most})"
+        else:
+            within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
+            across = (
+                f"No, e is not constant across bounces in every drop (spread up to {most} in "
+                f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
+            )
+            short = f"not constant across bounces (spread up to {most})"
+    heights = [(name, *_height_words(s)) for name, s in t.studies.items()]
+    heights = [h for h in heights if h[1]]
+    against = " and ".join(f"{long} for {n}" for n, long, _ in heights)
+    lead = across + (f"; against the drop height it {against}." if against else ".")
+    verdict = f"e is {short}"
+    if heights:
+        verdict += "; against the drop height it " + " and ".join(
+            f"{b} for {n}" for n, _, b in heights
+        )
+    studies = [t.studies[n].sort("first_impact_speed_mps") for n, _, _ in heights]
+    table = pl.concat(studies, how="diagonal_relaxed") if studies else pl.DataFrame()
+    said = []
+    if studies:
+        table = table.with_columns(_targets(t).alias("target"))
+        aimed = table.filter(pl.col("target") != "")
+        off = (pl.col("e_velocity_first") - pl.col("target").cast(pl.Float64, strict=False)).abs()
+        most_off = aimed.select(off.max()).item() if aimed.height else None
+        if F.defined(most_off):
+            said.append(
+                f"Where the contact was calibrated to a target e, the first bounce's e is within "
+                f"{number(most_off, 2)} of it: an independent check, the target being set before "
+                "the run."
+            )
+    apex = done.filter(pl.col("e_apex").is_not_null()) if "e_apex" in done.columns else done.clear()
+    if apex.height:
+        gap = apex.select((pl.col("e_apex") - e).abs().max()).item()
+        said.append(
+            f"e from the apex heights, √(h after / h before), agrees with e from the velocities "
+            f"to {number(gap, 2)}, as it must: the apexes are refined ballistically from the same "
+            "flights, so this checks the bookkeeping, not the measurement."
+        )
+    evidence: list[Block] = [Bullets(tuple((s,) for s in said))] if said else []
+    if studies:
+        cols = columns(table, "run", "drop_height_m", "first_impact_speed_mps")
+        cols += columns(table, "e_velocity_first", "e_apex_mean")
+        evidence += _table(table, (*cols, Column("target", "Target e")))
+    caption = "e against impact speed: every bounce and every collision, one colour per experiment."
+    evidence += _figure(t, "restitution", "restitution-vs-speed.png", caption)
+    return Answer([Strong(lead)], evidence, verdict + ".")
+
+
+def _height_words(study: pl.DataFrame) -> tuple[str, str]:
+    """How e depends on the drop height in one drop study: (words with numbers, in brief);
+    ("", "") for a study that is not of drops."""
+    if not {"e_velocity_first", "first_impact_speed_mps"} <= set(study.columns):
+        return "", ""
+    study = study.sort("first_impact_speed_mps")
+    es = study.filter(pl.col("e_velocity_first").is_not_null())["e_velocity_first"]
+    speeds = span(study["first_impact_speed_mps"].to_list(), "m/s")
+    values = span(es.to_list())
+    if es.len() >= 2:
+        if es.max() - es.min() < F.E_CONSTANT_SPREAD:  # type: ignore[operator]
+            return f"does not depend on it ({values} at {speeds})", "does not depend on it"
+        trend = "rises" if es[-1] > es[0] else "falls"
+        return (
+            f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})",
+            f"{trend} with it",
+        )
+    if es.len() == 1:
+        words = f"depends on it (only one of {study.height} drops rebounds, e = {values})"
+        return words, "depends on it"
+    return f"cannot be measured (none of {study.height} drops rebounds)", "cannot be measured"
+
+
+def collision(t: Tables) -> Answer:
+    """Step 3: is momentum conserved, and does the kinetic energy lost match the prediction?"""
+    if t.collisions.is_empty():
+        return not_answered("no run has two bodies that collide")
+    done = t.collisions.filter(pl.col("complete"))
+    if done.is_empty():
+        why = t.collisions["note"][0] or "no complete collision"
+        return not_answered(f"no collision separated ({why})")
+    by_run = F.run_rows(t.runs, done["run_id"])
+    rows = list(done.iter_rows(named=True))
+    kinds = F.each(rows, lambda c: F.momentum_kind(c, by_run.get(c["run_id"])))
+    n_kept = sum(k == "conserved" for k in kinds)
+    top = done.select(pl.col("momentum_rel_change").max()).item()
+    if n_kept == len(rows):
+        momentum = (
+            f"Yes, momentum is conserved in all {len(rows)} collisions (relative change at most "
+            f"{number(top, 2)}, below {number(F.MOMENTUM_CONSERVED_REL, None)})"
+        )
+        verdict = f"Momentum is conserved in every collision (change at most {number(top, 2)})"
+    else:
+        momentum = f"Momentum is conserved in {n_kept} of {len(rows)} collisions"
+        verdict = momentum
+    alone = done.join(t.runs.select("run_id", "experiment"), on="run_id")
+    alone = alone.filter(pl.len().over("experiment") == 1)
+    main = (alone if alone.height else done).row(0, named=True)
+    keys = ("ke_before_J", "ke_after_J", "e_velocity", "ke_loss_predicted_J")
+    lead: list[Span] = [Strong(momentum + ".")]
+    if all(F.defined(main.get(k)) for k in keys):
+        before, after, e, predicted = (float(main[k]) for k in keys)
+        lead = [
+            Strong(
+                f"{momentum}, and the kinetic energy lost in {_who(main)}, "
+                f"{quantity(before - after, 'J')} of {quantity(before, 'J')}, is what the 1D "
+                f"formula gives for the measured e = {number(e)}, but that check is circular."
+            ),
+            f" The formula's {quantity(predicted, 'J')} follows from e, and e is measured from "
+            "the same velocities, so the two agree for any central impact that conserves "
+            "momentum; the independent checks are the analytic outcomes below and, in Step 4, "
+            "the target e.",
+        ]
+        verdict += "; the energy lost follows from the measured e (a circular check)"
+    odd = [
+        F.momentum_finding(r, by_run.get(r["run_id"]))
+        for r, k in zip(rows, kinds, strict=True)
+        if k != "conserved"
+    ]
+    evidence: list[Block] = [Bullets(tuple((s,) for s in odd[:3]))] if odd else []
+    evidence += _outcomes(main)
+    caption = f"{_who(main)}: positions, velocities and momentum along the line of centres."
+    evidence += _figure(t, "collision", f"collision-{file_part(main['run_id'])}.png", caption)
+    return Answer(lead, evidence, verdict + ".")
+
+
+def _outcomes(c: dict[str, Any]) -> list[Block]:
+    """The measured outcome of a collision beside the elastic and perfectly inelastic ones."""
+    needed = (
+        "m1_kg",
+        "m2_kg",
+        "v1n_before_mps",
+        "v2n_before_mps",
+        "v1n_after_mps",
+        "v2n_after_mps",
+    )
+    if not all(F.defined(c.get(k)) for k in needed) or not c["m1_kg"] + c["m2_kg"]:
+        return []
+    m1, m2, v1, v2 = (float(c[k]) for k in needed[:4])
+    outcomes = [("measured", c["e_velocity"], c["v1n_after_mps"], c["v2n_after_mps"])]
+    for name, e in (("elastic", 1.0), ("perfectly inelastic", 0.0)):
+        outcomes.append((name, e, *collision_after(m1, m2, v1, v2, e)))
+    ke = 0.5 * m1 * v1**2 + 0.5 * m2 * v2**2
+    frame = pl.DataFrame(
+        [(*o, ke - 0.5 * m1 * o[2] ** 2 - 0.5 * m2 * o[3] ** 2) for o in outcomes],
+        schema=["outcome", "e", "v1", "v2", "lost"],
+        orient="row",
+    )
+    cols = (
+        Column("outcome", "Outcome"),
+        Column("e", "e"),
+        Column("v1", "v1 after", "m/s"),
+        Column("v2", "v2 after", "m/s"),
+        Column("lost", "Kinetic energy lost", "J"),
+    )
+    intro = (
+        f"{_who(c)}: {quantity(m1, 'kg', None)} at {quantity(v1, 'm/s', None)} against "
+        f"{quantity(m2, 'kg', None)} at {quantity(v2, 'm/s', None)}, measured beside the "
+        "handout's analytic outcomes (velocities along the line of centres):"
+    )
+    return [Paragraph((intro,)), Table(frame, cols)]
+
+
+def study(t: Tables) -> Answer:
+    """Step 4: as the contact moves towards elastic, do the velocities approach the elastic
+    answer?"""
+    sweeps = []
+    for name, s in t.studies.items():
+        if "e_collision" not in s.columns or not t.params.get(name):
+            continue
+        rows = s.filter(pl.col("e_collision").is_not_null())
+        if rows.height:
+            el1 = rows["v1n_after_elastic_mps"][0]
+            sweeps.append((name, rows, el1, F.elastic_gap(rows["v1n_after_mps"].to_list(), el1)))
+    if not sweeps:
+        return not_answered("no collision sweep")
+    near = [s for s in sweeps if s[3] is not None and s[3] < F.APPROACH_FRACTION]
+    far = [s for s in sweeps if s not in near]
+
+    def said(name: str, rows: pl.DataFrame, el1: Any, gap: float | None) -> str:
+        es = rows["e_collision"].to_list()
+        knob = max(es) - min(es) >= F.E_KNOB_SPREAD
+        moves = f"as e goes from {span(es)}" if knob else f"e stays at {span(es)}"
+        elastic = quantity(el1, "m/s")
+        if gap is None:
+            return f"{name}, where {moves}: the elastic answer is not defined (an eccentric impact)"
+        if gap < F.APPROACH_FRACTION:
+            return f"{name}: {moves}, v1' comes within {percent(gap, 2)} of the elastic {elastic}"
+        far = f"v1' stays {percent(gap, 2)} or more from the elastic {elastic}"
+        return f"{name}, where {moves} and {far}"
+
+    if near:
+        lead = "Yes, with " + "; ".join(said(*s) for s in near)
+        lead += ("; not with " + "; ".join(said(*s) for s in far)) if far else ""
+        verdict = f"The elastic answer is approached with {', '.join(s[0] for s in near)}"
+        verdict += f", not with {', '.join(s[0] for s in far)}." if far else "."
+    else:
+        lead = "No: " + "; ".join(said(*s) for s in sweeps)
+        verdict = "No sweep approaches the elastic answer."
+    elastic = pl.col("v1n_after_elastic_mps")
+    gap = (pl.col("v1n_after_mps") - elastic).abs() / elastic.abs() * 100
+    table = pl.concat([s[1] for s in sweeps], how="diagonal_relaxed")
+    table = table.with_columns(_targets(t).alias("target"), gap.alias("gap"))
+    cols = (
+        *columns(table, "run", "e_collision"),
+        Column("target", "Target e"),
+        *columns(table, "v1n_after_mps", "v2n_after_mps"),
+        Column("gap", "v1 from elastic", "%"),
+    )
+    first = sweeps[0][1].row(0, named=True)
+    swept = "; ".join(f"{n} sweeps {t.params[n][0]}" for n, *_ in sweeps)
+    more = (
+        f" The elastic answer (e = 1) is v1' = {quantity(first['v1n_after_elastic_mps'], 'm/s')}, "
+        f"v2' = {quantity(first['v2n_after_elastic_mps'], 'm/s')} ({swept})."
+    )
+    pick = (near or sweeps)[0][0]
+    caption = f"{pick}: velocities after against e, on the analytic curves; e against the sweep."
+    evidence = [*_table(table, cols), *_figure(t, "study", f"study-{file_part(pick)}.png", caption)]
+    return Answer([Strong(lead + "."), more], evidence, verdict)
