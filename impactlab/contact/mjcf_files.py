@@ -1,11 +1,4 @@
-"""The files an MJCF model is made of: its text in its own encoding, and its ``<include>`` files.
-
-MuJoCo resolves an ``<include file=...>`` relative to the main model's folder (also inside an
-included file) and puts the children of the included file's ``<mujoco>`` root in its place.
-:func:`included_files` lists them (recursively, in document order), :func:`inlined_text` is
-the model with every include replaced by what it stands for, every number as written (MuJoCo's
-own saved XML rounds numbers to six digits). No MuJoCo here: expat reads the files.
-"""
+"""The files an MJCF model is made of (its includes and attached models), and its text."""
 
 from __future__ import annotations
 
@@ -63,6 +56,8 @@ def read_text(path: Path) -> str:
 
 
 def _read(path: Path) -> bytes:
+    if path.exists() and not path.is_file():  # a FIFO or a device: never read it
+        raise ContactModelError(f"{path}: not a regular file")
     try:
         return path.read_bytes()
     except OSError as exc:
@@ -88,15 +83,17 @@ def _elements(
         empty = raw[head - 2 : head] == b"/>"
         stop = head if empty else raw.index(b">", here) + 1
         element = _Element(begin, stop, None if empty else (head, here), attrs)
-        if name == "include":
-            found.append(element)
+        if name == "include" or (name == "model" and "file" in attrs):
+            found.append(
+                _Element(element.start, element.stop, element.inner, {**attrs, "tag": name})
+            )
         if not stack:
             root.append(element)
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end
-    if b"<include" not in raw and not need_root:
-        return None, []  # the root is only needed to inline an included file
+    if b"<include" not in raw and b"<model" not in raw and not need_root:
+        return None, []
     try:
         parser.Parse(raw, True)
     except xml.parsers.expat.ExpatError as exc:
@@ -140,16 +137,10 @@ def tag_end(raw: bytes, begin: int) -> int:
     raise ContactModelError("the model's XML ends inside a tag")
 
 
-def _target(main: Path, element: _Element, where: Path) -> Path:
-    file = element.attrs.get("file")
-    if not file:
-        raise ContactModelError(f"{where}: an <include> without a file")
-    target = Path(file)
-    return target if target.is_absolute() else main.parent / target
-
-
 def included_files(path: Path) -> list[Path]:
-    """Every file the model at `path` includes, recursively, in document order (each once).
+    """Every file the model at `path` includes or attaches (`<model file=...>`), recursively,
+    in document order, each once: an include's file as MuJoCo 4 resolves it (beside the
+    including file) and as MuJoCo 3 did (beside the main model), each that exists.
 
     Raises:
         ContactModelError: a file cannot be read or parsed, or includes itself.
@@ -160,54 +151,25 @@ def included_files(path: Path) -> list[Path]:
 
 
 def _walk(main: Path, path: Path, chain: list[Path], out: list[Path]) -> None:
-    _, includes = _elements(_read(path), path)
-    for element in includes:
-        target = _target(main, element, path)
-        if target.resolve() in chain:
-            raise ContactModelError(f"{path}: includes {target}, which includes it")
-        if target not in out:
+    _, elements = _elements(_read(path), path)
+    for element in elements:
+        file = element.attrs.get("file")
+        if not file:
+            raise ContactModelError(f"{path}: an <include> without a file")
+        if element.attrs.get("tag") == "model":  # an attached model: a main model of its own
+            targets = [path.parent / file]
+            inner_main = targets[0]
+        else:
+            targets = list(dict.fromkeys([path.parent / file, main.parent / file]))
+            targets = [t for t in targets if t.exists()] or targets[:1]
+            inner_main = main
+        for target in targets:
+            if target.resolve() in chain:
+                raise ContactModelError(f"{path}: includes {target}, which includes it")
+            if target in out:
+                continue
             out.append(target)
             if len(out) > MAX_INCLUDES:
                 raise ContactModelError(f"{main}: more than {MAX_INCLUDES} included files")
-        _walk(main, target, [*chain, target.resolve()], out)
-
-
-def inlined_text(path: Path) -> str:
-    """The model's text with every ``<include>`` replaced by the included root's children.
-
-    Raises:
-        ContactModelError: a file cannot be read, decoded or parsed, or includes itself.
-    """
-    return _inline(path, path, [path.resolve()], whole=True)
-
-
-def _inline(main: Path, path: Path, chain: list[Path], *, whole: bool) -> str:
-    raw = _read(path)
-    name = encoding(raw)
-    root, includes = _elements(raw, path, need_root=not whole)
-    if whole:
-        span = (0, len(raw))
-    elif root is None:
-        raise ContactModelError(f"{path}: no root element")
-    elif root.inner is None:
-        return ""
-    else:
-        span = root.inner
-    parts: list[str] = []
-    at = span[0]
-    for element in includes:
-        target = _target(main, element, path)
-        if target.resolve() in chain:
-            raise ContactModelError(f"{path}: includes {target}, which includes it")
-        parts.append(_decode(raw[at : element.start], name, path))
-        parts.append(_inline(main, target, [*chain, target.resolve()], whole=False))
-        at = element.stop
-    parts.append(_decode(raw[at : span[1]], name, path))
-    return "".join(parts)
-
-
-def _decode(raw: bytes, name: str, path: Path) -> str:
-    try:
-        return raw.decode(name)
-    except UnicodeDecodeError as exc:
-        raise ContactModelError(f"{path}: not {name} text: {exc.reason}") from None
+            if target.exists():
+                _walk(inner_main, target, [*chain, target.resolve()], out)

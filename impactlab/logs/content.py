@@ -11,6 +11,7 @@ import numpy as np
 
 from impactlab.logs import contract
 from impactlab.logs import format as logformat
+from impactlab.logs.geoms import FlexShape
 from impactlab.logs.scene import GeomShape
 from impactlab.physics import half_step_s
 from impactlab.version import __version__
@@ -171,6 +172,7 @@ class LogHeader:
     joint_energy: bool = False  # whether rows carry `joint_energy` (`/energy/joints`)
     attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
     meshes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    flexes: Sequence[FlexShape] = ()
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -67,13 +67,26 @@ class GeomShape:
         return self.group in VISIBLE_GROUPS and self.rgba[3] > 0
 
 
+@dataclass(frozen=True)
+class FlexShape:
+    """A flex as viewers draw it: its vertices are the logged bodies `bodies` (in vertex
+    order); `cells` index them, triangles (a 2D flex, a 3D flex's boundary) or segments (1D)."""
+
+    name: str
+    bodies: tuple[str, ...]
+    cells: tuple[tuple[int, ...], ...]
+    rgba: tuple[float, float, float, float]
+
+
 @dataclass
 class ModelScene:
-    """The geoms of a log and their meshes' triangles, (m, 3, 3) float m, by attachment name."""
+    """The geoms of a log and their meshes' triangles, (m, 3, 3) float m, by attachment name,
+    and its flexes."""
 
     geoms: list[GeomShape]
     meshes: dict[str, np.ndarray]
     problems: list[str]
+    flexes: list[FlexShape] = field(default_factory=list)
 
 
 def mesh_attachment(name: str, *, hfield: bool = False) -> str:
@@ -81,7 +94,11 @@ def mesh_attachment(name: str, *, hfield: bool = False) -> str:
     return f"{'hfields' if hfield else 'meshes'}/{name}.stl"
 
 
-def scene_record(geoms: Sequence[GeomShape], meshes: Mapping[str, np.ndarray]) -> dict[str, str]:
+def scene_record(
+    geoms: Sequence[GeomShape],
+    meshes: Mapping[str, np.ndarray],
+    flexes: Sequence[FlexShape] = (),
+) -> dict[str, str]:
     """The `impactlab.scene` metadata record: every value a string."""
     table = [
         {
@@ -102,7 +119,20 @@ def scene_record(geoms: Sequence[GeomShape], meshes: Mapping[str, np.ndarray]) -
         {"name": _mesh_name(name), "attachment": name, "triangles": len(t)}
         for name, t in meshes.items()
     ]
-    return {"geoms": json.dumps(table), "meshes": json.dumps(listed)}
+    flex_table = [
+        {
+            "name": f.name,
+            "bodies": list(f.bodies),
+            "cells": [list(c) for c in f.cells],
+            "rgba": list(f.rgba),
+        }
+        for f in flexes
+    ]
+    return {
+        "geoms": json.dumps(table),
+        "meshes": json.dumps(listed),
+        **({"flexes": json.dumps(flex_table)} if flexes else {}),
+    }
 
 
 def _mesh_name(attachment: str) -> str:
@@ -169,7 +199,35 @@ def read_scene(record: Mapping[str, str] | None, attachments: Mapping[str, bytes
                 scene.problems.append(f"{SCENE_METADATA} geoms[{i}] mesh {geom.mesh!r}: {exc}")
                 continue
         scene.geoms.append(geom)
+    try:
+        flexes = json.loads(record.get("flexes", "[]"))
+        scene.flexes = [_flex(item) for item in flexes]
+    except (TypeError, ValueError, KeyError) as exc:
+        scene.problems.append(f"{SCENE_METADATA} flexes: {exc}")
     return scene
+
+
+def _flex(item: Mapping[str, object]) -> FlexShape:
+    """One flex of the table, checked: names, cells that index its vertices, a colour."""
+    bodies, cells, rgba = item["bodies"], item["cells"], item["rgba"]
+    name = item["name"]
+    if not isinstance(name, str) or not isinstance(bodies, list):
+        raise TypeError("a flex's name or bodies are not text")
+    if not all(isinstance(b, str) for b in bodies) or not isinstance(cells, list):
+        raise TypeError("a flex's bodies or cells are malformed")
+    n = len(bodies)
+    ok = all(
+        isinstance(c, list)
+        and 2 <= len(c) <= 3
+        and all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n for v in c)
+        for c in cells
+    )
+    if not ok or not isinstance(rgba, list) or len(rgba) != 4:
+        raise ValueError("a flex's cells do not index its vertices, or its rgba is not 4")
+    colour = tuple(float(c) for c in rgba if isinstance(c, int | float))
+    if len(colour) != 4 or not all(0.0 <= c <= 1.0 for c in colour):
+        raise ValueError("a flex's rgba is not within 0..1")
+    return FlexShape(name, tuple(bodies), tuple(tuple(c) for c in cells), colour)
 
 
 def _geom(item: object) -> GeomShape:

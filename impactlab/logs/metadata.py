@@ -188,9 +188,9 @@ def _bodies(value: str) -> list[dict[str, Any]]:
         if radius is not None and not (_real(radius, 0.0, MAX_MAGNITUDE) and radius > 0):
             raise Invalid(f"{where}: radius {_quote(radius)} is not in (0, {MAX_MAGNITUDE:g}] m")
         rest = body.get("rest_height_m")
-        if rest is not None and not _real(rest, 0.0, MAX_MAGNITUDE):
+        if rest is not None and not _real(rest, -MAX_MAGNITUDE, MAX_MAGNITUDE):
             raise Invalid(
-                f"{where}: rest_height_m {_quote(rest)} is not in [0, {MAX_MAGNITUDE:g}] m"
+                f"{where}: rest_height_m {_quote(rest)} is not within +-{MAX_MAGNITUDE:g} m"
             )
         geoms = body.get("geoms", [])
         if not isinstance(body.get("shape", ""), str) or not (

@@ -64,7 +64,9 @@ class LogWriter:
         )
         writer = self._out.writer
         writer.add_metadata(logformat.RUN_METADATA, header.run.record())
-        writer.add_metadata(SCENE_METADATA, scene_record(header.geoms, header.meshes))
+        writer.add_metadata(
+            SCENE_METADATA, scene_record(header.geoms, header.meshes, header.flexes)
+        )
         for name, triangles in header.meshes.items():  # first: a cut log still draws the model
             writer.add_attachment(
                 create_time=0,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from impactlab.logs.geoms import GeomShape, mesh_attachment
+from impactlab.logs.geoms import FlexShape, GeomShape, mesh_attachment
 
 DEFAULT_RGBA = (0.5, 0.5, 0.5, 1.0)
 """MuJoCo's default geom colour: a geom with a material and this colour shows the material's."""
@@ -57,6 +57,36 @@ def describe(
             )
         )
     return shapes, meshes
+
+
+def describe_flexes(model: mujoco.MjModel, logged: dict[int, str]) -> list[FlexShape]:
+    """Every flex whose vertices are logged bodies (`logged`: body id -> its name), with the
+    triangles (or, for a 1D flex, the segments) that draw it: a 2D flex's elements, a 3D
+    flex's boundary (MuJoCo's shell). A flex whose vertices MuJoCo interpolates from other
+    dofs is left out (its vertices are no logged bodies)."""
+    out = []
+    for f in range(model.nflex):
+        start, count = int(model.flex_vertadr[f]), int(model.flex_vertnum[f])
+        bodies = [int(b) for b in model.flex_vertbodyid[start : start + count]]
+        if not all(b in logged for b in bodies):
+            continue
+        dim = int(model.flex_dim[f])
+        if dim == 3:
+            adr, num = int(model.flex_shelldataadr[f]), int(model.flex_shellnum[f])
+            cells = model.flex_shell[adr : adr + 3 * num].reshape(-1, 3)
+        else:
+            adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
+            cells = model.flex_elem[adr : adr + (dim + 1) * num].reshape(-1, dim + 1)
+        red, green, blue, alpha = (float(str(c)) for c in model.flex_rgba[f])
+        out.append(
+            FlexShape(
+                name=mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}",
+                bodies=tuple(logged[b] for b in bodies),
+                cells=tuple(tuple(int(v) for v in c) for c in cells),
+                rgba=(red, green, blue, alpha),
+            )
+        )
+    return out
 
 
 def _relative_pose(

@@ -9,8 +9,11 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from impactlab.errors import SpecError
 from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, PairMeta, RunMeta
 from impactlab.logs.contract import GeomContact, PairTarget
+from impactlab.logs.format import OUTCOME_METADATA, RUN_METADATA
+from impactlab.logs.metadata import check_metadata
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import geometry
 from impactlab.record.contacts import StepContacts
@@ -92,8 +95,21 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         clearance,
         attachments=inst.attachments,
         meshes=inst.meshes,
+        flexes=inst.flexes,
         joint_energy=inst.joints is not None,
     )
+
+
+def refuse_unreadable(inst: InstrumentedModel, info: RunInfo) -> None:
+    """Raise SpecError when the log of this run would hold metadata its own reader refuses
+    (a mass, size or energy beyond the log's declared ranges, a NaN): one contract, the
+    log's (`impactlab.logs.metadata`), checked before anything runs."""
+    record = log_header(inst, info).run.record()
+    outcome = Outcome("completed", "", 1).record()
+    problems = check_metadata({RUN_METADATA: record, OUTCOME_METADATA: outcome}).problems
+    if problems:
+        key, problem = next(iter(problems.items()))
+        raise SpecError(info.source, "", f"the log could not hold this run: {key}: {problem}")
 
 
 def shared_geom_contact(model: mujoco.MjModel) -> GeomContact | None:

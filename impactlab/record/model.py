@@ -12,10 +12,12 @@ import numpy as np
 
 from impactlab.errors import SpecError
 from impactlab.logs.content import SurfaceMeta
+from impactlab.logs.geoms import FlexShape
 from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
+from impactlab.record.geoms import describe_flexes
 from impactlab.record.joint_energy import TENDON_SENSOR, JointEnergy, joint_energy, sprung_tendons
 from impactlab.record.model_names import name_unnamed, sensor_prefix
 from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks at import)
@@ -82,8 +84,8 @@ class InstrumentedModel:
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
     joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
     attachments: tuple[tuple[str, str, bytes], ...] = ()  # more files for the log (name, type)
-    inputs: tuple[tuple[str, str], ...] = ()  # (file, SHA-256) the model reads besides its own
     meshes: dict[str, np.ndarray] = field(default_factory=dict)  # triangles by attachment name
+    flexes: list[FlexShape] = field(default_factory=list)  # what draws the flexes
     party: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))  # see `parties`
     party_names: tuple[str, ...] = ()
 
@@ -165,8 +167,8 @@ def model_from_mjcf(
     """Load a user's MJCF file and instrument it (`instrument`); the run starts from the
     named keyframe, or the model's default pose.
 
-    The log keeps the model's text with its includes inlined and, when it reads mesh or
-    texture files, the compiled model (`impactlab.record.model_files`).
+    MuJoCo reads the model and every file it names; the log keeps its text and, when the text
+    alone does not reproduce it, the compiled model (`impactlab.record.model_files`).
     """
     from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files, parse_mjcf
 
@@ -180,7 +182,6 @@ def model_from_mjcf(
         raise SpecError(
             str(path), "", "a name in the model is not UTF-8 text: save the model as UTF-8"
         ) from None
-    inst.inputs = files.inputs
     if files.needs_binary:
         inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
     return inst
@@ -298,6 +299,7 @@ def instrument(
     key = None if keyframe is None else int(model.key(keyframe).id)
     sites = {r.root: int(model.site(f"{prefix}{n}").id) for r, n in zip(rigid, names, strict=True)}
     geoms, meshes = describe_geoms(model, sites)
+    flexes = describe_flexes(model, {r.root: n for r, n in zip(rigid, names, strict=True)})
     party, party_names = parties(model, [r.root for r in rigid])
     return InstrumentedModel(
         model=model,
@@ -312,6 +314,7 @@ def instrument(
         static_potential=geometry.static_potential(plain, data),
         joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
         meshes=meshes,
+        flexes=flexes,
         party=party,
         party_names=party_names,
     )
@@ -333,7 +336,10 @@ def parties(model: mujoco.MjModel, roots: list[int]) -> tuple[np.ndarray, tuple[
     flex_party = [nb + ngeom + f for f in range(model.nflex)]
     names = [model.body(r).name for r in roots]
     names += [model.geom(g).name for g in range(ngeom)]
-    names += [model.flex(f).name or f"flex{f}" for f in range(model.nflex)]
+    names += [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}"
+        for f in range(model.nflex)
+    ]
     return np.array(geom_party + flex_party, np.int64), tuple(names)
 
 

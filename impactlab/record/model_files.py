@@ -1,21 +1,10 @@
-"""A user's MJCF model as files: parsed without MuJoCo's log file, and what reproduces its run.
-
-The log of a run must reproduce it, and a log may be reused only while every file the model is
-read from is unchanged. :func:`parse_mjcf` parses the model (a NaN in it is an error, and
-MuJoCo's parser warnings never reach ``MUJOCO_LOG.TXT``); :func:`model_files` gives the text
-the log attaches as ``model.xml`` (the file's own text; with ``<include>`` elements, the text
-with every include put in its place, every number as written), the digest of every file it is
-read from (itself, its includes, its mesh, texture, height-field and skin files), and, when it
-reads asset files, the compiled model (``model.mjb``, `mujoco.mj_saveModel`: meshes and
-textures inside) so the log alone reproduces the run.
-"""
+"""A user's MJCF model as MuJoCo loads it, and what of it reproduces its run and keys its reuse."""
 
 from __future__ import annotations
 
 import hashlib
-import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -23,7 +12,7 @@ import numpy as np
 
 from impactlab.contact.checks import ContactModelError
 from impactlab.contact.mjcf import asset_files
-from impactlab.contact.mjcf_files import encoding, included_files, inlined_text, read_text
+from impactlab.contact.mjcf_files import encoding, included_files, read_text
 from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.errors import SpecError
 
@@ -33,25 +22,37 @@ _DECLARATION = re.compile(r"^(\ufeff?\s*<\?xml[^>]*encoding\s*=\s*)([\"'])[^\"']
 
 @dataclass(frozen=True)
 class ModelFiles:
-    """What a log keeps of a user's model, and what its reuse is keyed on.
+    """What a log keeps of a user's model.
 
     Attributes:
-        xml: the model's MJCF text (includes inlined), UTF-8 as the log stores it.
-        inputs: (path relative to the model's folder, SHA-256) of every other file it reads.
-        needs_binary: the model reads asset files: attach the compiled model too.
+        xml: the model's MJCF text as the log stores it (UTF-8): its own file's text when it
+            is one file, else MuJoCo's save of the whole model (numbers to six digits).
+        needs_binary: the text alone does not reproduce the run exactly (includes, attached
+            models, mesh, texture or height-field files): the compiled model goes along.
     """
 
     xml: str
-    inputs: tuple[tuple[str, str], ...] = field(default=())
     needs_binary: bool = False
 
 
 def parse_mjcf(path: Path) -> mujoco.MjSpec:
-    """Parse an MJCF file with MuJoCo, its warnings kept from the working folder.
+    """Parse an MJCF file with MuJoCo (its includes and assets as MuJoCo resolves them), its
+    warnings kept from the working folder; every file it names must be a regular file.
 
     Raises:
-        SpecError: MuJoCo cannot parse it, or it holds a NaN.
+        SpecError: MuJoCo cannot parse it, it holds a NaN, or a file it names is not a
+            regular file (a FIFO, a device).
     """
+    try:
+        named = [path, *included_files(path)]
+    except ContactModelError as exc:
+        raise SpecError(str(path), "", str(exc)) from None
+    for file in named:
+        if file.exists() and not file.is_file():  # MuJoCo would read a FIFO forever
+            raise SpecError(str(path), "", f"{file} is not a regular file")
+    # MuJoCo caches compiled meshes and textures by file name: a file edited since would be
+    # read from the cache, stale, so every user model is read from its files again
+    mujoco.mj_clearCache(mujoco.mj_getCache())
     try:
         spec, fresh = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
@@ -63,22 +64,17 @@ def parse_mjcf(path: Path) -> mujoco.MjSpec:
 
 
 def model_files(spec: mujoco.MjSpec, path: Path) -> ModelFiles:
-    """The text, digests and needs of a parsed model (see the module's docstring).
+    """The text the log keeps of a parsed model and whether it needs the compiled model.
 
     Raises:
-        SpecError: a file of the model cannot be read or decoded.
+        SpecError: the model's file cannot be read or decoded.
     """
     try:
-        top = read_text(path)
-        includes = included_files(path)
-        xml = _as_utf8(inlined_text(path) if includes else top, path)
-        assets = [p for p in asset_files(spec, path) if p.is_file()]
-        inputs = tuple((_relative(p, path), _sha256(p.read_bytes())) for p in includes + assets)
+        whole = not included_files(path) and not [p for p in asset_files(spec, path) if p.exists()]
+        xml = _as_utf8(read_text(path), path) if whole else spec.to_xml()
     except ContactModelError as exc:
         raise SpecError(str(path), "", str(exc)) from None
-    except OSError as exc:
-        raise SpecError(str(path), "", f"cannot read a file of the model: {exc}") from None
-    return ModelFiles(xml, inputs, needs_binary=bool(assets))
+    return ModelFiles(xml, needs_binary=not whole)
 
 
 def binary(model: mujoco.MjModel) -> bytes:
@@ -87,6 +83,12 @@ def binary(model: mujoco.MjModel) -> bytes:
     buffer = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
     mujoco.mj_saveModel(model, None, buffer)
     return buffer.tobytes()
+
+
+def model_digest(model: mujoco.MjModel) -> str:
+    """SHA-256 of the compiled model: whatever MuJoCo read to build it (includes, attached
+    models, meshes, textures), a change in any is another digest."""
+    return hashlib.sha256(binary(model)).hexdigest()
 
 
 def _as_utf8(text: str, path: Path) -> str:
@@ -98,11 +100,3 @@ def _as_utf8(text: str, path: Path) -> str:
     if charset in ("utf-8", "utf-8-sig"):
         return text.removeprefix("\ufeff")
     return _DECLARATION.sub(r"\1\2UTF-8\2", text.removeprefix("\ufeff"), count=1)
-
-
-def _relative(file: Path, model: Path) -> str:
-    return os.path.relpath(file, model.parent).replace(os.sep, "/")
-
-
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import bisect
 import functools
-import hashlib
 import re
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -21,9 +20,10 @@ from typing import Any, TypeVar, overload
 from impactlab.errors import SpecError
 from impactlab.logs.contract import PairTarget
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
-from impactlab.record.log_rows import RunInfo
+from impactlab.record.log_rows import RunInfo, refuse_unreadable
 from impactlab.record.mjcf_options import check_options, mjcf_options
 from impactlab.record.model import InstrumentedModel, model_from_mjcf, model_from_spec
+from impactlab.record.model_files import model_digest
 from impactlab.record.spec import RunSpec, Stop, spec_hash
 from impactlab.record.sweep import SpecSweep
 from impactlab.record.work import Work, check_work, run_steps
@@ -104,7 +104,7 @@ def plan(
     first: dict[str, int] = {}  # every run is validated now, then dropped: built again when run
     for index, run in enumerate(runs):
         if run.spec is not None and run.info.sweep_index == 0:
-            run.build()  # MuJoCo compiles the sweep's model (its own checks fail now)
+            refuse_unreadable(run.build(), run.info)  # MuJoCo's checks and the log's, now
         other = first.setdefault(run.info.run_id, index)
         if other != index:
             where = f"sweep point {_point(run)}" if run.info.sweep else "its only run"
@@ -162,9 +162,8 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     )  # validate now; rebuilt when run
     check_options(options, inst, str(path))
     # the model by name and content, not by where it is: the same model gives the same run
-    document: dict[str, Any] = {"mjcf": path.name, "xml_sha256": inst_digest(inst)}
-    if inst.inputs:  # every file the model reads: a change in any is another run
-        document["files_sha256"] = dict(inst.inputs)
+    # the model as MuJoCo compiled it (every file it read): a change in any is another run
+    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": inst_digest(inst)}
     document |= options.document
     digest = spec_hash(document)
     info = RunInfo(
@@ -178,6 +177,7 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         log_every=options.log_every,
         separation_m=options.stop.separation,
     )
+    refuse_unreadable(inst, info)
     max_time = options.stop.max_time
     steps = run_steps(max_time, float(inst.model.opt.timestep))
     work = Work.of_runs(1, steps, options.log_every, len(inst.bodies))
@@ -185,8 +185,8 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
 
 
 def inst_digest(inst: InstrumentedModel) -> str:
-    """SHA-256 of the model's text as the log keeps it (includes inlined)."""
-    return hashlib.sha256(inst.xml.encode()).hexdigest()
+    """SHA-256 of the model as MuJoCo compiled it (`model_files.model_digest`)."""
+    return model_digest(inst.model)
 
 
 def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -> str:

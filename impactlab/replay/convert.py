@@ -84,6 +84,7 @@ def log_run(
     rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_model(rec, run, scene, prefix, logged.bounds, body_colors(run))
     _log_bodies(rec, run, prefix, t_ns)
+    _log_flexes(rec, run, scene, prefix, t_ns)
     _log_contacts(rec, run, prefix, t_ns)
     logged.families = _log_series(rec, run, prefix, t_ns, events, label)
     logged.momentum_scale = momentum_scale(run)
@@ -164,6 +165,33 @@ def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndar
             columns=rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S),
         )
         rec.log(arrows, rr.Arrows3D.from_fields(colors=[colors[name]]), static=True)
+
+
+def _log_flexes(
+    rec: rr.RecordingStream, run: RunLog, scene: ModelScene, prefix: str, t_ns: np.ndarray
+) -> None:
+    """Each flex as a mesh (or line segments) through its vertex bodies' logged positions."""
+    for flex in scene.flexes:
+        frames = [run.bodies.get(b) for b in flex.bodies]
+        if any(f is None or f.height != t_ns.size for f in frames):
+            continue  # a damaged log: the flex is not drawn
+        xyz = np.stack([f.select("x", "y", "z").to_numpy() for f in frames if f is not None], 1)
+        path = f"{prefix}/world/flexes/{rr.escape_entity_path_part(flex.name)}"
+        cells = np.array(flex.cells, dtype=np.uint32)
+        color = rgba255(flex.rgba)
+        n = len(flex.bodies)
+        if cells.shape[1] == 3:
+            rec.log(
+                path,
+                rr.Mesh3D.from_fields(triangle_indices=cells, vertex_colors=[color]),
+                static=True,
+            )
+            columns = rr.Mesh3D.columns(vertex_positions=xyz.reshape(-1, 3))
+        else:  # a 1D flex: its segments
+            rec.log(path, rr.LineStrips3D.from_fields(colors=[color]), static=True)
+            columns = rr.LineStrips3D.columns(strips=xyz[:, cells].reshape(-1, 2, 3))
+            n = len(cells)
+        rec.send_columns(path, indexes=[_times(t_ns)], columns=columns.partition([n] * t_ns.size))
 
 
 def _log_contacts(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndarray) -> None:
