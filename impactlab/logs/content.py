@@ -56,23 +56,6 @@ class SurfaceMeta:
 
 
 @dataclass(frozen=True)
-class PairMeta:
-    """A geom pair that touched; contact normals point from geom1 to geom2. `body1` and
-    `body2` are the parties the geoms belong to (a rigid body, the geom itself for a
-    surface, a flex; a flex's side names the flex as its geom)."""
-
-    geom1: str
-    geom2: str
-    body1: str
-    body2: str
-
-    @property
-    def topic(self) -> str:
-        """The MCAP topic of this pair's contacts."""
-        return f"{logformat.CONTACT_TOPIC_PREFIX}{self.geom1}/{self.geom2}"
-
-
-@dataclass(frozen=True)
 class RunMeta:
     """What the `impactlab.run` metadata record says (see `impactlab.logs.format.RUN_KEYS`).
 
@@ -173,6 +156,10 @@ class LogHeader:
     attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
     meshes: Mapping[str, np.ndarray] = field(default_factory=dict)
     flexes: Sequence[FlexShape] = ()
+    contact_sides: Mapping[str, Sequence[str]] = field(default_factory=dict)
+    """The /contacts channel's metadata: `geoms` (every geom's name, by id), `bodies` (the
+    party each geom belongs to: its rigid body, or itself for a static geom), `flexes`
+    (every flex's name, by id): what a point's sides (`ContactPoint.geom1`) refer to."""
 
 
 @dataclass(frozen=True)
@@ -207,9 +194,9 @@ class LogRows:
         energy: MuJoCo's kinetic, potential and total energy, J, (n, 3).
         work: the work of each kind of force from the run's start to each row, J, (n, k) in
             `messages.WORK_FIELDS` order.
-        contacts: one entry per contact point: its row (m,), its pair (m,) as an index into
-            `pairs`, and its values (m, 13) in `messages.POINT_FIELDS` order.
-        pairs: the geom pairs `contacts` refers to (this run's so far; a pair keeps its index).
+        contacts: one entry per contact point, by row: its row (m,), its sides (m, 2) (a
+            geom id, or -1 - a flex id) and its values (m, 13) in `messages.POINT_FIELDS`
+            order.
         clearance: per body in `LogHeader.clearance` order, its distance to each of its
             surfaces, (n, k) m.
         joint_energy: the joints' rotor kinetic, spring potential and their total energy,
@@ -221,7 +208,6 @@ class LogRows:
     energy: np.ndarray
     work: np.ndarray
     contacts: tuple[np.ndarray, np.ndarray, np.ndarray]
-    pairs: Sequence[PairMeta] = ()
     clearance: list[np.ndarray] = field(default_factory=list)
     joint_energy: np.ndarray | None = None
 
@@ -230,22 +216,21 @@ class LogRows:
 
     def slice(self, lo: int, hi: int) -> LogRows:
         """Rows lo .. hi - 1."""
-        row, pair, values = self.contacts
+        row, sides, values = self.contacts
         mine = (row >= lo) & (row < hi)
         return LogRows(
             self.t_ns[lo:hi],
             self.bodies[lo:hi],
             self.energy[lo:hi],
             self.work[lo:hi],
-            (row[mine] - lo, pair[mine], values[mine]),
-            self.pairs,
+            (row[mine] - lo, sides[mine], values[mine]),
             [c[lo:hi] for c in self.clearance],
             None if self.joint_energy is None else self.joint_energy[lo:hi],
         )
 
     @staticmethod
     def concat(parts: Sequence[LogRows]) -> LogRows:
-        """The rows of `parts`, one after the other (the last part's pairs)."""
+        """The rows of `parts`, one after the other."""
         if len(parts) == 1:
             return parts[0]
         offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
@@ -259,7 +244,6 @@ class LogRows:
                 np.concatenate([p.contacts[1] for p in parts]),
                 np.concatenate([p.contacts[2] for p in parts]),
             ),
-            parts[-1].pairs,
             [
                 np.concatenate([p.clearance[i] for p in parts])
                 for i in range(len(parts[0].clearance))

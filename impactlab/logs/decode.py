@@ -4,6 +4,7 @@ the protobuf library."""
 from __future__ import annotations
 
 import functools
+import json
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -69,87 +70,77 @@ def loose_payloads(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
     return np.asarray(times, dtype=np.int64)[order], [payloads[i] for i in order]
 
 
-def decode_contacts(
-    run_id: str, channel: ChannelData, columns: Columns | None = None
-) -> pl.DataFrame:
-    """A Contact channel -> one row per contact point, sorted by time and point.
-
-    Pieces of one payload length hold messages with the same number of points: in the fixed
-    layout, they are decoded together into one array; anything else by the protobuf library.
-    """
-    columns = Columns() if columns is None else columns
-    names = {k: channel.metadata.get(k, "") for k in ("geom1", "geom2", "body1", "body2")}
-    groups: dict[int, list[tuple[np.ndarray, np.ndarray]]] = defaultdict(list)
-    slow: list[tuple[np.ndarray, np.ndarray | list[bytes]]] = []
-    for t, data in channel.pieces:
-        if isinstance(data, np.ndarray) and _points(names, data.shape[1]):
-            groups[data.shape[1]].append((t, data))
-        else:
-            slow.append((t, data))
-    frames = []
-    for size, pieces in groups.items():
-        layout = messages.contact(*names.values(), _points(names, size))
-        values = np.empty((layout.slots.size, sum(len(t) for t, _ in pieces)), dtype=np.float64)
-        times, at = [], 0
-        for t, data in pieces:
-            if layout.decode_into(data, values[:, at : at + len(t)]):
-                times.append(t)
-                at += len(t)
-            else:
-                slow.append((t, data))
-        if times:
-            t_all = times[0] if len(times) == 1 else np.concatenate(times)
-            frames.append(_contact_frame(run_id, t_all, names, values[:, :at], columns))
-    for t, data in slow:
-        rows = data if isinstance(data, list) else [bytes(r) for r in data]
-        frames.append(_contact_frame_slow(run_id, t, rows))
-    if not frames:
-        return empty_contacts(run_id)
-    if len(frames) == 1 and (np.diff(frames[0]["t_ns"].to_numpy()) > 0).all():
-        return frames[0]  # as sorting would leave it
-    return pl.concat(frames).sort(["t_ns", "point"])
-
-
-def _points(names: dict[str, str], size: int) -> int:
-    """Contact points in a payload of `size` bytes in the fixed layout (0: not that layout)."""
-    if not all(names.values()):
-        return 0
-    one = messages.contact(*names.values(), 1).size
-    two = messages.contact(*names.values(), 2).size
-    k, rest = divmod(size - one, two - one)
-    return k + 1 if rest == 0 and k >= 0 else 0
-
-
-def _contact_frame(
-    run_id: str, t: np.ndarray, names: dict[str, str], values: np.ndarray, columns: Columns
-) -> pl.DataFrame:
-    """Frame of contacts with k points each: `values` (k * fields, n), a row per value."""
-    per_point = len(POINT_FIELDS)
-    k, n = values.shape[0] // per_point, len(t)
-    rows = n * k
-    t_rep = np.repeat(t, k) if k != 1 else t
-    out = [columns.constant(run_id, rows, "run_id"), *columns.times(t_rep)]
-    out += [columns.constant(v, rows, key) for key, v in names.items()]
-    point = np.zeros(n, np.int32) if k == 1 else np.tile(np.arange(k, dtype=np.int32), n)
-    out.append(pl.Series("point", point))
-    if k == 1:
-        out += _float_columns(values, POINT_FIELDS)
-    else:  # point-major rows: (k * fields, n) -> a row per field of n * k values
-        by_field = values.reshape(k, per_point, n).transpose(1, 2, 0).reshape(per_point, -1)
-        out += _float_columns(by_field, POINT_FIELDS)
+def decode_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
+    """A `/contacts` channel (format 3) -> one row per contact point, by time: its sides'
+    geom and party names from the channel's metadata (a flex's name on both)."""
+    t_ns, payloads = loose_payloads(channel)
+    found = messages.contact_points(payloads)
+    if found is None:  # another writer's layout: the protobuf library, message by message
+        return _contact_frame_slow(run_id, t_ns, payloads, channel.metadata)
+    records, counts = found
+    meta = channel.metadata
+    geoms, bodies, flexes = (_names(meta.get(k)) for k in ("geoms", "bodies", "flexes"))
+    t = np.repeat(t_ns, counts)
+    point = np.arange(t.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    out = [pl.Series("run_id", [run_id] * t.size, dtype=pl.String)]
+    out += [pl.Series("t_ns", t, dtype=pl.Int64), pl.Series("t_s", t / 1e9)]
+    for side in ("geom1", "geom2"):
+        ids = records[side].astype(np.int64)
+        out.append(pl.Series(side, _side_names(ids, geoms, flexes), dtype=pl.String))
+    for k, side in enumerate(("geom1", "geom2")):
+        ids = records[side].astype(np.int64)
+        out.append(pl.Series(f"body{k + 1}", _side_names(ids, bodies, flexes), dtype=pl.String))
+    out.append(pl.Series("point", point, dtype=pl.Int32))
+    out += [pl.Series(f, records[f].astype(np.float64)) for f in POINT_FIELDS]
     return pl.DataFrame(out)
 
 
-def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]) -> pl.DataFrame:
+def _names(value: str | None) -> list[str]:
+    try:
+        names = json.loads(value or "[]")
+    except ValueError:
+        return []
+    return [str(n) for n in names] if isinstance(names, list) else []
+
+
+def _side_names(ids: np.ndarray, geoms: list[str], flexes: list[str]) -> list[str]:
+    """Names of contact sides: geom ids into `geoms`, -1 - flex ids into `flexes` ("" when
+    the metadata does not name it)."""
+    table = np.array([*geoms, *flexes[::-1], ""], dtype=object)
+    at = np.where(ids >= 0, ids, len(geoms) + len(flexes) + ids)  # -1 -> the last flex name
+    at = np.where((ids < len(geoms)) & (ids >= -len(flexes)), at, len(table) - 1)
+    return list(table[at])
+
+
+def _contact_frame_slow(
+    run_id: str,
+    t_ns: np.ndarray,
+    payloads: Sequence[bytes],
+    meta: dict[str, str] | None = None,
+) -> pl.DataFrame:
+    """Contact payloads by the protobuf library: `Contacts` (format 3, sides named by
+    `meta`) or one pair's `Contact` (formats 1, 2)."""
     cols: dict[str, list[Any]] = defaultdict(list)
+    if meta is not None:
+        geoms, bodies, flexes = (_names(meta.get(k)) for k in ("geoms", "bodies", "flexes"))
     for t, data in zip(t_ns.tolist(), payloads, strict=True):
-        m = pb.Contact.FromString(data)
-        for i, p in enumerate(m.points):
+        if meta is not None:
+            many = pb.Contacts.FromString(data)
+            points = list(many.points)
+            ids = np.array([[p.geom1, p.geom2] for p in points], np.int64).reshape(-1, 2)
+            names = [_side_names(ids[:, k], geoms, flexes) for k in (0, 1)]
+            parties = [_side_names(ids[:, k], bodies, flexes) for k in (0, 1)]
+            sides = list(zip(names[0], names[1], parties[0], parties[1], strict=True))
+        else:
+            m = pb.Contact.FromString(data)
+            points = list(m.points)
+            sides = [(m.geom1, m.geom2, m.body1, m.body2)] * len(points)
+        for i, (p, (g1, g2, b1, b2)) in enumerate(zip(points, sides, strict=True)):
             cols["t_ns"].append(t)
-            cols["geom1"].append(m.geom1)
-            cols["geom2"].append(m.geom2)
-            cols["body1"].append(m.body1)
-            cols["body2"].append(m.body2)
+            cols["geom1"].append(g1)
+            cols["geom2"].append(g2)
+            cols["body1"].append(b1)
+            cols["body2"].append(b2)
             cols["point"].append(i)
             for f in POINT_FIELDS:
                 cols[f].append(getattr(p, f))
@@ -164,6 +155,12 @@ def _contact_frame_slow(run_id: str, t_ns: np.ndarray, payloads: Sequence[bytes]
         pl.Series("t_s", frame["t_ns"].to_numpy() / 1e9),  # as the fast path (numpy division)
         *frame.columns[1:],
     )
+
+
+def decode_pair_contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
+    """A formats 1, 2 `/contacts/<geom1>/<geom2>` channel -> one row per contact point."""
+    t_ns, payloads = loose_payloads(channel)
+    return _contact_frame_slow(run_id, t_ns, payloads)
 
 
 def decode_clearance(

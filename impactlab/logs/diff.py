@@ -119,13 +119,13 @@ def channel_tables(log: RunLog) -> dict[str, Table]:
         if frame.height:
             out[logformat.BODY_STATE_TOPIC.format(body=body)] = (frame, ("t_ns",), BODY_FIELDS)
     if log.contacts.height:
-        for (g1, g2), frame in log.contacts.group_by(["geom1", "geom2"], maintain_order=True):
-            topic = f"{logformat.CONTACT_TOPIC_PREFIX}{g1}/{g2}"
-            out[topic] = (
-                frame.sort("t_ns", "point"),
-                ("t_ns", "point"),
-                POINT_FIELDS + CONTACT_TEXT_FIELDS,
-            )
+        out[logformat.CONTACTS_TOPIC] = (
+            log.contacts.sort("t_ns", "geom1", "geom2", "point").with_columns(
+                pl.int_range(pl.len()).over("t_ns").alias("point")
+            ),
+            ("t_ns", "point"),
+            POINT_FIELDS + CONTACT_TEXT_FIELDS,
+        )
     if log.clearance.height:  # one column per surface: distance[<surface>]
         for (body,), frame in log.clearance.group_by(["body"], maintain_order=True):
             wide = frame.with_columns(

@@ -7,8 +7,7 @@ One MCAP file per run. log_time (= publish_time) is simulation time in integer n
 | /bodies/<body>/state        | impactlab.BodyState     | every logged step                   |
 | /bodies/<body>/clearance    | impactlab.Clearance     | every logged step (bodies with a    |
 |                             |                         | ground surface to measure against)  |
-| /contacts/<geom1>/<geom2>   | impactlab.Contact       | every logged step the pair touches  |
-|                             |                         | (a channel per pair that touched)   |
+| /contacts                   | impactlab.Contacts      | every logged step with a contact    |
 | /impacts                    | impactlab.Impact        | each contact episode, at the end    |
 | /energy                     | impactlab.Energy        | every logged step                   |
 | /energy/work                | impactlab.Work          | every logged step                   |
@@ -39,7 +38,9 @@ ENCODING = "protobuf"
 
 BODY_STATE_TOPIC = "/bodies/{body}/state"
 CLEARANCE_TOPIC = "/bodies/{body}/clearance"
-CONTACT_TOPIC_PREFIX = "/contacts/"
+CONTACTS_TOPIC = "/contacts"  # every contact point of a logged step (format 3 on)
+CONTACTS_SCHEMA = "impactlab.Contacts"
+CONTACT_TOPIC_PREFIX = "/contacts/"  # + <geom1>/<geom2>: one pair's contacts (formats 1, 2)
 ENERGY_TOPIC = "/energy"
 JOINT_ENERGY_TOPIC = "/energy/joints"  # the joints' rotor kinetic and spring potential energy
 TF_TOPIC = "/tf"

@@ -32,6 +32,7 @@ from impactlab.logs.decode import (
     decode_events,
     decode_fixed,
     decode_impacts,
+    decode_pair_contacts,
     empty_clearance,
     empty_contacts,
     empty_frame,
@@ -51,6 +52,7 @@ DATA_SCHEMAS = frozenset(
     {
         logformat.BODY_STATE_SCHEMA,
         logformat.CONTACT_SCHEMA,
+        logformat.CONTACTS_SCHEMA,
         logformat.ENERGY_SCHEMA,
         logformat.CLEARANCE_SCHEMA,
         logformat.IMPACT_SCHEMA,
@@ -312,8 +314,10 @@ def load_log(path: str | Path) -> RunLog:
                 t, values = decode_fixed(channel, messages.body_state(), body_state_values)
                 name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]
                 bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS, columns)
+            elif schema == logformat.CONTACTS_SCHEMA:
+                contact_frames.append(decode_contacts(run_id, channel))
             elif schema == logformat.CONTACT_SCHEMA:
-                contact_frames.append(decode_contacts(run_id, channel, columns))
+                contact_frames.append(decode_pair_contacts(run_id, channel))
             elif schema == logformat.CLEARANCE_SCHEMA:
                 clearance_frames.append(decode_clearance(run_id, channel, columns))
             elif schema == logformat.IMPACT_SCHEMA:

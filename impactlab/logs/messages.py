@@ -12,6 +12,7 @@ Value orders:
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 from functools import cache
 
@@ -25,7 +26,7 @@ from impactlab.proto import impactlab_pb2 as pb
 
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
 ENERGY_FIELDS = ("kinetic", "potential", "total")
-POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields)
+POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields if f.type == f.TYPE_DOUBLE)
 WORK_FIELDS = tuple(f.name for f in pb.Work.DESCRIPTOR.fields)
 
 
@@ -65,20 +66,64 @@ def clearance(k: int) -> Template:
     return Template.learn(pb.Clearance, setter, k)
 
 
-@cache
-def contact(geom1: str, geom2: str, body1: str, body2: str, points: int) -> Template:
-    """Layout of `impactlab.Contact` for one geom pair with `points` contact points."""
-    k = len(POINT_FIELDS)
+def _point_record() -> np.dtype:
+    """One `ContactPoint` inside `Contacts` as bytes: its tag and length, then each field's
+    tag and value (doubles, then the two sides' int32), checked against the protobuf library
+    (a point written with every field set: the same bytes, or the layout is refused)."""
+    fields = [("tag", "u1"), ("len", "u1")]
+    for name in POINT_FIELDS:
+        fields += [(f"t_{name}", "u1"), (name, "<f8")]
+    fields += [("t_geom1", "u1"), ("geom1", "<i4"), ("t_geom2", "u1"), ("geom2", "<i4")]
+    record = np.dtype(fields)
+    probe = np.zeros(1, record)
+    for i, name in enumerate(POINT_FIELDS):
+        probe[f"t_{name}"] = (pb.ContactPoint.DESCRIPTOR.fields_by_name[name].number << 3) | 1
+        probe[name] = 1.0 + i
+    probe["t_geom1"], probe["geom1"] = (14 << 3) | 5, -7
+    probe["t_geom2"], probe["geom2"] = (15 << 3) | 5, 9
+    probe["tag"], probe["len"] = (1 << 3) | 2, record.itemsize - 2
+    message = pb.Contacts()
+    point = message.points.add(geom1=-7, geom2=9)
+    for i, name in enumerate(POINT_FIELDS):
+        setattr(point, name, 1.0 + i)
+    if probe.tobytes() != message.SerializeToString():
+        raise RuntimeError("impactlab.ContactPoint does not have the layout this reader knows")
+    return record
 
-    def make() -> pb.Contact:
-        return pb.Contact(geom1=geom1, geom2=geom2, body1=body1, body2=body2)
 
-    def setter(msg: pb.Contact, values: Sequence[float]) -> None:
-        for i in range(points):
-            point = msg.points.add()
-            _set_fields(POINT_FIELDS)(point, values[i * k : (i + 1) * k])
+POINT_RECORD = _point_record()
 
-    return Template.learn(make, setter, k * points)
+
+def contact_payloads(row: np.ndarray, sides: np.ndarray, values: np.ndarray) -> list[bytes]:
+    """`Contacts` payloads, one per logged row with contacts (rows ascending): the points'
+    rows (m,), sides (m, 2) int and values (m, 13) in `POINT_FIELDS` order, by row."""
+    records = np.zeros(row.size, POINT_RECORD)
+    records["tag"], records["len"] = (1 << 3) | 2, POINT_RECORD.itemsize - 2
+    for i, name in enumerate(POINT_FIELDS):
+        records[f"t_{name}"] = (i + 1) << 3 | 1
+        records[name] = values[:, i]
+    records["t_geom1"], records["geom1"] = (14 << 3) | 5, sides[:, 0]
+    records["t_geom2"], records["geom2"] = (15 << 3) | 5, sides[:, 1]
+    flat = records.view(np.uint8)
+    size = POINT_RECORD.itemsize
+    bounds = np.flatnonzero(np.r_[True, np.diff(row) != 0, True])
+    return [flat[a * size : b * size].tobytes() for a, b in itertools.pairwise(bounds)]
+
+
+def contact_points(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The points of `Contacts` payloads: records (m,) of `POINT_RECORD` and each payload's
+    point count; None when any payload is not in this layout (then read them one by one)."""
+    size = POINT_RECORD.itemsize
+    counts = np.fromiter((len(p) for p in payloads), np.int64, len(payloads))
+    if (counts % size).any():
+        return None
+    records = np.frombuffer(b"".join(payloads), POINT_RECORD)
+    tags = [records["tag"] == 10, records["len"] == size - 2]
+    tags += [records[f"t_{n}"] == (i + 1) << 3 | 1 for i, n in enumerate(POINT_FIELDS)]
+    tags += [records["t_geom1"] == (14 << 3) | 5, records["t_geom2"] == (15 << 3) | 5]
+    if not np.logical_and.reduce(tags).all():
+        return None
+    return records, counts // size
 
 
 @cache

@@ -94,7 +94,11 @@ class LogWriter:
             )
             for body, surfaces in header.clearance
         ]
-        self._pairs: list[int] = []  # the channel of each pair of `LogRows.pairs`, as they come
+        self._contacts = channels.add(
+            logformat.CONTACTS_TOPIC,
+            pb.Contacts,
+            {key: json.dumps(list(names)) for key, names in header.contact_sides.items()},
+        )
         self._energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
         self._work = channels.add(logformat.WORK_TOPIC, pb.Work)
         self._joint_energy = (
@@ -152,7 +156,7 @@ class LogWriter:
             blocks.append(Block(channel_id, t, rows.bodies[:, i], messages.body_state()))
         for (channel_id, layout), values in zip(self._clearance, rows.clearance, strict=True):
             blocks.append(Block(channel_id, t, values, layout))
-        blocks += self._contact_blocks(rows)
+        row, sides, values = rows.contacts
         blocks.append(Block(self._energy, t, rows.energy, messages.energy()))
         blocks.append(Block(self._work, t, rows.work, messages.work()))
         if self._joint_energy is not None and rows.joint_energy is not None:
@@ -161,29 +165,9 @@ class LogWriter:
         for rows_tf, payloads in messages.stamped_transforms(self._tf_bodies, t, poses):
             blocks.append(Block(self._tf, t[rows_tf], payloads))
         self._out.write_chunk(blocks)
-
-    def _contact_blocks(self, rows: LogRows) -> list[Block]:
-        """Blocks of Contact payloads: per pair that touches, per number of points."""
-        for pair in rows.pairs[len(self._pairs) :]:  # pairs that touch for the first time
-            meta = {"geom1": pair.geom1, "geom2": pair.geom2}
-            meta |= {"body1": pair.body1, "body2": pair.body2}
-            self._pairs.append(self._channels.add(pair.topic, pb.Contact, meta))
-        row, which, values = rows.contacts
-        if not row.size:
-            return []
-        order = np.lexsort((row, which))
-        row, which, values = row[order], which[order], values[order]
-        starts = np.flatnonzero(np.r_[True, (np.diff(which) != 0) | (np.diff(row) != 0)])
-        count = np.diff(np.r_[starts, row.size])
-        blocks = []
-        for k in np.unique(count):
-            for p in np.unique(which[starts[count == k]]):
-                sel = starts[(count == k) & (which[starts] == p)]
-                pair = rows.pairs[int(p)]
-                layout = messages.contact(pair.geom1, pair.geom2, pair.body1, pair.body2, int(k))
-                points = values[sel[:, None] + np.arange(k)].reshape(sel.size, -1)
-                blocks.append(Block(self._pairs[int(p)], rows.t_ns[row[sel]], points, layout))
-        return blocks
+        if row.size:  # messages of any length: a chunk of their own (the others are dense)
+            points = messages.contact_payloads(row, sides, values)
+            self._out.write_chunk([Block(self._contacts, t[np.unique(row)], points)])
 
     def finish(self, outcome: Outcome, impacts: Sequence[pb.Impact] = ()) -> Path:
         """Write the rest, the impacts, the outcome, the model and the summary; rename.

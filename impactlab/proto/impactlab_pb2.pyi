@@ -37,7 +37,7 @@ class BodyState(_message.Message):
     def __init__(self, x: _Optional[float] = ..., y: _Optional[float] = ..., z: _Optional[float] = ..., qw: _Optional[float] = ..., qx: _Optional[float] = ..., qy: _Optional[float] = ..., qz: _Optional[float] = ..., vx: _Optional[float] = ..., vy: _Optional[float] = ..., vz: _Optional[float] = ..., wx: _Optional[float] = ..., wy: _Optional[float] = ..., wz: _Optional[float] = ...) -> None: ...
 
 class ContactPoint(_message.Message):
-    __slots__ = ("x", "y", "z", "nx", "ny", "nz", "penetration", "normal_force", "friction_force_t1", "friction_force_t2", "fx", "fy", "fz")
+    __slots__ = ("x", "y", "z", "nx", "ny", "nz", "penetration", "normal_force", "friction_force_t1", "friction_force_t2", "fx", "fy", "fz", "geom1", "geom2")
     X_FIELD_NUMBER: _ClassVar[int]
     Y_FIELD_NUMBER: _ClassVar[int]
     Z_FIELD_NUMBER: _ClassVar[int]
@@ -51,6 +51,8 @@ class ContactPoint(_message.Message):
     FX_FIELD_NUMBER: _ClassVar[int]
     FY_FIELD_NUMBER: _ClassVar[int]
     FZ_FIELD_NUMBER: _ClassVar[int]
+    GEOM1_FIELD_NUMBER: _ClassVar[int]
+    GEOM2_FIELD_NUMBER: _ClassVar[int]
     x: float
     y: float
     z: float
@@ -64,7 +66,15 @@ class ContactPoint(_message.Message):
     fx: float
     fy: float
     fz: float
-    def __init__(self, x: _Optional[float] = ..., y: _Optional[float] = ..., z: _Optional[float] = ..., nx: _Optional[float] = ..., ny: _Optional[float] = ..., nz: _Optional[float] = ..., penetration: _Optional[float] = ..., normal_force: _Optional[float] = ..., friction_force_t1: _Optional[float] = ..., friction_force_t2: _Optional[float] = ..., fx: _Optional[float] = ..., fy: _Optional[float] = ..., fz: _Optional[float] = ...) -> None: ...
+    geom1: int
+    geom2: int
+    def __init__(self, x: _Optional[float] = ..., y: _Optional[float] = ..., z: _Optional[float] = ..., nx: _Optional[float] = ..., ny: _Optional[float] = ..., nz: _Optional[float] = ..., penetration: _Optional[float] = ..., normal_force: _Optional[float] = ..., friction_force_t1: _Optional[float] = ..., friction_force_t2: _Optional[float] = ..., fx: _Optional[float] = ..., fy: _Optional[float] = ..., fz: _Optional[float] = ..., geom1: _Optional[int] = ..., geom2: _Optional[int] = ...) -> None: ...
+
+class Contacts(_message.Message):
+    __slots__ = ("points",)
+    POINTS_FIELD_NUMBER: _ClassVar[int]
+    points: _containers.RepeatedCompositeFieldContainer[ContactPoint]
+    def __init__(self, points: _Optional[_Iterable[_Union[ContactPoint, _Mapping]]] = ...) -> None: ...
 
 class Contact(_message.Message):
     __slots__ = ("geom1", "geom2", "body1", "body2", "points")
@@ -97,7 +107,7 @@ class Clearance(_message.Message):
     def __init__(self, distance: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class Work(_message.Message):
-    __slots__ = ("contact_normal", "contact_friction", "springs", "damping", "limits", "equality", "friction_loss", "actuators", "fluid", "gravity_compensation")
+    __slots__ = ("contact_normal", "contact_friction", "springs", "damping", "limits", "equality", "friction_loss", "actuators", "fluid", "gravity_compensation", "solver")
     CONTACT_NORMAL_FIELD_NUMBER: _ClassVar[int]
     CONTACT_FRICTION_FIELD_NUMBER: _ClassVar[int]
     SPRINGS_FIELD_NUMBER: _ClassVar[int]
@@ -108,6 +118,7 @@ class Work(_message.Message):
     ACTUATORS_FIELD_NUMBER: _ClassVar[int]
     FLUID_FIELD_NUMBER: _ClassVar[int]
     GRAVITY_COMPENSATION_FIELD_NUMBER: _ClassVar[int]
+    SOLVER_FIELD_NUMBER: _ClassVar[int]
     contact_normal: float
     contact_friction: float
     springs: float
@@ -118,7 +129,8 @@ class Work(_message.Message):
     actuators: float
     fluid: float
     gravity_compensation: float
-    def __init__(self, contact_normal: _Optional[float] = ..., contact_friction: _Optional[float] = ..., springs: _Optional[float] = ..., damping: _Optional[float] = ..., limits: _Optional[float] = ..., equality: _Optional[float] = ..., friction_loss: _Optional[float] = ..., actuators: _Optional[float] = ..., fluid: _Optional[float] = ..., gravity_compensation: _Optional[float] = ...) -> None: ...
+    solver: float
+    def __init__(self, contact_normal: _Optional[float] = ..., contact_friction: _Optional[float] = ..., springs: _Optional[float] = ..., damping: _Optional[float] = ..., limits: _Optional[float] = ..., equality: _Optional[float] = ..., friction_loss: _Optional[float] = ..., actuators: _Optional[float] = ..., fluid: _Optional[float] = ..., gravity_compensation: _Optional[float] = ..., solver: _Optional[float] = ...) -> None: ...
 
 class SideState(_message.Message):
     __slots__ = ("values",)

@@ -17,7 +17,7 @@ from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
-from impactlab.record.log_rows import Rows, impacts, log_header, outcome
+from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
@@ -87,13 +87,13 @@ class _OpenLog:
     def __init__(self, run: PlannedRun, inst: InstrumentedModel, path: Path) -> None:
         self.run, self.inst, self.path = run, inst, path
         self.writer = LogWriter(path, log_header(inst, run.info))
-        self.rows = Rows(inst)
 
     def add(self, piece: Piece) -> RecordedRun | None:
         """Write a piece's rows; on the run's last piece, finish the log and say so."""
         if piece.t_ns.size:
             assert piece.contacts is not None  # every piece with rows has their contacts
-            self.writer.write(self.rows(piece.t_ns, piece.sensordata, piece.work, piece.contacts))
+            rows = log_rows(self.inst, piece.t_ns, piece.sensordata, piece.work, piece.contacts)
+            self.writer.write(rows)
         if piece.ending is None:
             return None
         end = piece.ending

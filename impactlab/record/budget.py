@@ -16,6 +16,7 @@ WORK_KINDS = (
     "actuators",
     "fluid",
     "gravity_compensation",
+    "solver",
 )
 """What the budget books work to, in order (`schemas/impactlab.proto`'s `Work`). Gravity is
 the one force booked as potential energy: the budget's energy is MuJoCo's kinetic energy

@@ -61,22 +61,24 @@ class ContactTape:
         self.reset()
 
     def reset(self) -> None:
-        """Empty the buffers for the next chunk."""
+        """Empty the buffers for the next chunk (they keep the room they grew to)."""
         self.ncontact = self.nrow = 0
-        self.contact = np.empty(64, CONTACT_DTYPE)
-        self.contact_step = np.empty(64, np.int64)
-        self.force = np.empty(256)
-        self.vel = np.empty(256)
-        self.vel_after = np.empty(256)
-        self.type = np.empty(256, np.int32)
-        self.row_step = np.empty(256, np.int64)
+        if not hasattr(self, "contact"):
+            self.contact = np.empty((64, CONTACT_DTYPE.itemsize), np.uint8)  # mjContact bytes
+            self.contact_step = np.empty(64, np.int64)
+            self.force = np.empty(256)
+            self.vel = np.empty(256)
+            self.vel_after = np.empty(256)
+            self.type = np.empty(256, np.int32)
+            self.row_step = np.empty(256, np.int64)
 
     def _view(self) -> np.ndarray:
-        """The contact array of `data` as structured records (its current contacts first)."""
+        """The contact array of `data` as rows of bytes, one per mjContact (a plain copy of
+        its rows is a memcpy; `decode` reads the fields through `CONTACT_DTYPE`)."""
         base = _address(self.data.contact.dist)
         size = CONTACT_DTYPE.itemsize
         memory = (ctypes.c_char * (int(self.data.narena) // size * size)).from_address(base)
-        view: np.ndarray = np.frombuffer(memoryview(memory), CONTACT_DTYPE)
+        view: np.ndarray = np.frombuffer(memoryview(memory), np.uint8).reshape(-1, size)
         return view
 
     def add(self, step: int, *, after: bool = True) -> None:
@@ -90,7 +92,7 @@ class ContactTape:
             if self._contacts is None:
                 self._contacts = self._view()
             k = self.ncontact
-            if k + ncon > self.contact.size:
+            if k + ncon > len(self.contact):
                 self.contact = _grow(self.contact, k + ncon)
                 self.contact_step = _grow(self.contact_step, k + ncon)
             self.contact[k : k + ncon] = self._contacts[:ncon]
@@ -148,8 +150,9 @@ class ContactTape:
 
 
 def _grow(array: np.ndarray, need: int) -> np.ndarray:
-    out = np.empty(max(need, 2 * array.size), array.dtype)
-    out[: array.size] = array
+    """`array` with room for `need` rows at least (twice its rows, if more)."""
+    out = np.empty((max(need, 2 * len(array)), *array.shape[1:]), array.dtype)
+    out[: len(array)] = array
     return out
 
 
@@ -195,7 +198,7 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
     first two rows'). Contacts outside the constraints (`exclude`, in a margin's gap) are left
     out. Returns (contacts, power per row, whether each row belongs to a contact).
     """
-    raw = tape.contact[: tape.ncontact]
+    raw = tape.contact[: tape.ncontact].view(CONTACT_DTYPE)[:, 0]
     n_rows = tape.nrow
     force, vel, after = tape.force[:n_rows], tape.vel[:n_rows], tape.vel_after[:n_rows]
     power = force * 0.5 * (vel + after)

@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
-from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, PairMeta, RunMeta
+from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
 from impactlab.logs.contract import GeomContact, PairTarget
 from impactlab.logs.format import OUTCOME_METADATA, RUN_METADATA
 from impactlab.logs.metadata import check_metadata
@@ -96,6 +96,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         attachments=inst.attachments,
         meshes=inst.meshes,
         flexes=inst.flexes,
+        contact_sides=contact_sides(inst),
         joint_energy=inst.joints is not None,
     )
 
@@ -131,75 +132,62 @@ def integrator_name(model: mujoco.MjModel) -> str:
     return {"EULER": "Euler", "RK4": "RK4"}.get(name, name.lower())
 
 
-class Rows:
-    """Turns one run's pieces into the log's rows, naming the geom pairs as they touch."""
-
-    def __init__(self, inst: InstrumentedModel) -> None:
-        self.inst = inst
-        self.pairs: list[PairMeta] = []
-        self.index: dict[tuple[int, int], int] = {}
-
-    def __call__(
-        self, t_ns: np.ndarray, sensordata: np.ndarray, work: np.ndarray, contacts: StepContacts
-    ) -> LogRows:
-        """The log's arrays for logged rows of sensordata (n, nsensordata), the work done
-        before each (n, kinds) and the contacts at those rows (`step`: the row)."""
-        inst = self.inst
-        n = sensordata.shape[0]
-        bodies = np.stack(
-            [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
-        ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
-        e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
-        energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
-        clearance = [
-            np.stack(
-                [sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1
-            )
-            for b in inst.bodies
-            if inst.clearance_of(b.name)
-        ]
-        joints = None
-        if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
-            rotor, spring = sensordata[:, -2], sensordata[:, -1]
-            joints = np.stack([rotor, spring, rotor + spring], axis=1)
-        pair = np.array([self._pair(c) for c in zip(*self._sides(contacts), strict=True)], np.int64)
-        normal, t1 = contacts.frame[:, 0:3], contacts.frame[:, 3:6]
-        t2 = contacts.frame[:, 6:9]
-        f = contacts.force
-        world = f[:, :1] * normal + f[:, 1:2] * t1 + f[:, 2:3] * t2
-        points = np.hstack([contacts.pos, normal, contacts.penetration[:, None], f, world])
-        return LogRows(
-            t_ns,
-            bodies,
-            energy,
-            work,
-            (contacts.step, pair.reshape(-1), points),
-            tuple(self.pairs),
-            clearance,
-            joints,
-        )
-
-    def _sides(self, contacts: StepContacts) -> tuple[np.ndarray, np.ndarray]:
-        """Each contact's sides: a geom id, or -(1 + flex id)."""
-        return (
+def log_rows(
+    inst: InstrumentedModel,
+    t_ns: np.ndarray,
+    sensordata: np.ndarray,
+    work: np.ndarray,
+    contacts: StepContacts,
+) -> LogRows:
+    """The log's arrays for logged rows of sensordata (n, nsensordata), the work done
+    before each (n, kinds) and the contacts at those rows (`step`: the row)."""
+    n = sensordata.shape[0]
+    bodies = np.stack(
+        [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
+    ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
+    e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
+    energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
+    clearance = [
+        np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
+        for b in inst.bodies
+        if inst.clearance_of(b.name)
+    ]
+    joints = None
+    if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
+        rotor, spring = sensordata[:, -2], sensordata[:, -1]
+        joints = np.stack([rotor, spring, rotor + spring], axis=1)
+    sides = np.stack(
+        [
             np.where(contacts.geom1 >= 0, contacts.geom1, -1 - contacts.flex1),
             np.where(contacts.geom2 >= 0, contacts.geom2, -1 - contacts.flex2),
-        )
+        ],
+        axis=1,
+    )
+    normal, t1, t2 = contacts.frame[:, 0:3], contacts.frame[:, 3:6], contacts.frame[:, 6:9]
+    f = contacts.force
+    world = f[:, :1] * normal + f[:, 1:2] * t1 + f[:, 2:3] * t2
+    points = np.hstack([contacts.pos, normal, contacts.penetration[:, None], f, world])
+    order = np.argsort(contacts.step, kind="stable")
+    return LogRows(
+        t_ns,
+        bodies,
+        energy,
+        work,
+        (contacts.step[order], sides[order], points[order]),
+        clearance,
+        joints,
+    )
 
-    def _pair(self, sides: tuple[int, int]) -> int:
-        key = (int(sides[0]), int(sides[1]))
-        if key not in self.index:
-            self.index[key] = len(self.pairs)
-            self.pairs.append(PairMeta(*map(self._name, key), *map(self._party, key)))
-        return self.index[key]
 
-    def _name(self, side: int) -> str:
-        model = self.inst.model
-        return model.geom(side).name if side >= 0 else self._party(side)
-
-    def _party(self, side: int) -> str:
-        at = side if side >= 0 else self.inst.model.ngeom - 1 - side
-        return self.inst.party_names[int(self.inst.party[at])]
+def contact_sides(inst: InstrumentedModel) -> dict[str, list[str]]:
+    """What a logged contact point's sides refer to (`LogHeader.contact_sides`)."""
+    model = inst.model
+    ngeom = int(model.ngeom)
+    return {
+        "geoms": [model.geom(g).name for g in range(ngeom)],
+        "bodies": [inst.party_names[int(inst.party[g])] for g in range(ngeom)],
+        "flexes": list(inst.party_names[len(inst.party_names) - int(model.nflex) :]),
+    }
 
 
 def impacts(inst: InstrumentedModel, ending: Ending, timestep_ns: int) -> list[pb.Impact]:

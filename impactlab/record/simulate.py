@@ -123,6 +123,7 @@ class _Run:
         self.vel = np.empty((n, nv))
         self.qpos = np.empty((n, model.nq)) if inst.joints is not None else None
         self.generalised = [np.empty((n, nv)) for _ in self.forces]
+        self.unbalanced = np.zeros((n, nv))  # M qacc - smooth - constraint forces, per step
 
     def next_piece(self) -> Piece:
         """Simulate the next chunk and return what it logs (the last one with the ending)."""
@@ -164,6 +165,10 @@ class _Run:
         model, data, tape = self.model, self.data, self.tape
         rows, times, vel, qpos = self.rows, self.times, self.vel, self.qpos
         sensordata, qvel = data.sensordata, data.qvel
+        qacc, smooth, constraint = data.qacc, data.qfrc_smooth, data.qfrc_constraint
+        unbalanced = self.unbalanced
+        unbalanced[:n] = 0.0
+        mul_m = mujoco.mj_mulM
         copies = [
             (buf, getattr(data, name))
             for buf, (_, name) in zip(self.generalised, self.forces, strict=True)
@@ -184,6 +189,9 @@ class _Run:
                 nefc = data.nefc
                 if nefc:
                     tape.add(i, after=False)
+                    mul_m(model, data, unbalanced[i], qacc)
+                    unbalanced[i] -= smooth
+                    unbalanced[i] -= constraint
                 mujoco.mj_RungeKutta(model, data, 4)
                 if nefc:
                     tape.after_step(qvel)
@@ -193,6 +201,9 @@ class _Run:
                     buf[i] = src
                 if data.nefc:
                     tape.add(i)
+                    mul_m(model, data, unbalanced[i], qacc)
+                    unbalanced[i] -= smooth
+                    unbalanced[i] -= constraint
             rows[i] = sensordata
             vel[i] = qvel
 
@@ -203,6 +214,8 @@ class _Run:
         work = np.zeros((n, len(budget.WORK_KINDS)))
         for buf, (kind, _) in zip(self.generalised, self.forces, strict=True):
             work[:, kind] = dt * np.einsum("ij,ij->i", buf[:n], v_mid)
+        solver = budget.KIND["solver"]
+        work[:, solver] = dt * np.einsum("ij,ij->i", self.unbalanced[:n], v_mid)
         contacts, power, in_contact = decode(self.tape, self.pyramidal)
         self._decoded = (contacts, power, in_contact)
         normal, friction = budget.KIND["contact_normal"], budget.KIND["contact_friction"]

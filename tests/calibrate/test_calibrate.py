@@ -102,7 +102,7 @@ def _row(table: pl.DataFrame, **where) -> dict:
 def test_grid_is_complete(table):
     counts = dict(table.group_by("kind").len().iter_rows())
     assert counts == {"plane": 16, "ball": 16, "lowspeed": 3}
-    assert table["e_velocity"].is_not_nan().all()
+    assert table["e_measured"].is_not_nan().all()
     # every run resolves its contact (the module's timestep rule) and logs every step
     assert table["steps_per_contact"].min() > 15
 
@@ -113,7 +113,7 @@ def test_plane_restitution(table, e, v, m):
     r = _row(table, kind="plane", target=e, speed_mps=v, m1_kg=m)
     assert abs(r["v_in_mps"] - v) < 1e-3 * v  # the impact speed is the requested one
     assert r["penetration_frac"] <= PEN_FRAC
-    assert abs(r["e_velocity"] - e) <= E_TOL, r["note"]
+    assert abs(r["e_measured"] - e) <= E_TOL, r["note"]
 
 
 @pytest.mark.slow
@@ -132,7 +132,7 @@ def test_plane_gravity_shift_is_compensated(table):
 def test_plane_mass_independent(table):
     plane = table.filter(pl.col("kind") == "plane")
     spread = plane.group_by("target", "speed_mps").agg(
-        (pl.col("e_velocity").max() - pl.col("e_velocity").min()).alias("d")
+        (pl.col("e_measured").max() - pl.col("e_measured").min()).alias("d")
     )
     assert spread["d"].max() < 1e-9
 
@@ -143,7 +143,7 @@ def test_collision(table, e, v, m1, m2):
     r = _row(table, kind="ball", target=e, speed_mps=v, m1_kg=m1, m2_kg=m2)
     closing = r["v1_before_mps"] - r["v2_before_mps"]
     assert abs(closing - v) < 1e-9 * v
-    assert abs(r["e_velocity"] - e) <= E_TOL
+    assert abs(r["e_measured"] - e) <= E_TOL
     # post-collision velocities vs the 1D formula for the target e, relative to the closing speed
     for k in ("1", "2"):
         assert abs(r[f"v{k}_after_mps"] - r[f"v{k}_after_target_mps"]) <= 0.005 * closing
@@ -165,11 +165,11 @@ def test_low_speed_gravity_dependence(table):
     low = table.filter(pl.col("kind") == "lowspeed").sort("speed_mps")
     assert low["speed_mps"].to_list() == list(LOW_SPEEDS)
     for r in low.iter_rows(named=True):
-        assert abs(r["e_velocity"] - r["e_pred_surface"]) <= 0.002, r
-        assert r["e_velocity"] < r["target"] - 0.01, r  # visibly below the target
+        assert abs(r["e_measured"] - r["e_pred_surface"]) <= 0.002, r
+        assert r["e_measured"] < r["target"] - 0.01, r  # visibly below the target
     slow = _row(table, kind="lowspeed", speed_mps=0.05)
-    assert abs(slow["e_velocity"] - slow["e_pred_release"]) <= 0.002
-    measured = {r["speed_mps"]: r["e_velocity"] for r in low.iter_rows(named=True)}
+    assert abs(slow["e_measured"] - slow["e_pred_release"]) <= 0.002
+    measured = {r["speed_mps"]: r["e_measured"] for r in low.iter_rows(named=True)}
     assert abs(measured[0.05] - measured[0.1]) < 0.001 and measured[0.1] < measured[0.3]
     assert 0.43 < measured[0.1] < 0.46
     assert 0.46 < measured[0.3] < 0.49
@@ -182,7 +182,7 @@ def test_low_speed_release_velocity_is_not_what_is_measured(table, speed):
     floor against gravity, which is why the contact is calibrated surface to surface (at
     0.1 m/s and below the force of this soft contact lets go only at the surface)."""
     r = _row(table, kind="lowspeed", speed_mps=speed)
-    assert r["e_pred_release"] - r["e_velocity"] > 0.005
+    assert r["e_pred_release"] - r["e_measured"] > 0.005
 
 
 @pytest.mark.slow
@@ -285,7 +285,7 @@ def test_multi_bounce_below_the_range_is_predicted(multi):
     below = multi.filter(~pl.col("in_range"))
     assert below.height >= 5
     assert below["ok"].all(), below.filter(~pl.col("ok")).to_dicts()
-    assert (below["e_velocity"] - below["e_predicted"]).abs().max() <= 0.003
+    assert (below["e_measured"] - below["e_predicted"]).abs().max() <= 0.003
     # e = 0.5 drops well below its range (0.2 m/s and less): visibly low, as predicted
     low = below.filter((pl.col("target") == 0.5) & (pl.col("v_in_mps") < 0.2))
     assert low.height >= 1 and (low["error"] < -0.005).all()

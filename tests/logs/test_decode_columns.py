@@ -37,15 +37,37 @@ def test_time_columns_are_shared_only_between_equal_times():
     assert columns.times(t[:-1])[0].to_list() == t[:-1].tolist()  # a prefix is not equal
 
 
+def test_contact_points_read_back_and_any_other_layout_is_refused():
+    """`/contacts` payloads: points of three rows read back as written; a payload with any
+    tag or length byte changed (another writer's layout) is not read this way."""
+    rng = np.random.default_rng(3)
+    row = np.array([0, 0, 1, 4, 4, 4])
+    sides = rng.integers(-3, 50, (row.size, 2))
+    values = rng.normal(size=(row.size, len(messages.POINT_FIELDS)))
+    payloads = messages.contact_payloads(row, sides, values)
+    assert [len(p) // messages.POINT_RECORD.itemsize for p in payloads] == [2, 1, 3]
+    found = messages.contact_points(payloads)
+    assert found is not None
+    records, counts = found
+    assert counts.tolist() == [2, 1, 3]
+    assert np.array_equal(records["geom1"], sides[:, 0])
+    assert np.array_equal(np.stack([records[f] for f in messages.POINT_FIELDS], 1), values)
+    fixed = [n for n in messages.POINT_RECORD.names if n.startswith("t_") or n in ("tag", "len")]
+    for name in fixed:
+        bad = np.frombuffer(payloads[2], messages.POINT_RECORD).copy()
+        bad[1][name] ^= 0x40
+        assert messages.contact_points([payloads[0], bad.tobytes()]) is None, name
+
+
 @pytest.mark.parametrize(
     "layout",
     [
         messages.body_state(),
         messages.energy(),
         messages.clearance(3),
-        messages.contact("plane", "ball", "world", "ball", 2),
+        messages.work(),
     ],
-    ids=["body", "energy", "clearance", "contact"],
+    ids=["body", "energy", "clearance", "work"],
 )
 def test_every_fixed_byte_changed_is_another_layout(layout):
     n = 40

@@ -103,6 +103,7 @@ COLUMNS = {
         ("work_actuators_J", "Actuators", "J"),
         ("work_fluid_J", "Fluid", "J"),
         ("work_gravity_compensation_J", "Gravity compensation", "J"),
+        ("work_solver_J", "Unconverged solver", "J"),
         ("residual_J", "Integrator's residual", "J"),
         ("bodies", "Bodies", ""),
         ("e_velocity", "e", ""),
