@@ -124,6 +124,10 @@ class Run:
     stopped: str | None  # why the run ended before nsteps (a MuJoCo warning), else None
     warnings: Mapping[str, int]  # MuJoCo's warning counts at the end
     seconds: float  # wall time of the run
+    # J, the part of the residual that the step's velocity change holds beyond the start
+    # forces: sum of (M (v_after - v_before) - h f) . (v_before + v_after) / 2 (see run());
+    # a diagnostic of the oracle, None where a run does not give it
+    acceleration_gap: FloatArray | None = None
 
     @property
     def energy(self) -> FloatArray:
@@ -227,8 +231,10 @@ def _poly_force(linear: float, poly: FloatArray, x: float) -> float:
 class _Contacts:
     """One step's active contacts (exclude == 0), copied out of mjData."""
 
-    FIELDS = ("pos", "frame", "dist", "geom", "flex", "elem", "vert", "dim", "friction", "mu")
-    FIELDS += ("solref", "solreffriction", "solimp", "includemargin", "H", "surfacevel")
+    FIELDS = (
+        "pos", "frame", "dist", "geom", "flex", "elem", "vert", "dim", "friction", "mu",
+        "solref", "solreffriction", "solimp", "includemargin", "H", "surfacevel",
+    )  # fmt: skip
 
     def __init__(self, model: mujoco.MjModel, d: mujoco.MjData, nparty: int) -> None:
         self.index = np.zeros(0, np.int64)  # into d.contact at this step
@@ -276,10 +282,14 @@ class _NormalVelocity:
         velocity = np.zeros(d.nefc)
         mujoco.mj_mulJacVec(m, d, velocity, d.qvel)
         adr = np.asarray(d.contact.efc_address)[: len(rows)]
-        pyramid = d.efc_type[adr] == _PYRAMIDAL
-        second = np.minimum(adr + 1, d.nefc - 1)
-        normal = np.where(pyramid, 0.5 * (velocity[adr] + velocity[second]), velocity[adr])
-        return tuple(float(v) for v in normal)
+        if not d.nefc:  # no contact has rows: none moves a dof
+            return tuple(0.0 for _ in rows)
+        first = np.maximum(adr, 0)
+        pyramid = d.efc_type[first] == _PYRAMIDAL
+        second = np.minimum(first + 1, d.nefc - 1)
+        normal = np.where(pyramid, 0.5 * (velocity[first] + velocity[second]), velocity[first])
+        # a contact without rows moves no dof: its sides do not move relative to each other
+        return tuple(float(v) if a >= 0 else 0.0 for v, a in zip(normal, adr, strict=True))
 
 
 @dataclasses.dataclass
@@ -379,8 +389,8 @@ class _StepWork:
         per_normal = np.where(has_rows, h * fn * 0.5 * (vn0 + vn1), 0.0)
         work["contact_normal"] = float(per_normal.sum())
         work["contact_friction"] = float(by_kind[0] - work["contact_normal"])
-        normal = per_normal[contacts.index]
-        total = per_contact[contacts.index]
+        normal = np.asarray(per_normal[contacts.index], dtype=np.float64)
+        total = np.asarray(per_contact[contacts.index], dtype=np.float64)
         return work, normal, total - normal
 
 
@@ -445,8 +455,18 @@ def run(
       qfrc_spring (flex elasticity and bending of 2-D and 3-D flexes, their edge springs,
       passive contact forces) has no potential in MuJoCo's energy: it is "elastic" and counts
       as non-conservative. residual_k = (E_k - E_0) - sum of the works of every kind except
-      CONSERVATIVE up to step k: what the integrator adds (for Euler in free fall,
-      -m g^2 h t / 2), and the Coriolis terms' and the changing mass matrix's share.
+      CONSERVATIVE up to step k: what the integrator adds (for Euler, gravity's share is
+      m g h (v_z,k - v_z,0) / 2: -m g^2 h t / 2 in free fall), the Coriolis terms' and the
+      changing mass matrix's share, Euler's implicit joint damping (it applies -B v_after,
+      the account books the start force -B v_before), and what the constraint solver leaves
+      of M qacc - qfrc_smooth - qfrc_constraint.
+      acceleration_gap_k: the sum over steps of (M dv - h f) . (v_before + v_after) / 2, with
+      M the start state's mass matrix, dv the step's velocity change and f = qfrc_smooth +
+      qfrc_constraint (gravity and bias included): the share of the residual that comes
+      from a velocity update other than M^-1 f (the solver's imbalance, Euler's implicit
+      damping, implicit integrators, RK4's stages). It is zero for Euler with a converged
+      solver and no damping; residual - acceleration_gap is then gravity's discretization
+      and the mass matrix's change.
       Gravity compensation routed through actuators (actgravcomp) is in "actuator".
 
       RK4: MuJoCo evaluates forces at four stages and leaves mjData at the last; here the
@@ -487,7 +507,9 @@ def run(
 
     nlog = nsteps // every + 1
     logged_step = np.arange(nlog, dtype=np.int64) * every
-    times, kinetic, potential, residual = (np.full(nlog, np.nan) for _ in range(4))
+    times, kinetic, potential, residual, gap = (np.full(nlog, np.nan) for _ in range(5))
+    gap_sum = 0.0
+    mdv = np.zeros(m.nv)
     work_log = {kind: np.full(nlog, np.nan) for kind in WORK_KINDS}
     cumulative = dict.fromkeys(WORK_KINDS, 0.0)
     episodes: list[Episode] = []
@@ -577,10 +599,15 @@ def run(
                 if kind not in CONSERVATIVE:
                     nonconservative += cumulative[kind]
             residual[i] = (energy - energy0) - nonconservative
+            gap[i] = gap_sum
             nlogged = i + 1
         if k == nsteps:
             break
-        works, normal, friction = step_work(src, qpos0, v0, d.qvel.copy(), contacts)
+        v1 = d.qvel.copy()
+        works, normal, friction = step_work(src, qpos0, v0, v1, contacts)
+        mujoco.mj_mulM(m, src, mdv, v1 - v0)
+        unbalanced = mdv - h * (src.qfrc_smooth + src.qfrc_constraint)
+        gap_sum += float(unbalanced @ (0.5 * (v0 + v1)))
         for kind, value in works.items():
             cumulative[kind] += value
         if contacts.pair.size:
@@ -609,6 +636,7 @@ def run(
         potential=potential[:nlogged],
         work={kind: values[:nlogged] for kind, values in work_log.items()},
         residual=residual[:nlogged],
+        acceleration_gap=gap[:nlogged],
         episodes=tuple(episodes),
         stopped=stopped,
         warnings={_W(w).name: int(d.warning[w].number) for w in range(len(d.warning))},
