@@ -128,6 +128,9 @@ class Run:
     # forces: sum of (M (v_after - v_before) - h f) . (v_before + v_after) / 2 (see run());
     # a diagnostic of the oracle, None where a run does not give it
     acceleration_gap: FloatArray | None = None
+    # J, the bodies' gravitational potential energy alone (-sum m_i g . xipos_i), the part
+    # of `potential` that is not springs; None where a run does not give it
+    gravity_potential: FloatArray | None = None
 
     @property
     def energy(self) -> FloatArray:
@@ -507,7 +510,9 @@ def run(
 
     nlog = nsteps // every + 1
     logged_step = np.arange(nlog, dtype=np.int64) * every
-    times, kinetic, potential, residual, gap = (np.full(nlog, np.nan) for _ in range(5))
+    times, kinetic, potential, residual, gap, gravity = (np.full(nlog, np.nan) for _ in range(6))
+    gravity_on = not m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY
+    weight = -np.asarray(m.body_mass)[:, None] * np.asarray(m.opt.gravity)[None, :]
     gap_sum = 0.0
     mdv = np.zeros(m.nv)
     work_log = {kind: np.full(nlog, np.nan) for kind in WORK_KINDS}
@@ -600,6 +605,7 @@ def run(
                     nonconservative += cumulative[kind]
             residual[i] = (energy - energy0) - nonconservative
             gap[i] = gap_sum
+            gravity[i] = float(np.sum(weight[1:] * src.xipos[1:])) if gravity_on else 0.0
             nlogged = i + 1
         if k == nsteps:
             break
@@ -637,8 +643,27 @@ def run(
         work={kind: values[:nlogged] for kind, values in work_log.items()},
         residual=residual[:nlogged],
         acceleration_gap=gap[:nlogged],
+        gravity_potential=gravity[:nlogged],
         episodes=tuple(episodes),
         stopped=stopped,
         warnings={_W(w).name: int(d.warning[w].number) for w in range(len(d.warning))},
         seconds=time.perf_counter() - started,
     )
+
+
+def springs_booked_as_work(run: Run) -> Run:
+    """The same run in the other convention: springs as a work, gravity alone as potential.
+
+    potential becomes gravity_potential, work "spring" holds all of qfrc_spring's work
+    ("spring" + "elastic"), "elastic" none, and the residual is (E - E_0) - the sum of every
+    kind's work, E = kinetic + gravity_potential.
+    """
+    if run.gravity_potential is None:
+        raise ValueError("the run has no gravity_potential to convert with")
+    work = dict(run.work)
+    work["spring"] = run.work["spring"] + run.work["elastic"]
+    work["elastic"] = np.zeros_like(run.work["elastic"])
+    energy = run.kinetic + run.gravity_potential
+    total = np.sum([work[kind] for kind in WORK_KINDS], axis=0)
+    residual = (energy - energy[0]) - total if energy.size else energy
+    return dataclasses.replace(run, potential=run.gravity_potential, work=work, residual=residual)

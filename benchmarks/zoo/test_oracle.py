@@ -314,3 +314,34 @@ def test_bad_arguments(tmp_path):
             ),
             0.1,
         )
+
+
+def test_gravity_potential_is_the_potential_less_the_springs(tmp_path):
+    # No spring: the two agree. all_forces.xml at its start: the shoulder's spring is 30
+    # degrees from its rest (k = 2) and the tendon cord from (0, 0, 1.4) to the elbow site
+    # (0.4, 0, 1) is 0.2 m long at rest (k = 50).
+    run = oracle.run(write(tmp_path, ball(z=1)), 0.3, 10)
+    assert run.gravity_potential is not None
+    np.testing.assert_allclose(run.gravity_potential, run.potential, rtol=1e-12)
+    forces = oracle.run(MODELS / "all_forces.xml", 0.2, 10)
+    assert forces.gravity_potential is not None
+    cord = math.hypot(0.4, 0.4) - 0.2
+    springs = 0.5 * 2 * math.radians(30) ** 2 + 0.5 * 50 * cord**2
+    assert forces.potential[0] - forces.gravity_potential[0] == pytest.approx(springs, rel=1e-9)
+
+
+@pytest.mark.parametrize("model", ["rope_drop.xml", "all_forces.xml", "cloth_drop.xml"])
+def test_springs_booked_as_work_close_the_budget_too(model):
+    run = oracle.run(MODELS / model, 0.5, 10)
+    other = oracle.springs_booked_as_work(run)
+    assert other.gravity_potential is not None
+    np.testing.assert_array_equal(other.potential, run.gravity_potential)
+    np.testing.assert_allclose(other.work["spring"], run.work["spring"] + run.work["elastic"])
+    assert np.all(other.work["elastic"] == 0)
+    assert np.max(np.abs(other.residual)) < 0.02 * run.energy_scale
+    spring_potential = run.potential - run.gravity_potential
+    np.testing.assert_allclose(
+        other.residual - run.residual,
+        -(spring_potential - spring_potential[0]) - run.work["spring"],
+        atol=1e-12 * run.energy_scale,
+    )
