@@ -345,3 +345,43 @@ def test_springs_booked_as_work_close_the_budget_too(model):
         -(spring_potential - spring_potential[0]) - run.work["spring"],
         atol=1e-12 * run.energy_scale,
     )
+
+
+def test_flex_is_a_party_of_its_own():
+    # Issue 35: the 3 x 3 x 3 flexcomp's bottom vertices (0.4 m up, radius 0.005) land at
+    # sqrt(2 * 0.395 / g) = 0.284 s, nine contacts at once.
+    run = oracle.run(MODELS / "flexcomp_drop.xml", 0.4, 10)
+    landing = run.episodes[0]
+    assert (landing.party1, landing.party2) == ("world", "flex cube")
+    assert abs(landing.onset_time - math.sqrt(2 * 0.395 / G)) <= 2 * run.timestep
+    assert landing.onset_vn is not None and len(landing.onset_vn) == 9
+
+
+def test_onset_speed_of_a_jointed_body_is_its_contact_points(tmp_path):
+    # A hinged rod swings down onto a box: the onset normal velocity is n . J_p qvel of the
+    # rod's contact point at the state before onset (mj_jac), not its centre's velocity.
+    xml = """<mujoco><option timestep="1e-3"/><worldbody>
+      <geom name="block" type="box" size=".1 .1 .1" pos=".5 0 .1"/>
+      <body name="rod" pos="0 0 .5"><joint type="hinge" axis="0 1 0"/>
+        <geom type="capsule" fromto="0 0 0 .6 0 0" size=".02"/></body>
+      </worldbody></mujoco>"""
+    path = write(tmp_path, xml)
+    run = oracle.run(path, 1.0, 10)
+    hit = run.episodes[0]
+    assert (hit.party1, hit.party2) == ("world", "rod") and hit.onset_vn is not None
+    m, d = oracle.load(path)
+    for _ in range(hit.onset_step - 1):
+        mujoco.mj_step(m, d)
+    d2 = mujoco.MjData(m)  # the state before onset
+    d2.qpos[:], before = d.qpos, d.qvel.copy()
+    mujoco.mj_step(m, d)
+    mujoco.mj_forward(m, d)  # the onset step's contacts
+    (contact,) = d.contact
+    mujoco.mj_kinematics(m, d2)
+    mujoco.mj_comPos(m, d2)
+    jacp = np.zeros((3, m.nv))
+    mujoco.mj_jac(m, d2, jacp, None, contact.pos, m.body("rod").id)
+    normal = contact.frame[:3]
+    sign = 1.0 if m.geom_bodyid[contact.geom2] == m.body("rod").id else -1.0
+    assert hit.onset_vn[0] == pytest.approx(sign * normal @ jacp @ before, rel=1e-9)
+    assert abs(hit.onset_vn[0]) > 1.0  # the tip moves much faster than the rod's centre
