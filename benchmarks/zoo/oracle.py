@@ -78,7 +78,7 @@ class Episode:
     onset_time: float  # s, the first step with a contact
     release_step: int | None  # the first step without one again; None: still touching at the end
     release_time: float | None
-    onset_vn: tuple[float, ...] | None  # at the step before onset; None: touching at t = 0
+    onset_vn: tuple[float, ...] | None  # at the onset step's state; None: touching at t = 0
     release_vn: tuple[float, ...] | None  # at release, with the last contact step's points
     max_penetration: float  # m, the largest -dist of the episode's contacts (< 0: never overlap)
     work_normal: float  # J, the episode's contact-normal work
@@ -86,13 +86,15 @@ class Episode:
 
     @property
     def approach_speed(self) -> float | None:
-        """The fastest approach at onset (m/s, > 0 approaching), None without a state before."""
-        return None if self.onset_vn is None else -min(self.onset_vn)
+        """The approach at onset, the mean over the contact points (m/s, > 0 approaching,
+        impactlab's -v_in), None when touching at the start."""
+        return None if self.onset_vn is None else -float(np.mean(self.onset_vn))
 
     @property
     def separation_speed(self) -> float | None:
-        """The fastest separation at release (m/s), None while still in contact."""
-        return None if self.release_vn is None else max(self.release_vn)
+        """The separation at release, the mean over the last step's points (m/s, impactlab's
+        v_out), None while still in contact."""
+        return None if self.release_vn is None else float(np.mean(self.release_vn))
 
     @property
     def restitution(self) -> float | None:
@@ -148,9 +150,11 @@ class Run:
 
 
 def party_names(model: mujoco.MjModel) -> list[str]:
-    """Names of the parties, indexed by party id: bodies (0 is the world), then flexes.
+    """Names of the parties, indexed by party id: bodies (0 is the world), then flexes, then
+    every geom (a geom that never moves is a party of its own: a surface).
 
-    A body's party is the body it is welded to (body_weldid); a flex is its own party.
+    A moving body's party is the body it is welded to (body_weldid); a flex is its own
+    party; a static geom (welded to the world or to a mocap body) is its own.
     """
     names = []
     for body in range(model.nbody):
@@ -158,6 +162,8 @@ def party_names(model: mujoco.MjModel) -> list[str]:
         names.append("world" if body == 0 else name or f"body {body}")
     for flex in range(model.nflex):
         names.append(f"flex {mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, flex) or flex}")
+    for geom in range(model.ngeom):
+        names.append(model.geom(geom).name or f"geom {geom}")
     return names
 
 
@@ -166,7 +172,9 @@ def contact_parties(model: mujoco.MjModel, contacts: Any) -> IntArray:
     geom = np.asarray(contacts.geom, dtype=np.int64).reshape(-1, 2)
     flex = np.asarray(contacts.flex, dtype=np.int64).reshape(-1, 2)
     weld = np.asarray(model.body_weldid, dtype=np.int64)
-    geom_party = weld[np.asarray(model.geom_bodyid, dtype=np.int64)[np.maximum(geom, 0)]]
+    root = weld[np.asarray(model.geom_bodyid, dtype=np.int64)[np.maximum(geom, 0)]]
+    static = np.asarray(model.body_dofnum, dtype=np.int64)[root] == 0
+    geom_party = np.where(static, model.nbody + model.nflex + np.maximum(geom, 0), root)
     return np.where(geom >= 0, geom_party, model.nbody + flex)
 
 
@@ -271,9 +279,18 @@ class _NormalVelocity:
         self.m = m
         self.d = mujoco.MjData(m)
 
-    def __call__(self, state: FloatArray, contacts: _Contacts, rows: IntArray) -> tuple[float, ...]:
+    def __call__(
+        self,
+        state: FloatArray,
+        contacts: _Contacts,
+        rows: IntArray,
+        qvel: FloatArray | None = None,
+    ) -> tuple[float, ...]:
+        """J_n v of the contacts at `state` (its Jacobian), with `qvel` (default: the state's)."""
         m, d = self.m, self.d
         mujoco.mj_setState(m, d, state, _STATE)
+        if qvel is not None:
+            d.qvel[:] = qvel
         mujoco.mj_kinematics(m, d)
         mujoco.mj_comPos(m, d)
         mujoco.mj_flex(m, d)
@@ -304,6 +321,12 @@ class _OpenEpisode:
     max_penetration: float
     work_normal: float = 0.0
     work_friction: float = 0.0
+    # a release not yet certain: (step, time, normal velocities), until MERGE_STEPS apart
+    parted: tuple[int, float, tuple[float, ...]] | None = None
+
+
+MERGE_STEPS = 10
+"""Contacts of a pair fewer than this many steps apart are one episode (impactlab's rule)."""
 
 
 _SMOOTH_KINDS = (
@@ -483,10 +506,13 @@ def run(
       is a rigid body as MuJoCo welds it (body_weldid: a massless or welded child belongs to
       the body it is welded to, static geoms to "world"); a flex is its own party. An
       episode of a party pair runs from the first step any contact between them exists to
-      the last; its release is the first step after that. onset_vn: J_n v of each onset
-      contact (its point and normal) evaluated by MuJoCo (mj_makeConstraint, mj_mulJacVec)
-      at the state of the step before onset; release_vn: the same for each contact of the
-      last contact step, at the release step's state. max_penetration: the largest -dist.
+      the last, contacts fewer than MERGE_STEPS steps apart merged (impactlab's rule); its
+      release is the first step after that. A static geom is a party of its own. onset_vn:
+      J_n v of each onset contact (its point and normal) evaluated by MuJoCo
+      (mj_makeConstraint, mj_mulJacVec) at the onset step's state (the velocity the surfaces
+      met with); release_vn: the same for each contact of the last contact step, with that
+      step's Jacobian and the velocity after it (the one they parted with). The episode's
+      speeds are the means over its points. max_penetration: the largest -dist.
 
       A run stops early (Run.stopped) at MuJoCo's bad qpos/qvel/qacc warning, whose reset
       would make the accounts meaningless, or at a non-finite energy.
@@ -579,14 +605,19 @@ def run(
         contacts = _Contacts(m, src, nparty)
         current = set(contacts.pairs.tolist())
         for pair in sorted(set(open_episodes) - current):
-            assert previous_contacts is not None
-            vn = normal_velocity(state, previous_contacts, previous_contacts.rows(pair))
-            close(open_episodes.pop(pair), k, t_k, vn)
+            episode = open_episodes[pair]
+            if episode.parted is None:  # the last contact step's points, the new velocity
+                assert previous_contacts is not None and previous_state is not None
+                rows = previous_contacts.rows(pair)
+                vn = normal_velocity(previous_state, previous_contacts, rows, v0)
+                episode.parted = (k, t_k, vn)
+            elif k - episode.parted[0] >= MERGE_STEPS - 1:
+                close(open_episodes.pop(pair), *episode.parted)
+        for pair in sorted(current & set(open_episodes)):
+            open_episodes[pair].parted = None  # touching again within MERGE_STEPS: one episode
         for pair in sorted(current - set(open_episodes)):
             rows = contacts.rows(pair)
-            onset_vn = (
-                None if previous_state is None else normal_velocity(previous_state, contacts, rows)
-            )
+            onset_vn = None if k == 0 else normal_velocity(state, contacts, rows)
             open_episodes[pair] = _OpenEpisode(pair, k, t_k, onset_vn, -math.inf)
         if contacts.pair.size:
             deepest = np.full(len(contacts.pairs), -np.inf)
@@ -626,7 +657,8 @@ def run(
         previous_state, previous_contacts = state, contacts
 
     for pair in sorted(open_episodes):
-        close(open_episodes[pair], -1, None, None)
+        parted = open_episodes[pair].parted
+        close(open_episodes[pair], *(parted if parted is not None else (-1, None, None)))
     episodes.sort(key=lambda e: (e.onset_step, e.party1, e.party2))
     return Run(
         model=str(model_path),
