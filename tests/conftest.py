@@ -11,6 +11,18 @@ from typing import Any
 import pytest
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked `extras` need an extra beyond `test` (ray, notebook, models, schemas):
+    deselected unless the -m expression names the marker (`pytest -m extras`, .ci/run), so
+    the README's `pytest -m "slow or not slow"` runs on the lean test install."""
+    if "extras" in (config.option.markexpr or ""):
+        return
+    needing = [item for item in items if item.get_closest_marker("extras") is not None]
+    if needing:
+        config.hook.pytest_deselected(items=needing)
+        items[:] = [item for item in items if item.get_closest_marker("extras") is None]
+
+
 @pytest.fixture(scope="session")
 def record_spec(tmp_path_factory) -> Callable[..., list[Path]]:
     """Record a spec (cached per session); returns the log paths in run order.

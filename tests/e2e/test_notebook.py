@@ -11,10 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import nbformat
 import pytest
 import rerun as rr
-from nbclient import NotebookClient
 from paths import ROOT
 
 import impactlab
@@ -22,7 +20,7 @@ from impactlab.analyze.tables.combine import AnalysisResult
 from impactlab.progress import ConsoleProgress, ProgressEvent, in_notebook, reporter
 from impactlab.replay.notebook import NotebookReplay, Recordings
 
-pytestmark = pytest.mark.slow  # a Jupyter kernel
+pytestmark = [pytest.mark.slow, pytest.mark.extras]  # a Jupyter kernel (the notebook extra)
 
 NOTEBOOK = ROOT / "examples" / "quickstart.ipynb"
 RERUN = Path(sys.executable).parent / "rerun"
@@ -58,6 +56,9 @@ def _kernel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
 def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path, monkeypatch):
     work = tmp_path / "work"
     shutil.copytree(ROOT / "experiments", work / "experiments")
+    import nbformat
+    from nbclient import NotebookClient
+
     nb = nbformat.read(NOTEBOOK, as_version=4)
     assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code"), "stored outputs"
     client = NotebookClient(
