@@ -94,7 +94,7 @@ def run_lab(
         where = results_dir / "calibration"
         say(progress, "lab", f"calibrating restitution ({calibration} grid) into {where}/")
         echo = (lambda line: say(progress, "calibrate", line)) if progress else (lambda _: None)
-        calibrated = run_calibration(where, grid=calibration, echo=echo)
+        calibrated = run_calibration(where, grid=calibration, echo=echo, progress=progress)
         sections.append(_calibration_section(report, calibrated))
     write_text(report, "".join(sections))
     write_report_html(report)

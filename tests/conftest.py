@@ -3,7 +3,6 @@ inline MJCF models."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -108,16 +107,3 @@ def count_calls(monkeypatch):
         return calls
 
     return wrap
-
-
-@pytest.fixture(autouse=True)
-def no_count_lines(monkeypatch):
-    """The console prints where a job stands after 5 s of wall-clock time without output, which
-    a loaded machine reaches and an idle one does not: off in the tests, so that what a command
-    prints does not depend on the machine's load (tests/cli/test_progress.py tests the count
-    lines with a clock of its own)."""
-    from impactlab import progress
-
-    monkeypatch.setattr(
-        progress, "console_progress", lambda: progress.ConsoleProgress(quiet_s=math.inf)
-    )

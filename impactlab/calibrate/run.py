@@ -38,6 +38,7 @@ from impactlab.contact import (
 )
 from impactlab.errors import LogError
 from impactlab.physics import collision_after
+from impactlab.progress import Progress
 from impactlab.record import plan, record_runs
 
 PENETRATION_BOUND = 0.02
@@ -105,6 +106,7 @@ def record_and_analyze(
     out_dir: Path,
     *,
     echo: Callable[[str], None] = print,
+    progress: Progress | None = None,
 ) -> tuple[pl.DataFrame, AnalysisResult, dict[str, float]]:
     """Record every point (specs in out_dir/specs, logs in out_dir/logs), analyze the logs.
 
@@ -118,9 +120,9 @@ def record_and_analyze(
     specs = write_specs(points, out_dir / "specs")
     runs = plan(specs)
     t1 = time.perf_counter()
-    recorded = record_runs(runs, out_dir / "logs")
+    recorded = record_runs(runs, out_dir / "logs", progress=progress)
     t2 = time.perf_counter()
-    result = run_analysis(recorded.paths)
+    result = run_analysis(recorded.paths, progress=progress)
     if result.failed:
         raise LogError(*result.failed[0])
     partial = result.runs.filter(pl.col("partial")) if result.runs.height else result.runs
@@ -369,7 +371,11 @@ def summarize(points: pl.DataFrame) -> dict[str, Any]:
 
 
 def calibrate(
-    grid: Grid, out_dir: Path, *, echo: Callable[[str], None] = print
+    grid: Grid,
+    out_dir: Path,
+    *,
+    echo: Callable[[str], None] = print,
+    progress: Progress | None = None,
 ) -> tuple[list[GridPoint], pl.DataFrame, AnalysisResult, dict[str, float]]:
     """Build the grid's points, record, analyze.
 
@@ -385,7 +391,7 @@ def calibrate(
         f"{sum(p.kind == 'lowspeed' for p in points)} low-speed, "
         f"{sum(p.kind == 'bounces' for p in points)} multi-bounce)"
     )
-    table, analysis, timings = record_and_analyze(points, out_dir, echo=echo)
+    table, analysis, timings = record_and_analyze(points, out_dir, echo=echo, progress=progress)
     timings["grid"] = time.perf_counter() - t0 - sum(timings.values())
     return points, table, analysis, timings
 

@@ -1,8 +1,9 @@
 """`impactlab analyze LOGS... -o results/`: tables, figures and report.md.
 
-Each unreadable input gives one line on stderr (`impactlab: error: <path>: <problem>`) and the
-others are still analyzed; the exit code is 1 when any input failed, 2 when no input holds a
-log or the output folder cannot be written. The files replace the folder's previous analysis
+An input that is missing, is not a log or finds none, or an output folder that cannot be
+written, is one line on stderr (`impactlab: error: <path>: <problem>`), exit code 2 and nothing
+written. A damaged log that a folder or pattern finds gives one line and the others are still
+analyzed (exit code 1). The files replace the folder's previous analysis
 as one set (`impactlab.analyze.publish`).
 """
 
@@ -41,9 +42,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Analyze into the output folder: tables, report and (unless --no-figures) figures."""
+    from impactlab.cli.inputs import check_log_inputs
     from impactlab.executors.processes import ProcessExecutor
     from impactlab.progress import console_progress
 
+    check_log_inputs(args.logs)
     executor = make_executor(args)
     if isinstance(executor, ProcessExecutor):  # the workers import while this process does
         executor.prestart([ANALYSIS_TASKS])

@@ -53,22 +53,24 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the recordings (and stream or serve them); exit 1 when a log failed."""
-    import rerun as rr
-
-    from impactlab.errors import ImpactlabError, LogError
-    from impactlab.logs.inputs import require_logs
-    from impactlab.progress import console_progress
-    from impactlab.replay.recordings import replay_logs
+    from impactlab.cli.inputs import check_log_inputs
 
     logs = list(args.logs)
     connect = args.connect
     if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
         logs.append(Path(connect))
         connect = DEFAULT_URL
-    paths, empty = require_logs(logs)
-    failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
-    for error in failed:
-        print(terminal_text(f"impactlab: error: {error}"), file=sys.stderr)
+    check_log_inputs(logs)
+
+    import rerun as rr
+
+    from impactlab.errors import ImpactlabError
+    from impactlab.logs.inputs import find_logs
+    from impactlab.progress import console_progress
+    from impactlab.replay.recordings import replay_logs
+
+    paths = find_logs(logs)
+    failed: list[ImpactlabError] = []
     sinks: list[Callable[[], rr.GrpcSink]] = []
     if args.spawn:
         rr.spawn(connect=False, executable_path=_rerun_executable())
