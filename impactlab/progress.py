@@ -1,11 +1,4 @@
-"""Progress of long jobs, reported to whoever asks: nothing is printed unless asked.
-
-Every stage that works through many items (runs to record, logs to analyze, replays to
-write) takes `progress`, a callable that receives a `ProgressEvent` after each item and for
-each line of news (a run finished, a warning). `None` reports nothing; `console_progress()`
-draws a progress bar on stderr (on a terminal only) and prints the lines, which is what the
-command line and `verbose=True` use.
-"""
+"""Progress of long jobs (`ProgressEvent`s to a callable), shown only when asked."""
 
 from __future__ import annotations
 
@@ -41,6 +34,8 @@ class ProgressEvent:
     level: str = "info"
 
 
+# every stage that works through items takes one: called after each item and for each line
+# of news; None reports nothing; `console_progress()` is the command line's and verbose=True's
 Progress = Callable[[ProgressEvent], None]
 
 

@@ -1,17 +1,4 @@
-"""The `impactlab` command line: a thin layer over the Python API, one module per command.
-
-Building the parser imports no heavy library (MuJoCo, polars, matplotlib, rerun): each
-command imports what it needs when it runs. User mistakes (`ImpactlabError`) become one
-line on stderr and a non-zero exit code, and so do wrong options (exit 2); SIGTERM unwinds
-like Ctrl-C (exit 130). A closed pipe on stdout (`impactlab diff A B | head`) ends the command
-silently, as it ends coreutils (exit 141, 128 + SIGPIPE); a stream that cannot be written
-(`> /dev/full`) is one line on stderr and exit 2.
-
-The program (`command`) starts with Python's cyclic garbage collector off: the imports and
-the planning make many objects and almost no garbage, and the collections they would trigger
-cost about a tenth of `impactlab record`'s start-up. `record` turns it back on once it has
-planned (`impactlab.cli.options.started`), every other command as soon as its options are read.
-"""
+"""The `impactlab` command line: one module per command, each importing what it needs."""
 
 from __future__ import annotations
 
@@ -63,7 +50,8 @@ def _terminate(signum: int, frame: object) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code: a user mistake (`ImpactlabError`) is one
+    line on stderr and its code (2 for a wrong option too), SIGTERM unwinds like Ctrl-C (130)."""
     args = build_parser().parse_args(argv)
     if not getattr(args, "gc_started_by_command", False):
         started()
@@ -127,7 +115,9 @@ def _stream_failed(error: StreamError) -> int:
 
 
 def _guarded_main() -> int:
-    """`main` with stdout and stderr guarded and flushed before the interpreter exits."""
+    """`main` with stdout and stderr guarded and flushed before the interpreter exits: a closed
+    pipe (`impactlab diff A B | head`) ends it silently, as it ends coreutils (141, 128 +
+    SIGPIPE), a stream that cannot be written (`> /dev/full`) is one line and exit 2."""
     stdout, stderr = sys.stdout, sys.stderr
     sys.stdout = cast(TextIO, GuardedStream("standard output", stdout))
     sys.stderr = cast(TextIO, GuardedStream("standard error", stderr))
@@ -150,7 +140,9 @@ def command() -> int:
     process of its own. No command renders with MuJoCo (replays are Rerun recordings), so
     MuJoCo's OpenGL back end is not loaded (`MUJOCO_GL=disable`, unless set): about 0.07 s
     less start-up for every command that simulates. The garbage collector is off until the
-    command has started (see the module's docstring)."""
+    command has started (`options.started`: `record` once it has planned, the others once
+    their options are read): the imports and the planning make many objects and almost no
+    garbage, and the collections would cost about a tenth of `impactlab record`'s start-up."""
     os.environ.setdefault("MUJOCO_GL", "disable")
     # the spec's schema uses no pydantic plugin: none is looked for in every installed
     # package's entry points (about 5 ms), unless set

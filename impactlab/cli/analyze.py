@@ -1,11 +1,4 @@
-"""`impactlab analyze LOGS... -o results/`: tables, figures and report.md.
-
-An input that is missing, is not a log or finds none, or an output folder that cannot be
-written, is one line on stderr (`impactlab: error: <path>: <problem>`), exit code 2 and nothing
-written. A damaged log that a folder or pattern finds gives one line and the others are still
-analyzed (exit code 1). The files replace the folder's previous analysis
-as one set (`impactlab.analyze.publish`).
-"""
+"""`impactlab analyze LOGS... -o results/`: tables, figures and report.md."""
 
 from __future__ import annotations
 
@@ -41,7 +34,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyze into the output folder: tables, report and (unless --no-figures) figures."""
+    """Analyze into the output folder: tables, report and (unless --no-figures) figures,
+    replacing its previous analysis as one set. Exit 2 and nothing written when no input
+    names a readable log or the folder cannot be written; 1 when some inputs failed (one
+    line each) and the others were analyzed."""
     from impactlab.cli.inputs import check_log_inputs
     from impactlab.executors.processes import ProcessExecutor
     from impactlab.progress import console_progress

@@ -95,13 +95,11 @@ def _field_tolerance(text: str) -> tuple[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     """Compare; exit 0 equal, 1 different, 2 bad input."""
-    from impactlab.cli.inputs import check_log_inputs
     from impactlab.errors import LogError
     from impactlab.logs.diff import diff_logs
     from impactlab.logs.diff_result import Tolerance
     from impactlab.logs.load import load_log
 
-    check_log_inputs([args.a, args.b])
     try:
         a, b = load_log(args.a), load_log(args.b)
     except LogError as exc:  # LogError's own exit code is 1, which here means "different"

@@ -15,17 +15,20 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Describe each log; one error line per damaged log (exit 1). A missing input, or one
-    that is not a log, is a mistake (exit 2, nothing printed)."""
+    """Describe each log; one error line per log that cannot be read (exit 1); none that can:
+    one line, exit 2."""
     from impactlab.cli.inputs import check_log_inputs
     from impactlab.errors import ImpactlabError
     from impactlab.logs.info import describe
-    from impactlab.logs.inputs import find_logs
+    from impactlab.logs.inputs import require_logs
     from impactlab.text import terminal_text
 
     check_log_inputs(args.logs)
-    failed = 0
-    for i, path in enumerate(find_logs(args.logs)):
+    paths, empty = require_logs(args.logs)
+    for where, why in empty:
+        print(terminal_text(f"impactlab: error: {where}: {why}"), file=sys.stderr)
+    failed = len(empty)
+    for i, path in enumerate(paths):
         try:
             text = describe(path)
         except ImpactlabError as exc:

@@ -1,4 +1,4 @@
-"""The logs a command names, checked before it does anything (a mistake is exit 2)."""
+"""The logs a command names, checked before it creates anything (none readable: exit 2)."""
 
 from __future__ import annotations
 
@@ -13,36 +13,38 @@ MAGIC = b"\x89MCAP0\r\n"  # every MCAP file starts with it (impactlab.logs.reade
 
 
 def check_log_inputs(inputs: Sequence[str | Path]) -> None:
-    """Each input names at least one log, and each named file starts as an MCAP file does.
-
-    What a folder or pattern finds is read later: a damaged log there is the job's error
-    (exit 1), while a named file that is missing or not a log is a mistake in the command.
+    """At least one input is a file that starts as an MCAP file does, or a folder or pattern
+    that finds a log. Otherwise the command can do nothing: a mistake in it (exit 2), said
+    before any output is created. Among inputs that work, a bad one is the job's error line
+    (exit 1), and the others are done.
 
     Raises:
-        NoLogs: an input is missing, is not MCAP, or finds no log (exit 2, nothing done).
+        NoLogs: no input names a log; the message names the first input and its problem.
     """
-    for item in inputs:
-        _check_named(Path(item))
-    _, empty = require_log_names(inputs)
-    if empty:
-        raise NoLogs(*empty[0])
+    problems = [_problem(Path(item)) for item in inputs]
+    if problems and problems[0] is not None and all(problems):
+        raise NoLogs(*problems[0])
 
 
-def _check_named(path: Path) -> None:
+def _problem(path: Path) -> tuple[str, str] | None:
+    """What is wrong with one input, or None when it names a log."""
     if path.is_dir() or (not path.exists() and any(c in str(path) for c in "*?[")):
-        return  # a folder or a pattern: what it finds is checked by require_log_names
+        try:
+            require_log_names([path])  # a folder or pattern: does it find a log?
+        except NoLogs as exc:
+            return exc.path, exc.problem
+        return None
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a pipe named here never blocks
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return str(path), "not a regular file (a device, pipe or socket): not a log"
+        with open(path, "rb") as stream:
+            magic = stream.read(len(MAGIC))
     except FileNotFoundError:
-        raise NoLogs(str(path), "file not found") from None
+        return str(path), "file not found"
     except OSError as exc:
-        raise NoLogs(str(path), f"cannot read: {exc.strerror or exc}") from None
-    try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
-            raise NoLogs(str(path), "not a regular file (a device, pipe or socket): not a log")
-        magic = os.read(fd, len(MAGIC))
-    finally:
-        os.close(fd)
+        return str(path), f"cannot read: {exc.strerror or exc}"
     if magic != MAGIC:
-        hint = "; `impactlab record` records it" if path.suffix in (".toml", ".xml") else ""
-        raise NoLogs(str(path), f"not an MCAP log{hint}")
+        spec = path.suffix in (".toml", ".xml")
+        hint = "; `impactlab record` records a spec or model" if spec else ""
+        return str(path), f"not an MCAP file (bad magic bytes){hint}"
+    return None

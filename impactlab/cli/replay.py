@@ -64,13 +64,15 @@ def run(args: argparse.Namespace) -> int:
 
     import rerun as rr
 
-    from impactlab.errors import ImpactlabError
-    from impactlab.logs.inputs import find_logs
+    from impactlab.errors import ImpactlabError, LogError
+    from impactlab.logs.inputs import require_logs
     from impactlab.progress import console_progress
     from impactlab.replay.recordings import replay_logs
 
-    paths = find_logs(logs)
-    failed: list[ImpactlabError] = []
+    paths, empty = require_logs(logs)
+    failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
+    for error in failed:
+        print(terminal_text(f"impactlab: error: {error}"), file=sys.stderr)
     sinks: list[Callable[[], rr.GrpcSink]] = []
     if args.spawn:
         rr.spawn(connect=False, executable_path=_rerun_executable())

@@ -21,17 +21,19 @@ CASES = [
     ("record a log", ["record", "good.mcap", "-o", "out"]),
     ("analyze a missing folder", ["analyze", "nosuch/", "-o", "r2"]),
     ("analyze a spec", ["analyze", "spec.toml", "-o", "r3"]),
-    ("analyze a missing log among good", ["analyze", "good.mcap", "nosuch.mcap", "-o", "r4"]),
-    ("analyze a folder without logs", ["analyze", "good.mcap", "empty", "-o", "r5"]),
+    ("analyze two missing logs", ["analyze", "nosuch.mcap", "nosuch2.mcap", "-o", "r4"]),
+    ("analyze a folder without logs", ["analyze", "empty", "-o", "r5"]),
     ("analyze a pattern matching nothing", ["analyze", "*.nothing", "-o", "r6"]),
     ("analyze a device", ["analyze", "/dev/null", "-o", "r7"]),
     ("replay a missing log", ["replay", "nosuch.mcap"]),
     ("replay a spec", ["replay", "spec.toml", "-o", "x.rrd"]),
-    ("replay a missing log among good", ["replay", "good.mcap", "nosuch.mcap", "-o", "x.rrd"]),
+    ("replay a folder without logs", ["replay", "empty", "-o", "x.rrd"]),
     ("info a missing log", ["info", "nosuch.mcap"]),
-    ("info a spec", ["info", "good.mcap", "spec.toml"]),
+    ("info a spec", ["info", "spec.toml"]),
+    ("info a folder", ["info", "empty"]),
     ("diff a missing log", ["diff", "nosuch.mcap", "good.mcap"]),
     ("diff a spec", ["diff", "good.mcap", "spec.toml"]),
+    ("diff a folder", ["diff", "good.mcap", "empty"]),
     ("lab a missing folder", ["lab", "--experiments", "nosuch", "-o", "lab"]),
     ("lab an empty folder", ["lab", "--experiments", "empty", "-o", "lab"]),
     ("contact a missing model", ["contact", "nosuch.xml", "--pair", "a/b=0.5", "-o", "t.xml"]),
@@ -78,14 +80,33 @@ def test_a_wrong_input_is_exit_2_one_line_and_nothing_created(folder, capsys, ca
 def test_the_wrong_input_is_named(folder, capsys):
     for argv, words in [
         (["analyze", "nosuch/", "-o", "r2"], ["nosuch", "file not found"]),
-        (["analyze", "spec.toml"], ["spec.toml", "not an MCAP log", "impactlab record"]),
+        (["analyze", "spec.toml"], ["spec.toml", "not an MCAP file", "impactlab record"]),
         (["replay", "nosuch.mcap"], ["nosuch.mcap", "file not found"]),
-        (["analyze", "good.mcap", "empty"], ["empty", "a folder without .mcap logs"]),
+        (["analyze", "empty"], ["empty", "a folder without .mcap logs"]),
         (["info", "/dev/null"], ["/dev/null", "not a regular file"]),
     ]:
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert all(word in err for word in words), (words, err)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["analyze", "good.mcap", "nosuch.mcap", "spec.toml", "empty", "-o", "r"],
+        ["replay", "good.mcap", "nosuch.mcap", "spec.toml", "empty", "-o", "r"],
+        ["info", "good.mcap", "nosuch.mcap", "spec.toml", "empty"],
+    ],
+    ids=["analyze", "replay", "info"],
+)
+def test_bad_inputs_among_good_ones_are_one_line_each_and_the_rest_is_done(folder, capsys, argv):
+    assert main(argv) == 1
+    out, err = capsys.readouterr()
+    errors = [line for line in err.splitlines() if line.startswith("impactlab: error: ")]
+    assert sorted(e.split(": ")[2] for e in errors) == ["empty", "nosuch.mcap", "spec.toml"], err
+    assert "Traceback" not in err
+    done = {"analyze": "r/runs.parquet", "replay": "r/good.rrd", "info": None}[argv[0]]
+    assert (folder / done).is_file() if done else "file:" in out
 
 
 @pytest.mark.parametrize(
@@ -215,3 +236,13 @@ def test_a_closed_pipe_elsewhere_is_not_taken_for_stdout(monkeypatch, capsys):
     monkeypatch.setattr(cli, "main", lambda argv=None: broken(argv))
     with pytest.raises(BrokenPipeError):
         cli.command()
+
+
+def test_calibrate_runs_the_quick_grid_and_lab_analyzes_as_analyze_does():
+    from impactlab.cli import build_parser
+    from impactlab.cli.calibrate import GRID_RUNS
+
+    parser = build_parser()
+    assert parser.parse_args(["calibrate"]).grid == "quick" and GRID_RUNS["quick"] == 43
+    lab, analyze = parser.parse_args(["lab"]), parser.parse_args(["analyze", "x"])
+    assert lab.executor == analyze.executor == "processes"
