@@ -88,16 +88,18 @@ class ConsoleProgress:
         self.notebook = notebook
         self._bar: Any = None
         self._stage: str | None = None
+        self._done = 0
 
     def __call__(self, event: ProgressEvent) -> None:
         if event.total == 0:  # a line outside any count
             self._print(event)
             return
-        if event.stage != self._stage:
+        if event.stage != self._stage or event.done < self._done:  # a new job
             self.close()
             self._stage = event.stage
             if event.total >= 2 or (self.notebook and event.total >= 1):
                 self._bar = self._new_bar(event)
+        self._done = event.done
         bar = self._bar
         if bar is not None:
             if event.done != bar.n:
@@ -105,6 +107,10 @@ class ConsoleProgress:
             shown = {k: v for k, v in event.counts.items() if v}
             bar.set_postfix(shown, refresh=False)
         self._print(event)
+        if bar is not None and event.done >= event.total and not self.notebook:
+            bar.refresh()  # its last state, drawn whatever tqdm's rate limit
+            bar.close()  # the job's work is done: its clock stops (the lines go on)
+            self._bar = None
 
     def _new_bar(self, event: ProgressEvent) -> Any:
         """A tqdm bar for the stage (None when stderr is no terminal, outside notebooks)."""
@@ -140,6 +146,7 @@ class ConsoleProgress:
             self._bar.close()
             self._bar = None
         self._stage = None
+        self._done = 0
 
 
 def console_progress() -> ConsoleProgress:

@@ -4,6 +4,7 @@ when stderr is a pipe or a file."""
 from __future__ import annotations
 
 import fcntl
+import io
 import os
 import pty
 import struct
@@ -85,3 +86,25 @@ def test_piped_stderr_gets_no_bar(tmp_path):
     assert done.returncode == 0
     assert done.stderr == ""
     assert done.stdout.count(".mcap: completed") == 3
+
+
+class Terminal(io.StringIO):
+    """A stderr that says it is a terminal: tqdm draws its bar into it."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_a_finished_job_closes_its_bar_and_the_next_job_opens_one(monkeypatch):
+    screen = Terminal()
+    monkeypatch.setattr(sys, "stderr", screen)
+    lines: list[str] = []
+    console = ConsoleProgress(echo=lines.append)
+    for job in range(2):  # the same stage twice: the count starts again
+        for done in range(4):
+            console(ProgressEvent("record", done, 3, {"finished": done}))
+        console(ProgressEvent("record", 3, 3, {"finished": 3}, line=f"job {job} done"))
+    console.close()
+    shown = screen.getvalue()
+    assert shown.count("record:   0%") == 2 and shown.count("3/3 [") >= 2
+    assert lines == ["job 0 done", "job 1 done"]  # after each bar closed: plain lines
