@@ -39,9 +39,11 @@ def run(args: argparse.Namespace) -> int:
     names a readable log or the folder cannot be written; 1 when some inputs failed (one
     line each) and the others were analyzed."""
     from impactlab.cli.inputs import check_log_inputs
+    from impactlab.executors.choose import check_executor
     from impactlab.executors.processes import ProcessExecutor
     from impactlab.progress import console_progress
 
+    check_executor(args.executor, args.address)  # a wrong option first, as record does
     check_log_inputs(args.logs)
     executor = make_executor(args)
     if isinstance(executor, ProcessExecutor):  # the workers import while this process does
