@@ -93,7 +93,7 @@ def run_lab(
         where = results_dir / "calibration"
         say(progress, "lab", f"calibrating restitution ({calibration} grid) into {where}/")
         echo = (lambda line: say(progress, "calibrate", line)) if progress else (lambda _: None)
-        calibrated = run_calibration(where, grid=calibration, echo=echo)
+        calibrated = run_calibration(where, grid=calibration, echo=echo, progress=progress)
         sections += _calibration_section(calibrated)
     if sections:
         append_report_sections(results_dir / "report-appendix.md", sections)

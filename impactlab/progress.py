@@ -1,17 +1,9 @@
-"""Progress of long jobs, reported to whoever asks: nothing is printed unless asked.
-
-Every stage that works through many items (runs to record, logs to analyze, replays to
-write) takes `progress`, a callable that receives a `ProgressEvent` after each item and for
-each line of news (a run finished, a warning). `None` reports nothing; `console_progress()`
-draws a progress bar on stderr and prints the lines, which is what the command line and
-`verbose=True` use.
-"""
+"""Progress of long jobs (`ProgressEvent`s to a callable), shown only when asked."""
 
 from __future__ import annotations
 
 import contextlib
 import sys
-import time
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -42,6 +34,8 @@ class ProgressEvent:
     level: str = "info"
 
 
+# every stage that works through items takes one: called after each item and for each line
+# of news; None reports nothing; `console_progress()` is the command line's and verbose=True's
 Progress = Callable[[ProgressEvent], None]
 
 
@@ -78,14 +72,10 @@ def say(progress: Progress | None, stage: str, line: str, level: str = "info") -
         progress(ProgressEvent(stage, 0, 0, {}, line, level))
 
 
-QUIET_SECONDS = 5.0  # without a bar, a count line after this long without output
-
-
 class ConsoleProgress:
-    """A progress bar on stderr (two items or more, on a terminal); lines on stdout, warnings
-    and errors on stderr. Where there is no terminal for a bar (a log file, CI), a job that
-    has printed nothing for `quiet_s` seconds prints where it stands on stderr instead
-    (`analyze: 16 of 64 logs done (25 %), 5.1 s`), so a long job never looks stuck.
+    """tqdm's bar per stage on stderr (on a terminal; a widget in a notebook), with the items
+    done, the rate and the time left; the lines on stdout, warnings and errors on stderr.
+    Where stderr is no terminal (a pipe, a log file, CI) there is no bar: only the lines.
 
     With `notebook`, the bar is `tqdm.auto`'s (a widget in a Jupyter notebook), always shown
     and left in the cell when the job is over.
@@ -93,32 +83,23 @@ class ConsoleProgress:
     Call `close()` when the job is over (the bar is removed from the terminal).
     """
 
-    def __init__(
-        self,
-        *,
-        echo: Callable[[str], None] = print,
-        quiet_s: float = QUIET_SECONDS,
-        clock: Callable[[], float] = time.monotonic,
-        notebook: bool = False,
-    ) -> None:
+    def __init__(self, *, echo: Callable[[str], None] = print, notebook: bool = False) -> None:
         self.echo = echo
-        self.quiet_s = quiet_s
-        self.clock = clock
         self.notebook = notebook
         self._bar: Any = None
         self._stage: str | None = None
-        self._started = self._last_output = clock()
+        self._done = 0
 
     def __call__(self, event: ProgressEvent) -> None:
         if event.total == 0:  # a line outside any count
             self._print(event)
             return
-        if event.stage != self._stage:
+        if event.stage != self._stage or event.done < self._done:  # a new job
             self.close()
             self._stage = event.stage
             if event.total >= 2 or (self.notebook and event.total >= 1):
                 self._bar = self._new_bar(event)
-            self._started = self._last_output = self.clock()
+        self._done = event.done
         bar = self._bar
         if bar is not None:
             if event.done != bar.n:
@@ -126,8 +107,10 @@ class ConsoleProgress:
             shown = {k: v for k, v in event.counts.items() if v}
             bar.set_postfix(shown, refresh=False)
         self._print(event)
-        if bar is None and event.line is None and 0 < event.done < event.total:
-            self._count_line(event)
+        if bar is not None and event.done >= event.total and not self.notebook:
+            bar.refresh()  # its last state, drawn whatever tqdm's rate limit
+            bar.close()  # the job's work is done: its clock stops (the lines go on)
+            self._bar = None
 
     def _new_bar(self, event: ProgressEvent) -> Any:
         """A tqdm bar for the stage (None when stderr is no terminal, outside notebooks)."""
@@ -138,34 +121,17 @@ class ConsoleProgress:
             auto_tqdm.monitor_interval = 0
             return auto_tqdm(total=event.total, unit=unit, desc=event.stage, leave=True)
         isatty = getattr(sys.stderr, "isatty", None)
-        if isatty is not None and not isatty():  # tqdm's test (disable=None), before its import
+        if isatty is None or not isatty():  # tqdm's own test (disable=None), before its import
             return None
         from tqdm import tqdm
 
         # no monitor thread: a process with another thread cannot fork record workers
         tqdm.monitor_interval = 0
-        # disable=None: no bar when stderr is not a terminal (logs, CI)
-        bar = tqdm(total=event.total, unit=unit, leave=False, file=sys.stderr, disable=None)
-        return None if bar.disable else bar
-
-    def _count_line(self, event: ProgressEvent) -> None:
-        """Where the job stands, when nothing was printed for `quiet_s` seconds."""
-        now = self.clock()
-        if now - self._last_output < self.quiet_s:
-            return
-        unit = "logs" if event.stage in ("analyze", "replay") else "runs"
-        percent = 100 * event.done / event.total
-        print(
-            f"{event.stage}: {event.done} of {event.total} {unit} done ({percent:.0f} %), "
-            f"{now - self._started:.1f} s",
-            file=sys.stderr,
-        )
-        self._last_output = now
+        return tqdm(total=event.total, unit=unit, desc=event.stage, leave=False, file=sys.stderr)
 
     def _print(self, event: ProgressEvent) -> None:
         if event.line is None:
             return
-        self._last_output = self.clock()
         line = terminal_text(event.line)  # it may quote a log's or a model's names
         if event.level in ("error", "warning"):
             print(line, file=sys.stderr)
@@ -180,6 +146,7 @@ class ConsoleProgress:
             self._bar.close()
             self._bar = None
         self._stage = None
+        self._done = 0
 
 
 def console_progress() -> ConsoleProgress:

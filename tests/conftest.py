@@ -3,12 +3,23 @@ inline MJCF models."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests marked `extras` need an extra beyond `test` (ray, notebook, models, schemas):
+    deselected unless the -m expression names the marker (`pytest -m extras`, .ci/run), so
+    the README's `pytest -m "slow or not slow"` runs on the lean test install."""
+    if "extras" in (config.option.markexpr or ""):
+        return
+    needing = [item for item in items if item.get_closest_marker("extras") is not None]
+    if needing:
+        config.hook.pytest_deselected(items=needing)
+        items[:] = [item for item in items if item.get_closest_marker("extras") is None]
 
 
 @pytest.fixture(scope="session")
@@ -96,16 +107,3 @@ def count_calls(monkeypatch):
         return calls
 
     return wrap
-
-
-@pytest.fixture(autouse=True)
-def no_count_lines(monkeypatch):
-    """The console prints where a job stands after 5 s of wall-clock time without output, which
-    a loaded machine reaches and an idle one does not: off in the tests, so that what a command
-    prints does not depend on the machine's load (tests/cli/test_progress.py tests the count
-    lines with a clock of its own)."""
-    from impactlab import progress
-
-    monkeypatch.setattr(
-        progress, "console_progress", lambda: progress.ConsoleProgress(quiet_s=math.inf)
-    )

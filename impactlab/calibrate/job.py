@@ -40,6 +40,7 @@ from impactlab.calibrate.run import (
 from impactlab.contact import RESTITUTION_FLOOR
 from impactlab.errors import SpecError
 from impactlab.files import check_writable, write_json, write_parquet, write_text
+from impactlab.progress import Progress
 
 __all__ = ["CalibrationResult", "choose_grid", "run_calibration"]
 
@@ -91,6 +92,7 @@ def run_calibration(
     speeds: Sequence[float] | None = None,
     masses: Sequence[float] | None = None,
     keep_logs: bool = True,
+    progress: Progress | None = None,
 ) -> CalibrationResult:
     """Record and analyze a calibration grid, write tables, figures and calibration.md.
 
@@ -101,6 +103,7 @@ def run_calibration(
         grid: "quick", "medium", "full" or a Grid; overrides `quick`.
         targets, speeds, masses: replace the grid's lists.
         keep_logs: keep the MCAP logs in out_dir/logs.
+        progress: receives the grid's recording and analysis progress; None: silent.
 
     Returns:
         The point table, the summary, the files written and the timings.
@@ -114,7 +117,9 @@ def run_calibration(
     created = not out_dir.exists()
     check_writable(out_dir)
     try:
-        return _calibrate_into(out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0)
+        return _calibrate_into(
+            out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0, progress=progress
+        )
     except BaseException:  # a folder this job created holds only its own partial work
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)
@@ -122,10 +127,16 @@ def run_calibration(
 
 
 def _calibrate_into(
-    out_dir: Path, chosen: Grid, *, echo: Callable[[str], None], keep_logs: bool, t0: float
+    out_dir: Path,
+    chosen: Grid,
+    *,
+    echo: Callable[[str], None],
+    keep_logs: bool,
+    t0: float,
+    progress: Progress | None,
 ) -> CalibrationResult:
     """`run_calibration` once the output folder is checked: record, analyze, write."""
-    points, table, analysis, timings = calibrate(chosen, out_dir, echo=echo)
+    points, table, analysis, timings = calibrate(chosen, out_dir, echo=echo, progress=progress)
     t1 = time.perf_counter()
     curves = lowspeed_curves(points)
     multi = bounce_table(points, analysis.runs, analysis.bounces)

@@ -38,6 +38,7 @@ from impactlab.contact import (
 )
 from impactlab.errors import LogError
 from impactlab.physics import collision_after
+from impactlab.progress import Progress
 from impactlab.record import plan, record_runs
 
 PENETRATION_BOUND = 0.02
@@ -101,10 +102,7 @@ def write_specs(points: Sequence[GridPoint], folder: Path) -> list[Path]:
 
 
 def record_and_analyze(
-    points: Sequence[GridPoint],
-    out_dir: Path,
-    *,
-    echo: Callable[[str], None] = print,
+    points: Sequence[GridPoint], out_dir: Path, *, progress: Progress | None = None
 ) -> tuple[pl.DataFrame, AnalysisResult, dict[str, float]]:
     """Record every point (specs in out_dir/specs, logs in out_dir/logs), analyze the logs.
 
@@ -118,9 +116,9 @@ def record_and_analyze(
     specs = write_specs(points, out_dir / "specs")
     runs = plan(specs)
     t1 = time.perf_counter()
-    recorded = record_runs(runs, out_dir / "logs")
+    recorded = record_runs(runs, out_dir / "logs", progress=progress)
     t2 = time.perf_counter()
-    result = run_analysis(recorded.paths)
+    result = run_analysis(recorded.paths, progress=progress)
     if result.failed:
         raise LogError(*result.failed[0])
     partial = result.runs.filter(pl.col("partial")) if result.runs.height else result.runs
@@ -128,10 +126,6 @@ def record_and_analyze(
         raise LogError(partial["file"][0], "partial log: " + partial["problems"][0])
     table = point_table(points, result.runs, result.bounces, result.collisions)
     t3 = time.perf_counter()
-    echo(
-        f"{len(points)} runs: specs {t1 - t0:.1f} s, record {t2 - t1:.1f} s, "
-        f"analyze {t3 - t2:.1f} s"
-    )
     return table, result, {"specs": t1 - t0, "record": t2 - t1, "analyze": t3 - t2}
 
 
@@ -369,7 +363,7 @@ def summarize(points: pl.DataFrame) -> dict[str, Any]:
 
 
 def calibrate(
-    grid: Grid, out_dir: Path, *, echo: Callable[[str], None] = print
+    grid: Grid, out_dir: Path, *, echo: Callable[[str], None], progress: Progress | None = None
 ) -> tuple[list[GridPoint], pl.DataFrame, AnalysisResult, dict[str, float]]:
     """Build the grid's points, record, analyze.
 
@@ -385,7 +379,11 @@ def calibrate(
         f"{sum(p.kind == 'lowspeed' for p in points)} low-speed, "
         f"{sum(p.kind == 'bounces' for p in points)} multi-bounce)"
     )
-    table, analysis, timings = record_and_analyze(points, out_dir, echo=echo)
+    table, analysis, timings = record_and_analyze(points, out_dir, progress=progress)
+    echo(
+        f"{len(points)} runs: specs {timings['specs']:.1f} s, record {timings['record']:.1f} s, "
+        f"analyze {timings['analyze']:.1f} s"
+    )
     timings["grid"] = time.perf_counter() - t0 - sum(timings.values())
     return points, table, analysis, timings
 

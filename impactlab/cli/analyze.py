@@ -1,10 +1,4 @@
-"""`impactlab analyze LOGS... -o results/`: tables, figures and report.md.
-
-Each unreadable input gives one line on stderr (`impactlab: error: <path>: <problem>`) and the
-others are still analyzed; the exit code is 1 when any input failed, 2 when no input holds a
-log or the output folder cannot be written. The files replace the folder's previous analysis
-as one set (`impactlab.analyze.publish`).
-"""
+"""`impactlab analyze LOGS... -o results/`: tables, figures and report.md."""
 
 from __future__ import annotations
 
@@ -40,10 +34,17 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Analyze into the output folder: tables, report and (unless --no-figures) figures."""
+    """Analyze into the output folder: tables, report and (unless --no-figures) figures,
+    replacing its previous analysis as one set. Exit 2 and nothing written when no input
+    names a readable log or the folder cannot be written; 1 when some inputs failed (one
+    line each) and the others were analyzed."""
+    from impactlab.cli.inputs import check_log_inputs
+    from impactlab.executors.choose import check_executor
     from impactlab.executors.processes import ProcessExecutor
     from impactlab.progress import console_progress
 
+    check_executor(args.executor, args.address)  # a wrong option first, as record does
+    check_log_inputs(args.logs)
     executor = make_executor(args)
     if isinstance(executor, ProcessExecutor):  # the workers import while this process does
         executor.prestart([ANALYSIS_TASKS])

@@ -21,16 +21,17 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "below it against the prediction); measure e with the analysis stage, and write "
         "tables, figures and calibration.md. Grids: "
         + ", ".join(f"{name} ({n} runs)" for name, n in GRID_RUNS.items())
-        + "; full is the default.",
+        + "; quick is the default.",
     )
     p.add_argument(
         "-o", "--out", type=path, default=Path("calibration"), help="output folder (calibration/)"
     )
-    p.add_argument("--quick", action="store_true", help="the quick grid (43 runs, about 20 s)")
+    p.add_argument("--quick", action="store_true", help=argparse.SUPPRESS)  # the default now
     p.add_argument(
         "--grid",
         choices=sorted(GRID_RUNS),
-        help="grid to run (default full, or quick with --quick)",
+        default="quick",
+        help="grid to run (default quick: 43 runs, about 20 s)",
     )
     p.add_argument("--targets", type=float, nargs="+", metavar="E", help="target e values")
     p.add_argument("--speeds", type=float, nargs="+", metavar="V", help="impact speeds in m/s")
@@ -44,14 +45,19 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Calibrate; exit 0 when every point meets its bounds, else 1."""
     from impactlab.calibrate.job import run_calibration
+    from impactlab.progress import console_progress
 
-    result = run_calibration(
-        args.out,
-        quick=args.quick,
-        grid=args.grid,
-        targets=args.targets,
-        speeds=args.speeds,
-        masses=args.masses,
-        keep_logs=not args.discard_logs,
-    )
+    progress = console_progress()
+    try:
+        result = run_calibration(
+            args.out,
+            grid=args.grid,
+            targets=args.targets,
+            speeds=args.speeds,
+            masses=args.masses,
+            keep_logs=not args.discard_logs,
+            progress=progress,
+        )
+    finally:
+        progress.close()
     return result.exit_code

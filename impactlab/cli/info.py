@@ -10,18 +10,25 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `info` subcommand."""
     info = sub.add_parser("info", help="print what logs hold (run, outcome, channels)")
-    info.add_argument("logs", nargs="+", type=Path, metavar="LOG")
+    info.add_argument("logs", nargs="+", type=Path, metavar="LOG", help="logs, folders or globs")
     info.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    """Describe each log; one error line per log that cannot be read (exit 1)."""
+    """Describe each log; one error line per log that cannot be read (exit 1); none that can:
+    one line, exit 2."""
+    from impactlab.cli.inputs import check_log_inputs
     from impactlab.errors import ImpactlabError
     from impactlab.logs.info import describe
+    from impactlab.logs.inputs import require_logs
     from impactlab.text import terminal_text
 
-    failed = 0
-    for i, path in enumerate(args.logs):
+    check_log_inputs(args.logs)
+    paths, empty = require_logs(args.logs)
+    for where, why in empty:
+        print(terminal_text(f"impactlab: error: {where}: {why}"), file=sys.stderr)
+    failed = len(empty)
+    for i, path in enumerate(paths):
         try:
             text = describe(path)
         except ImpactlabError as exc:

@@ -34,7 +34,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         default="medium",
         help="restitution calibration grid for the report (medium: 181 runs, about 30 s)",
     )
-    add_executor_options(p)
+    add_executor_options(p, default="processes")  # as analyze: workers for the analysis
     p.set_defaults(func=run)
 
 

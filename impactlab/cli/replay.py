@@ -53,6 +53,15 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the recordings (and stream or serve them); exit 1 when a log failed."""
+    from impactlab.cli.inputs import check_log_inputs
+
+    logs = list(args.logs)
+    connect = args.connect
+    if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
+        logs.append(Path(connect))
+        connect = DEFAULT_URL
+    check_log_inputs(logs)
+
     import rerun as rr
 
     from impactlab.errors import ImpactlabError, LogError
@@ -60,11 +69,6 @@ def run(args: argparse.Namespace) -> int:
     from impactlab.progress import console_progress
     from impactlab.replay.recordings import replay_logs
 
-    logs = list(args.logs)
-    connect = args.connect
-    if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
-        logs.append(Path(connect))
-        connect = DEFAULT_URL
     paths, empty = require_logs(logs)
     failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
     for error in failed:

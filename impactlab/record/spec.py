@@ -8,12 +8,13 @@ path (`set_path`), and the result is validated as a whole against the schema int
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import tomllib
 import types
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,7 @@ from impactlab.record.schema import (
     Contact,
     Options,
     Plane,
+    Section,
     SpecDocument,
     Stop,
     defaults,
@@ -39,7 +41,7 @@ from impactlab.record.schema import (
 
 __all__ = ["Body", "Contact", "Options", "Plane", "RunSpec", "Stop"]
 
-SPEC_TOP_KEYS = ("name", "description", *SECTIONS, "bodies")
+SPEC_TOP_KEYS = ("name", "description", *SECTIONS, "bodies", "sweep")
 MAX_SPEC_BYTES = 10_000_000  # a spec file larger than this is not a spec
 
 
@@ -102,9 +104,9 @@ def merge_defaults(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
     Unknown keys and sections that are not tables fail here; values are checked by
     `validate` once overrides and the sweep point are applied.
     """
-    unknown = sorted(set(raw) - set(SPEC_TOP_KEYS) - {"sweep"})
+    unknown = sorted(set(raw) - set(SPEC_TOP_KEYS), key=str)
     if unknown:
-        raise SpecError(source, unknown[0], f"unknown key (known: {', '.join(SPEC_TOP_KEYS)})")
+        raise SpecError(source, unknown[0], unknown_key(unknown[0], SPEC_TOP_KEYS))
     doc: dict[str, Any] = {"name": raw.get("name", Path(source).stem)}
     doc["description"] = raw.get("description", "")
     for section, schema in SECTIONS.items():
@@ -131,8 +133,38 @@ def _reject_unknown(
 ) -> None:
     unknown = sorted(set(given) - set(known), key=str)
     if unknown:
-        names = ", ".join(known)
-        raise SpecError(src, f"{section}.{unknown[0]}", f"unknown key (known: {names})")
+        raise SpecError(src, f"{section}.{unknown[0]}", unknown_key(unknown[0], known))
+
+
+def unknown_key(key: object, known: Iterable[str]) -> str:
+    """The problem of a key that is not in `known`: the closest known one, and all of them."""
+    return f"unknown key{did_you_mean(str(key), known)} (known: {', '.join(known)})"
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`, did you mean 'x'?` for the known name closest to a misspelt one, or ''."""
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f", did you mean {close[0]!r}?" if close else ""
+
+
+def value_paths(doc: Mapping[str, Any]) -> list[str]:
+    """Every dotted path a `--set` or `[sweep]` key can name in `doc` (bodies by name)."""
+
+    def fields(section: type[Section], prefix: str) -> Iterable[str]:
+        for name, info in section.model_fields.items():
+            annotation = info.annotation
+            if isinstance(annotation, type) and issubclass(annotation, Section):
+                yield from fields(annotation, f"{prefix}{name}.")
+            else:
+                yield f"{prefix}{name}"
+
+    paths = [key for key in ("name", "description") if key in doc]
+    for section, schema in SECTIONS.items():
+        if section in doc:
+            paths += fields(schema, f"{section}.")
+    for body in doc.get("bodies", {}):
+        paths += fields(BodySpec, f"{body}.")
+    return paths
 
 
 def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
@@ -151,11 +183,15 @@ def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str
     """
     keys = resolve_path(doc, path)
     if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in doc.get("bodies", {}):
-        known = ", ".join(doc.get("bodies", {}))
-        raise SpecError(source, path, f"unknown body {keys[1]!r} (known: {known})")
+        bodies = list(doc.get("bodies", {}))
+        hint = did_you_mean(keys[1], bodies)
+        raise SpecError(
+            source, path, f"unknown body {keys[1]!r}{hint} (known: {', '.join(bodies)})"
+        )
     found = field_info(keys)
     if found is None:
-        raise SpecError(source, path, f"unknown field {'.'.join(keys)!r}")
+        hint = did_you_mean(path, value_paths(doc))
+        raise SpecError(source, path, f"unknown field {'.'.join(keys)!r}{hint}")
     kind, what = found
     if kind == "table":
         fields = ", ".join(what.model_fields) if what is not None else "bodies.NAME.FIELD"

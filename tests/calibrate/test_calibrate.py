@@ -344,7 +344,7 @@ def test_a_failed_calibration_leaves_no_folder_it_created(tmp_path, monkeypatch,
         out.mkdir()
         (out / "mine.txt").write_text("kept")
 
-    def broken(grid, out_dir, *, echo):
+    def broken(grid, out_dir, *, echo, progress):
         (out_dir / "specs").mkdir()
         (out_dir / "specs" / "a.toml").write_text("")
         raise FileNotFoundError("restitution_table.json")

@@ -68,26 +68,25 @@ def test_outputs_written(logs, tmp_path):
 
 @pytest.mark.slow
 def test_bad_inputs(logs, tmp_path, capsys):
-    """Not MCAP, truncated, no impactlab channels, missing: one line each; exit 1; rest analyzed."""
+    """Found in a folder: not MCAP, truncated, no impactlab channels: one line each; exit 1;
+    the rest analyzed (a named input that is missing or no log is exit 2: test_exit_codes.py)."""
     bad = tmp_path / "bad"
     bad.mkdir()
     (bad / "text.mcap").write_text("hello, not a log\n")
     _not_impactlab_mcap(bad / "other.mcap")
     data = logs["drop"].read_bytes()
     (bad / "truncated.mcap").write_bytes(data[: len(data) // 2])
-    missing = tmp_path / "missing.mcap"
     out = tmp_path / "results"
-    code = main(["analyze", str(bad), str(logs["hit"]), str(missing), "-o", str(out)])
+    code = main(["analyze", str(bad), str(logs["hit"]), "-o", str(out)])
     lines = capsys.readouterr().err.strip().splitlines()
     assert code == 1
     err = [line for line in lines if not line.startswith("impactlab: warning: ")]
-    assert len(err) == 3, lines
+    assert len(err) == 2, lines
     assert all(line.startswith("impactlab: error: ") for line in err)
     (warning,) = [line for line in lines if line not in err]
     assert "truncated.mcap: partial log" in warning
     assert any("text.mcap" in line and "not an MCAP" in line for line in err)
     assert any("other.mcap" in line and "not an impactlab log" in line for line in err)
-    assert any("missing.mcap" in line and "not found" in line for line in err)
     runs = pl.read_parquet(out / "runs.parquet")
     assert runs.height == 2  # the collision and what could be read of the truncated drop
     partial = runs.filter(pl.col("partial"))

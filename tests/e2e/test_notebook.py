@@ -1,6 +1,6 @@
-"""Notebooks: examples/quickstart.ipynb runs in a real Jupyter kernel (nbclient); results show
-as one line and small escaped HTML tables; verbose=True draws tqdm.auto's bar; an inline
-replay holds the same recording `impactlab replay` writes."""
+"""Notebooks: examples/quickstart.ipynb runs in a real Jupyter kernel (nbclient) from examples/
+and from any folder; results show as one line and small escaped HTML tables; verbose=True
+draws tqdm.auto's bar; an inline replay holds the same recording `impactlab replay` writes."""
 
 from __future__ import annotations
 
@@ -11,10 +11,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import nbformat
 import pytest
 import rerun as rr
-from nbclient import NotebookClient
 from paths import ROOT
 
 import impactlab
@@ -22,7 +20,7 @@ from impactlab.analyze.tables.combine import AnalysisResult
 from impactlab.progress import ConsoleProgress, ProgressEvent, in_notebook, reporter
 from impactlab.replay.notebook import NotebookReplay, Recordings
 
-pytestmark = pytest.mark.slow  # a Jupyter kernel
+pytestmark = [pytest.mark.slow, pytest.mark.extras]  # a Jupyter kernel (the notebook extra)
 
 NOTEBOOK = ROOT / "examples" / "quickstart.ipynb"
 RERUN = Path(sys.executable).parent / "rerun"
@@ -55,9 +53,18 @@ def _kernel(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
     return "impactlab-test"
 
 
-def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path, monkeypatch):
-    work = tmp_path / "work"
-    shutil.copytree(ROOT / "experiments", work / "experiments")
+@pytest.mark.parametrize("where", ["examples", "elsewhere"])
+def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path, monkeypatch, where):
+    """Opened from `examples/` (Jupyter's working folder is the notebook's) or from any other
+    folder, as after a pip install: no `experiments/` beside it, the packaged specs are read."""
+    work = tmp_path / where
+    work.mkdir()
+    if where == "examples":
+        shutil.copy(NOTEBOOK, work)
+    assert not (work / "experiments").exists() and not (tmp_path / "experiments").exists()
+    import nbformat
+    from nbclient import NotebookClient
+
     nb = nbformat.read(NOTEBOOK, as_version=4)
     assert all(not c.get("outputs") for c in nb.cells if c.cell_type == "code"), "stored outputs"
     client = NotebookClient(
@@ -67,6 +74,10 @@ def test_the_quickstart_notebook_runs_in_a_kernel(tmp_path, monkeypatch):
         resources={"metadata": {"path": str(work)}},
     )
     client.execute()  # raises CellExecutionError with the cell's traceback when a cell fails
+
+    # the specs as installed: every experiment the package ships
+    listed = _result(_outputs(nb, "import impactlab"))["text/plain"]
+    assert all(p.name in listed for p in (ROOT / "experiments").glob("*.toml"))
 
     # record: a progress widget, the runs' lines, the result as one line and a table
     record = _outputs(nb, "runs = impactlab.record(")

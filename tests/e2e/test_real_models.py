@@ -22,15 +22,16 @@ from impactlab.analyze.measure.bounces import E_ABOVE_ONE
 from impactlab.cli import main
 from impactlab.logs.load import RunLog, load_log
 
-pytestmark = pytest.mark.slow  # real robot models (dm_control)
+pytestmark = [pytest.mark.slow, pytest.mark.extras]  # real robot models (the models extra)
 
 ENERGY_RTOL = 1e-6  # of the largest |MuJoCo total| of the run, at every logged step
 
 
 def package_dir(name: str) -> Path:
+    """Where an installed package lies (dm_control: the models extra; these tests are marked
+    `extras`, so they are collected, and deselected, without it)."""
     spec = importlib.util.find_spec(name)
-    assert spec is not None and spec.origin, f"{name} is a test dependency (pyproject [test])"
-    return Path(spec.origin).parent
+    return Path(spec.origin).parent if spec is not None and spec.origin else Path(f"<no {name}>")
 
 
 SUITE = package_dir("dm_control") / "suite"

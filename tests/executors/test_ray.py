@@ -14,7 +14,6 @@ from pathlib import Path
 
 import polars as pl
 import pytest
-import ray
 from polars.testing import assert_frame_equal
 from specs import drop, toml
 
@@ -25,7 +24,7 @@ from impactlab.executors.choose import RAY_INSTALL_HINT
 from impactlab.record import plan, record_runs
 from impactlab.record.tasks import task_groups
 
-pytestmark = pytest.mark.slow  # a local Ray cluster
+pytestmark = [pytest.mark.slow, pytest.mark.extras]  # a local Ray cluster (the ray extra)
 
 # Four short drops; solref [2, 1] is so soft that the ball sinks through the floor (unstable).
 SPEC = toml(
@@ -45,6 +44,8 @@ TABLES = ("runs", "bounces", "collisions", "energy", "phases")
 @pytest.fixture(scope="module")
 def ray_executor(tmp_path_factory):
     """A RayExecutor on a local 2-CPU Ray instance started for this module."""
+    import ray
+
     from impactlab.executors.ray import RayExecutor
 
     os.environ.setdefault("RAY_DISABLE_IMPORT_WARNING", "1")
@@ -197,6 +198,8 @@ def test_a_task_that_raises_fails_its_item_with_the_reason(ray_executor):
 
 
 def test_cli_on_a_running_cluster_by_address_then_resume(ray_executor, spec_path, tmp_path):
+    import ray
+
     address = ray.get_runtime_context().gcs_address
     out = tmp_path / "logs"
     cli = "import sys; from impactlab.cli import main; sys.exit(main())"

@@ -30,6 +30,7 @@ from impactlab.cli import main
 from impactlab.errors import LogError
 from impactlab.logs.info import describe
 from impactlab.logs.load import RunLog, load_log
+from impactlab.logs.reader import MAGIC
 from impactlab.proto import impactlab_pb2 as pb
 
 SPEC = toml(drop("fragile", z=0.3, max_time=0.6))
@@ -189,10 +190,12 @@ def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
     out = tmp_path / "results"
 
     # analyze: the complete part is analyzed and marked partial; no data at all is an error
+    # (not even MCAP's magic bytes, the only input: nothing to do, exit 2, nothing created)
     code, stdout, err = run_cli(capsys, "analyze", str(bad), "-o", str(out))
     if cut in NO_DATA:
-        assert code == 1
+        assert code == (2 if offset < 8 else 1)
         assert_error_line(err, bad)
+        assert offset >= 8 or not out.exists()
     else:
         assert code == 0, err
         runs = pl.read_parquet(out / "runs.parquet")
@@ -208,7 +211,7 @@ def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
 
     # info reads the summary: a truncated log has none
     code, stdout, err = run_cli(capsys, "info", str(bad))
-    assert code == 1
+    assert code == (2 if offset < 8 else 1)
     problem = assert_error_line(err, bad)
     if offset >= 8:
         assert "truncated" in problem or "summary" in problem
@@ -226,7 +229,7 @@ def test_truncated_log(tmp_path, capsys, intact, layout, reference, cut):
     # replay: a recording of the complete part, with a warning; nothing for no data
     code, stdout, err = run_cli(capsys, "replay", str(bad), "-o", str(tmp_path / "rrd"))
     if cut in NO_DATA:
-        assert code == 1
+        assert code == (2 if offset < 8 else 1)
         assert_error_line(err, bad)
         assert not list(tmp_path.glob("rrd/*.rrd"))
     else:
@@ -505,10 +508,11 @@ def test_not_mcap(tmp_path, capsys, name, content):
     path = tmp_path / name
     path.write_bytes(content)
     for argv, expected in (
-        (["analyze", str(path), "-o", str(tmp_path / "out")], 1),
-        (["info", str(path)], 1),
+        # the only input, without MCAP's magic: nothing to do (2); with it, a damaged log (1)
+        (["analyze", str(path), "-o", str(tmp_path / "out")], 1 + (content[:8] != MAGIC)),
+        (["info", str(path)], 1 + (content[:8] != MAGIC)),
         (["diff", str(path), str(path)], 2),
-        (["replay", str(path), "-o", str(tmp_path / "rrd")], 1),
+        (["replay", str(path), "-o", str(tmp_path / "rrd")], 1 + (content[:8] != MAGIC)),
     ):
         code, _, err = run_cli(capsys, *argv)
         assert code == expected, (argv, err)
@@ -519,13 +523,13 @@ def test_not_mcap(tmp_path, capsys, name, content):
 def test_missing_and_folder(tmp_path, capsys):
     missing = tmp_path / "missing.mcap"
     code, _, err = run_cli(capsys, "info", str(missing))
-    assert code == 1 and "file not found" in assert_error_line(err, missing)
+    assert code == 2 and "file not found" in assert_error_line(err, missing)
     code, _, err = run_cli(capsys, "diff", str(missing), str(missing))
     assert code == 2
     folder = tmp_path / "folder.mcap"
     folder.mkdir()
     code, _, err = run_cli(capsys, "info", str(folder))
-    assert code == 1 and "folder" in assert_error_line(err, folder)
+    assert code == 2 and "folder" in assert_error_line(err, folder)
 
 
 @pytest.mark.slow
