@@ -22,7 +22,7 @@ def _blocks(rng: np.random.Generator, n: int, subset_times: bool) -> list[Block]
         Block(3, t, rng.normal(size=(n, 2)), clearance),
     ]
     for k, mine in ((1, one), (2, two)):
-        layout = messages.contact("a", "b", "A", "B", k)
+        layout = messages.clearance(13 * k)  # a multi-slot layout, as a step's contacts were
         values = rng.normal(size=(int(mine.sum()), 13 * k))
         blocks.append(Block(4, t[mine], values, layout))
     blocks.append(Block(5, t, rng.normal(size=(n, 3)), messages.energy()))

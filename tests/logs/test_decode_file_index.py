@@ -5,6 +5,7 @@ with the official mcap reader), on the golden logs and on logs of several experi
 
 from __future__ import annotations
 
+import json
 from collections import defaultdict
 from pathlib import Path
 
@@ -104,12 +105,18 @@ def _reference(path: Path) -> dict[str, pl.DataFrame]:
             elif schema.name == "impactlab.Energy" and channel.topic == "/energy":
                 m = pb.Energy.FromString(data)
                 rows["energy"].append([t, *(getattr(m, f) for f in ENERGY_FIELDS)])
-            elif schema.name == "impactlab.Contact":
-                m = pb.Contact.FromString(data)
-                for i, p in enumerate(m.points):
+            elif schema.name == "impactlab.Contacts":  # sides: ids into the metadata's lists
+                geoms = json.loads(channel.metadata["geoms"])
+                bodies = json.loads(channel.metadata["bodies"])
+                for i, p in enumerate(pb.Contacts.FromString(data).points):
+                    g1, g2, b1, b2 = (
+                        geoms[p.geom1],
+                        geoms[p.geom2],
+                        bodies[p.geom1],
+                        bodies[p.geom2],
+                    )
                     values = (getattr(p, f) for f in POINT_FIELDS)
-                    key = f"contacts:{m.geom1}/{m.geom2}"
-                    rows[key].append([t, m.geom1, m.geom2, m.body1, m.body2, i, *values])
+                    rows[f"contacts:{g1}/{g2}"].append([t, g1, g2, b1, b2, i, *values])
             elif schema.name == "impactlab.Clearance":
                 m = pb.Clearance.FromString(data)
                 body = channel.metadata.get("body", "")
@@ -151,7 +158,7 @@ def test_a_fixed_byte_changed_in_any_block_is_another_layout():
     wherever it is, and every double comes back in its column."""
     from impactlab.logs import codec, messages
 
-    layout = messages.contact("plane", "ball", "world", "ball", 2)
+    layout = messages.clearance(26)
     n = 3 * codec.CHECK_BLOCK_BYTES // int(layout.fixed.sum()) + 5  # over three blocks
     values = np.arange(n * layout.slots.size, dtype=np.float64).reshape(n, -1)
     payloads = layout.encode(values)
