@@ -60,7 +60,7 @@ FREE_TEXT = {
 }
 # values of the wrong type or out of range, per kind of key (any string is a valid free text)
 BAD = {
-    "log_format_version": ["3", "", "1.0", "2.0"],
+    "log_format_version": ["4", "", "1.0", "2.0", "three"],
     "run_id": ["", "   "],
     "spec": ["7", '"x"', "[1, 2]", "{", '{"bodies": [1]}', '{"contact": 3}', "[" * 3000],
     "sweep": ["7", "null", "[]", "{"],
@@ -211,7 +211,11 @@ def test_every_key_wrong_missing_or_out_of_range(tmp_path, records, intact, case
     assert run.partial
     line = next(p for p in run.problems if p.startswith(f"metadata {key}: "))
     assert "\n" not in line
-    if key in ANALYSIS_KEYS:
+    if key == "log_format_version":  # no format known: no episodes or budget to trust
+        with pytest.raises(LogError, match="a log of format unknown: the analysis needs") as err:
+            analyze_run(run)
+        assert err.value.path == str(path)
+    elif key in ANALYSIS_KEYS:
         with pytest.raises(LogError, match=f"damaged metadata: .*{key}: ") as err:
             analyze_run(run)
         assert err.value.path == str(path)
