@@ -37,7 +37,10 @@ from impactlab.logs import format as logformat
 
 pytestmark = pytest.mark.slow  # headless Chromium, figures and Markdown of every hostile name
 
-TITLE = "Impact lab: analysis report"
+PAGES = {
+    "report.html": "Impact lab: free fall and impact",
+    "report-appendix.html": "Impact lab: appendix",
+}
 SCRIPT_BODY = "<img src=x onerror=\"document.title='PWNED'\">"
 SCRIPT_FLOOR = "<script>document.title='PWNED'</script>"
 SCRIPT_FILE = "<svg onload=document.title='PWNED'>"  # a legal file name (no slash)
@@ -210,7 +213,8 @@ def test_no_name_runs_script_in_the_page(tmp_path, spec_log):
     (its title stays), and each name reads in the page as written."""
     xml = tmp_path / f"{SCRIPT_FILE}.xml"
     xml.write_text(model(SCRIPT_FLOOR, [SCRIPT_BODY]))
-    (drop,) = record([xml], tmp_path / "logs", "--duration", "0.2")
+    # 0.25 s: not the same run as spec_log's (the report names a repeated run's bodies once)
+    (drop,) = record([xml], tmp_path / "logs", "--duration", "0.25")
     ball = spec_log
     crafted = rewrite(ball, tmp_path / "crafted.mcap", experiment=SCRIPT_BODY, run_id="crafted")
     unreadable = tmp_path / f"{SCRIPT_FILE}.mcap"
@@ -218,14 +222,16 @@ def test_no_name_runs_script_in_the_page(tmp_path, spec_log):
     out = tmp_path / "results"
     done = analyze([drop, ball, crafted, unreadable], out)
     assert done.returncode == 1, done.stderr  # one input could not be read, the others were
-    dom = browse(out / "report.html", tmp_path / "profile")
-    assert title(dom) == TITLE  # no onerror, onload or script ran
-    page = (out / "report.html").read_text(encoding="utf-8")
-    assert "<img" not in page and "<script" not in page and "<svg" not in page
-    shown = text_of(dom)
+    shown = ""
+    for name, expected_title in PAGES.items():  # the report and its appendix
+        dom = browse(out / name, tmp_path / "profile")
+        assert title(dom) == expected_title  # no onerror, onload or script ran
+        page = (out / name).read_text(encoding="utf-8")
+        assert "<img" not in page and "<script" not in page and "<svg" not in page
+        assert "<strong>init</strong>" not in dom and "<em>ball</em>" not in dom
+        shown += text_of(dom)
     for name in (SCRIPT_BODY, SCRIPT_FLOOR, SCRIPT_FILE, str(unreadable), "__init__", "_ball_"):
         assert name in shown, name
-    assert "<strong>init</strong>" not in dom and "<em>ball</em>" not in dom
 
 
 def test_no_name_puts_a_local_file_in_the_page(tmp_path):
@@ -259,15 +265,18 @@ def test_no_name_loads_a_url_or_makes_a_heading(tmp_path, server):
     out = tmp_path / "results"
     done = analyze(logs, out)
     assert done.returncode == 0, done.stderr.decode(errors="replace")[-2000:]
-    page = out / "report.html"
-    dom = browse(page, tmp_path / "profile")
-    assert Requests.seen == []
-    assert "Content-Security-Policy" in page.read_text(encoding="utf-8")
-    shown = text_of(dom)
+    shown = ""
+    for name in PAGES:  # the report and its appendix
+        page = out / name
+        dom = browse(page, tmp_path / "profile")
+        assert Requests.seen == []
+        assert "Content-Security-Policy" in page.read_text(encoding="utf-8")
+        assert not re.search(r"<h\d[^>]*>\s*HEADING", dom)
+        shown += text_of(dom)
     assert all(name in shown for name in names)
-    report = (out / "report.md").read_text(encoding="utf-8")
-    assert not re.search(r"^\s*#+ HEADING", report, re.MULTILINE)
-    assert not re.search(r"<h\d[^>]*>\s*HEADING", dom)
+    for report in ("report.md", "report-appendix.md"):
+        text = (out / report).read_text(encoding="utf-8")
+        assert not re.search(r"^\s*#+ HEADING", text, re.MULTILINE)
     assert "floor\\n# HEADING\\n" in shown  # the newline shown as an escape
 
 

@@ -54,28 +54,39 @@ def assert_complete(path: Path) -> None:
 
 @pytest.mark.slow
 def test_unstable_run_in_a_sweep(tmp_path, capsys):
-    """The handout's positive solref with a tiny damping ratio pumps energy into the ball: that
-    run stops as unstable, is named on the console, and the job exits 1; the others complete."""
-    sweep = '[sweep]\n"contact.solref" = [[0.02, 1.0], [0.02, 0.003], [0.02, 0.5]]'
+    """A contact time constant of one step with a tiny damping ratio: the integrator creates
+    energy no force explains, so that run stops as unstable, is named on the console, and the
+    job exits 1; the others complete. The handout's positive solref with a tiny damping ratio
+    (0.003) pumps energy into the ball too, but through the contact's own force: its work is
+    booked to the contact, and that run completes."""
+    sweep = (
+        '[sweep]\n"contact.solref" = [[0.02, 1.0], [0.0005, 0.003], [0.02, 0.5], [0.02, 0.003]]'
+    )
     spec = spec_file(tmp_path, "wobbly", extra=sweep)
     out = tmp_path / "logs"
     code = main(["record", str(spec), "-o", str(out)])
     stdout, _ = capsys.readouterr()
     assert code == 1
-    assert "3 run(s) written" in stdout and "1 unstable" in stdout
+    assert "4 run(s) written" in stdout and "1 unstable" in stdout
     logs = sorted(out.glob("*.mcap"))
-    assert len(logs) == 3
+    assert len(logs) == 4
     outcomes = {p.name: official_meta(p)["impactlab.outcome"] for p in logs}
     (bad,) = [name for name, o in outcomes.items() if o["outcome"] == "unstable"]
-    assert "solref=0.02_0.003" in bad
-    assert "energy grew" in outcomes[bad]["reason"]
-    assert f"warning: {Path(bad).stem}: unstable: MuJoCo's energy grew" in stdout
+    assert "solref=0.0005_0.003" in bad
+    assert "energy grew by" in outcomes[bad]["reason"]
+    assert "that no force explains" in outcomes[bad]["reason"]
+    assert f"warning: {Path(bad).stem}: unstable: energy grew" in stdout
     for name, o in outcomes.items():
         if name != bad:
             assert o["outcome"] == "completed" and o["reason"] == "time limit 1 s"
     unstable = load_log(out / bad)
     assert not unstable.partial and unstable.outcome == "unstable"
     assert unstable.bodies["ball"]["t_s"].max() < 0.5  # stopped early, at the blow-up
+    (pumped,) = [p for p in logs if "solref=0.02_0.003" in p.name]
+    run = load_log(pumped)
+    gained = run.energy["total"][-1] - run.energy["total"][0]
+    assert gained > 100 * run.energy["total"][0]  # the contact made energy ...
+    assert run.work["contact_normal"][-1] == pytest.approx(gained, rel=0.01)  # ... and did work
     # the analysis keeps the run, with its outcome
     code = main(["analyze", str(out), "-o", str(tmp_path / "results")])
     capsys.readouterr()
@@ -83,7 +94,7 @@ def test_unstable_run_in_a_sweep(tmp_path, capsys):
     import polars as pl
 
     runs = pl.read_parquet(tmp_path / "results" / "runs.parquet")
-    assert sorted(runs["outcome"].to_list()) == ["completed", "completed", "unstable"]
+    assert sorted(runs["outcome"].to_list()) == ["completed"] * 3 + ["unstable"]
 
 
 def test_penetration_bound(tmp_path, capsys):
