@@ -18,7 +18,6 @@ from specs import collision, drop, toml
 
 from impactlab.analyze import batch as batch_module
 from impactlab.analyze.batch import analyze_some, batches, distinct_batches
-from impactlab.analyze.measure import analysis as analysis_module
 from impactlab.analyze.measure.analysis import RunAnalysis, analyze_run, analyze_runs
 from impactlab.analyze.tables import decimate as outputs
 from impactlab.errors import LogError
@@ -165,9 +164,9 @@ def test_energy_decimated_from_blocks_as_by_groups(monkeypatch):
         assert_frame_equal(general.energy, outputs.decimate(shuffled.energy, max_rows=50))
 
 
-def test_runs_whose_frames_do_not_stack_are_analyzed_each_alone(alone):
-    """A log whose episodes have another column type (a foreign producer) cannot be
-    stacked with the others: the batch falls back to one run at a time, same results."""
+def test_runs_whose_frames_differ_in_type_are_analyzed_as_alone(alone):
+    """A log whose episodes have another column type (a foreign producer): the same
+    results as each run analyzed alone."""
     runs = [load_log(p) for p in LOGS]
     drops = [i for i, p in enumerate(LOGS) if p.stem.startswith("drop_")]
     assert len(drops) == 2  # two runs of one kind (a ball on the plane): stacked together
@@ -175,9 +174,6 @@ def test_runs_whose_frames_do_not_stack_are_analyzed_each_alone(alone):
     runs[drops[0]] = dataclasses.replace(
         odd, impacts=odd.impacts.with_columns(pl.col("steps").cast(pl.Int32))
     )
-    grounds = {r.run_id: analysis_module._check(r) for r in runs}
-    with pytest.raises(pl.exceptions.SchemaError):
-        analysis_module._analyze([runs[i] for i in drops], grounds)
     for a, b in zip(analyze_runs(runs), alone, strict=True):
         same(a, b)
 

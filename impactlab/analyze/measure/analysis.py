@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.bounces import bounces, no_bounce_rows
+from impactlab.analyze.measure.bounces import TARGET_SCHEMA, bounces, no_bounce_rows
 from impactlab.analyze.measure.collisions import (
     COLLISION_SCHEMA,
     collisions,
@@ -194,7 +194,10 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
     articulated = [
         (r.run_id, b) for r in runs for b, i in r.body_info.items() if i.motion != "free"
     ]
-    found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated)
+    targets = pl.DataFrame(
+        [row for run in runs for row in _target_rows(run)], schema=TARGET_SCHEMA, orient="row"
+    )
+    found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated, targets=targets)
     states_of = _run_slices(states)
     bnc = _with_no_bounce_rows(runs, grounds, states_of, found, on_ground)
     bounces_of, phases_of, eps_of = by_run(bnc), by_run(phases), by_run(eps)
@@ -243,6 +246,28 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
             )
         )
     return out
+
+
+def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]:
+    """The run's calibrated pairs (`TARGET_SCHEMA` rows) by the parties their geoms belong
+    to, as the log's contacts name them (both orders); a pair that never touched has none."""
+    if not run.contact_targets or run.contacts.is_empty():
+        return []
+    party = dict(
+        run.contacts.select(pl.concat_list("geom1", "geom2"), pl.concat_list("body1", "body2"))
+        .explode(pl.all())
+        .unique()
+        .iter_rows()
+    )
+    rows = []
+    for t in run.contact_targets:
+        a, b = party.get(t.geom1), party.get(t.geom2)
+        if a is None or b is None or t.speed_range_mps is None:
+            continue
+        low, high = t.speed_range_mps
+        rows += [(run.run_id, a, b, t.restitution, low, high)]
+        rows += [(run.run_id, b, a, t.restitution, low, high)]
+    return rows
 
 
 def _budget(run: RunLog, total: pl.DataFrame) -> pl.DataFrame:

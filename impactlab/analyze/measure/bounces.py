@@ -20,6 +20,7 @@ BOUNCE_SCHEMA = pl.Schema(
         "e_velocity": pl.Float64,
         "e_energy": pl.Float64,
         "e_basis": pl.String,
+        "target_e": pl.Float64,
         "apex_before_m": pl.Float64,
         "apex_m": pl.Float64,
         "apex_predicted_m": pl.Float64,
@@ -31,6 +32,17 @@ BOUNCE_SCHEMA = pl.Schema(
         "note": pl.String,
     }
 )
+TARGET_SCHEMA = pl.Schema(
+    {
+        "run_id": pl.String,
+        "body": pl.String,
+        "other": pl.String,
+        "target": pl.Float64,
+        "low_mps": pl.Float64,
+        "high_mps": pl.Float64,
+    }
+)
+"""A calibrated pair of a run: its target e over its speed range (the log's contact_targets)."""
 TURNING = (
     "the body turns in flight (its lowest point moves relative to its centre of mass), so "
     "apex heights do not measure e"
@@ -51,6 +63,7 @@ def bounces(
     *,
     gravity_n: pl.Expr,
     articulated: list[tuple[str, str]],
+    targets: pl.DataFrame,
 ) -> pl.DataFrame:
     """One row per bounce: a body's impact episode on a surface (see docs/analysis.md).
 
@@ -61,6 +74,8 @@ def bounces(
         gravity_n: gravity along the release normal towards the surface (m/s^2), an
             expression over `episodes`.
         articulated: (run_id, body) of the bodies that are not ballistic.
+        targets: the calibrated pairs (`TARGET_SCHEMA`): a bounce in its pair's speed range
+            gets the pair's target e, any other none.
 
     Returns:
         Columns of `BOUNCE_SCHEMA`, sorted by run, body, surface and bounce.
@@ -99,6 +114,7 @@ def bounces(
             how="left",
             maintain_order="left",
         )
+        .join(targets, on=["run_id", "body", "other"], how="left", maintain_order="left")
         .with_columns(
             (pl.int_range(pl.len()).over("run_id", "body", "other") + 1).alias("bounce"),
             gravity_n.alias("g_n"),
@@ -139,6 +155,9 @@ def bounces(
             .when(e_energy().is_not_null())
             .then(pl.lit("energy"))
             .alias("e_basis"),
+            pl.when((-pl.col("v_in_mps")).is_between(pl.col("low_mps"), pl.col("high_mps")))
+            .then(pl.col("target"))
+            .alias("target_e"),
             pl.col("apex_b").alias("apex_before_m"),
             pl.col("apex").alias("apex_m"),
             pl.when(complete & ballistic & level & (pl.col("g_n") > 0))

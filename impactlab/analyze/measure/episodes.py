@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 import polars as pl
 
+from impactlab.logs.decode import IMPACT_SCHEMA
 from impactlab.logs.load import RunLog
 from impactlab.physics import min_impact_speed
 
@@ -43,14 +44,12 @@ def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
         pz_out), first_row, last_row (the logged rows inside it), and the sides' states
         `s1_*`, `s2_*` as recorded), by run and time.
     """
-    frames = [run.impacts for run in runs if run.impacts.height]
-    if not frames:
-        return _empty()
     v_min = {
         run.run_id: min_impact_speed(float(np.linalg.norm(run.gravity)), run.timestep_s)
         for run in runs
     }
-    raw = pl.concat(frames)
+    empty = pl.DataFrame(schema=IMPACT_SCHEMA)  # the columns even when no run has an episode
+    raw = pl.concat([empty, *(run.impacts for run in runs)], how="vertical_relaxed")
     ground = (pl.col("kind1") == "body") & (pl.col("kind2") == "surface")
     body = (pl.col("kind1") == "body") & (pl.col("kind2") == "body")
     flip = pl.when(ground).then(-1.0).otherwise(1.0)  # normals from the surface to the body
@@ -105,16 +104,3 @@ def _with_rows(frame: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
         last[i] = np.searchsorted(t, end[i], side="left") - 1
     return frame.with_columns(pl.Series("first_row", first), pl.Series("last_row", last))
 
-
-def _empty() -> pl.DataFrame:
-    strings = ("run_id", "kind", "body", "other")
-    floats: tuple[str, ...] = ("impact_t_s", "release_t_s", "v_in_mps", "v_out_mps", "v_min_mps")
-    floats += ("work_c_J", "work_r_J", "work_f_J", "peak_force_N", "impulse_Ns")
-    floats += ("max_penetration_m",)
-    floats += tuple(f"{v}{c}_{w}" for v in "np" for w in ("out", "in") for c in "xyz")
-    schema: dict[str, pl.DataType] = {k: pl.String() for k in strings}
-    schema |= {"start_t_ns": pl.Int64(), "end_t_ns": pl.Int64()}
-    schema |= {k: pl.Float64() for k in floats}
-    schema |= {"initial": pl.Boolean(), "open": pl.Boolean(), "impact": pl.Boolean()}
-    schema |= {"first_row": pl.Int64(), "last_row": pl.Int64()}
-    return pl.DataFrame(schema=schema)

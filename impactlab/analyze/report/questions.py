@@ -150,9 +150,22 @@ def restitution(t: Tables) -> Answer:
     if t.bounces.is_empty():
         return not_answered("no run has a bounce")
     done = t.bounces.filter(pl.col("complete") & pl.col("e_velocity").is_not_null())
+    if done.is_empty():
+        hits = t.bounces.filter(pl.col("v_in_mps").is_not_null())
+        return not_answered(
+            f"no rebound: {hits.height} impact(s) in {hits['run_id'].n_unique()} run(s), each "
+            "body still on its surface at the end"
+            if hits.height
+            else "no run has a bounce"
+        )
     e = pl.col("e_velocity")
+    # a calibrated pair is judged in its speed range (its bounces with a target e)
+    pair = ("run_id", "run", "body", "surface")
+    calibrated = pl.col("target_e").is_not_null().any().over(pair)
+    outside = done.filter(calibrated & pl.col("target_e").is_null())
     spread = (
-        done.group_by("run_id", "run", "body", "surface", maintain_order=True)
+        done.filter(~calibrated | pl.col("target_e").is_not_null())
+        .group_by(pair, maintain_order=True)
         .agg(pl.len().alias("n"), (e.max() - e.min()).alias("s"))
         .filter(pl.col("n") >= 2)
     )
@@ -173,6 +186,13 @@ def restitution(t: Tables) -> Answer:
                 f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
             )
             short = f"not constant across bounces (spread up to {most})"
+        if outside.height and spread.height:
+            speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
+            es = span(outside["e_velocity"].to_list())
+            across += (
+                f" in the calibrated contacts' speed ranges; {outside.height} impact(s) outside"
+                f" them, at {speeds}, have e {es}"
+            )
     heights = [(name, *_height_words(s)) for name, s in t.studies.items()]
     heights = [h for h in heights if h[1]]
     against = " and ".join(f"{long} for {n}" for n, long, _ in heights)
