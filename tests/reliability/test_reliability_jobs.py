@@ -59,9 +59,7 @@ def test_unstable_run_in_a_sweep(tmp_path, capsys):
     job exits 1; the others complete. The handout's positive solref with a tiny damping ratio
     (0.003) pumps energy into the ball too, but through the contact's own force: its work is
     booked to the contact, and that run completes."""
-    sweep = (
-        '[sweep]\n"contact.solref" = [[0.02, 1.0], [0.0005, 0.003], [0.02, 0.5], [0.02, 0.003]]'
-    )
+    sweep = '[sweep]\n"contact.solref" = [[0.02, 1.0], [0.0005, 0.003], [0.02, 0.5], [0.02, 0.003]]'
     spec = spec_file(tmp_path, "wobbly", extra=sweep)
     out = tmp_path / "logs"
     code = main(["record", str(spec), "-o", str(out)])

@@ -253,12 +253,10 @@ def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]
     to, as the log's contacts name them (both orders); a pair that never touched has none."""
     if not run.contact_targets or run.contacts.is_empty():
         return []
-    party = dict(
-        run.contacts.select(pl.concat_list("geom1", "geom2"), pl.concat_list("body1", "body2"))
-        .explode(pl.all())
-        .unique()
-        .iter_rows()
+    sides = run.contacts.select(
+        geom=pl.concat_list("geom1", "geom2"), party=pl.concat_list("body1", "body2")
     )
+    party: dict[str, str] = dict(sides.explode("geom", "party").unique().iter_rows())
     rows = []
     for t in run.contact_targets:
         a, b = party.get(t.geom1), party.get(t.geom2)

@@ -103,4 +103,3 @@ def _with_rows(frame: pl.DataFrame, rows: pl.DataFrame) -> pl.DataFrame:
         first[i] = np.searchsorted(t, start[i], side="left")
         last[i] = np.searchsorted(t, end[i], side="left") - 1
     return frame.with_columns(pl.Series("first_row", first), pl.Series("last_row", last))
-

@@ -189,10 +189,7 @@ def restitution(t: Tables) -> Answer:
         if outside.height and spread.height:
             speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
             es = span(outside["e_velocity"].to_list())
-            across += (
-                f" in the calibrated contacts' speed ranges; {outside.height} impact(s) outside"
-                f" them, at {speeds}, have e {es}"
-            )
+            across += f" in the calibrated speed range (outside it: e {es} at {speeds})"
     heights = [(name, *_height_words(s)) for name, s in t.studies.items()]
     heights = [h for h in heights if h[1]]
     against = " and ".join(f"{long} for {n}" for n, long, _ in heights)

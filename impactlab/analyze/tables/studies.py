@@ -151,12 +151,15 @@ def study_table(runs: pl.DataFrame, experiment: str) -> pl.DataFrame:
     """One row per run of a swept experiment: its varying parameters and its results."""
     params = study_parameters(runs, experiment)
     sub = with_parameters(runs).filter(pl.col("experiment") == experiment)
+    dropped = _defined(sub, "first_impact_speed_mps")  # bounce results for drops only
     results = [
-        c
-        for c in (*BOUNCE_RESULTS, *COLLISION_RESULTS)
-        if c in sub.columns and sub[c].drop_nulls().len() > 0
+        c for c in (*(BOUNCE_RESULTS if dropped else ()), *COLLISION_RESULTS) if _defined(sub, c)
     ]
     return sub.select("run_id", *params, *results, "partial", "note").sort(params or "run_id")
+
+
+def _defined(frame: pl.DataFrame, column: str) -> bool:
+    return column in frame.columns and frame[column].drop_nulls().len() > 0
 
 
 def studies(runs: pl.DataFrame) -> dict[str, pl.DataFrame]:
