@@ -51,7 +51,7 @@ def run_analysis(
         NoLogs: no input names any log (exit code 2); an input among others that names none
             is reported as failed.
     """
-    paths, empty = require_log_names(inputs)
+    paths, empty = require_log_names(inputs, text=True)  # log names go into the tables
     out = None if out_dir is None else Path(out_dir)
     if out is None:
         return _analysis(paths, empty, None, None, figures, report, executor, progress)
