@@ -15,6 +15,7 @@ import pytest
 from specs import drop, mjcf_drop, toml
 
 from impactlab.cli import main
+from impactlab.files import DEEPEST_BYTES
 
 NOT_TEXT = "the path is not UTF-8 text, which tables, reports and logs hold: rename it"
 BAD = os.fsdecode(b"caf\xe9")  # a Latin-1 name, as an old archive holds
@@ -46,6 +47,7 @@ def errors(err: str) -> list[str]:
     return [line for line in err.splitlines() if line.startswith("impactlab: error: ")]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", ["analyze", "replay"])
 def test_a_log_named_like_a_pattern_is_that_log(tmp_path, logs, capsys, monkeypatch, command):
     """`run[1].mcap` beside `run1.mcap` (which the pattern matches) is `run[1].mcap`."""
@@ -96,3 +98,18 @@ def test_names_that_are_not_text(tmp_path, logs):
     assert got == 0 and not errors(err)
     assert sorted(os.listdir(folder / "rrd")) == ["a.rrd", f"{BAD}.rrd"]
     assert f"wrote {SHOWN}/rrd/{SHOWN}.rrd" in out
+
+
+@pytest.mark.parametrize("command", ["record", "analyze", "replay"])
+def test_an_output_folder_too_deep_for_its_files_is_named(tmp_path, logs, capsys, command):
+    """An output folder whose path leaves no room under PATH_MAX for the files written in it:
+    one line naming the folder (before: the log, or a traceback), exit 2, nothing made."""
+    room = os.pathconf("/", "PC_PATH_MAX") - 1 - DEEPEST_BYTES
+    deep = tmp_path.joinpath(*["d" * 200] * (room // 201 + 1))
+    spec = tmp_path / "t.toml"
+    spec.write_text(toml(drop("t", max_time=0.01)))
+    given = str(spec) if command == "record" else str(logs[0])
+    assert main([command, given, "-o", str(deep)]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"impactlab: error: {deep}: the path is too long")
+    assert not (tmp_path / ("d" * 200)).exists()
