@@ -17,6 +17,7 @@ from pathlib import Path, PurePosixPath
 from impactlab.files import (
     NOT_TEXT,
     OutputError,
+    check_writable,
     full_disk_error,
     is_text,
     read_regular,
@@ -33,18 +34,19 @@ MAX_MANIFEST_BYTES = 256 << 20  # a sweep of 100,000 runs with figures lists abo
 
 @contextlib.contextmanager
 def staged(out: Path) -> Iterator[Path]:
-    """A private staging folder inside `out` (created), removed when the block ends: every
-    file of an analysis is written there, under its final relative path, until `publish`;
-    a full disk meanwhile is an `OutputError` naming `out`.
+    """A private staging folder inside `out` (checked, made), removed when the block ends:
+    every file of an analysis is written there, under its final relative path, until
+    `publish`; a full disk meanwhile is an `OutputError` naming `out`.
 
     Staging folders that analyses killed earlier left behind are removed first (their
     owner's lock is gone).
 
     Raises:
-        OutputError: it cannot be created.
+        OutputError: `out` cannot be written (`check_writable`), or its name is not text.
     """
     if not is_text(out):  # its paths go into the tables and the report
         raise OutputError(out, NOT_TEXT)
+    check_writable(out)
     remove_abandoned(out)
     try:
         stage = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
