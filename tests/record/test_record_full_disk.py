@@ -23,7 +23,7 @@ from pathlib import Path
 from impactlab.logs.status import complete_metadata
 disk, found, spec = sys.argv[1:]
 logs = os.path.join(disk, "logs")
-fill(disk, 100_000)  # room for three of the eight logs, more than their rows alone take
+fill(disk, 100_000)  # room for two of the eight logs, more than all their rows take
 refused = impactlab("record", spec, "-o", logs)
 listed = sorted(files(disk))  # every file but the filler
 tries = []
