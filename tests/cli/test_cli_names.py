@@ -113,3 +113,15 @@ def test_an_output_folder_too_deep_for_its_files_is_named(tmp_path, logs, capsys
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and err[0].startswith(f"impactlab: error: {deep}: the path is too long")
     assert not (tmp_path / ("d" * 200)).exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("length", [254, 255])
+def test_an_output_file_of_the_longest_name_is_written(tmp_path, logs, capsys, length):
+    """`replay -o NAME.rrd` with NAME.rrd of 254 and 255 bytes (its temporary name, cut to
+    fit, is never longer than a name may be): written, nothing else left beside it."""
+    out = tmp_path / ("é" * ((length - 4) // 2) + "x" * ((length - 4) % 2) + ".rrd")
+    assert len(os.fsencode(out.name)) == length
+    assert main(["replay", str(logs[0]), "-o", str(out)]) == 0
+    assert [p.name for p in tmp_path.iterdir()] == [out.name] and out.stat().st_size > 0
+    capsys.readouterr()
