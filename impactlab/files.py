@@ -21,9 +21,7 @@ from typing import Any
 from impactlab.errors import ImpactlabError
 
 NAME_MAX = 255  # bytes of one file name (Linux, macOS)
-DEEPEST_BYTES = 300
-"""Bytes impactlab writes below an output folder at most: a staging folder, `figures/` and a
-name of NAME_MAX bytes (`impactlab.analyze.publish`)."""
+DEEPEST_BYTES = 300  # below an output folder at most: a staging folder, figures/, a name
 FULL_BELOW_BYTES = 1 << 20  # a disk with less free is full for a write that failed on it
 FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # a full disk or quota, a file size limit
 NOT_TEXT = "the path is not UTF-8 text, which tables, reports and logs hold: rename it"
@@ -62,7 +60,7 @@ def open_regular(path: str | os.PathLike[str]) -> io.BufferedReader:
             `UnreadableInput`: not a regular file.
     """
     _check_regular(os.stat(path).st_mode, path)  # before opening: a socket cannot be opened
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     stream = open(fd, "rb")  # noqa: SIM115 (the caller's to close)
     try:
         _check_regular(os.fstat(fd).st_mode, path)  # and what was opened, as it may differ
