@@ -1,15 +1,17 @@
-"""Output files written safely: folders checked before any work, files renamed into place.
-
-Every file impactlab writes appears under its final name only when it is complete: it is
-written under a temporary name in the same folder (unique to the process) and renamed.
-"""
+"""Files read and written safely: inputs read only as bounded regular files, outputs renamed
+into place once complete, output folders checked before any work."""
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import io
 import json
 import math
 import os
+import re
+import secrets
+import stat
 import tempfile
 import textwrap
 from collections.abc import Iterator
@@ -17,6 +19,12 @@ from pathlib import Path
 from typing import Any
 
 from impactlab.errors import ImpactlabError
+
+NAME_MAX = 255  # bytes of one file name (Linux, macOS)
+DEEPEST_BYTES = 300  # below an output folder at most: a staging folder, figures/, a name
+FULL_BELOW_BYTES = 1 << 20  # a disk with less free is full for a write that failed on it
+FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)  # a full disk or quota, a file size limit
+NOT_TEXT = "the path is not UTF-8 text, which tables, reports and logs hold: rename it"
 
 
 class OutputError(ImpactlabError):
@@ -30,12 +38,74 @@ class OutputError(ImpactlabError):
         super().__init__(f"{path}: {problem}")
 
 
+class UnreadableInput(OSError):
+    """Not an input impactlab reads: not a regular file, or larger than its limit."""
+
+    def __str__(self) -> str:
+        return str(self.strerror)
+
+
+def is_text(path: str | os.PathLike[str]) -> bool:
+    """Whether a path is UTF-8 text (Python holds its other bytes as lone surrogates)."""
+    return re.search("[\udc80-\udcff]", os.fspath(path)) is None
+
+
+def open_regular(path: str | os.PathLike[str]) -> io.BufferedReader:
+    """`path` opened for reading (the caller closes it) when it is a regular file (links
+    followed), without ever waiting: a FIFO is opened non-blocking and then refused, as are
+    devices and sockets.
+
+    Raises:
+        OSError: it cannot be opened (FileNotFoundError, IsADirectoryError, ...);
+            `UnreadableInput`: not a regular file.
+    """
+    _check_regular(os.stat(path).st_mode, path)  # before opening: a socket cannot be opened
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    stream = open(fd, "rb")  # noqa: SIM115 (the caller's to close)
+    try:
+        _check_regular(os.fstat(fd).st_mode, path)  # and what was opened, as it may differ
+    except OSError:
+        stream.close()
+        raise
+    return stream
+
+
+def _check_regular(mode: int, path: str | os.PathLike[str]) -> None:
+    if stat.S_ISDIR(mode):
+        raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), os.fspath(path))
+    if not stat.S_ISREG(mode):
+        raise UnreadableInput(errno.EINVAL, "not a regular file (a device, pipe or socket)")
+
+
+def read_regular(path: str | os.PathLike[str], limit: int) -> bytes:
+    """The bytes of `path`, a regular file (`open_regular`) of at most `limit` bytes; never
+    more than `limit` + 1 bytes are read, whatever the file claims or becomes.
+
+    Raises:
+        OSError: it cannot be read; `UnreadableInput`: not a regular file, or too large.
+    """
+    with open_regular(path) as stream:
+        data = stream.read(limit + 1)
+    if len(data) > limit:
+        raise UnreadableInput(errno.EFBIG, f"larger than {limit:,} bytes")
+    return data
+
+
 def check_writable(out_dir: Path) -> None:
     """Create the output folder and prove a file can be written in it, before any work.
 
     Raises:
-        OutputError: it cannot.
+        OutputError: it cannot, or its path leaves too little room under the system's limit
+            (PATH_MAX) for the files impactlab writes in it (`DEEPEST_BYTES`).
     """
+    longest = os.pathconf("/", "PC_PATH_MAX") - 1 - DEEPEST_BYTES
+    length = len(os.fsencode(os.path.abspath(out_dir)))
+    if length > longest:
+        raise OutputError(
+            out_dir,
+            f"the path is too long: {length:,} bytes (absolute), at most {longest:,}: the "
+            f"system's limit less {DEEPEST_BYTES} bytes for the files written in it",
+        )
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=out_dir, prefix=".impactlab-write-test-"):
@@ -44,21 +114,54 @@ def check_writable(out_dir: Path) -> None:
         raise OutputError(out_dir, f"cannot write there: {exc.strerror or exc}") from None
 
 
+@contextlib.contextmanager
+def full_disk_error(out: Path) -> Iterator[None]:
+    """Turn a full disk (`FULL`) while writing into `out` into `OutputError`: one line, exit
+    code 2, where nothing more of the job can be written."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in FULL:
+            raise
+        raise OutputError(out, f"cannot write: {os.strerror(exc.errno)}") from None
+
+
 def temporary_path(path: Path) -> Path:
-    """The name `path` is written under until it is complete (unique to this process)."""
-    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    """A name `path` can be written under until it is complete: hidden, beside it, unique
+    (random: to this call, whatever the process or thread), its name cut (by characters)
+    to fit NAME_MAX bytes."""
+    name, suffix = path.name, f".{secrets.token_hex(4)}.tmp"
+    while len(os.fsencode(f".{name}{suffix}")) > NAME_MAX:
+        name = name[:-1]
+    return path.with_name(f".{name}{suffix}")
 
 
 @contextlib.contextmanager
 def atomic_path(path: Path) -> Iterator[Path]:
-    """Yield a temporary path to write; on success it is renamed to `path`, else removed."""
+    """Yield a temporary path to write; on success it is renamed to `path`, else removed.
+
+    A library that fails to write it on a full disk without saying so (polars: "invalid
+    thrift", rerun: "thread shut down") raises the system's error, ENOSPC, instead.
+    """
     tmp = temporary_path(path)
     try:
         yield tmp
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
+        full = isinstance(exc, Exception) and not isinstance(exc, OSError) and _full(path)
         tmp.unlink(missing_ok=True)
+        if full:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path)) from exc
         raise
+
+
+def _full(path: Path) -> bool:
+    """Whether the disk `path` is written to is full: less than FULL_BELOW_BYTES free."""
+    try:
+        disk = os.statvfs(path.parent)
+    except OSError:
+        return False
+    return disk.f_bavail * disk.f_frsize < FULL_BELOW_BYTES
 
 
 def write_text(path: Path, text: str) -> Path:

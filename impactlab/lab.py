@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 from impactlab.errors import SpecError
 from impactlab.executors.base import Executor
+from impactlab.files import full_disk_error
 from impactlab.progress import Progress, say
 
 if TYPE_CHECKING:
@@ -96,7 +97,8 @@ def run_lab(
         calibrated = run_calibration(where, grid=calibration, echo=echo, progress=progress)
         sections += _calibration_section(calibrated)
     if sections:
-        append_report_sections(results_dir / "report-appendix.md", sections)
+        with full_disk_error(results_dir):
+            append_report_sections(results_dir / "report-appendix.md", sections)
     failed = bool(recorded.exit_code or analysis.failed or (replay and len(replays) < len(logs)))
     return LabResult(report, logs, replays, 1 if failed else 0)
 

@@ -3,8 +3,8 @@
 Every string a model, a spec or a log brings (names, labels, file names, an experiment's name
 or description, a message quoting them) is shown as written, and never becomes markup or a
 terminal escape: control characters (C0, DEL, C1, the Unicode line and paragraph separators
-and bidirectional overrides) are shown as their escapes (ESC as `\\x1b`), and Markdown's
-punctuation is backslash-escaped.
+and bidirectional overrides) and the bytes of a file name that are not UTF-8 are shown as
+their escapes (ESC as `\\x1b`), and Markdown's punctuation is backslash-escaped.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import hashlib
 import re
 from urllib.parse import quote
 
-_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069]")
+_CONTROL = re.compile("[\x00-\x1f\x7f-\x9f\u2028\u2029\u202a-\u202e\u2066-\u2069\udc80-\udcff]")
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
 
 _MD_ALWAYS = re.compile(r"[\\`*\[\]<>&|~$]")
@@ -33,7 +33,7 @@ def visible(text: str, keep: str = "") -> str:
         ch = match.group()
         if ch in keep:
             return ch
-        code = ord(ch)
+        code = ord(ch) - (0xDC00 if "\udc80" <= ch <= "\udcff" else 0)  # a byte of a file name
         return _NAMED.get(ch) or (f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
 
     return _CONTROL.sub(shown, text)

@@ -11,6 +11,7 @@ analyzed.
 from __future__ import annotations
 
 import dataclasses
+import errno
 import functools
 import os
 from collections.abc import Callable, Sequence
@@ -26,6 +27,7 @@ from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.errors import LogError
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.executors.processes import ProcessExecutor
+from impactlab.files import FULL
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 
@@ -243,6 +245,8 @@ def analyze_logs(
                 )
                 done(i, dataclasses.replace(value, figures=figs))
         else:
+            if any(f"[Errno {code}]" in (outcome.error or "") for code in FULL):  # a full disk
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # in a worker: the job's
             for i in group:
                 done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
     return [r for r in out if r is not None and r is not _TAKEN]

@@ -17,7 +17,6 @@ from impactlab.analyze.report.context import RunBrief, brief
 from impactlab.analyze.tables.combine import AnalysisResult, TableReducer
 from impactlab.analyze.write import write_all
 from impactlab.executors.base import Executor
-from impactlab.files import check_writable
 from impactlab.logs.inputs import require_log_names
 from impactlab.progress import Progress, say
 
@@ -51,11 +50,10 @@ def run_analysis(
         NoLogs: no input names any log (exit code 2); an input among others that names none
             is reported as failed.
     """
-    paths, empty = require_log_names(inputs)
+    paths, empty = require_log_names(inputs, text=True)  # log names go into the tables
     out = None if out_dir is None else Path(out_dir)
     if out is None:
         return _analysis(paths, empty, None, None, figures, report, executor, progress)
-    check_writable(out)
     with staged(out) as stage:
         return _analysis(paths, empty, out, stage, figures, report, executor, progress)
 

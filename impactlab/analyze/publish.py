@@ -1,50 +1,52 @@
-"""An analysis' files replace the previous ones as a set: staged, then published under a lock.
-
-Every file of an analysis is written into a private staging folder inside the output folder
-(`staged`), under its final relative path. Only when all are written does `publish` move them
-into place, one rename each, and remove the files the previous analysis wrote there that this
-one did not (a figure of a run that is no longer analyzed). What impactlab wrote is recorded in
-a manifest (`MANIFEST`) listing relative paths, so a user's own files in the folder are never
-touched. The manifest is widened before any file moves and narrowed after, so whatever
-interrupts a publish, every file impactlab left in the folder is listed, and the next analysis
-removes it if it does not write it again.
-
-Publishing holds an exclusive lock (`LOCK`, `fcntl.flock`): two analyses into one folder
-publish one after the other, and the folder ends with the complete set of the one that
-published last. A staging folder left by a killed analysis is removed by the next one (its
-owner's lock is gone).
-"""
+"""An analysis' files replace the previous ones as a set: staged, then published under a lock."""
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import os
 import shutil
+import stat
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path, PurePosixPath
 
-from impactlab.files import OutputError, write_json
+from impactlab.files import (
+    NOT_TEXT,
+    OutputError,
+    check_writable,
+    full_disk_error,
+    is_text,
+    read_regular,
+    write_json,
+)
 
 MANIFEST = ".impactlab-analysis.json"
 LOCK = ".impactlab-analysis.lock"
 STAGING_PREFIX = ".impactlab-staging-"
 OWNER = ".owner"
 ABANDONED_AFTER_S = 60.0  # a staging folder without its owner's lock file, older than this
+MAX_MANIFEST_BYTES = 256 << 20  # a sweep of 100,000 runs with figures lists about 100 MB
 
 
 @contextlib.contextmanager
 def staged(out: Path) -> Iterator[Path]:
-    """A private staging folder inside `out` (created), removed when the block ends.
+    """A private staging folder inside `out` (checked, made), removed when the block ends:
+    every file of an analysis is written there, under its final relative path, until
+    `publish`; a full disk meanwhile is an `OutputError` naming `out`.
 
-    Staging folders that analyses killed earlier left behind are removed first.
+    Staging folders that analyses killed earlier left behind are removed first (their
+    owner's lock is gone).
 
     Raises:
-        OutputError: it cannot be created.
+        OutputError: `out` cannot be written (`check_writable`), or its name is not text.
     """
+    if not is_text(out):  # its paths go into the tables and the report
+        raise OutputError(out, NOT_TEXT)
+    check_writable(out)
     remove_abandoned(out)
     try:
         stage = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=out))
@@ -57,7 +59,8 @@ def staged(out: Path) -> Iterator[Path]:
     except OSError as exc:
         raise OutputError(out, f"cannot write there: {exc.strerror or exc}") from None
     try:
-        yield stage
+        with full_disk_error(out):
+            yield stage
     finally:
         shutil.rmtree(stage, ignore_errors=True)
         owner.close()
@@ -68,9 +71,12 @@ def remove_abandoned(out: Path) -> None:
     for stage in out.glob(f"{STAGING_PREFIX}*"):
         if not stage.is_dir() or stage.is_symlink():
             continue
-        try:
-            with open(stage / OWNER) as owner:
+        try:  # never waiting, never following a link (the folder may come from elsewhere)
+            owner = os.open(stage / OWNER, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
+            try:
                 fcntl.flock(owner, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: the owner is gone
+            finally:
+                os.close(owner)
         except FileNotFoundError:  # killed before its lock file existed, or being created
             with contextlib.suppress(OSError):
                 if time.time() - stage.stat().st_mtime < ABANDONED_AFTER_S:
@@ -81,7 +87,15 @@ def remove_abandoned(out: Path) -> None:
 
 
 def publish(stage: Path, out: Path, files: Sequence[Path]) -> list[Path]:
-    """Move the staged `files` into `out` and remove what the previous analysis left there.
+    """Move the staged `files` into `out` and remove what the previous analysis left there
+    (a figure of a run no longer analyzed), holding an exclusive lock (`LOCK`): two analyses
+    into one folder publish one after the other, and it ends with the set of the last.
+
+    Every folder on the way is reached without following a link (one in the way is refused
+    before anything moves). The manifest lists each file with its identity (`_identity`), and
+    is widened before any file moves and narrowed after, so whatever interrupts a publish,
+    every file it left is listed. A file is removed only when its identity is the one listed:
+    what impactlab wrote there, never a file a manifest from elsewhere names.
 
     Args:
         stage: the staging folder (`staged`).
@@ -92,75 +106,129 @@ def publish(stage: Path, out: Path, files: Sequence[Path]) -> list[Path]:
         The files' final paths, in the order of `files` (each once).
 
     Raises:
-        OutputError: a file cannot be moved into place (e.g. a folder is in its way).
+        OutputError: a file cannot be moved into place (a link, file or folder in the way).
     """
     files = list(dict.fromkeys(files))  # two runs of one id draw one figure file, once
-    names = [str(PurePosixPath(*Path(f).relative_to(stage).parts)) for f in files]
+    names = [PurePosixPath(*Path(f).relative_to(stage).parts).parts for f in files]
     with _locked(out / LOCK):
-        previous = read_manifest(out)
-        _write_manifest(out, sorted(set(previous) | set(names)))
-        for name, staged_file in zip(names, files, strict=True):
-            target = out / name
+        for parent in dict.fromkeys(name[:-1] for name in names):  # before anything moves
             try:
-                target.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(staged_file, target)
+                os.close(_folder(out, parent, create=True))
             except OSError as exc:
+                problem = "a link or a file, not a folder" if exc.errno in LINK_ERRORS else exc
+                raise OutputError(out / exc.filename, f"cannot write there: {problem}") from None
+        previous = read_manifest(out)
+        written = {"/".join(n): [_identity(os.lstat(f))] for n, f in zip(names, files, strict=True)}
+        widened = {n: previous.get(n, []) + written.get(n, []) for n in {*previous, *written}}
+        _write_manifest(out, widened)
+        for name, staged_file in zip(names, files, strict=True):
+            folder = _folder(out, name[:-1])
+            try:
+                os.replace(staged_file, name[-1], dst_dir_fd=folder)
+            except OSError as exc:
+                target = out.joinpath(*name)
                 raise OutputError(target, f"cannot write: {exc.strerror or exc}") from None
-        for name in sorted(set(previous) - set(names)):
-            _remove(out, name)
-        _write_manifest(out, sorted(names))
-    return [out / name for name in names]
+            finally:
+                os.close(folder)
+        for stale in sorted(previous.keys() - written.keys()):
+            _remove(out, PurePosixPath(stale).parts, previous[stale])
+        _write_manifest(out, written)
+    return [out.joinpath(*name) for name in names]
 
 
-def read_manifest(out: Path) -> list[str]:
-    """The files (relative paths) the last analysis wrote into `out`; [] without a manifest.
+Identity = list[int]
+"""A file's inode, size and modification time (ns): what a file impactlab wrote keeps when it
+is renamed, and what a manifest made elsewhere cannot foretell (a copied folder's inodes)."""
 
-    Entries that could name anything outside `out` (absolute, `..`) are ignored: the
-    manifest is only ever a list of what impactlab may remove.
-    """
+
+def _identity(info: os.stat_result) -> Identity:
+    return [info.st_ino, info.st_size, info.st_mtime_ns]
+
+
+def read_manifest(out: Path) -> dict[str, list[Identity]]:
+    """The files (relative paths, with their identities) the last analysis wrote into `out`;
+    {} without a readable manifest. Entries that could name anything outside `out` (absolute,
+    `..`) or are not well formed are ignored: the manifest is untrusted."""
     try:
-        document = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return []
-    names = document.get("files", []) if isinstance(document, dict) else []
-    return [n for n in names if isinstance(n, str) and _inside(n)]
+        document = json.loads(read_regular(out / MANIFEST, MAX_MANIFEST_BYTES))
+        files = document["files"]
+        listed = files.items()
+    except (OSError, ValueError, TypeError, KeyError, AttributeError, RecursionError):
+        return {}
+    return {
+        "/".join(PurePosixPath(name).parts): [
+            i for i in ids if isinstance(i, list) and len(i) == 3 and {type(n) for n in i} == {int}
+        ]
+        for name, ids in listed
+        if _inside(name) and isinstance(ids, list)
+    }
 
 
-def _inside(name: str) -> bool:
+def _inside(name: object) -> bool:
+    """Whether a manifest's entry is a relative path inside the folder (no `..`, no NUL)."""
+    if not isinstance(name, str) or "\0" in name or "\\" in name:
+        return False
     path = PurePosixPath(name)
-    return bool(name) and not path.is_absolute() and ".." not in path.parts and "\\" not in name
+    return bool(path.parts) and not path.is_absolute() and ".." not in path.parts
 
 
-def _write_manifest(out: Path, names: Sequence[str]) -> None:
+def _write_manifest(out: Path, files: dict[str, list[Identity]]) -> None:
     write_json(
-        out / MANIFEST,
-        {"written_by": "impactlab analyze", "files": list(names)},
+        out / MANIFEST, {"written_by": "impactlab analyze", "files": dict(sorted(files.items()))}
     )
 
 
-def _remove(out: Path, name: str) -> None:
-    """Remove one file impactlab wrote (a regular file only), and folders it leaves empty."""
-    target = out / name
-    if target.is_symlink() or not target.is_file():
-        return
-    with contextlib.suppress(OSError):
-        target.unlink()
-    parent = target.parent
-    while parent != out and out in parent.parents:
-        try:
-            parent.rmdir()  # only when empty
-        except OSError:
-            break
-        parent = parent.parent
+def _folder(out: Path, parts: tuple[str, ...], *, create: bool = False) -> int:
+    """The folder `parts` below `out`, opened (the caller closes it) without following a link
+    on the way; made when `create`.
+
+    Raises:
+        OSError: missing, or a link or a file in the way; its filename the path below `out`.
+    """
+    fd, reached = os.open(out, os.O_RDONLY | os.O_DIRECTORY), ""
+    try:
+        for part in parts:
+            reached += f"/{part}" if reached else part
+            if create:
+                with contextlib.suppress(FileExistsError):
+                    os.mkdir(part, dir_fd=fd)
+            fd, parent = os.open(part, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW, dir_fd=fd), fd
+            os.close(parent)
+    except OSError as exc:
+        os.close(fd)
+        raise OSError(exc.errno, exc.strerror, reached) from None
+    return fd
+
+
+def _remove(out: Path, parts: tuple[str, ...], identities: list[Identity]) -> None:
+    """Remove the regular file `parts` below `out` when it has one of `identities`, then the
+    folders it leaves empty."""
+    with contextlib.suppress(OSError, ValueError):
+        for depth in range(len(parts), 0, -1):  # the file, then its folders up to `out`
+            folder = _folder(out, parts[: depth - 1])
+            try:
+                if depth < len(parts):
+                    os.rmdir(parts[depth - 1], dir_fd=folder)  # when empty
+                    continue
+                info = os.stat(parts[-1], dir_fd=folder, follow_symlinks=False)
+                if not stat.S_ISREG(info.st_mode) or _identity(info) not in identities:
+                    return
+                os.unlink(parts[-1], dir_fd=folder)
+            finally:
+                os.close(folder)
+
+
+LINK_ERRORS = (errno.ELOOP, errno.ENOTDIR)  # opening a link or a file as a folder, unfollowed
 
 
 @contextlib.contextmanager
 def _locked(path: Path) -> Iterator[None]:
     try:
-        handle = open(path, "a")  # noqa: SIM115 (closed below)
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND | os.O_NOFOLLOW, 0o644)
     except OSError as exc:
-        raise OutputError(path.parent, f"cannot write there: {exc.strerror or exc}") from None
-    with handle:
+        problem = "a link, not impactlab's lock file" if exc.errno == errno.ELOOP else exc.strerror
+        raise OutputError(path, f"cannot write there: {problem or exc}") from None
+    with open(fd, "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         try:
             yield

@@ -39,7 +39,7 @@ from impactlab.calibrate.run import (
 )
 from impactlab.contact import RESTITUTION_FLOOR
 from impactlab.errors import SpecError
-from impactlab.files import check_writable, write_json, write_parquet, write_text
+from impactlab.files import check_writable, full_disk_error, write_json, write_parquet, write_text
 from impactlab.progress import Progress
 
 __all__ = ["CalibrationResult", "choose_grid", "run_calibration"]
@@ -117,9 +117,10 @@ def run_calibration(
     created = not out_dir.exists()
     check_writable(out_dir)
     try:
-        return _calibrate_into(
-            out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0, progress=progress
-        )
+        with full_disk_error(out_dir):
+            return _calibrate_into(
+                out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0, progress=progress
+            )
     except BaseException:  # a folder this job created holds only its own partial work
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)

@@ -37,6 +37,7 @@ from impactlab.contact import (
     surface_restitution,
 )
 from impactlab.errors import LogError
+from impactlab.files import write_text
 from impactlab.physics import collision_after
 from impactlab.progress import Progress
 from impactlab.record import plan, record_runs
@@ -95,9 +96,7 @@ def write_specs(points: Sequence[GridPoint], folder: Path) -> list[Path]:
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     for p in points:
-        path = folder / f"{p.name}.toml"
-        path.write_text(p.toml)
-        paths.append(path)
+        paths.append(write_text(folder / f"{p.name}.toml", p.toml))
     return paths
 
 

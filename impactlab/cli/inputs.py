@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import os
-import stat
 from collections.abc import Sequence
 from pathlib import Path
 
+from impactlab.files import UnreadableInput, open_regular
 from impactlab.logs.inputs import NoLogs, require_log_names
 
 MAGIC = b"\x89MCAP0\r\n"  # every MCAP file starts with it (impactlab.logs.reader.MAGIC)
@@ -35,12 +34,12 @@ def _problem(path: Path) -> tuple[str, str] | None:
             return exc.path, exc.problem
         return None
     try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            return str(path), "not a regular file (a device, pipe or socket): not a log"
-        with open(path, "rb") as stream:
+        with open_regular(path) as stream:  # never waits: a pipe is refused
             magic = stream.read(len(MAGIC))
     except FileNotFoundError:
         return str(path), "file not found"
+    except UnreadableInput as exc:
+        return str(path), f"{exc}: not a log"
     except OSError as exc:
         return str(path), f"cannot read: {exc.strerror or exc}"
     if magic != MAGIC:

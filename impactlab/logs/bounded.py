@@ -1,20 +1,8 @@
-"""Bounded reading: a log's bytes and its decompressed chunks never take unbounded time or memory.
-
-Only regular files are read: a device such as /dev/zero, a pipe or a socket could never end
-(and opening a pipe can block). A file together with its decompressed chunks may take at most
-`max_log_bytes()` (`MAX_LOG_BYTES`, 4 GiB, or the environment variable
-`IMPACTLAB_MAX_LOG_BYTES`), and one chunk may declare at most `MAX_CHUNK_BYTES` (256 MiB;
-impactlab and the official writer make 1 MiB chunks). Decompression never produces more than
-the chunk's header declares, whatever the compressed frame claims about itself, so a small
-file that inflates to gigabytes (a "zip bomb") costs no more than its declared size.
-`load_log` decompresses into an `Arena`, memory kept per thread for the next file (at most
-`MAX_ARENA_BYTES`), reused only once nothing views it.
-"""
+"""Bounded reading: a log's bytes and decompressed chunks never take unbounded time or memory."""
 
 from __future__ import annotations
 
 import os
-import stat
 import sys
 import threading
 from pathlib import Path
@@ -22,6 +10,8 @@ from pathlib import Path
 import lz4.frame
 import zstandard
 from isal.isal_zlib import crc32  # zlib's CRC-32, an order of magnitude faster
+
+from impactlab.files import UnreadableInput, open_regular
 
 
 class UnreadableFile(ValueError):
@@ -53,21 +43,6 @@ def max_log_bytes() -> int:
     return int(text)
 
 
-def check_regular_file(path: Path) -> os.stat_result:
-    """The file's status, when it is a regular file (symbolic links followed).
-
-    Raises:
-        FileNotFoundError, IsADirectoryError, PermissionError: as for opening it.
-        UnreadableFile: a device, pipe or socket (reading it may never end).
-    """
-    info = os.stat(path)
-    if stat.S_ISDIR(info.st_mode):
-        raise IsADirectoryError(path)
-    if not stat.S_ISREG(info.st_mode):
-        raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
-    return info
-
-
 def read_file(
     path: Path, *, limit: int | None = None, arena: Arena | None = None
 ) -> bytes | memoryview:
@@ -79,14 +54,14 @@ def read_file(
         UnreadableFile: not a regular file, or larger than the limit.
     """
     limit = max_log_bytes() if limit is None else limit
-    size = check_regular_file(path).st_size
-    if size > limit:
-        raise UnreadableFile(f"{_mib(size)} is more than the limit of {_mib(limit)} ({_HINT})")
-    # O_NONBLOCK: should the path have become a pipe since the check, opening does not hang
-    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    with open(fd, "rb", closefd=True) as stream:
-        if not stat.S_ISREG(os.fstat(stream.fileno()).st_mode):
-            raise UnreadableFile("not a regular file (a device, pipe or socket): not a log")
+    try:
+        stream = open_regular(path)
+    except UnreadableInput:
+        raise UnreadableFile("not a regular file (a device, pipe or socket): not a log") from None
+    with stream:
+        size = os.fstat(stream.fileno()).st_size
+        if size > limit:
+            raise UnreadableFile(f"{_mib(size)} is more than the limit of {_mib(limit)} ({_HINT})")
         room = arena.take(size) if arena is not None and size else None
         if room is None:
             return stream.read(size)  # what the file held when checked (it may still grow)

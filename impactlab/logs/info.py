@@ -21,8 +21,8 @@ import numpy as np
 from mcap.reader import make_reader
 
 from impactlab.errors import LogError
+from impactlab.files import UnreadableInput, open_regular
 from impactlab.logs import format as logformat
-from impactlab.logs.bounded import check_regular_file
 from impactlab.logs.metadata import check_channels, check_metadata
 from impactlab.logs.reader import MAGIC as MCAP0_MAGIC
 from impactlab.logs.reader import read_mcap
@@ -60,15 +60,14 @@ def describe(path: Path) -> str:
         LogError: the file cannot be read, is not MCAP, or is truncated or damaged.
     """
     try:
-        check_regular_file(path)
-        with open(path, "rb") as stream:
+        with open_regular(path) as stream:
             magic = stream.read(len(MCAP0_MAGIC))
     except FileNotFoundError:
         raise LogError(str(path), "file not found") from None
     except IsADirectoryError:
         raise LogError(str(path), "is a folder, not a log") from None
-    except ValueError as exc:  # not a regular file
-        raise LogError(str(path), str(exc)) from None
+    except UnreadableInput as exc:
+        raise LogError(str(path), f"{exc}: not a log") from None
     except OSError as exc:
         raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
     if magic != MCAP0_MAGIC:

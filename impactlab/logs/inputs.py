@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from impactlab.errors import LogError
+from impactlab.files import NOT_TEXT, is_text
 
 
 class NoLogs(LogError):
@@ -20,14 +21,20 @@ def find_logs(
 ) -> list[Path]:
     """Expand files, folders (their *.mcap files, recursively) and glob patterns, sorted, unique.
 
-    A folder named like a log (`x.mcap/`) is searched like any folder. Inputs that give no
-    log are added to `empty` as (input, why), when it is given.
+    A name is what it names: an existing file or folder is taken as it is written, even with
+    `*`, `?` or `[` in it; only a name that does not exist is a pattern (as a shell does,
+    its leading folders that exist taken as written too). A folder named like a log
+    (`x.mcap/`) is searched like any folder. Inputs that give no log are added to `empty` as
+    (input, why), when it is given; with `text`, so are logs whose name is not UTF-8 text.
     """
     return [Path(name) for name in log_names(inputs, empty=empty)]
 
 
 def log_names(
-    inputs: Sequence[str | Path], *, empty: list[tuple[str, str]] | None = None
+    inputs: Sequence[str | Path],
+    *,
+    empty: list[tuple[str, str]] | None = None,
+    text: bool = False,
 ) -> list[str]:
     """`find_logs` as strings (each `str` of the Path, in the same order): a Path holds its
     parts besides its text, about 0.4 KB per log that a sweep of 100,000 logs would keep."""
@@ -37,20 +44,29 @@ def log_names(
         if path.is_dir():
             found = sorted((str(p) for p in path.rglob("*.mcap") if not p.is_dir()), key=_parts)
             why = "a folder without .mcap logs"
-        elif any(c in str(item) for c in "*?["):
-            matches = (
-                Path().glob(str(item))
-                if not path.is_absolute()
-                else Path(path.anchor).glob(str(path.relative_to(path.anchor)))
-            )
-            found = sorted((str(p) for p in matches if not p.is_dir()), key=_parts)
+        elif not os.path.lexists(path) and any(c in str(item) for c in "*?["):
+            found = sorted((str(p) for p in _matches(path) if not p.is_dir()), key=_parts)
             why = "matches no file"
         else:
             found, why = [str(path)], ""
-        if not found and empty is not None:
+        if text and not all(map(is_text, found)):
+            named = [name for name in found if is_text(name)]
+            if empty is not None:
+                empty.append((str(item), f"{len(found) - len(named)} log(s): {NOT_TEXT}"))
+            found, why = named, ""
+        if not found and why and empty is not None:
             empty.append((str(item), why))
         out += found
     return list(dict.fromkeys(out))
+
+
+def _matches(pattern: Path) -> Iterator[Path]:
+    """What a pattern matches, its leading folders that exist taken as they are written."""
+    parts = pattern.parts
+    start = 1 if pattern.is_absolute() else 0  # parts[0] is then the root
+    while start < len(parts) - 1 and Path(*parts[: start + 1]).is_dir():
+        start += 1
+    return Path(*parts[:start]).glob(str(Path(*parts[start:])))
 
 
 def _parts(name: str) -> list[str]:
@@ -68,14 +84,16 @@ def require_logs(inputs: Sequence[str | Path]) -> tuple[list[Path], list[tuple[s
     return [Path(name) for name in names], empty
 
 
-def require_log_names(inputs: Sequence[str | Path]) -> tuple[list[str], list[tuple[str, str]]]:
-    """`require_logs` as strings (`log_names`).
+def require_log_names(
+    inputs: Sequence[str | Path], *, text: bool = False
+) -> tuple[list[str], list[tuple[str, str]]]:
+    """`require_logs` as strings (`log_names`, `text` as there).
 
     Raises:
         NoLogs: no input names a log (a folder without logs, a pattern matching nothing).
     """
     empty: list[tuple[str, str]] = []
-    paths = log_names(inputs, empty=empty)
+    paths = log_names(inputs, empty=empty, text=text)
     if not paths:
         if len(empty) == 1:
             raise NoLogs(*empty[0])

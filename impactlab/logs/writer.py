@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
@@ -30,10 +31,11 @@ PARTIAL_SUFFIX = ".partial"
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
 
 
-def partial_path(path: Path, pid: int | None = None) -> Path:
-    """The temporary name this process (or process `pid`) writes `path` under until it is
-    complete."""
-    return path.with_name(f"{path.name}.{os.getpid() if pid is None else pid}{PARTIAL_SUFFIX}")
+def partial_path(path: Path) -> Path:
+    """The temporary name this thread of this process writes `path` under until it is
+    complete: `NAME.THREAD.PID.partial` (`remove_stale_partials` reads the PID)."""
+    thread = threading.get_native_id()
+    return path.with_name(f"{path.name}.{thread}.{os.getpid()}{PARTIAL_SUFFIX}")
 
 
 class LogWriter:
@@ -273,20 +275,34 @@ def _log_message(t_ns: int, level: Log.Level.ValueType, text: str) -> bytes:
 def remove_stale_partials(path: Path) -> None:
     """Remove temporary files of `path` left by processes that no longer run (SIGKILL).
 
-    Temporary files of live processes (a concurrent job writing the same run) are kept.
+    Temporary files of live processes (a concurrent job writing the same run, another thread
+    of this process) are kept.
     """
     for tmp in path.parent.glob(f"{path.name}.*{PARTIAL_SUFFIX}"):
-        pid = tmp.name[len(path.name) + 1 : -len(PARTIAL_SUFFIX)]
-        if pid.isdigit() and int(pid) != os.getpid() and _alive(int(pid)):
+        pid = tmp.name.removesuffix(PARTIAL_SUFFIX).rpartition(".")[2]
+        if pid.isdigit() and (int(pid) == os.getpid() or _alive(int(pid))):
             continue
         tmp.unlink(missing_ok=True)
 
 
+def remove_partials_of(folder: Path, pid: int) -> None:
+    """Remove the temporary files process `pid`, which no longer runs, left in `folder`."""
+    for tmp in folder.glob(f"*.{pid}{PARTIAL_SUFFIX}"):
+        tmp.unlink(missing_ok=True)
+
+
 def _alive(pid: int) -> bool:
+    """Whether process `pid` runs: a dead one that is not reaped yet (a zombie, whose parent
+    was killed too) does not."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:  # another user's process
         return True
-    return True
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            state = stat.read().rpartition(b")")[2].split()[0]  # after the command's name
+    except (OSError, IndexError):
+        return True  # no /proc (not Linux): alive, as it answered
+    return state not in (b"Z", b"X")

@@ -1,10 +1,4 @@
-"""Record a list of planned runs: batched rollouts, each run's rows streamed into its log.
-
-Runs that share MuJoCo's size signature and timestep are simulated side by side in one
-multi-threaded rollout (`batches`, built as they are needed). Each chunk of a run's rows goes
-into the run's `LogWriter` as soon as it is simulated, while the next chunk simulates (MuJoCo
-releases the GIL), so memory stays bounded by the chunks whatever the runs' lengths.
-"""
+"""Record a list of planned runs: batched rollouts, each run's rows streamed into its log."""
 
 from __future__ import annotations
 

@@ -1,19 +1,4 @@
-"""Record runs in forked worker processes, one per core, each simulating and writing its share.
-
-Within one process the log writing (numpy, protobuf layouts, MCAP records) holds Python's
-GIL most of the time, so a second rollout thread gains little: the writer is the bottleneck.
-Forked workers share no lock: each records a consecutive share of the runs (about equal
-steps) with its own simulation thread and writer, and sends back one `RecordedRun` per run
-as soon as its log is complete. Forking costs a few milliseconds and needs no import or
-pickling of the runs; it is used only where it is safe: on Linux, from a process with no
-other Python thread (`can_fork`).
-
-On any exit of the caller (an error, Ctrl-C, SIGTERM, even SIGKILL: the kernel then sends
-the workers SIGTERM) the workers are terminated; each removes the logs it was writing
-(SIGTERM unwinds a worker like Ctrl-C), so nothing half-written is left. A worker that dies
-(killed, out of memory) fails its unreported runs, and the caller removes the temporary file
-it left.
-"""
+"""Record runs in forked worker processes, one per core, each simulating and writing its share."""
 
 from __future__ import annotations
 
@@ -29,7 +14,7 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from impactlab.logs.writer import partial_path
+from impactlab.logs.writer import remove_partials_of
 from impactlab.record.batch import LogWriteError, Report, Reuse, record_batches
 from impactlab.record.folder import log_path
 from impactlab.record.planner import PlannedRun, Subset
@@ -48,17 +33,9 @@ def can_fork() -> bool:
     )
 
 
-def shares(runs: Sequence[PlannedRun], parts: int) -> list[Subset[PlannedRun]]:
-    """Consecutive runs cut into at most `parts` shares of about equal work (steps).
-
-    Consecutive runs are mostly points of one sweep: kept together they share rollouts.
-    """
-    steps = [float(r.work.steps) for r in runs]
-    return [Subset(runs, indices) for indices in share_ranges(steps, parts)]
-
-
 def share_ranges(steps: Sequence[float], parts: int) -> list[range]:
-    """`shares` by index: runs given by their steps, cut into at most `parts` ranges."""
+    """Runs, given by their steps, cut into at most `parts` consecutive ranges of about equal
+    work (consecutive runs are mostly points of one sweep: kept together they share rollouts)."""
     weights = [max(1.0, w) for w in steps]
     total = sum(weights)
     starts = [0]
@@ -123,8 +100,8 @@ def record_forked(
                 except EOFError:  # the worker is gone without saying it is done
                     del pending[conn]
                     process.join()
+                    remove_partials_of(out_dir, process.pid)  # dead and reaped
                     for run in share:
-                        partial_path(log_path(out_dir, run), process.pid).unlink(missing_ok=True)
                         if run.info.run_id not in reported:
                             failed = RecordedRun(
                                 run.info.run_id, log_path(out_dir, run), "failed", reason=DIED
@@ -147,14 +124,19 @@ def record_forked(
     finally:
         for process, _ in pending.values():
             if process.is_alive():
-                process.terminate()  # the worker unwinds and removes its partial logs
+                process.terminate()  # it ends at once (`_end`)
         for process in processes:
             process.join()
+        for process, _ in pending.values():  # what the stopped workers were writing
+            remove_partials_of(out_dir, process.pid)
     return out
 
 
-def _terminate(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
+def _end(signum: int, frame: object) -> None:
+    """SIGTERM or SIGINT in a worker: it ends at once (nothing it could print, no traceback);
+    the caller removes what it was writing once it is reaped (or, if the caller was killed
+    too, the next job does: `remove_stale_partials`)."""
+    os._exit(1)
 
 
 def _die_with(parent: int) -> None:
@@ -162,7 +144,7 @@ def _die_with(parent: int) -> None:
     libc = ctypes.CDLL(None, use_errno=True)
     libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
     if os.getppid() != parent:  # it died before the request took effect
-        raise KeyboardInterrupt
+        os._exit(1)
 
 
 def _work(
@@ -174,24 +156,24 @@ def _work(
     parent: int,
 ) -> None:
     """A worker: record its share with one simulation thread, report each run."""
-    signal.signal(signal.SIGTERM, _terminate)
+    signal.signal(signal.SIGTERM, _end)
+    signal.signal(signal.SIGINT, _end)  # Ctrl-C reaches the workers too: the caller stops them
     try:
-        _die_with(parent)
-        record_batches(
-            runs,
-            out_dir,
-            batch_size=batch_size,
-            threads=1,
-            reuse=reuse,
-            on_run=lambda run: send.send(("run", run)),
-            keep=False,
-        )
-    except LogWriteError as exc:
-        send.send(("error", (exc.path, exc.problem)))
-        return
-    except KeyboardInterrupt:
-        return
-    except Exception:  # a bug: its traceback goes to the caller
-        send.send(("bug", traceback.format_exc()))
-        return
-    send.send(("done", None))
+        try:
+            _die_with(parent)
+            record_batches(
+                runs,
+                out_dir,
+                batch_size=batch_size,
+                threads=1,
+                reuse=reuse,
+                on_run=lambda run: send.send(("run", run)),
+                keep=False,
+            )
+            send.send(("done", None))
+        except LogWriteError as exc:
+            send.send(("error", (exc.path, exc.problem)))
+        except Exception:  # a bug: its traceback goes to the caller
+            send.send(("bug", traceback.format_exc()))
+    except OSError:  # the caller is gone (a closed pipe): nobody to tell
+        pass

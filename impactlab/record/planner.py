@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar, overload
 
 from impactlab.errors import SpecError
+from impactlab.files import NOT_TEXT, is_text
 from impactlab.logs.contract import PairTarget
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.log_rows import RunInfo, refuse_unreadable
@@ -83,6 +84,8 @@ def plan(
             parts.append(SpecSweep.of(item, DOCUMENT_SOURCE, overrides))
             continue
         path = Path(item)
+        if not is_text(path):  # its path goes into the log
+            raise SpecError(str(path), "", NOT_TEXT)
         if path.suffix.lower() in MJCF_SUFFIXES:
             parts.append(_plan_mjcf(path, overrides=overrides, duration=duration))
         elif path.suffix.lower() == ".toml":

@@ -23,6 +23,7 @@ from pydantic import ValidationError
 from pydantic_core import ErrorDetails
 
 from impactlab.errors import SpecError
+from impactlab.files import read_regular
 from impactlab.logs.scene import BODY_PALETTE
 from impactlab.record.schema import (
     SECTIONS,
@@ -78,9 +79,7 @@ def spec_hash(document: Mapping[str, Any]) -> str:
 def read_toml(path: Path) -> dict[str, Any]:
     """Read a TOML file, turning I/O and syntax errors into `SpecError`."""
     try:
-        if path.is_file() and path.stat().st_size > MAX_SPEC_BYTES:
-            raise SpecError(str(path), "", f"larger than {MAX_SPEC_BYTES // 1_000_000} MB")
-        text = path.read_text(encoding="utf-8")
+        text = read_regular(path, MAX_SPEC_BYTES).decode("utf-8")
     except FileNotFoundError:
         raise SpecError(str(path), "", "file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

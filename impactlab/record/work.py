@@ -1,13 +1,4 @@
-"""The work a record job asks for, estimated before anything is simulated; absurd jobs refused.
-
-A job's work is its runs, the steps they take at most (each run's time limit over its
-timestep) and the size of their logs (logged rows times the bytes a row takes, measured).
-`check_work` refuses a job beyond any of the limits below with one line (exit code 2),
-unless it is allowed explicitly (`impactlab record --allow-large`, `allow_large=True`).
-The limits are far beyond the lab's own jobs (the largest, the full calibration grid, is
-551 runs and 9 million steps) and catch a typo such as `timestep = 1e-7` or a sweep of a
-million points before it fills the memory or the disk. Estimating never expands a sweep.
-"""
+"""The work a record job asks for, estimated before anything is simulated; absurd jobs refused."""
 
 from __future__ import annotations
 
@@ -23,6 +14,9 @@ MAX_RUN_STEPS = 100_000_000  # steps of one run (about 10 minutes of simulation)
 MAX_JOB_STEPS = 1_000_000_000  # steps of the whole job (about 2 hours on two cores)
 MAX_LOG_BYTES = 20 * 10**9  # logs written by the job
 US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (README)
+LOG_BYTES_PER_LOG = 37_000  # whatever its length: schemas, metadata, the model, the index
+# (measured: a log of 3 rows takes 34,837 bytes with one body, 36,076 with two, 37,302 with
+# three: `impactlab record` of a spec with max_time = 2 timesteps; impactlab 0.1.0, MuJoCo 4.0.0)
 LOG_BYTES_PER_ROW = 80  # per logged row: energy, work and the row's share of the chunk overhead
 LOG_BYTES_PER_BODY_ROW = 130  # per logged row and body: its state, transform, clearance (zstd)
 ALLOW_FLAG = "--allow-large"
@@ -55,7 +49,7 @@ class Work:
         """`runs` runs of `steps` steps each, logging every `every`-th step of `bodies` bodies."""
         rows = math.ceil(steps / every)
         per_row = LOG_BYTES_PER_ROW + LOG_BYTES_PER_BODY_ROW * bodies
-        return cls(runs, runs * steps, steps, runs * rows * per_row)
+        return cls(runs, runs * steps, steps, runs * (LOG_BYTES_PER_LOG + rows * per_row))
 
     def describe(self) -> str:
         """One phrase for people: runs, steps, log size and simulation time (estimates)."""

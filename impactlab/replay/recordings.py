@@ -6,8 +6,8 @@ interrupted replay never leaves a file that looks finished.
 
 from __future__ import annotations
 
+import errno
 import hashlib
-import os
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import rerun as rr
 
 from impactlab.errors import ImpactlabError, LogError
-from impactlab.files import OutputError, check_writable, temporary_path
+from impactlab.files import FULL, OutputError, check_writable, write_bytes
 from impactlab.logs.labels import sweep_words
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
@@ -56,7 +56,7 @@ def replay_logs(
     Raises:
         LogError: the analysis folder is missing or holds an unreadable table.
         OutputError: `out` cannot be written: a file that is not `.rrd`, a folder that
-            cannot be created or written (checked before any conversion).
+            cannot be created or written (checked before any conversion), a full disk.
     """
     tables = load_analysis(analysis_dir) if analysis_dir is not None else None
     if out is not None and out.suffix.lower() == ".rrd" and not out.is_dir():
@@ -95,6 +95,8 @@ def replay_logs(
         try:
             written.append(write_recording(runs, target, tables=tables))
         except OSError as exc:
+            if exc.errno in FULL:  # nothing more can be written
+                raise OutputError(target, f"cannot write: {exc.strerror}") from None
             error(LogError(str(target), f"cannot write: {exc.strerror or exc}"))
         for make in sinks:
             try:
@@ -111,24 +113,23 @@ def write_recording(
 ) -> Path:
     """Write one recording of `runs` to `path` atomically, with the replay blueprint as default.
 
+    The recording is made in memory (as large as the runs' data, which is in memory already)
+    and written as any file is: a full disk is the system's error, nothing half-written.
+
     Raises:
         OSError: the file cannot be written.
     """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = temporary_path(path)
     rec = _recording(runs)
+    stream = rr.binary_stream(recording=rec)
     try:
-        rec.set_sinks(rr.FileSink(str(tmp)))
         _log_all(rec, runs, tables, active=True)
+        data = stream.read(flush=True)
+    finally:
         rec.disconnect()
-        if not tmp.is_file() or tmp.stat().st_size == 0:
-            raise OSError(f"the recording {tmp} was not written")
-        os.replace(tmp, path)
-    except BaseException:
-        rec.disconnect()
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    if not data:
+        raise OSError(errno.EIO, "the recording was not made")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_bytes(path, data)
 
 
 def stream_recording(

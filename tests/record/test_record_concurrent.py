@@ -7,11 +7,13 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import threading
 
 import pytest
 from paths import ROOT
 from specs import drop, toml
 
+import impactlab
 from impactlab.logs.load import load_log
 
 SPEC = toml(drop("race", timestep=0.0001, max_time=1.5, sweep={"ball.mass": [1.0, 2.0, 3.0, 4.0]}))
@@ -42,3 +44,33 @@ def test_two_jobs_on_one_sweep_and_folder(tmp_path):
         run = load_log(log)
         assert not run.partial and run.problems == [] and run.outcome == "completed", log
         assert run.energy.height == 15_001
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_threads_of_one_process_record_into_one_folder(tmp_path, overwrite):
+    """`impactlab.record` from four threads at once into one folder, each writing every run
+    (with `overwrite`) or what it does not find complete: none fails, one complete log per
+    run is left and no temporary file (each thread writes under its own temporary name)."""
+    spec = tmp_path / "race.toml"
+    spec.write_text(toml(drop("race", max_time=0.2, sweep={"ball.mass": [1.0, 2.0, 3.0]})))
+    out = tmp_path / "logs"
+    start = threading.Barrier(4)
+    outcomes: list[object] = []
+
+    def record() -> None:
+        start.wait()
+        try:
+            outcomes.append(impactlab.record(spec, out=out, overwrite=overwrite))
+        except Exception as exc:  # what the test is about: none
+            outcomes.append(exc)
+
+    threads = [threading.Thread(target=record) for _ in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not [o for o in outcomes if isinstance(o, Exception)], outcomes
+    logs = sorted(out.iterdir())
+    assert len(logs) == 3 and all(p.suffix == ".mcap" for p in logs), logs
+    for log in logs:
+        assert not load_log(log).partial

@@ -15,7 +15,7 @@ from waiting import interrupt, record_process, wait_until
 
 from impactlab.progress import ProgressEvent
 from impactlab.record import forked, plan, record_runs
-from impactlab.record.forked import DIED, can_fork, shares
+from impactlab.record.forked import DIED, can_fork, share_ranges
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 
@@ -30,7 +30,7 @@ def _spec(tmp_path: Path, runs: int, max_time: float = 0.3) -> Path:
 def test_shares_are_consecutive_balanced_and_never_empty(tmp_path):
     runs = plan([_spec(tmp_path, 7)])
     for parts in (1, 2, 3, 7, 20):
-        cut = shares(runs, parts)
+        cut = [[runs[i] for i in r] for r in share_ranges([r.work.steps for r in runs], parts)]
         assert [r for share in cut for r in share] == list(runs)  # consecutive, all of them
         assert len(cut) == min(parts, len(runs)) and all(cut)
         sizes = [len(s) for s in cut]

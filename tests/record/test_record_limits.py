@@ -8,8 +8,9 @@ import sys
 from collections import namedtuple
 
 import pytest
+import specs
 from paths import ROOT
-from specs import drop, toml
+from specs import ball, drop, toml
 
 import impactlab
 from impactlab.cli import main
@@ -98,12 +99,17 @@ def test_logs_larger_than_the_free_space_are_refused(tmp_path, capsys, monkeypat
     capsys.readouterr()
 
 
-def test_the_estimate_is_an_upper_bound_of_the_log(tmp_path, capsys):
-    """The estimated log size is within a factor of two above the real one."""
+@pytest.mark.parametrize("bodies", [1, 2])
+@pytest.mark.parametrize("max_time", [0.002, 0.05, 5.0])
+def test_the_estimate_is_an_upper_bound_of_the_log(tmp_path, capsys, max_time, bodies):
+    """The estimated log size is within a factor of two above the real one, from logs of three
+    rows, where what every log carries is nearly all, to logs of 5,000 rows."""
+    free = {"a": ball(1.0), "b": ball(1.0, x=1.0)} if bodies == 2 else {"ball": ball(1.0)}
     spec = tmp_path / "spec.toml"
-    spec.write_text(GOOD.replace("max_time = 0.05", "max_time = 5.0"))
+    spec.write_text(toml(specs.spec("e", free, max_time=max_time)))
     (run,) = impactlab.plan(spec)
     result = impactlab.record([run], out=tmp_path / "out")
+    assert result[0].steps == run.work.steps  # the run went to its time limit
     size = result[0].path.stat().st_size
     assert size <= run.work.log_bytes <= 2 * size, (size, run.work)
 
