@@ -150,6 +150,8 @@ def restitution(t: Tables) -> Answer:
     if t.bounces.is_empty():
         return not_answered("no run has a bounce")
     done = t.bounces.filter(pl.col("complete") & pl.col("e_velocity").is_not_null())
+    if "target_e" not in done.columns:  # a table from elsewhere: no calibrated pair known
+        done = done.with_columns(target_e=pl.lit(None, pl.Float64))
     if done.is_empty():
         hits = t.bounces.filter(pl.col("v_in_mps").is_not_null())
         return not_answered(
