@@ -6,9 +6,29 @@ them: docs/analysis.md (and docs/contact-model.md for the contact itself).
 
 from __future__ import annotations
 
-from typing import Literal, TypeVar, get_args
+from typing import TYPE_CHECKING, Literal, TypeVar, get_args
+
+if TYPE_CHECKING:
+    import polars as pl
 
 X = TypeVar("X")
+
+
+def e_velocity(v_in: X, v_out: X) -> X:
+    """The coefficient of restitution by velocity, -v_out / v_in: the contact points' normal
+    velocities as the surfaces meet (v_in < 0) and part (numbers, arrays or expressions)."""
+    return -v_out / v_in  # type: ignore[operator,no-any-return]
+
+
+def e_energy(work_c: pl.Expr, work_r: pl.Expr, closed: pl.Expr) -> pl.Expr:
+    """The energetic coefficient of restitution (Stronge), sqrt(W_r / -W_c): the normal
+    force's work while the points separate over that while they approach; at most 1 for a
+    contact that dissipates, whatever turns or drives the bodies. Null for a contact still
+    open (`closed` false) or works of the wrong signs."""
+    import polars as pl  # not at the top: the recorder imports this module without polars
+
+    ok = closed & (work_c < 0) & (work_r >= 0)
+    return pl.when(ok).then((work_r / -work_c).sqrt())
 
 
 def collision_after(m1: X, m2: X, v1: X, v2: X, e: X | float) -> tuple[X, X]:

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from impactlab import physics
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 
@@ -70,21 +71,26 @@ def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
     the recorder's onset and release: v_in at the impact, e = -v_out / v_in (the analysis'
     e_velocity, the same numbers) at the release, every number of the episode one click away."""
     events = []
-    for ep in run.impacts.iter_rows(named=True):
+    w_c, w_r = pl.col("work_compression_J"), pl.col("work_restitution_J")
+    episodes = run.impacts.with_columns(
+        physics.e_velocity(pl.col("v_in_mps"), pl.col("v_out_mps")).alias("e_velocity"),
+        physics.e_energy(w_c, w_r, ~pl.col("open")).alias("e_energy"),
+    )
+    for ep in episodes.iter_rows(named=True):
         pair = _pair(ep)
         v_in, v_out = float(ep["v_in_mps"]), float(ep["v_out_mps"])
         details = f"v_in = {v_in:.4g} m/s, v_out = {v_out:.4g} m/s"
-        w_c, w_r = ep["work_compression_J"], ep["work_restitution_J"]
-        if not ep["open"] and w_c < 0 <= w_r:
+        if ep["e_energy"] is not None:
             details += (
-                f", e_energy = {np.sqrt(w_r / -w_c):.4g} (work {w_c:.4g} J in, {w_r:.4g} J out)"
+                f", e_energy = {ep['e_energy']:.4g} (work {ep['work_compression_J']:.4g} J in, "
+                f"{ep['work_restitution_J']:.4g} J out)"
             )
         impact = _nearest_step(t_ns, ep["onset_ns"] / 1e9)
         text = f"impact {pair.name}: v_in = {v_in:.3g} m/s"
         events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, details))
         if not ep["open"] and v_in < 0:
             release = _nearest_step(t_ns, ep["release_ns"] / 1e9)
-            text = f"release {pair.name}: e = {-v_out / v_in:.3g}"
+            text = f"release {pair.name}: e_velocity = {ep['e_velocity']:.3g}"
             events.append(Event(release, int(t_ns[release]), "release", pair, text, details))
     return sorted(events, key=lambda e: e.step)
 

@@ -165,10 +165,10 @@ def test_log_events_carry_velocities(logs: dict[str, Path], tmp_path: Path) -> N
     v_in = float(first.split("v_in = ")[1].split(" ")[0])
     assert v_in == pytest.approx(-math.sqrt(2 * 9.81 * 0.9), rel=0.01)
     release, details = _texts(chunks, path)[1], _details(chunks, path)[1]
-    assert release.startswith("release plane-ball: e = ")
+    assert release.startswith("release plane-ball: e_velocity = ")
     # the analysis' numbers (one definition of e, the recorder's episode)
     bounce = analyze_run(run).bounces.row(0, named=True)
-    assert float(release.split("e = ")[1]) == pytest.approx(bounce["e_velocity"], abs=5e-4)
+    assert float(release.split("e_velocity = ")[1]) == pytest.approx(bounce["e_velocity"], abs=5e-4)
     e_energy = float(details.split("e_energy = ")[1].split(" ")[0])
     assert e_energy == pytest.approx(bounce["e_energy"], rel=1e-3)
 

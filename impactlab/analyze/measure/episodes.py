@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 import polars as pl
 
+from impactlab import physics
 from impactlab.logs.decode import IMPACT_SCHEMA
 from impactlab.logs.load import RunLog
 from impactlab.physics import min_impact_speed
@@ -16,16 +17,13 @@ KINDS = ("ground", "body", "other")
 
 
 def e_velocity() -> pl.Expr:
-    """The coefficient of restitution by velocity: -v_out / v_in of the contact points."""
-    return -pl.col("v_out_mps") / pl.col("v_in_mps")
+    """`physics.e_velocity` of an episode's columns."""
+    return physics.e_velocity(pl.col("v_in_mps"), pl.col("v_out_mps"))
 
 
 def e_energy() -> pl.Expr:
-    """The energetic coefficient of restitution (Stronge): sqrt(W_r / -W_c), the normal
-    force's work while the points separate over that while they approach; at most 1 for a
-    contact that dissipates, whatever turns or drives the bodies. Empty for an open contact."""
-    ok = ~pl.col("open") & (pl.col("work_c_J") < 0) & (pl.col("work_r_J") >= 0)
-    return pl.when(ok).then((pl.col("work_r_J") / -pl.col("work_c_J")).sqrt())
+    """`physics.e_energy` of an episode's columns."""
+    return physics.e_energy(pl.col("work_c_J"), pl.col("work_r_J"), ~pl.col("open"))
 
 
 def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
