@@ -88,10 +88,15 @@ class InstrumentedModel:
     flexes: list[FlexShape] = field(default_factory=list)  # what draws the flexes
     party: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))  # see `parties`
     party_names: tuple[str, ...] = ()
+    _clearance_by_body: dict[str, list[DistanceChannel]] | None = field(default=None, repr=False)
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
-        return [c for c in self.clearances if c.body == body]
+        if self._clearance_by_body is None:
+            self._clearance_by_body = {}
+            for c in self.clearances:
+                self._clearance_by_body.setdefault(c.body, []).append(c)
+        return self._clearance_by_body.get(body, [])
 
     def initial_state(self) -> np.ndarray:
         """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
