@@ -113,7 +113,7 @@ def impactlab_side(model_path: Path, duration: float, every: int, out_dir: Path)
         raise RuntimeError(f"impactlab record: {recorded.reason}")
     log = load_log(recorded.path)
     analysis = analyze_run(log)
-    impactlab.analyze([recorded.path], out=out / "results")  # with figures, as a user would
+    impactlab.analyze([recorded.path], out=out / "results", figures=True, report=True)
     impactlab.replay([recorded.path], out=out / "replay.rrd")
     dt_ns = round(log.timestep_s * 1e9)
     step = log.energy["t_ns"].to_numpy() // dt_ns
@@ -145,9 +145,10 @@ def impactlab_side(model_path: Path, duration: float, every: int, out_dir: Path)
     total = np.sum([work[k] for k in oracle.WORK_KINDS], axis=0)
     residual = (energy - energy[0]) - total  # the solver's work stays in it, as the oracle's
     nbody = len(log.body_info)
+    oracle_name = _oracle_names(model_path)
 
     def party(name: str, kind: str) -> str:
-        return f"flex {name}" if kind == "flex" else name
+        return f"flex {name}" if kind == "flex" else oracle_name.get(name, name)
 
     episodes = []
     explanations: dict[tuple[str, str, int], str] = {}
@@ -196,6 +197,23 @@ def impactlab_side(model_path: Path, duration: float, every: int, out_dir: Path)
         seconds=seconds,
     )
     return ImpactlabSide(run, seconds, explanations)
+
+
+def _oracle_names(model_path: Path) -> dict[str, str]:
+    """impactlab's names of the model's unnamed bodies and geoms (`body<i>`, `geom<i>`, given
+    by the recorder) -> the oracle's (`body i`, `geom i`, oracle.party_names)."""
+    from impactlab.record.model_names import name_unnamed
+
+    spec = mujoco.MjSpec.from_file(str(model_path))
+    if all(b.name for b in spec.bodies[1:]) and all(g.name for g in spec.geoms):
+        return {}  # every name is the model's own (compiling a large model takes seconds)
+    theirs = oracle.party_names(spec.compile())
+    name_unnamed(spec)
+    ours = spec.compile()
+    out = {ours.body(b).name: theirs[b] for b in range(1, ours.nbody)}
+    first_geom = ours.nbody + ours.nflex
+    out |= {ours.geom(g).name: theirs[first_geom + g] for g in range(ours.ngeom)}
+    return {a: b for a, b in out.items() if a != b}
 
 
 def _notes(analysis: Any) -> dict[tuple[str, str, float], str]:
