@@ -184,6 +184,11 @@ def test_find_models_lists_the_own_models_and_not_their_parts():
         ("flexcomp_drop.xml", {"flex"}),
         ("ball_hfield.xml", {"hfield"}),
         ("mocap_platform.xml", {"mocap"}),
+        ("sdf_torus.xml", {"sdf", "big_mesh"}),  # MuJoCo meshes the SDF: 89,408 faces
+        ("sunk_robot.xml", {"touching_t0", "joint_damping"}),
+        ("jointed_boxes.xml", set()),
+        ("tumbling_box.xml", {"joint_damping"}),
+        ("damped_pendulum.xml", {"joint_damping"}),
         (
             "all_forces.xml",
             {"tendons", "equality", "fluid", "gravcomp", "actuators", "joint_damping"},
