@@ -88,10 +88,13 @@ class ImpactlabSide:
 SPRINGS_BOOKED_AS_WORK = True
 
 
-def impactlab_side(model_path: Path, duration: float, every: int, out_dir: Path) -> ImpactlabSide:
+def impactlab_side(
+    model_path: Path, duration: float, every: int, out_dir: Path, *, publish: bool = True
+) -> ImpactlabSide:
     """Record `model_path` for `duration` s logging every `every`-th step with impactlab,
-    analyze the log (tables and figures) and replay it, and read the oracle's quantities back
-    from the log and the analysis alone (never from MuJoCo directly).
+    analyze the log (the tables, and with `publish` the figures and report) and replay it
+    (with `publish`), and read the oracle's quantities back from the log and the analysis
+    alone (never from MuJoCo directly). Files go to `out_dir`/every<every>.
 
     The conventions mapped: impactlab books every spring's work as a work and gravity alone
     as potential energy (SPRINGS_BOOKED_AS_WORK); its "solver" work (the force an unconverged
@@ -113,8 +116,9 @@ def impactlab_side(model_path: Path, duration: float, every: int, out_dir: Path)
         raise RuntimeError(f"impactlab record: {recorded.reason}")
     log = load_log(recorded.path)
     analysis = analyze_run(log)
-    impactlab.analyze([recorded.path], out=out / "results", figures=True, report=True)
-    impactlab.replay([recorded.path], out=out / "replay.rrd")
+    impactlab.analyze([recorded.path], out=out / "results", figures=publish, report=publish)
+    if publish:
+        impactlab.replay([recorded.path], out=out / "replay.rrd")
     dt_ns = round(log.timestep_s * 1e9)
     step = log.energy["t_ns"].to_numpy() // dt_ns
     grid = step % every == 0
