@@ -297,15 +297,17 @@ def test_a_jointed_impact_is_the_same_at_every_logging_stride(zoo_run):
     runs = {every: zoo_run("models/jointed_boxes.xml", every) for every in (1, 5)}
     want = episode(runs[1], "striker", "target")
     assert want.approach_speed > 1.0 and want.restitution is not None
-    impacts = {}
+    impacts, speeds = {}, {}
     for every, run in runs.items():
         got = episode(run, "striker", "target", truth=False)
+        speeds[every] = (got.approach_speed, got.separation_speed)
         assert (got.onset_step, got.release_step) == (want.onset_step, want.release_step)
         assert got.approach_speed == pytest.approx(want.approach_speed, abs=SPEED_ATOL)
         assert got.separation_speed == pytest.approx(want.separation_speed, abs=SPEED_ATOL)
         collisions = pl.read_parquet(run.folder / "results" / "collisions.parquet")
         impacts[every] = collisions.select("impact_t_s", "v1n_before_mps", "e_velocity").row(0)
         assert impacts[every][2] == pytest.approx(want.restitution, abs=1e-4)
+    np.testing.assert_allclose(speeds[1], speeds[5], rtol=0, atol=1e-9)
     np.testing.assert_allclose(impacts[1], impacts[5], rtol=0, atol=1e-9)
 
 
