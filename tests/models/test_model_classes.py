@@ -147,13 +147,6 @@ def test_a_flex_is_drawn_in_the_replay_where_mujoco_has_it(zoo_run):
     np.testing.assert_allclose(vertices.reshape(-1, 3), d.flexvert_xpos, atol=1e-6)  # float32
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="report Step 1 says 'no run has a ground to fall onto, so no contact loses energy' "
-    "for a flex dropped on a plane whose contact removes 2.23 J (runs table: "
-    "contact_loss_sum_J 2.25, work_contact_normal_J -2.23): questions.energy() answers only "
-    "runs with `ground`, which summary sets from rigid bodies on surfaces, never a flex",
-)
 def test_the_report_says_what_a_flexs_contact_removed(zoo_run):
     run = zoo_run("models/flexcomp_drop.xml", 1)
     step1 = section(run.report, "Step 1")
@@ -263,30 +256,12 @@ def test_a_loss_that_is_all_damping_is_booked_to_damping_not_drift(zoo_run):
     assert "not a physical loss" not in run.report
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="damped_pendulum never touches anything and its damper removes 0.431 J in 0.6 s "
-    "(runs table work_damping_J, = MuJoCo's; contact_loss_sum_J 0), yet report Step 1 says "
-    "'at the contacts 8.18 % of it is gone by the end' and names no damping: "
-    "questions.energy() phrases energy_initial -> energy_final as the contacts' loss instead "
-    "of quoting the budget's works (all_forces: 'at the contacts 8.96 %' where the contacts "
-    "did 1.84 J of 42.9 J and gravity compensation 1.57 J)",
-)
 def test_the_report_names_damping_as_where_the_energy_went(zoo_run):
     step1 = section(zoo_run("models/damped_pendulum.xml", 1).report, "Step 1")
     assert "damping" in step1.lower()
     assert not re.search(r"at the contacts [^.]*gone", step1)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="report Step 1 calls the integrator's own residual in flight (damped_pendulum: "
-    "+0.00217 J, the appendix's 'Integrator's residual'; all_forces: -0.00772 J; both = "
-    "MuJoCo's) 'not explained by the integrator: something else acts in flight' though the "
-    "budget books every force: findings.drift_finding compares it with m g^2 dt T / 2, "
-    "Euler's drift of a free body in free fall, which jointed, damped bodies do not have "
-    "(Euler's implicit damping leaves a share in the residual)",
-)
 @pytest.mark.parametrize("name", ["models/damped_pendulum.xml", "models/all_forces.xml"])
 def test_the_report_calls_the_residual_the_integrators(zoo_run, name):
     step1 = section(zoo_run(name, 1).report, "Step 1")

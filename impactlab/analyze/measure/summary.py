@@ -53,6 +53,11 @@ class RunAggregates:
         )
 
 
+NEGLIGIBLE_ENERGY_J = 1e-9
+"""An energy (or a work, a change of it) at or below this many joules, or 1e-9 of the initial
+energy, is zero: the budget closes on MuJoCo's energy to about 1e-11 J."""
+
+
 def run_aggregates(
     total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame
 ) -> RunAggregates:
@@ -101,12 +106,16 @@ def run_aggregates(
     return RunAggregates(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
 
 
-def predicted_drift(run: RunLog, flight_s: float | None) -> float | None:
+def predicted_drift(run: RunLog, flight_s: float | None, forced: bool) -> float | None:
     """The energy drift, J, the run's integrator gives its free bodies in a flight of
     `flight_s`: -M g^2 h T with h the log's half step (`RunLog.half_step_s`), so -M g^2 dt T / 2
     for MuJoCo's semi-implicit integrators (positions advance with the new velocity), 0 for
-    RK4 (exact on a parabola); None when the flight is not known."""
-    if flight_s is None:
+    RK4 (exact on a parabola); None when the flight is not known, or the formula does not hold:
+    a body that is not free, or a force besides gravity and the contacts that does work
+    (`forced`)."""
+    if flight_s is None or forced:
+        return None
+    if any(info.motion != "free" for info in run.body_info.values()):
         return None
     mass = sum(info.mass for name, info in run.body_info.items() if name in run.bodies)
     g2 = float(np.dot(run.gravity, run.gravity))
@@ -140,6 +149,12 @@ def summary_row(
     if col is not None and not col["complete"] and col["note"]:
         notes.append(col["note"])
     scale = abs(energy_start) if energy_start else None
+    contact = ("work_contact_normal_J", "work_contact_friction_J")
+    forced = any(  # a force besides gravity and the contacts works: no free-flight formula
+        abs(ph[c] or 0.0) > NEGLIGIBLE_ENERGY_J * max(1.0, scale or 0.0)
+        for c in WORK_COLUMNS
+        if c not in contact
+    )
 
     def c(name: str) -> Any:
         return col[name] if col is not None else None
@@ -172,7 +187,7 @@ def summary_row(
         "flight_drift_max_J": ph["drift_max"] if ph["n_flights"] else None,
         "flight_drift_max_rel": (ph["dev_max"] / scale) if ph["n_flights"] and scale else None,
         "flight_drift_J": ph["drift_worst"] if ph["n_flights"] else None,
-        "flight_drift_predicted_J": predicted_drift(run, ph["drift_worst_T"])
+        "flight_drift_predicted_J": predicted_drift(run, ph["drift_worst_T"], forced)
         if ph["n_flights"]
         else None,
         "contact_loss_sum_J": ph["loss_sum"],

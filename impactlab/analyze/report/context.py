@@ -71,7 +71,7 @@ COLUMNS = {
         ("energy_final_J", "Final energy", "J"),
         ("contact_loss_sum_J", "Lost at contacts", "J"),
         ("flight_drift_J", "Largest flight drift", "J"),
-        ("flight_drift_predicted_J", "Integrator's drift", "J"),
+        ("flight_drift_predicted_J", "Predicted drift", "J"),
         ("mujoco_diff_max_J", "MuJoCo's energy - ours, max", "J"),
         ("drop_height_m", "Drop height", "m"),
         ("first_impact_speed_mps", "Impact speed", "m/s"),

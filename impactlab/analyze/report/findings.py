@@ -14,6 +14,7 @@ from typing import Any, TypeGuard
 
 import polars as pl
 
+from impactlab.analyze.measure.summary import NEGLIGIBLE_ENERGY_J
 from impactlab.analyze.report.blocks import number, quantity
 from impactlab.physics import SEMI_IMPLICIT
 
@@ -41,10 +42,6 @@ DRIFT_FACTOR = 2.0
 lies within this factor of the prediction m g^2 dt T / 2 (either way): the formula holds to
 rounding for bodies that do not turn; a body that tumbles, or a model with forces the
 analysis does not follow (fluid drag, joints, actuators), departs from it by more."""
-
-NEGLIGIBLE_ENERGY_J = 1e-9
-"""An energy (or a change of it) at or below this many joules, or 1e-9 of the initial
-energy, is zero for the report: the analysis' energy agrees with MuJoCo's own to 1e-9 J."""
 
 PERCENT_MAX = 1.05
 """A change is written as a fraction of the initial energy only up to 105 % of it: a loss a
@@ -102,14 +99,17 @@ def drift(row: dict[str, Any]) -> Any:
 
 def drift_kind(row: dict[str, Any]) -> str:
     """A run's largest flight drift: "none" (no flight), "negligible" (`NEGLIGIBLE_ENERGY_J`),
-    "integrator" (the semi-implicit drift, within `DRIFT_FACTOR` of its prediction) or
-    "unexplained" (RK4, a gain, beyond the factor, or no prediction)."""
+    "integrator" (the semi-implicit drift, within `DRIFT_FACTOR` of its prediction),
+    "residual" (no free-flight formula holds: jointed bodies or other forces; what the budget
+    leaves, the integrator's) or "unexplained" (RK4, a gain, beyond the factor)."""
     value = drift(row)
     if not defined(value):
         return "none"
     if negligible(value, row.get("energy_initial_J")):
         return "negligible"
     predicted = row.get("flight_drift_predicted_J")
+    if predicted is None:  # no free-flight formula for this run: the budget's residual
+        return "residual"
     if row.get("integrator") not in SEMI_IMPLICIT or not defined(predicted) or not predicted:
         return "unexplained"
     return "integrator" if 1 / DRIFT_FACTOR <= value / predicted <= DRIFT_FACTOR else "unexplained"
@@ -119,6 +119,7 @@ DRIFT_WORDS = {
     "none": "no flight",
     "negligible": "conserved",
     "integrator": "integrator's drift",
+    "residual": "integrator's residual",
     "unexplained": "not explained",
 }
 

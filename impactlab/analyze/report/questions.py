@@ -78,68 +78,115 @@ def _targets(t: Tables) -> pl.Expr:
     return pl.col("run_id").replace_strict(words, default="", return_dtype=pl.String)
 
 
+FORCES = {  # the budget's works besides the contacts', as a sentence names them
+    "work_springs_J": "springs",
+    "work_damping_J": "joint damping",
+    "work_limits_J": "joint limits",
+    "work_equality_J": "equality constraints",
+    "work_friction_loss_J": "friction loss",
+    "work_actuators_J": "actuators",
+    "work_fluid_J": "fluid forces",
+    "work_gravity_compensation_J": "gravity compensation",
+    "work_solver_J": "the unconverged solver",
+}
+
+
 def energy(t: Tables) -> Answer:
-    """Step 1: is the energy conserved in flight and lost at the contacts?"""
-    ground = t.runs.filter(pl.col("ground") & pl.col("energy_initial_J").is_not_null())
-    if ground.is_empty():
-        return not_answered("no run has a ground to fall onto, so no contact loses energy")
-    rows = list(ground.iter_rows(named=True))
+    """Step 1: is the energy conserved in flight and lost at the contacts? Every number is
+    the budget's: the work of each kind of force, and the integrator's residual."""
+    known = t.runs.filter(pl.col("energy_initial_J").is_not_null())
+    if "ground" in known.columns:  # falls first: the question is the drop's
+        known = known.sort("ground", descending=True, maintain_order=True)
+    if known.is_empty():
+        return not_answered("no run's energy is known")
+    booked = [c for c in ("work_contact_normal_J", "work_contact_friction_J") if c in known.columns]
+    contacts = (
+        pl.sum_horizontal(booked)
+        if booked
+        else -pl.col("contact_loss_sum_J")
+        if "contact_loss_sum_J" in known.columns
+        else pl.lit(None, pl.Float64)
+    )
+    frame = known.with_columns(contacts.alias("contacts_J"))
+    rows = list(frame.iter_rows(named=True))
+
+    def acting(r: dict[str, Any], column: str) -> bool:
+        return F.defined(r.get(column)) and not F.negligible(r[column], r["energy_initial_J"])
+
+    forces = [c for c in FORCES if c in frame.columns and any(acting(r, c) for r in rows)]
     kinds = F.each(rows, F.drift_kind)
-    gone = [
-        F.share(F.change(r["energy_initial_J"], r["energy_final_J"]), r["energy_initial_J"])
-        for r in rows
-    ]
-    lost = span([g * 100 for g in gone if g is not None], "%")
-    end = f"{lost} of it is gone by the end" if lost else "the energy at the end is not measured"
     flown = [r for r, k in zip(rows, kinds, strict=True) if k != "none"]
-    odd = [
-        r for r, k in zip(rows, kinds, strict=True) if k not in F.DRIFT_WORDS or k == "unexplained"
+    odd = [r for r, k in zip(rows, kinds, strict=True) if k == "unexplained"]
+    forced = [r for r in flown if any(acting(r, c) for c in forces)]
+    lost = [
+        F.share(-r["contacts_J"], r["energy_initial_J"]) for r in rows if acting(r, "contacts_J")
     ]
+    removed = span([x * 100 for x in lost if x is not None], "%")
+    at_contacts = (
+        f"the contacts remove {removed} of it"
+        if removed
+        else "the contacts do work"
+        if lost
+        else "no contact does work"
+    )
+    others = [f"{FORCES[c]} {span([r[c] for r in rows if acting(r, c)], 'J')}" for c in forces]
+    also = f"; other forces work too ({', '.join(others)})" if others else ""
     if not flown:
-        lead = f"Not answered for the flight: no run has one; at the contacts {end}."
+        lead = f"Not answered for the flight: no run has one; {at_contacts}{also}."
         verdict = "Energy: no flight to test conservation on."
-    elif not odd:
+    elif odd or forced:
+        who = (odd or forced)[0]
+        what = (
+            f"changes by more than the integrator explains ({quantity(F.drift(who), 'J')})"
+            if odd
+            else "is also changed by other forces"
+        )
+        lead = (
+            f"Not in every run: in {len(odd) or len(forced)} of {len(flown)} runs with a "
+            f"flight the energy in flight {what} ({_who(who)}); {at_contacts}{also}."
+        )
+        verdict = (
+            f"Energy: not conserved in flight in {len(odd) or len(forced)} of {len(flown)} runs."
+        )
+    else:
         worst = max(flown, key=lambda r: abs(F.drift(r) / r["energy_initial_J"]))
         rel = percent(abs(F.drift(worst) / worst["energy_initial_J"]))
         lead = (
-            f"Yes: in flight the total energy is conserved up to the integrator's drift (at "
-            f"most {rel} of it), and at the contacts it is lost: {end}."
+            f"Yes: in flight only the integrator changes the energy (at most {rel} of it), "
+            f"and {at_contacts}{also}."
         )
         verdict = (
-            f"Energy is conserved in flight up to the integrator's drift (at most {rel}) and "
-            "lost at the contacts."
+            f"Energy is conserved in flight up to the integrator (at most {rel}); {at_contacts}."
         )
-    else:
-        lead = (
-            f"Not in every run: in {len(odd)} of {len(flown)} runs with a flight the energy "
-            f"changes in flight by more than the integrator explains ({_who(odd[0])}: "
-            f"{quantity(F.drift(odd[0]), 'J')}); at the contacts {end}."
-        )
-        verdict = f"Energy: in {len(odd)} of {len(flown)} runs the flight drift is unexplained."
     notes = F.each(rows, lambda r: F.drift_finding(r) if F.drift_kind(r) == "unexplained" else "")
     table, footnotes = footnoted(
-        ground.with_columns(
-            pl.Series("gone", [None if g is None else g * 100 for g in gone], dtype=pl.Float64),
+        frame.with_columns(
             pl.Series("flight", [F.DRIFT_WORDS.get(k, k) for k in kinds], dtype=pl.String),
             pl.Series("note", notes, dtype=pl.String),
         ),
         "note",
     )
     cols = (
-        *columns(table, "run", "energy_initial_J", "contact_loss_sum_J"),
+        *columns(table, "run", "energy_initial_J"),
+        Column("contacts_J", "Contacts' work", "J"),
+        *columns(table, *forces, "residual_J", "energy_final_J"),
         *columns(table, "flight_drift_J", "flight_drift_predicted_J"),
-        Column("gone", "Gone at the end", "%"),
         Column("flight", "In flight"),
         Column("note", "Note"),
     )
-    why = (
-        "A semi-implicit integrator (Euler, as in the handout) loses m g² dt T / 2 in a flight "
-        "of T seconds: that is the drift predicted beside each run's below."
-    )
-    evidence: list[Block] = [Bullets(tuple((s,) for s in (why, *F.at_rest(ground))))]
+    said = [
+        "Energy change = the work of each kind of force + the integrator's residual, "
+        "summed over every simulated step."
+    ]
+    if frame["flight_drift_predicted_J"].drop_nulls().len():
+        said.append(
+            "A semi-implicit integrator (Euler, as in the handout) loses m g² dt T / 2 in a "
+            "free flight of T seconds: that is the drift predicted beside each run's below."
+        )
+    evidence: list[Block] = [Bullets(tuple((s,) for s in (*said, *F.at_rest(frame))))]
     evidence += _table(table, cols, footnotes)
     order = ["n_bounces_complete", "drop_height_m"]
-    best = ground.sort(order, descending=True, nulls_last=True).row(0, named=True)
+    best = frame.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
     evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
     return Answer([Strong(lead)], evidence, verdict)

@@ -214,7 +214,7 @@ def test_a_drift_within_the_factor_is_the_integrators(integrator):
     assert F.drift_kind(row) == "integrator"
     assert f"is {integrator}'s semi-implicit drift" in F.drift_finding(row)
     assert _lead(questions.energy(_tables(_runs(row)))).startswith(
-        "Yes: in flight the total energy"
+        "Yes: in flight only the integrator changes the energy"
     )
     beyond = {**row, "flight_drift_J": 2.5 * predicted}
     assert F.drift_kind(beyond) == "unexplained"
