@@ -122,10 +122,11 @@ def _alone(args: argparse.Namespace) -> int:
 
 def _model(args: argparse.Namespace) -> int:
     from impactlab.contact import ContactModelError
-    from impactlab.contact.mjcf import check_not_input
     from impactlab.contact.summary import design_dict, design_lines
     from impactlab.contact.tune import parse_pair, parse_speeds, tune_model, write_tuned
     from impactlab.files import check_writable
+    from impactlab.mjcf.files import check_not_input
+    from impactlab.mjcf.load import parse_mjcf
 
     for flag in ("radius", "timestep", "integrator"):
         if getattr(args, flag) is not None:
@@ -137,8 +138,7 @@ def _model(args: argparse.Namespace) -> int:
         if args.out.is_dir():
             raise ContactModelError(f"-o {args.out} is a folder: give the tuned model's file name")
         check_writable(args.out.resolve().parent)
-        if args.model.is_file():
-            check_not_input(args.out, args.model)
+        check_not_input(args.out, args.model, parse_mjcf(args.model))
     tuned = tune_model(
         args.model,
         [parse_pair(text) for text in args.pair],

@@ -16,18 +16,19 @@ from pathlib import Path
 from impactlab.contact.advice import ContactDesign, design_contact
 from impactlab.contact.checks import ContactModelError
 from impactlab.contact.design import SPEED_FLOOR_MPS
-from impactlab.contact.mjcf import (
+from impactlab.contact.pairs import (
     ModelOptions,
     ModelPair,
-    check_not_input,
     check_tuned,
-    load_model,
     model_options,
     model_pairs,
     pair_element,
 )
-from impactlab.contact.mjcf_text import with_pairs
+from impactlab.errors import SpecError
 from impactlab.files import atomic_path
+from impactlab.mjcf.files import check_not_input
+from impactlab.mjcf.load import load_model, parse_mjcf
+from impactlab.mjcf.pairs import with_pairs
 
 _PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
 
@@ -113,7 +114,8 @@ def tune_model(
     """Design every requested pair of a model (nothing written).
 
     Raises:
-        ContactModelError: the model, a geom name, a target or the speeds are wrong.
+        SpecError: the model's file cannot be read, parsed or compiled.
+        ContactModelError: a geom name, a target or the speeds are wrong.
     """
     if not requests:
         raise ContactModelError("name the pairs to calibrate: --pair GEOM1/GEOM2=E")
@@ -173,17 +175,19 @@ def write_tuned(tuned: TunedModel, out: Path) -> Path:
     compiling it with MuJoCo from its new folder.
 
     Raises:
-        ContactModelError: a pair misses its target, or the written model does not compile
-            or does not carry the pairs (nothing is left behind then).
+        ContactModelError: a pair misses its target.
+        SpecError: `out` is a file the model reads, or the written model does not compile or
+            does not carry the pairs (nothing is left behind then).
     """
     if not tuned.ok:
         raise ContactModelError("a pair misses its target: nothing written")
-    check_not_input(out, tuned.path)
+    check_not_input(out, tuned.path, parse_mjcf(tuned.path))
     try:
         raw = tuned.path.read_bytes()
     except OSError as exc:
-        raise ContactModelError(f"{tuned.path}: cannot read: {exc.strerror or exc}") from None
-    data = with_pairs(raw, [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs])
+        raise SpecError(str(tuned.path), "", f"cannot read: {exc.strerror or exc}") from None
+    pairs = [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs]
+    data = with_pairs(raw, pairs, str(tuned.path))
     with atomic_path(out) as tmp:
         tmp.write_bytes(data)
         check_tuned(tmp, [(t.pair, t.design.params) for t in tuned.pairs])
