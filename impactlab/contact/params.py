@@ -77,4 +77,3 @@ class ContactParams:
         attrs = [f"geom1={quoteattr(geom1)}", f"geom2={quoteattr(geom2)}", f'condim="{condim}"']
         attrs += [*extra, f'solref="{a["solref"]}"', f'solimp="{a["solimp"]}"']
         return "<pair " + " ".join(attrs) + "/>"
-

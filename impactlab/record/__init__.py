@@ -8,7 +8,8 @@ plans, keeping a sweep as its grid (`PlannedRuns`), `work` estimates and refuses
 `recorder` runs here or as executor `tasks`).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.mjcf`,
-`impactlab.executors`, MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
+`impactlab.executors`, MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`,
+`impactlab.calibrate`.
 
 This package is also the function `impactlab.record(...)` (see `record` below).
 """
