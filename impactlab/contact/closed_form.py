@@ -1,7 +1,4 @@
-"""The linear spring-dashpot in continuous time: Schwager & Poeschel's closed form and friends.
-
-The contact ends when the force vanishes (it cannot pull); units w0 = sqrt(stiffness).
-"""
+"""The linear spring-dashpot in continuous time: Schwager & Poeschel's closed form."""
 
 from __future__ import annotations
 

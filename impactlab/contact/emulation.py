@@ -1,12 +1,4 @@
-"""Exact numpy emulations of `mj_step` for one impact of this contact, per integrator.
-
-In units w0 = sqrt(stiffness) = 1 and impact speed = 1; the tests check them against MuJoCo
-step by step. MuJoCo's ``Euler`` is semi-implicit Euler (velocity first, then position with
-the new velocity); ``implicit`` and ``implicitfast`` differ from it only through
-velocity-dependent passive and actuator forces, which a free ball does not have, so they step
-this contact exactly as ``Euler`` does (a test checks it in MuJoCo). ``RK4`` is the classical
-four-stage Runge-Kutta step, MuJoCo evaluating collisions and constraint forces at every stage.
-"""
+"""Exact numpy emulations of `mj_step` for one impact of this contact, per integrator."""
 
 from __future__ import annotations
 
@@ -96,58 +88,12 @@ def free_step_travel(h: float, gr: np.ndarray, scheme: str) -> np.ndarray:
     return h * (1.0 + h * gr) if scheme == "euler" else h * (1.0 + 0.5 * h * gr)
 
 
-def emulate_impact(
-    zeta: np.ndarray,
-    w0dt: float,
-    phases: np.ndarray,
-    gravity_ratio: float = 0.0,
-    impedance: float = IMPEDANCE,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact emulation of mj_step (semi-implicit Euler) for one impact, in units w0 = v_in = 1.
-
-    The first contact step starts at dist = -phase * w0dt (phase in (0, 1]) with velocity -1.
-    Per step: aref = -(b u + k y) / d; the constraint is active iff dist < 0 and aref > a_free;
-    then a = d aref + (1 - d) a_free, else a = a_free = -gravity_ratio.
-
-    Args:
-        zeta: damping ratios, shape (nz,).
-        w0dt: w0 * timestep.
-        phases: contact-onset phases, shape (nph,).
-        gravity_ratio: g / (w0 v_in).
-        impedance: solimp d.
-
-    Returns:
-        e (nz x nph): velocity after the last force step / v_in;
-        penetration (nz x nph): max overlap * w0 / v_in;
-        steps (nz x nph): number of steps with a positive force.
-    """
-    zeta = np.asarray(zeta, float)[:, None]
-    ph = np.asarray(phases, float)[None, :]
-    shape = np.broadcast_shapes(zeta.shape, ph.shape)
-    y = np.broadcast_to(-ph * w0dt, shape).copy()
-    u = -np.ones(shape)
-    b = np.broadcast_to(2.0 * zeta, shape)
-    a_free = -gravity_ratio
-    u_out = np.zeros(shape)
-    pen = np.zeros(shape)
-    steps = np.zeros(shape, dtype=np.int64)
-    started = np.zeros(shape, bool)
-    done = np.zeros(shape, bool)
-    for _ in range(int(40.0 / w0dt) + 100):
-        aref = -(b * u + y) / impedance
-        force = (y < 0.0) & (aref > a_free) & ~done
-        done |= started & ~force
-        if done.all():
-            break
-        a = np.where(force, impedance * aref + (1.0 - impedance) * a_free, a_free)
-        pen = np.maximum(pen, np.where(force, -y, 0.0))
-        u = u + w0dt * a
-        y = y + w0dt * u
-        pen = np.maximum(pen, np.where(force, -y, 0.0))
-        started |= force
-        steps += force
-        u_out = np.where(force, u, u_out)
-    return u_out, pen, steps
+def speed_in(h: float, gr: np.ndarray | float, scheme: str) -> np.ndarray | float:
+    """The impact speed as the recorder takes it (before any contact force acted), in units
+    of the speed in the last state before the overlap (w0 = 1): Euler's first state in
+    contact has fallen one more step (1 + h gr); RK4's is that state, since the later stages
+    of its step already meet the surface (1). Divide the emulation's velocities by it."""
+    return 1.0 + h * np.asarray(gr) if scheme == "euler" else 1.0
 
 
 def emulate_surface(
@@ -161,8 +107,8 @@ def emulate_surface(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mj_step emulation of one impact, continued until the ball is back at the surface.
 
-    Units w0 = 1 and v_in = 1, v_in being the speed in the last state before the overlap (what
-    the analysis stage takes). That state is ``(1 - phase)`` free-flight steps above the
+    Units w0 = 1 and the speed in the last state before the overlap = 1 (`speed_in` turns
+    them into the recorder's). That state is ``(1 - phase)`` free-flight steps above the
     surface, phase in (0, 1]. Each step applies MuJoCo's rule (the constraint pushes while
     dist < 0 and aref > a_free, at every stage of the integrator), also after the force has let
     go, until the first state with dist >= 0.

@@ -1,12 +1,4 @@
-"""Gravity's surface-to-surface e without stepping through the contact (what the designer uses).
-
-While the constraint pushes at every evaluation of a step, the step is affine in (dist,
-velocity): the states of the force phase are powers of the step matrix. After the force lets
-go the ball flies freely and the first state at the surface follows from a quadratic. Only the
-steps where the force switches on or off are stepped (`emulation.step`). Columns that do not
-fit that picture (a force phase longer than 3.6 / w0, a constraint that grips again on the way
-out at very low impact speeds) are stepped throughout, so the result is always the emulation's.
-"""
+"""Gravity's effect on e without stepping through the contact: the force phase in closed form."""
 
 from __future__ import annotations
 

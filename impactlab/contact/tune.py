@@ -1,10 +1,4 @@
-"""Tune a user's MJCF model: a calibrated ``<pair>`` for each pair of geoms asked for.
-
-The model gives the timestep, the integrator and, per pair, the radius and gravity along the
-contact normal (`mjcf.model_pairs`); the user gives the target e per pair and the impact
-speeds (per pair, for all pairs, or, for a sphere above a static plane, derived from the
-model's initial state: from the first impact down to ``SPEED_FLOOR_MPS``).
-"""
+"""Tune a user's MJCF model: a calibrated ``<pair>`` for each pair of geoms asked for."""
 
 from __future__ import annotations
 

