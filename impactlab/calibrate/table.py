@@ -40,41 +40,33 @@ SCHEMA = pl.Schema(
     }
 )
 """One row per impact of a calibrated pair (columns: see `calibration_table`)."""
+IMPACTS = {"run_id": pl.String, "side1": pl.String, "side2": pl.String, "impact": pl.Int64}
 
 
 def impacts(bounces: pl.DataFrame, collisions: pl.DataFrame) -> pl.DataFrame:
     """The complete impacts of the analysis' tables: (run_id, side1, side2, impact, speed_mps,
     e, target_e, penetration_m), a bounce's sides its body and surface, a collision's its
     two bodies; the speed is the contact points' normal speed in (the closing speed)."""
-    columns = ("run_id", "side1", "side2", "impact", "speed_mps", "e", "target_e", "penetration_m")
-    frames = [
-        bounces.filter(pl.col("complete")).select(
-            "run_id",
-            pl.col("body").alias("side1"),
-            pl.col("surface").alias("side2"),
-            pl.col("bounce").alias("impact"),
-            (-pl.col("v_in_mps")).alias("speed_mps"),
+
+    def pick(frame: pl.DataFrame, sides: tuple[str, str], n: str, speed: pl.Expr) -> pl.DataFrame:
+        return frame.filter(pl.col("complete")).select(
+            pl.col("run_id"),
+            pl.col(sides[0]).alias("side1"),
+            pl.col(sides[1]).alias("side2"),
+            pl.col(n).cast(pl.Int64).alias("impact"),
+            speed.alias("speed_mps"),
             pl.col("e_velocity").alias("e"),
-            "target_e",
+            pl.col("target_e"),
             pl.col("max_penetration_m").alias("penetration_m"),
         )
-        if bounces.height
-        else None,
-        collisions.filter(pl.col("complete")).select(
-            "run_id",
-            pl.col("body1").alias("side1"),
-            pl.col("body2").alias("side2"),
-            pl.col("collision").alias("impact"),
-            (pl.col("v1n_before_mps") - pl.col("v2n_before_mps")).alias("speed_mps"),
-            pl.col("e_velocity").alias("e"),
-            "target_e",
-            pl.col("max_penetration_m").alias("penetration_m"),
-        )
-        if collisions.height
-        else None,
-    ]
-    found = [f.cast({"impact": pl.Int64}) for f in frames if f is not None]
-    return pl.concat(found) if found else pl.DataFrame(schema=dict.fromkeys(columns, pl.Float64))
+
+    closing = pl.col("v1n_before_mps") - pl.col("v2n_before_mps")
+    found = []
+    if bounces.height:
+        found.append(pick(bounces, ("body", "surface"), "bounce", -pl.col("v_in_mps")))
+    if collisions.height:
+        found.append(pick(collisions, ("body1", "body2"), "collision", closing))
+    return pl.concat(found) if found else pl.DataFrame(schema=IMPACTS)
 
 
 def calibration_table(

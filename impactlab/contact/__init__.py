@@ -12,22 +12,19 @@ May import: numpy, `impactlab.mjcf` (MuJoCo in `pairs` only). Must not import: a
 """
 
 from impactlab.contact.advice import ContactDesign, Prediction, design_contact, predict
-from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
 from impactlab.contact.closed_form import (
+    RESTITUTION_FLOOR,
+    ContactModelError,
     contact_time_factor,
     max_penetration_factor,
     restitution_closed_form,
     zeta_for_restitution,
 )
-from impactlab.contact.design import (
-    RESTITUTION_TOLERANCE,
-    SPEED_FLOOR_MPS,
-    SPREAD_BUDGET,
-    contact_params,
-)
+from impactlab.contact.design import SPEED_FLOOR_MPS, SPREAD_BUDGET, contact_params
 from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
+from impactlab.contact.table import RESTITUTION_TOLERANCE
 
 INTEGRATORS = tuple(SCHEMES)
 """MuJoCo's integrators, every one calibrated (implicit and implicitfast step this contact as

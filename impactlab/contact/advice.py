@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.design import design, params_from
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread

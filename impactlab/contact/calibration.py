@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
+from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import gravity_shift
 from impactlab.contact.table import calibrated_zeta, discrete, table

@@ -10,18 +10,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError, check_restitution, positive
 from impactlab.contact.closed_form import (
+    ContactModelError,
+    check_restitution,
     contact_time_factor,
     max_penetration_factor,
+    positive,
     zeta_for_restitution,
 )
 from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
+from impactlab.contact.table import PHASE_BUDGET
 from impactlab.contact.timestep import accepted_timestep, largest_timestep, timestep_problem
-
-__all__ = ["RESTITUTION_TOLERANCE", "SPEED_FLOOR_MPS", "SPREAD_BUDGET", "contact_params"]
 
 SPEED_FLOOR_MPS = 0.5
 """Lowest impact speed of a default speed range, in m/s (specs and ``impactlab contact MODEL``):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 
 IMPEDANCE = 0.9999
 """solimp dmin = dmax: MuJoCo's largest impedance (mjMAXIMP). With the direct solref, MuJoCo
@@ -35,9 +35,10 @@ def scheme_of(integrator: str) -> str:
 
 
 def _acceleration(
-    y: np.ndarray, u: np.ndarray, b: np.ndarray | float, gr: np.ndarray | float, d: float
+    y: np.ndarray, u: np.ndarray, b: np.ndarray | float, gr: np.ndarray | float
 ) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's contact rule: (acceleration, force on) at states (y, u)."""
+    d = IMPEDANCE
     aref = -(b * u + y) / d
     force = (y < 0.0) & (aref > -gr)
     return np.where(force, d * aref + (1.0 - d) * -gr, -gr), force
@@ -50,37 +51,34 @@ def step(
     b: np.ndarray | float,
     gr: np.ndarray | float,
     scheme: str,
-    d: float = IMPEDANCE,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One step of MuJoCo's integrator for this contact (units w0 = v_in = 1).
 
     Args:
         y, u: signed distance and normal velocity (arrays, broadcastable).
-        b, gr: arrays broadcastable with them, or scalars.
         h: w0 * timestep.
-        b: 2 zeta.
-        gr: g / (w0 v_in) (gravity towards the surface).
+        b: 2 zeta, an array broadcastable with them or a scalar.
+        gr: g / (w0 v_in) (gravity towards the surface), likewise.
         scheme: "euler" or "rk4" (:func:`scheme_of`).
-        d: solimp impedance.
 
     Returns:
-        (y, u, any_force, all_force): the next state, and whether the constraint pushed in
-        some / every evaluation of the step (one for Euler, four stages for RK4).
+        (y, u, force): the next state, and whether the constraint pushed in some evaluation
+        of the step (one for Euler, four stages for RK4).
     """
     if scheme == "euler":
-        a, f = _acceleration(y, u, b, gr, d)
+        a, f = _acceleration(y, u, b, gr)
         u = u + h * a
-        return y + h * u, u, f, f
-    a1, f1 = _acceleration(y, u, b, gr, d)
+        return y + h * u, u, f
+    a1, f1 = _acceleration(y, u, b, gr)
     y2, u2 = y + 0.5 * h * u, u + 0.5 * h * a1
-    a2, f2 = _acceleration(y2, u2, b, gr, d)
+    a2, f2 = _acceleration(y2, u2, b, gr)
     y3, u3 = y + 0.5 * h * u2, u + 0.5 * h * a2
-    a3, f3 = _acceleration(y3, u3, b, gr, d)
+    a3, f3 = _acceleration(y3, u3, b, gr)
     y4, u4 = y + h * u3, u + h * a3
-    a4, f4 = _acceleration(y4, u4, b, gr, d)
+    a4, f4 = _acceleration(y4, u4, b, gr)
     y_new = y + h / 6.0 * (u + 2.0 * u2 + 2.0 * u3 + u4)
     u_new = u + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-    return y_new, u_new, f1 | f2 | f3 | f4, f1 & f2 & f3 & f4
+    return y_new, u_new, f1 | f2 | f3 | f4
 
 
 def free_step_travel(h: float, gr: np.ndarray, scheme: str) -> np.ndarray:
@@ -101,8 +99,6 @@ def emulate_surface(
     w0dt: float,
     phases: np.ndarray,
     gravity_ratio: float | np.ndarray = 0.0,
-    impedance: float = IMPEDANCE,
-    t_max: float = 40.0,
     integrator: str = "Euler",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mj_step emulation of one impact, continued until the ball is back at the surface.
@@ -118,8 +114,6 @@ def emulate_surface(
         w0dt: w0 * timestep.
         phases: contact-onset phases.
         gravity_ratio: g / (w0 v_in), scalar or broadcastable with phases.
-        impedance: solimp d.
-        t_max: give up (e = 0: the ball does not leave) after this time, in 1 / w0.
         integrator: MuJoCo's integrator name (:data:`SCHEMES`).
 
     Returns:
@@ -143,8 +137,8 @@ def emulate_surface(
     entered = np.zeros(shape, bool)
     done = np.zeros(shape, bool)
     weightless = not np.any(gr)
-    for _ in range(int(t_max / h) + 100):
-        y_new, u_new, any_force, _ = step(y, u, h, b, gr, scheme, impedance)
+    for _ in range(int(40.0 / h) + 100):  # 0: the ball does not leave within 40 / w0
+        y_new, u_new, any_force = step(y, u, h, b, gr, scheme)
         let_go = pushed & ~any_force & ~released & ~done
         release = np.where(let_go, u, release)
         released |= let_go

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError, positive
+from impactlab.contact.closed_form import ContactModelError, positive
 from impactlab.contact.emulation import emulate_surface, scheme_of, speed_in
 from impactlab.contact.fast import impact_fast
 from impactlab.contact.params import ContactParams
@@ -64,11 +64,6 @@ def restitution_spread(
     recorder measures them, for `phases` contact-onset phases; the lowest and highest are
     what single impacts at that speed may give, depending on where in a step the contact
     begins. 0 when the ball does not leave within 40 / w0.
-
-    While the ball is still inside the floor after the force lets go (overlap about
-    2 zeta v_out / w0), gravity slows it for about 2 zeta / w0 s, so e is lower than at
-    release by about 2 zeta g / (w0 v); :func:`contact_params` centres that over its speed
-    range, so e is within the tolerance of the target there and lower at lower speeds.
 
     Returns:
         (mean, lowest, highest), each one value per speed.

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.params import ContactParams
 from impactlab.mjcf.load import load_model
 
@@ -51,21 +51,15 @@ class ModelOptions:
 
     timestep_s: float
     integrator: str
-    gravity: tuple[float, float, float]
 
 
 def model_options(model: mujoco.MjModel) -> ModelOptions:
-    """Timestep, integrator and gravity of a compiled model."""
+    """Timestep and integrator of a compiled model."""
     import mujoco
 
     integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
-    gx, gy, gz = (float(x) for x in model.opt.gravity)
     names = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
-    return ModelOptions(
-        timestep_s=float(model.opt.timestep),
-        integrator=names.get(integrator, integrator),
-        gravity=(gx, gy, gz),
-    )
+    return ModelOptions(float(model.opt.timestep), names.get(integrator, integrator))
 
 
 def model_pairs(model: mujoco.MjModel, names: Sequence[tuple[str, str]]) -> list[ModelPair]:

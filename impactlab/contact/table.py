@@ -13,8 +13,12 @@ from typing import Any, TypedDict
 
 import numpy as np
 
-from impactlab.contact.checks import ZETA_MAX, bisect
-from impactlab.contact.closed_form import max_penetration_factor, restitution_closed_form
+from impactlab.contact.closed_form import (
+    ZETA_MAX,
+    bisect,
+    max_penetration_factor,
+    restitution_closed_form,
+)
 from impactlab.contact.emulation import IMPEDANCE, emulate_surface
 
 RESTITUTION_TOLERANCE = 0.005
@@ -198,16 +202,10 @@ def table_difference(committed: Mapping[str, Any], fresh: Mapping[str, object]) 
 def main(argv: Sequence[str] | None = None) -> int:
     """Regenerate (or check) the committed calibration tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--scheme", choices=sorted(TABLE_PATHS), action="append", help="only this table"
-    )
-    parser.add_argument(
-        "--check", action="store_true", help="fail if a committed table is out of date"
-    )
+    parser.add_argument("--check", action="store_true", help="fail if a table is out of date")
     args = parser.parse_args(argv)
     status = 0
-    for scheme in args.scheme or sorted(TABLE_PATHS):
-        path = TABLE_PATHS[scheme]
+    for scheme, path in sorted(TABLE_PATHS.items()):
         fresh = generate_table(scheme)
         if args.check:
             current = json.loads(path.read_text()) if path.exists() else {}

@@ -6,7 +6,7 @@ import math
 from collections.abc import Callable
 
 from impactlab.contact.calibration import evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE, discrete, table

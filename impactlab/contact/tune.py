@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from impactlab.contact.advice import ContactDesign, design_contact
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.design import SPEED_FLOOR_MPS
 from impactlab.contact.pairs import (
     ModelOptions,
@@ -23,8 +22,6 @@ from impactlab.files import atomic_path
 from impactlab.mjcf.files import check_not_input
 from impactlab.mjcf.load import load_model, parse_mjcf
 from impactlab.mjcf.pairs import with_pairs
-
-_PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
 
 
 @dataclass(frozen=True)
@@ -58,41 +55,6 @@ class TunedModel:
     def ok(self) -> bool:
         """Every pair meets its target at the model's timestep."""
         return all(t.design.ok for t in self.pairs)
-
-
-def parse_number(text: str, what: str) -> float:
-    """A finite number from the command line, or ContactModelError naming `what`."""
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
-        raise ContactModelError(f"{what} must be a number, got {text!r}") from None
-    if value != value or value in (float("inf"), float("-inf")):
-        raise ContactModelError(f"{what} must be finite, got {text!r}")
-    return value
-
-
-def parse_speeds(text: str, what: str = "--speed") -> tuple[float, float]:
-    """``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
-    lo_text, sep, hi_text = text.partition("..")
-    lo = parse_number(lo_text, what)
-    hi = parse_number(hi_text, what) if sep else lo
-    if not 0.0 < lo <= hi:
-        raise ContactModelError(f"{what} must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
-    return lo, hi
-
-
-def parse_pair(text: str) -> PairRequest:
-    """``G1/G2[=E][@LO..HI]`` -> PairRequest."""
-    m = _PAIR.match(text)
-    if not m:
-        raise ContactModelError(f"--pair must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
-    g1, g2, e, speeds = m.groups()
-    return PairRequest(
-        g1,
-        g2,
-        None if e is None else parse_number(e, f"--pair {text}: restitution"),
-        None if speeds is None else parse_speeds(speeds, f"--pair {text}: speeds"),
-    )
 
 
 def tune_model(

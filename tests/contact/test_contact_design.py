@@ -64,7 +64,7 @@ def test_rk4_emulation_matches_mj_step():
     y = np.array([0.63 * v * dt * w0 / v])
     u = np.array([-1.0])
     for i in range(400):
-        y, u, _, _ = emulation.step(y, u, w0 * dt, 2.0 * p.zeta, g / (w0 * v), "rk4")
+        y, u, _ = emulation.step(y, u, w0 * dt, 2.0 * p.zeta, g / (w0 * v), "rk4")
         assert (traj[i, 0] - 0.05) * w0 / v == pytest.approx(y[0], abs=1e-12)
         assert traj[i, 1] / v == pytest.approx(u[0], abs=1e-12)
     assert traj[-1, 1] > 0.0  # it bounced
