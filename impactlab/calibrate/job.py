@@ -85,8 +85,8 @@ def run_calibration(
         progress: receives the recording's and the analysis' progress; None: silent.
 
     Raises:
-        SpecError: a target or spec is wrong, or the folder cannot be written (nothing
-            written then).
+        SpecError: a target or spec is wrong (nothing written then).
+        OutputError: the folder cannot be written (a full disk: nothing more is written).
         LogError: a log cannot be analyzed.
     """
     out_dir = Path(out_dir)
@@ -112,7 +112,8 @@ def _checked(targets: Sequence[float]) -> list[float]:
     values = [float(e) for e in targets]
     for i, e in enumerate(values):
         if not (math.isfinite(e) and RESTITUTION_FLOOR <= e <= 1.0):
-            raise SpecError("--targets", "", f"{e!r} is out of range (must be in [0.1354, 1])")
+            rule = f"must be in [{RESTITUTION_FLOOR:.4f}, 1]"
+            raise SpecError("--targets", "", f"{e!r} is out of range ({rule})")
         if e in values[:i]:
             raise SpecError("--targets", "", f"lists {e!r} twice: give each value once")
     return values
@@ -197,7 +198,7 @@ def report_blocks(result: CalibrationResult, folder: Path) -> list[Block]:
                 f"contact's speed range e is within {RESTITUTION_TOLERANCE} of the target and "
                 "the penetration within the designer's bound; outside it e lies where the "
                 "designer's step emulation predicts, within the band over where in a step "
-                f"the contact begins (+-{BAND_MARGIN}). Here {verdict}. Every impact: ",
+                f"the contact begins (± {BAND_MARGIN}). Here {verdict}. Every impact: ",
                 Link(TABLE, source),
                 ".",
             )
