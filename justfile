@@ -40,7 +40,7 @@ lock: (needs "piptools" "dev")
 
 # Refresh the README's figure from the lab report (docs/report-restitution.png).
 readme-figure out="/tmp/impactlab-readme-lab":
-    {{python}} -m impactlab lab -o {{out}} --calibration none --no-replay
+    {{python}} -m impactlab lab -o {{out}} --no-replay
     cp {{out}}/results/figures/restitution-vs-speed.png docs/report-restitution.png
 
 # Install an extra of pyproject.toml (pinned by the lock) when its module is missing.

@@ -1,11 +1,12 @@
-"""The whole lab end to end: record every experiment, analyze, replay, calibrate, report.
+"""The whole lab end to end: record every experiment, analyze, replay, report (and calibrate).
 
 The specs are those of `experiments` (by default `experiments/` in the working folder, or,
 when that holds none, the handout's experiments shipped with impactlab). Logs go to
 OUT/logs, tables, figures and the report (report.md, and report.html with the figures
 embedded; the details in report-appendix.md/.html) to OUT/results, one Rerun recording per
-run to OUT/results/replays (linked from the appendix, with the calibration). Complete logs
-from an earlier run of the same specs are reused.
+run to OUT/results/replays (linked from the appendix), and, when asked, the calibration
+experiment to OUT/results/calibration (its table in the appendix). Complete logs from an
+earlier run of the same specs are reused.
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ from impactlab.progress import Progress, say
 
 if TYPE_CHECKING:
     from impactlab.analyze import Block
-    from impactlab.calibrate import CalibrationResult
 
 DEFAULT_EXPERIMENTS = Path("experiments")
 
@@ -43,7 +43,7 @@ def run_lab(
     experiments: Path | None = None,
     overwrite: bool = False,
     replay: bool = True,
-    calibration: str = "medium",
+    calibration: bool = False,
     executor: Executor | None = None,
     progress: Progress | None = None,
 ) -> LabResult:
@@ -55,7 +55,8 @@ def run_lab(
             any, else the handout's experiments shipped with impactlab (said in one line).
         overwrite: record again runs whose complete log exists (else they are reused).
         replay: write one Rerun recording per run.
-        calibration: the calibration grid for the report ("none" to skip it).
+        calibration: also record and analyze the calibration experiment
+            (`impactlab.calibrate`), its table in the appendix.
         executor: where recording and analysis tasks run (default: here); replays and the
             calibration run here.
         progress: receives every stage's progress and lines; None: silent.
@@ -88,14 +89,14 @@ def run_lab(
             logs, out=results_dir / "replays", analysis=results_dir, progress=progress
         )
         sections += _replays_section(results_dir, replays)
-    if calibration != "none":
-        from impactlab.calibrate import run_calibration
+    if calibration:
+        from impactlab.calibrate import report_blocks, run_calibration
 
         where = results_dir / "calibration"
-        say(progress, "lab", f"calibrating restitution ({calibration} grid) into {where}/")
+        say(progress, "lab", f"recording the calibration experiment into {where}/")
         echo = (lambda line: say(progress, "calibrate", line)) if progress else (lambda _: None)
-        calibrated = run_calibration(where, grid=calibration, echo=echo, progress=progress)
-        sections += _calibration_section(calibrated)
+        calibrated = run_calibration(where, echo=echo, progress=progress)
+        sections += report_blocks(calibrated, results_dir)
     if sections:
         with full_disk_error(results_dir):
             append_report_sections(results_dir / "report-appendix.md", sections)
@@ -127,57 +128,6 @@ def _specs(experiments: Path | None, progress: Progress | None) -> list[Path]:
             "into DIR; without --experiments the lab runs them)",
         )
     return specs
-
-
-def _calibration_section(result: CalibrationResult) -> list[Block]:
-    """The appendix's section on the calibration: its summary table and figures."""
-    import polars as pl
-
-    from impactlab.analyze import Column, Figure, Heading, Link, Paragraph, Table
-
-    rows = []
-    names = {"plane": "ball-plane, gravity", "ball": "ball-ball, zero gravity"}
-    for kind, name in names.items():
-        entry = result.summary.get(kind)
-        if entry:
-            w = entry.get("worst") or {}
-            worst = f"e = {w['target']:g} at {w['speed_mps']:g} m/s" if w else ""
-            rows.append((name, entry["runs"], entry["max_abs_error"], entry["mean_abs_error"],
-                         entry["max_penetration_frac"], worst))  # fmt: skip
-    mb = result.summary.get("bounces")
-    if mb and mb["in_range"]:
-        w = mb["worst_in_range"]
-        rows.append((f"every bounce of {mb['runs']} drops in range", mb["in_range"],
-                     mb["max_abs_error_in_range"], None, mb["max_penetration_frac_in_range"],
-                     f"bounce {w['bounce']} at {w['v_in_mps']:.3g} m/s"))  # fmt: skip
-    frame = pl.DataFrame(
-        rows, orient="row", schema=["contact", "runs", "max", "mean", "pen", "worst"]
-    )
-    columns = (
-        Column("contact", "Contact"),
-        Column("runs", "Runs"),
-        Column("max", "Largest |e - target|"),
-        Column("mean", "Mean |e - target|"),
-        Column("pen", "Largest penetration / radius"),
-        Column("worst", "Worst at"),
-    )
-    details = result.out_dir / "calibration.md"
-    where = os.path.relpath(details, result.out_dir.parent)
-    return [
-        Heading("Calibration: target against measured restitution"),
-        Paragraph(
-            (
-                f"Contacts asking for restitution = e, recorded and measured by this analysis over "
-                f"the {result.grid.name} grid ({result.grid.n_runs} runs); the bound is "
-                "|e - target| ≤ 0.005 at every impact speed of the contact's speed range. Every "
-                "point: ",
-                Link(details.name, where),
-                ".",
-            )
-        ),
-        Table(frame, columns),
-        *[Figure(f, "Calibration") for f in result.figures],
-    ]
 
 
 def _replays_section(results: Path, replays: list[Path]) -> list[Block]:

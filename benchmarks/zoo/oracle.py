@@ -509,8 +509,9 @@ def run(
       the last, contacts fewer than MERGE_STEPS steps apart merged (impactlab's rule); its
       release is the first step after that. A static geom is a party of its own. onset_vn:
       J_n v of each onset contact (its point and normal) evaluated by MuJoCo
-      (mj_makeConstraint, mj_mulJacVec) at the onset step's state (the velocity the surfaces
-      met with); release_vn: the same for each contact of the last contact step, with that
+      (mj_makeConstraint, mj_mulJacVec) at the onset step's state, with its velocity before
+      any contact force acted (the velocity the surfaces met with: the state's own, for RK4
+      the previous step's start, whose later stages met the contact); release_vn: the same for each contact of the last contact step, with that
       step's Jacobian and the velocity after it (the one they parted with). The episode's
       speeds are the means over its points. max_penetration: the largest -dist.
 
@@ -547,6 +548,7 @@ def run(
     open_episodes: dict[int, _OpenEpisode] = {}
     previous_state: FloatArray | None = None
     previous_contacts: _Contacts | None = None
+    previous_v0: FloatArray | None = None  # RK4: the onset's velocity in (see above)
     energy0 = math.nan
     stopped: str | None = None
     nlogged = 0
@@ -617,7 +619,8 @@ def run(
             open_episodes[pair].parted = None  # touching again within MERGE_STEPS: one episode
         for pair in sorted(current - set(open_episodes)):
             rows = contacts.rows(pair)
-            onset_vn = None if k == 0 else normal_velocity(state, contacts, rows)
+            before = None if fields_at_start else previous_v0
+            onset_vn = None if k == 0 else normal_velocity(state, contacts, rows, before)
             open_episodes[pair] = _OpenEpisode(pair, k, t_k, onset_vn, -math.inf)
         if contacts.pair.size:
             deepest = np.full(len(contacts.pairs), -np.inf)
@@ -654,7 +657,7 @@ def run(
             for pair, n_work, f_work in zip(pairs, wn.tolist(), wf.tolist(), strict=True):
                 open_episodes[pair].work_normal += n_work
                 open_episodes[pair].work_friction += f_work
-        previous_state, previous_contacts = state, contacts
+        previous_state, previous_contacts, previous_v0 = state, contacts, v0
 
     for pair in sorted(open_episodes):
         parted = open_episodes[pair].parted

@@ -1,10 +1,11 @@
-"""Calibrate: how well does a target restitution come out of recorded logs?
+"""Calibrate: the calibration experiment recorded and analyzed, every impact against its target.
 
-Owns: the calibration grids (`grid`), recording and measuring them (`run`), the job that
-writes tables, figures and calibration.md (`job`, `report`, `plots`).
+Owns: recording the shipped calibration specs (`experiments/calibration/`) and analyzing them
+(`job`), the table of every impact of a calibrated pair against its target or the designer's
+prediction, and its section of the report (`table`).
 
 May import: the public faces of `impactlab.record` and `impactlab.analyze`, `impactlab.contact`,
-`impactlab.physics`. Must not import: the internals of other stages, `impactlab.replay`.
+`impactlab.examples`. Must not import: the internals of other stages, `impactlab.replay`.
 """
 
 from __future__ import annotations
@@ -14,8 +15,8 @@ from impactlab.packages import lazy_exports
 __getattr__ = lazy_exports(
     __name__,
     {
-        "CalibrationResult": "impactlab.calibrate.run",
-        "choose_grid": "impactlab.calibrate.job",
+        "CalibrationResult": "impactlab.calibrate.job",
+        "report_blocks": "impactlab.calibrate.job",
         "run_calibration": "impactlab.calibrate.job",
     },
 )

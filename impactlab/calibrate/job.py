@@ -1,215 +1,207 @@
-"""The calibration job: how well does a target restitution come out of recorded logs?
-
-Records a grid of short impacts with calibrated contacts (``[contact] restitution = e``): a ball
-on the floor with gravity and two balls head-on in zero gravity, over targets e, impact speeds
-and masses, plus a low-speed study on the floor (contact designed at 1 m/s, hitting at
-0.05 .. 1 m/s) and multi-bounce drops (every bounce checked: in the contact's speed range
-against the target, below it against the designer's prediction). The logs are analyzed by the
-analysis stage; the command prints target vs measured e, and writes to the output folder:
-
-- ``points.parquet`` (one row per single-impact grid point), ``lowspeed_curves.parquet``
-  (predictions), ``multibounce.parquet`` (one row per bounce of the drops), ``runs.parquet``,
-  ``bounces.parquet``, ``collisions.parquet`` (the analysis stage's tables),
-- ``summary.json``, ``calibration.png``, ``lowspeed.png``, ``bounces.png``, ``calibration.md``,
-- ``specs/`` (the generated TOML specs) and ``logs/`` (the MCAP logs, unless discarded).
-
-Exit code 0 when every ball-plane and ball-ball point and every bounce meets its bounds, 1
-otherwise.
-"""
+"""`impactlab calibrate`: record the calibration experiment, analyze it, check every impact."""
 
 from __future__ import annotations
 
 import math
+import os
 import shutil
-import time
-from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from impactlab.calibrate import plots
-from impactlab.calibrate.bounces import bounce_table, prediction_curves, summarize_bounces
-from impactlab.calibrate.grid import GRIDS, RADIUS_M, Grid
-from impactlab.calibrate.report import report, text_table
-from impactlab.calibrate.run import (
-    CalibrationResult,
-    bounds,
-    calibrate,
-    lowspeed_curves,
-    summarize,
+import polars as pl
+
+from impactlab.analyze import (
+    Block,
+    Column,
+    Heading,
+    Link,
+    Paragraph,
+    Table,
+    append_report_sections,
+    run_analysis,
 )
-from impactlab.contact import RESTITUTION_FLOOR
-from impactlab.errors import SpecError
-from impactlab.files import check_writable, full_disk_error, write_json, write_parquet, write_text
+from impactlab.calibrate.table import BAND_MARGIN, calibration_table, summary
+from impactlab.contact import RESTITUTION_FLOOR, RESTITUTION_TOLERANCE
+from impactlab.errors import LogError, SpecError
+from impactlab.examples import packaged_experiments
+from impactlab.files import check_writable, full_disk_error, write_parquet
 from impactlab.progress import Progress
+from impactlab.record import plan, record_runs
 
-__all__ = ["CalibrationResult", "choose_grid", "run_calibration"]
+TABLE = "calibration.parquet"
 
 
-def choose_grid(
-    *,
-    quick: bool,
-    grid: str | Grid | None = None,
-    targets: Sequence[float] | None = None,
-    speeds: Sequence[float] | None = None,
-    masses: Sequence[float] | None = None,
-) -> Grid:
-    """The grid to run: `grid` (a name or a Grid), else quick or full; lists replaced.
+def calibration_specs() -> list[Path]:
+    """The calibration experiment's specs: `experiments/calibration/*.toml`, shipped."""
+    return sorted((packaged_experiments() / "calibration").glob("*.toml"))
 
-    Raises:
-        SpecError: an unknown grid name, or a target, speed or mass out of range or listed
-            twice.
+
+@dataclass
+class CalibrationResult:
+    """What a calibration recorded, measured and wrote.
+
+    Attributes:
+        out_dir: the output folder: logs/ (unless discarded) and results/ (the analysis,
+            its report with the calibration appended, `calibration.parquet`).
+        table: every impact of a calibrated pair (`table.calibration_table`).
+        runs: the runs recorded.
     """
-    if isinstance(grid, Grid):
-        base = grid
-    elif grid is not None:
-        if grid not in GRIDS:
-            raise SpecError("--grid", "", f"unknown grid {grid!r} (known: {', '.join(GRIDS)})")
-        base = GRIDS[grid]
-    else:
-        base = GRIDS["quick" if quick else "full"]
-    checks: tuple[tuple[str, Sequence[float] | None, Callable[[float], bool], str], ...] = (
-        ("--targets", targets, lambda e: RESTITUTION_FLOOR <= e <= 1.0, "in [0.1354, 1]"),
-        ("--speeds", speeds, lambda v: 0.0 < v <= 100.0, "in (0, 100] m/s"),
-        ("--masses", masses, lambda m: 0.0 < m <= 1e4, "in (0, 1e4] kg"),
-    )
-    for flag, values, ok, rule in checks:
-        bad = [x for x in values or () if not (math.isfinite(x) and ok(x))]
-        if bad:
-            raise SpecError(flag, "", f"{bad[0]!r} is out of range (must be {rule})")
-        twice = [x for i, x in enumerate(values or ()) if x in list(values or ())[:i]]
-        if twice:
-            raise SpecError(flag, "", f"lists {twice[0]!r} twice: give each value once")
-    return base.with_values(targets=targets, speeds=speeds, masses=masses)
+
+    out_dir: Path
+    table: pl.DataFrame
+    runs: int
+
+    @property
+    def failures(self) -> pl.DataFrame:
+        """The impacts that miss their bound (or pairs without an impact)."""
+        return self.table.filter(~pl.col("ok"))
+
+    @property
+    def exit_code(self) -> int:
+        """0 when every impact meets its bound, else 1."""
+        return 1 if self.failures.height or self.table.is_empty() else 0
 
 
 def run_calibration(
     out_dir: Path,
     *,
-    quick: bool = False,
-    echo: Callable[[str], None] = print,
-    grid: str | Grid | None = None,
+    specs: Sequence[Path | Mapping[str, Any]] | None = None,
     targets: Sequence[float] | None = None,
-    speeds: Sequence[float] | None = None,
-    masses: Sequence[float] | None = None,
     keep_logs: bool = True,
+    echo: Callable[[str], None] = print,
     progress: Progress | None = None,
 ) -> CalibrationResult:
-    """Record and analyze a calibration grid, write tables, figures and calibration.md.
+    """Record the calibration specs, analyze the logs, check every impact against its target.
 
     Args:
-        out_dir: output folder (created).
-        quick: use the quick grid (when `grid` is None); else the full grid.
-        echo: where the printed table and progress go.
-        grid: "quick", "medium", "full" or a Grid; overrides `quick`.
-        targets, speeds, masses: replace the grid's lists.
-        keep_logs: keep the MCAP logs in out_dir/logs.
-        progress: receives the grid's recording and analysis progress; None: silent.
-
-    Returns:
-        The point table, the summary, the files written and the timings.
+        out_dir: the output folder (created); complete logs of an earlier run are reused.
+        specs: spec files or documents with calibrated contacts (default: the shipped
+            `calibration_specs`).
+        targets: the target e values swept instead of the specs' (`contact.restitution`).
+        keep_logs: keep the logs in out_dir/logs.
+        echo: where the summary lines go.
+        progress: receives the recording's and the analysis' progress; None: silent.
 
     Raises:
-        SpecError: a bad grid value or an output folder that cannot be written.
+        SpecError: a target or spec is wrong (nothing written then).
+        OutputError: the folder cannot be written (a full disk: nothing more is written).
+        LogError: a log cannot be analyzed.
     """
-    t0 = time.perf_counter()
     out_dir = Path(out_dir)
-    chosen = choose_grid(quick=quick, grid=grid, targets=targets, speeds=speeds, masses=masses)
+    overrides = [] if not targets else [f"contact.restitution={_checked(targets)}"]
+    runs = plan(list(specs or calibration_specs()), overrides=overrides)
     created = not out_dir.exists()
     check_writable(out_dir)
     try:
         with full_disk_error(out_dir):
-            return _calibrate_into(
-                out_dir, chosen, echo=echo, keep_logs=keep_logs, t0=t0, progress=progress
-            )
+            return _calibrate(runs, out_dir, keep_logs=keep_logs, echo=echo, progress=progress)
     except BaseException:  # a folder this job created holds only its own partial work
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
 
 
-def _calibrate_into(
+def _checked(targets: Sequence[float]) -> list[float]:
+    """The targets, each reachable and given once.
+
+    Raises:
+        SpecError: naming `--targets` and the value.
+    """
+    values = [float(e) for e in targets]
+    for i, e in enumerate(values):
+        if not (math.isfinite(e) and RESTITUTION_FLOOR <= e <= 1.0):
+            rule = f"must be in [{RESTITUTION_FLOOR:.4f}, 1]"
+            raise SpecError("--targets", "", f"{e!r} is out of range ({rule})")
+        if e in values[:i]:
+            raise SpecError("--targets", "", f"lists {e!r} twice: give each value once")
+    return values
+
+
+def _calibrate(
+    runs: Sequence[Any],
     out_dir: Path,
-    chosen: Grid,
     *,
-    echo: Callable[[str], None],
     keep_logs: bool,
-    t0: float,
+    echo: Callable[[str], None],
     progress: Progress | None,
 ) -> CalibrationResult:
-    """`run_calibration` once the output folder is checked: record, analyze, write."""
-    points, table, analysis, timings = calibrate(chosen, out_dir, echo=echo, progress=progress)
-    t1 = time.perf_counter()
-    curves = lowspeed_curves(points)
-    multi = bounce_table(points, analysis.runs, analysis.bounces)
-    summary = summarize(table)
-    summary["bounces"] = summarize_bounces(multi, points)
-    result = CalibrationResult(out_dir, chosen, table, summary, bounces=multi)
-    files = [
-        write_parquet(table, out_dir / "points.parquet"),
-        write_parquet(curves, out_dir / "lowspeed_curves.parquet"),
-        write_parquet(analysis.runs, out_dir / "runs.parquet"),
-        write_parquet(analysis.bounces, out_dir / "bounces.parquet"),
-        write_parquet(analysis.collisions, out_dir / "collisions.parquet"),
-    ]
-    if multi.height:
-        files.append(write_parquet(multi, out_dir / "multibounce.parquet"))
-    figs = [
-        plots.calibration_figure(
-            table,
-            title=f"Target vs measured restitution ({chosen.name} grid, {table.height} runs)",
-            path=out_dir / "calibration.png",
-        )
-    ]
-    if curves.height:
-        figs.append(
-            plots.lowspeed_figure(
-                table,
-                curves,
-                title=f"Ball on the floor below the design speed "
-                f"({chosen.design_speed:g} m/s): e depends on the impact speed",
-                path=out_dir / "lowspeed.png",
-            )
-        )
-    if multi.height:
-        figs.append(
-            plots.bounces_figure(
-                multi,
-                prediction_curves(points),
-                title="Every bounce of a drop (filled: in the contact's speed range; "
-                "line: the designer's prediction)",
-                path=out_dir / "bounces.png",
-            )
-        )
-    files += figs
-    timings["predict_plot"] = time.perf_counter() - t1
+    """`run_calibration` once the runs are planned and the folder checked."""
+    echo(f"calibration: {len(runs)} runs into {out_dir}/")
+    recorded = record_runs(runs, out_dir / "logs", progress=progress)
+    results = out_dir / "results"
+    analysis = run_analysis(recorded.paths, results, figures=False, progress=progress)
+    if analysis.failed:
+        raise LogError(*analysis.failed[0])
+    table = calibration_table(runs, analysis.bounces, analysis.collisions)
+    result = CalibrationResult(out_dir, table, len(runs))
+    write_parquet(table, results / TABLE)
+    append_report_sections(results / "report.md", report_blocks(result, results))
+    for line in summary_lines(table):
+        echo(line)
     if not keep_logs:
         shutil.rmtree(out_dir / "logs", ignore_errors=True)
-    timings["total"] = time.perf_counter() - t0
-    result.timings = timings
-    lines = text_table(result)
-    for line in lines:
-        echo(line)
-    summary_doc = {
-        "grid": {
-            "name": chosen.name,
-            "targets": chosen.targets,
-            "speeds_mps": chosen.speeds,
-            "masses_kg": chosen.masses,
-            "ball_mass_pairs_kg": chosen.mass_pairs(),
-            "low_targets": chosen.low_targets,
-            "low_speeds_mps": chosen.low_speeds,
-            "bounce_cases": [asdict(c) for c in chosen.bounce_cases],
-            "design_speed_mps": chosen.design_speed,
-            "radius_m": RADIUS_M,
-        },
-        "bounds": bounds(),
-        "results": summary,
-        "timings_s": timings,
-        "exit_code": result.exit_code,
-    }
-    files.append(write_json(out_dir / "summary.json", summary_doc))
-    files.append(write_text(out_dir / "calibration.md", report(result, curves, figs)))
-    result.files = files
-    result.figures = list(figs)
-    echo(f"calibration written to {out_dir}/ ({timings['total']:.1f} s)")
+    echo(f"calibration written to {results}/ (report.md)")
     return result
+
+
+def summary_lines(table: pl.DataFrame) -> list[str]:
+    """Per experiment and target: how close every impact came to its bound."""
+    lines = [
+        f"{'experiment':<24} {'target':>6} {'in range':>8} {'max|e-target|':>13} "
+        f"{'outside':>7} {'max|e-predicted|':>16} {'failing':>7}"
+    ]
+    for r in summary(table).iter_rows(named=True):
+        best = "-" if r["max_error"] is None else f"{r['max_error']:.4f}"
+        off = "-" if r["max_off"] is None else f"{r['max_off']:.4f}"
+        lines.append(
+            f"{r['experiment']:<24} {r['target']:>6g} {r['in_range']:>8} {best:>13} "
+            f"{r['outside']:>7} {off:>16} {r['failing']:>7}"
+        )
+    failing = table.filter(~pl.col("ok"))
+    lines += [
+        f"  not ok: {r['run_id']} {r['pair']}: {r['note']}" for r in failing.iter_rows(named=True)
+    ]
+    verdict = "every impact meets its bound" if failing.is_empty() else f"{failing.height} miss"
+    lines.append(f"{table.height} impacts of calibrated pairs: {verdict}")
+    return lines
+
+
+COLUMNS = (
+    Column("run_id", "Run id (log)"),
+    Column("pair", "Pair"),
+    Column("impact", "Impact"),
+    Column("target", "Target e"),
+    Column("speed_mps", "Impact speed", "m/s"),
+    Column("in_range", "In the range"),
+    Column("e", "e", digits=4),
+    Column("error", "e - target", digits=2),
+    Column("e_predicted", "Predicted e", digits=4),
+    Column("penetration_m", "Penetration", "m"),
+    Column("ok", "Within its bound"),
+    Column("note", "Note"),
+)
+
+
+def report_blocks(result: CalibrationResult, folder: Path) -> list[Block]:
+    """The report's section: the bound, the table of every impact (linked from `folder`)."""
+    source = os.path.relpath(result.out_dir / "results" / TABLE, folder)
+    failing = result.failures.height
+    verdict = "every impact meets its bound" if not failing else f"{failing} impacts miss it"
+    return [
+        Heading("Calibration: e against its target at every impact"),
+        Paragraph(
+            (
+                f"{result.runs} runs of contacts calibrated to a target e (the calibration "
+                "experiment, experiments/calibration/), measured by this analysis: in the "
+                f"contact's speed range e is within {RESTITUTION_TOLERANCE} of the target and "
+                "the penetration within the designer's bound; outside it e lies where the "
+                "designer's step emulation predicts, within the band over where in a step "
+                f"the contact begins (± {BAND_MARGIN}). Here {verdict}. Every impact: ",
+                Link(TABLE, source),
+                ".",
+            )
+        ),
+        Table(result.table, COLUMNS, source=source),
+    ]

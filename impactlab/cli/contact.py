@@ -7,8 +7,12 @@ input.
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
-from typing import Literal, overload
+from typing import TYPE_CHECKING, Literal, overload
+
+if TYPE_CHECKING:
+    from impactlab.contact.tune import PairRequest
 
 INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")  # checked against contact by a test
 SOURCE = "impactlab contact"
@@ -79,7 +83,6 @@ def _number(args: argparse.Namespace, name: str, required: Literal[True]) -> flo
 def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None: ...
 def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None:
     from impactlab.contact import ContactModelError
-    from impactlab.contact.tune import parse_number
 
     text = getattr(args, name.replace("-", "_"))
     if text is None:
@@ -98,7 +101,6 @@ def _emit(args: argparse.Namespace, lines: list[str], document: object) -> None:
 def _alone(args: argparse.Namespace) -> int:
     from impactlab.contact import ContactModelError, design_contact
     from impactlab.contact.summary import design_dict, design_lines
-    from impactlab.contact.tune import parse_speeds
 
     for flag, given in (("--pair", args.pair), ("-o", args.out)):
         if given:
@@ -122,10 +124,11 @@ def _alone(args: argparse.Namespace) -> int:
 
 def _model(args: argparse.Namespace) -> int:
     from impactlab.contact import ContactModelError
-    from impactlab.contact.mjcf import check_not_input
     from impactlab.contact.summary import design_dict, design_lines
-    from impactlab.contact.tune import parse_pair, parse_speeds, tune_model, write_tuned
+    from impactlab.contact.tune import tune_model, write_tuned
     from impactlab.files import check_writable
+    from impactlab.mjcf.files import check_not_input
+    from impactlab.mjcf.load import parse_mjcf
 
     for flag in ("radius", "timestep", "integrator"):
         if getattr(args, flag) is not None:
@@ -137,8 +140,7 @@ def _model(args: argparse.Namespace) -> int:
         if args.out.is_dir():
             raise ContactModelError(f"-o {args.out} is a folder: give the tuned model's file name")
         check_writable(args.out.resolve().parent)
-        if args.model.is_file():
-            check_not_input(args.out, args.model)
+        check_not_input(args.out, args.model, parse_mjcf(args.model))
     tuned = tune_model(
         args.model,
         [parse_pair(text) for text in args.pair],
@@ -180,3 +182,48 @@ def _model(args: argparse.Namespace) -> int:
     }
     _emit(args, lines, document)
     return 0 if tuned.ok else 1
+
+
+_PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
+
+
+def parse_number(text: str, what: str) -> float:
+    """A finite number from the command line, or ContactModelError naming `what`."""
+    from impactlab.contact import ContactModelError
+
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise ContactModelError(f"{what} must be a number, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise ContactModelError(f"{what} must be finite, got {text!r}")
+    return value
+
+
+def parse_speeds(text: str, what: str = "--speed") -> tuple[float, float]:
+    """``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
+    from impactlab.contact import ContactModelError
+
+    lo_text, sep, hi_text = text.partition("..")
+    lo = parse_number(lo_text, what)
+    hi = parse_number(hi_text, what) if sep else lo
+    if not 0.0 < lo <= hi:
+        raise ContactModelError(f"{what} must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
+    return lo, hi
+
+
+def parse_pair(text: str) -> PairRequest:
+    """``G1/G2[=E][@LO..HI]`` -> PairRequest."""
+    from impactlab.contact import ContactModelError
+    from impactlab.contact.tune import PairRequest
+
+    m = _PAIR.match(text)
+    if not m:
+        raise ContactModelError(f"--pair must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
+    g1, g2, e, speeds = m.groups()
+    return PairRequest(
+        g1,
+        g2,
+        None if e is None else parse_number(e, f"--pair {text}: restitution"),
+        None if speeds is None else parse_speeds(speeds, f"--pair {text}: speeds"),
+    )

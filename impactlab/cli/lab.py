@@ -30,9 +30,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--no-replay", action="store_true", help="skip writing Rerun recordings")
     p.add_argument(
         "--calibration",
-        choices=("none", "quick", "medium", "full"),
-        default="medium",
-        help="restitution calibration grid for the report (medium: 181 runs, about 30 s)",
+        action="store_true",
+        help="also record the calibration experiment (`impactlab calibrate`, about 30 s) and "
+        "put its table in the appendix",
     )
     add_executor_options(p, default="processes")  # as analyze: workers for the analysis
     p.set_defaults(func=run)

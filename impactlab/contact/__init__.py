@@ -1,39 +1,30 @@
 """The contact model: a target coefficient of restitution -> MuJoCo contact parameters.
 
-Owns: the linear spring-dashpot's closed form (`closed_form`), exact emulations of MuJoCo's
-step for one impact per integrator (`emulation`, and `fast` without stepping the contact), the
+Owns: the linear spring-dashpot's closed form (`closed_form`), emulations of MuJoCo's step for
+one impact per integrator (`emulation`, and `fast` without stepping the contact), the
 discretisation tables built from them (`table`, `restitution_table*.json`), gravity's effect
 on e (`gravity`), the designer that turns a target over a range of impact speeds into
 parameters (`design`, returning `params.ContactParams`; `advice` adds predictions and what to
-do when the timestep is too coarse), MJCF models with calibrated pairs (`mjcf`) and helpers
-that measure one impact in MuJoCo (`measure`, used by tests and the calibration).
+do when the timestep is too coarse), and a user's model's pairs (`pairs`, `tune`).
 
-May import: numpy, and MuJoCo inside `measure` and `mjcf` only. Must not import: any stage
+May import: numpy, `impactlab.mjcf` (MuJoCo in `pairs` only). Must not import: any stage
 (record, analyze, replay, calibrate) or the log format; record and calibrate build on it.
 """
 
 from impactlab.contact.advice import ContactDesign, Prediction, design_contact, predict
-from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
 from impactlab.contact.closed_form import (
+    RESTITUTION_FLOOR,
+    ContactModelError,
     contact_time_factor,
     max_penetration_factor,
     restitution_closed_form,
     zeta_for_restitution,
 )
-from impactlab.contact.design import (
-    RESTITUTION_TOLERANCE,
-    SPEED_FLOOR_MPS,
-    SPREAD_BUDGET,
-    check_timestep,
-    contact_params,
-)
+from impactlab.contact.design import SPEED_FLOOR_MPS, SPREAD_BUDGET, contact_params
 from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP
-from impactlab.contact.gravity import (
-    restitution_spread,
-    restitution_with_gravity,
-    surface_restitution,
-)
+from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
+from impactlab.contact.table import RESTITUTION_TOLERANCE
 
 INTEGRATORS = tuple(SCHEMES)
 """MuJoCo's integrators, every one calibrated (implicit and implicitfast step this contact as
@@ -51,7 +42,6 @@ __all__ = [
     "ContactModelError",
     "ContactParams",
     "Prediction",
-    "check_timestep",
     "contact_params",
     "contact_time_factor",
     "design_contact",
@@ -59,7 +49,5 @@ __all__ = [
     "predict",
     "restitution_closed_form",
     "restitution_spread",
-    "restitution_with_gravity",
-    "surface_restitution",
     "zeta_for_restitution",
 ]

@@ -1,11 +1,4 @@
-"""A contact design with what a user needs to judge it: predictions, and advice when it misses.
-
-:func:`design_contact` is the designer behind ``impactlab contact``: the parameters of
-:func:`contact_params`, e over the speed range predicted by the step emulation (and below it,
-where gravity makes e drift), and, when the timestep cannot resolve the contact, the largest
-timestep that works, the best accuracy at the given timestep and, if there is one, a softer
-contact that meets the target at that timestep with more penetration.
-"""
+"""A contact design with what a user needs to judge it: predictions, and advice when it misses."""
 
 from __future__ import annotations
 
@@ -16,18 +9,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError
-from impactlab.contact.design import (
-    accepted_largest_timestep,
-    design_inputs,
-    design_stiffness,
-    params_from,
-)
+from impactlab.contact.closed_form import ContactModelError
+from impactlab.contact.design import design, params_from
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, table
-from impactlab.contact.timestep import check_timestep, coarse_message
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -214,7 +201,7 @@ def design_contact(
     Raises:
         ContactModelError: invalid input or an unreachable target.
     """
-    e, (lo, hi), dt, g, bound, duration_s = design_inputs(
+    found = design(
         restitution,
         radius_m=radius_m,
         timestep_s=timestep_s,
@@ -226,21 +213,15 @@ def design_contact(
         max_penetration_fraction=max_penetration_fraction,
         gravity_mps2=gravity_mps2,
     )
-    speeds = shift_speeds(lo, hi)
-    ev = design_stiffness(
-        e, bound_m=bound, duration_s=duration_s, dt=dt, speeds=speeds, g=g, integrator=integrator
-    )
-    params = params_from(ev, e, (lo, hi), dt, g, integrator)
-    try:
-        check_timestep(params, dt)
-    except ContactModelError as exc:
-        problem = str(exc)
-    else:
+    params, ev, speeds, dt_max = found.params, found.evaluation, found.speeds, found.timestep_max_s
+    if found.problem is None:
         return ContactDesign(params, True, None, predict(params))
-    dt_max = None
-    if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
-        dt_max = accepted_largest_timestep(params, bound, duration_s)
-        problem = coarse_message(params, dt, dt_max)
+    e, (lo, hi), dt, g = (
+        params.restitution,
+        params.speed_range_mps,
+        params.timestep_s,
+        params.gravity_mps2,
+    )
     best_ev = _best(e, dt, speeds, g, integrator, ev.w0)
     best = softer = None
     if best_ev is not None:
@@ -258,7 +239,7 @@ def design_contact(
     return ContactDesign(
         params,
         False,
-        problem,
+        found.problem,
         predict(params),
         timestep_max_s=dt_max,
         best=best,

@@ -1,9 +1,4 @@
-"""One stiffness calibrated: zeta for a target e over a speed range, and the predicted errors.
-
-zeta and gravity's shift depend on each other (the shift is about -2 zeta g / (w0 v)); the
-shift is centred across the speed range and the remaining half spread, with the phase error
-from the discretisation table, is the predicted worst case.
-"""
+"""One stiffness calibrated: zeta for a target e over a speed range, and the predicted errors."""
 
 from __future__ import annotations
 
@@ -12,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.checks import RESTITUTION_FLOOR, ContactModelError
+from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import gravity_shift
 from impactlab.contact.table import calibrated_zeta, discrete, table

@@ -1,62 +1,27 @@
-"""The designer: a target restitution over a range of impact speeds -> MuJoCo contact parameters.
-
-MuJoCo has no restitution parameter (google-deepmind/mujoco issue #2080). This module uses the
-direct form of ``solref`` (``(-stiffness, -damping)``) with a constant impedance close to 1, for
-which a MuJoCo contact is a linear spring-dashpot in the contact's normal coordinate, independent
-of the masses::
-
-    a_normal = -k * dist - b * dist_dot        while the contact force is positive
-
-The Schwager & Poeschel closed form (Granular Matter 9, 2007) gives e(zeta) for that law with the
-contact ending when the force vanishes; it is inverted for zeta and then corrected for MuJoCo's
-time discretisation with a table per integrator (``restitution_table*.json``) computed once by
-an exact numpy emulation of ``mj_step`` for this contact (the tests check it against MuJoCo).
-
-Without gravity e does not depend on the impact speed. With gravity (a ball on a fixed surface)
-the e measured surface to surface (as ``impactlab.analyze.measure.bounces`` does) is lower than the
-zero-gravity e by about ``2 zeta g / (w0 v)``: after the force lets go the ball is still inside
-the floor and gravity slows it on the way out. Over a range of impact speeds [v_lo, v_hi] that
-shift changes by ``2 zeta g / w0 (1 / v_lo - 1 / v_hi)``. The designer centres it across the
-range (zeta is calibrated for ``target - (shift(v_lo) + shift(v_hi)) / 2``) and picks the
-stiffness so that the remaining half spread stays within ``SPREAD_BUDGET``.
-
-Stiffness rule of :func:`contact_params` (``w0 = sqrt(stiffness)``):
-
-1. ``duration_s`` given: w0 from the contact duration. Otherwise the softest w0 that keeps the
-   worst-case penetration at ``v_hi`` below the bound (``max_penetration_m``, default
-   ``max_penetration_fraction * radius_m``) and gravity's half spread over the range below
-   ``SPREAD_BUDGET``. The softest contact has the most steps per contact.
-2. The timestep must resolve that contact: the predicted worst case (phase error from the
-   table, plus the half spread) must stay within ``PHASE_BUDGET``; otherwise
-   :class:`ContactModelError` names the steps per contact and the largest timestep that works.
-"""
+"""The designer: a target restitution over a range of impact speeds -> MuJoCo contact parameters."""
 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError, check_restitution, positive
 from impactlab.contact.closed_form import (
+    ContactModelError,
+    check_restitution,
     contact_time_factor,
     max_penetration_factor,
+    positive,
     zeta_for_restitution,
 )
 from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
-from impactlab.contact.timestep import accepted_timestep, check_timestep, largest_timestep
-
-__all__ = [
-    "RESTITUTION_TOLERANCE",
-    "SPEED_FLOOR_MPS",
-    "SPREAD_BUDGET",
-    "check_timestep",
-    "contact_params",
-]
+from impactlab.contact.table import PHASE_BUDGET
+from impactlab.contact.timestep import accepted_timestep, largest_timestep, timestep_problem
 
 SPEED_FLOOR_MPS = 0.5
 """Lowest impact speed of a default speed range, in m/s (specs and ``impactlab contact MODEL``):
@@ -206,6 +171,66 @@ def design_stiffness(
     return evaluate(e, w0, dt, speeds, g, integrator)
 
 
+@dataclass(frozen=True)
+class Design:
+    """A designed contact: its parameters, evaluation, the speeds gravity's shift was evaluated
+    at, the penetration bound or duration asked for, and why the timestep does not resolve it
+    with the largest timestep that does (None when it does, or no timestep helps)."""
+
+    params: ContactParams
+    evaluation: Evaluation
+    speeds: np.ndarray
+    bound_m: float | None
+    duration_s: float | None
+    problem: str | None = None
+    timestep_max_s: float | None = None
+
+
+def design(
+    restitution: float,
+    *,
+    radius_m: float | None,
+    timestep_s: float,
+    speed_range_mps: Sequence[float] | None = None,
+    impact_speed_mps: float | None = None,
+    integrator: str = "Euler",
+    duration_s: float | None = None,
+    max_penetration_m: float | None = None,
+    max_penetration_fraction: float = 0.02,
+    gravity_mps2: float = 9.81,
+) -> Design:
+    """The contact `contact_params` returns, and whether the timestep resolves it.
+
+    Raises:
+        ContactModelError: unreachable restitution or invalid input.
+    """
+    e, (lo, hi), dt, g, bound, duration = design_inputs(
+        restitution,
+        radius_m=radius_m,
+        timestep_s=timestep_s,
+        speed_range_mps=speed_range_mps,
+        impact_speed_mps=impact_speed_mps,
+        integrator=integrator,
+        duration_s=duration_s,
+        max_penetration_m=max_penetration_m,
+        max_penetration_fraction=max_penetration_fraction,
+        gravity_mps2=gravity_mps2,
+    )
+    speeds = shift_speeds(lo, hi)
+    ev = design_stiffness(
+        e, bound_m=bound, duration_s=duration, dt=dt, speeds=speeds, g=g, integrator=integrator
+    )
+    params = params_from(ev, e, (lo, hi), dt, g, integrator)
+    found = Design(params, ev, speeds, bound, duration)
+    if timestep_problem(params) is None:
+        return found
+    dt_max = None
+    if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
+        dt_max = accepted_largest_timestep(params, bound, duration)
+    problem = timestep_problem(params, dt_max)
+    return Design(params, ev, speeds, bound, duration, problem, dt_max)
+
+
 def contact_params(
     restitution: float,
     *,
@@ -246,9 +271,10 @@ def contact_params(
 
     Raises:
         ContactModelError: unreachable restitution, invalid input, both duration_s and
-            max_penetration_m given, or a timestep too coarse for the contact.
+            max_penetration_m given, or a timestep too coarse for the contact (the message
+            names the steps per contact and the largest timestep that works).
     """
-    e, (lo, hi), dt, g, bound, duration_s = design_inputs(
+    found = design(
         restitution,
         radius_m=radius_m,
         timestep_s=timestep_s,
@@ -260,24 +286,11 @@ def contact_params(
         max_penetration_fraction=max_penetration_fraction,
         gravity_mps2=gravity_mps2,
     )
-    ev = design_stiffness(
-        e,
-        bound_m=bound,
-        duration_s=duration_s,
-        dt=dt,
-        speeds=shift_speeds(lo, hi),
-        g=g,
-        integrator=integrator,
-    )
-    params = params_from(ev, e, (lo, hi), dt, g, integrator)
-    try:
-        check_timestep(params, dt)
-    except ContactModelError:
-        dt_max = None
-        if params.gravity_spread < PHASE_BUDGET and params.timestep_s == dt:
-            dt_max = accepted_largest_timestep(params, bound, duration_s)
-        check_timestep(params, dt, allow_coarse=allow_coarse, timestep_max_s=dt_max)
-    return params
+    if found.problem is not None:
+        if not allow_coarse:
+            raise ContactModelError(found.problem)
+        warnings.warn(found.problem, UserWarning, stacklevel=2)
+    return found.params
 
 
 def accepted_largest_timestep(
@@ -305,10 +318,9 @@ def accepted_largest_timestep(
                 g=g,
                 integrator=integrator,
             )
-            check_timestep(params_from(ev, e, (lo, hi), dt, g, integrator), dt)
         except ContactModelError:
             return False
-        return True
+        return timestep_problem(params_from(ev, e, (lo, hi), dt, g, integrator)) is None
 
     return accepted_timestep(largest_timestep(params), passes)
 

@@ -1,18 +1,10 @@
-"""Exact numpy emulations of `mj_step` for one impact of this contact, per integrator.
-
-In units w0 = sqrt(stiffness) = 1 and impact speed = 1; the tests check them against MuJoCo
-step by step. MuJoCo's ``Euler`` is semi-implicit Euler (velocity first, then position with
-the new velocity); ``implicit`` and ``implicitfast`` differ from it only through
-velocity-dependent passive and actuator forces, which a free ball does not have, so they step
-this contact exactly as ``Euler`` does (a test checks it in MuJoCo). ``RK4`` is the classical
-four-stage Runge-Kutta step, MuJoCo evaluating collisions and constraint forces at every stage.
-"""
+"""Exact numpy emulations of `mj_step` for one impact of this contact, per integrator."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 
 IMPEDANCE = 0.9999
 """solimp dmin = dmax: MuJoCo's largest impedance (mjMAXIMP). With the direct solref, MuJoCo
@@ -43,9 +35,10 @@ def scheme_of(integrator: str) -> str:
 
 
 def _acceleration(
-    y: np.ndarray, u: np.ndarray, b: np.ndarray | float, gr: np.ndarray | float, d: float
+    y: np.ndarray, u: np.ndarray, b: np.ndarray | float, gr: np.ndarray | float
 ) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's contact rule: (acceleration, force on) at states (y, u)."""
+    d = IMPEDANCE
     aref = -(b * u + y) / d
     force = (y < 0.0) & (aref > -gr)
     return np.where(force, d * aref + (1.0 - d) * -gr, -gr), force
@@ -58,37 +51,34 @@ def step(
     b: np.ndarray | float,
     gr: np.ndarray | float,
     scheme: str,
-    d: float = IMPEDANCE,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """One step of MuJoCo's integrator for this contact (units w0 = v_in = 1).
 
     Args:
         y, u: signed distance and normal velocity (arrays, broadcastable).
-        b, gr: arrays broadcastable with them, or scalars.
         h: w0 * timestep.
-        b: 2 zeta.
-        gr: g / (w0 v_in) (gravity towards the surface).
+        b: 2 zeta, an array broadcastable with them or a scalar.
+        gr: g / (w0 v_in) (gravity towards the surface), likewise.
         scheme: "euler" or "rk4" (:func:`scheme_of`).
-        d: solimp impedance.
 
     Returns:
-        (y, u, any_force, all_force): the next state, and whether the constraint pushed in
-        some / every evaluation of the step (one for Euler, four stages for RK4).
+        (y, u, force): the next state, and whether the constraint pushed in some evaluation
+        of the step (one for Euler, four stages for RK4).
     """
     if scheme == "euler":
-        a, f = _acceleration(y, u, b, gr, d)
+        a, f = _acceleration(y, u, b, gr)
         u = u + h * a
-        return y + h * u, u, f, f
-    a1, f1 = _acceleration(y, u, b, gr, d)
+        return y + h * u, u, f
+    a1, f1 = _acceleration(y, u, b, gr)
     y2, u2 = y + 0.5 * h * u, u + 0.5 * h * a1
-    a2, f2 = _acceleration(y2, u2, b, gr, d)
+    a2, f2 = _acceleration(y2, u2, b, gr)
     y3, u3 = y + 0.5 * h * u2, u + 0.5 * h * a2
-    a3, f3 = _acceleration(y3, u3, b, gr, d)
+    a3, f3 = _acceleration(y3, u3, b, gr)
     y4, u4 = y + h * u3, u + h * a3
-    a4, f4 = _acceleration(y4, u4, b, gr, d)
+    a4, f4 = _acceleration(y4, u4, b, gr)
     y_new = y + h / 6.0 * (u + 2.0 * u2 + 2.0 * u3 + u4)
     u_new = u + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-    return y_new, u_new, f1 | f2 | f3 | f4, f1 & f2 & f3 & f4
+    return y_new, u_new, f1 | f2 | f3 | f4
 
 
 def free_step_travel(h: float, gr: np.ndarray, scheme: str) -> np.ndarray:
@@ -96,58 +86,12 @@ def free_step_travel(h: float, gr: np.ndarray, scheme: str) -> np.ndarray:
     return h * (1.0 + h * gr) if scheme == "euler" else h * (1.0 + 0.5 * h * gr)
 
 
-def emulate_impact(
-    zeta: np.ndarray,
-    w0dt: float,
-    phases: np.ndarray,
-    gravity_ratio: float = 0.0,
-    impedance: float = IMPEDANCE,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Exact emulation of mj_step (semi-implicit Euler) for one impact, in units w0 = v_in = 1.
-
-    The first contact step starts at dist = -phase * w0dt (phase in (0, 1]) with velocity -1.
-    Per step: aref = -(b u + k y) / d; the constraint is active iff dist < 0 and aref > a_free;
-    then a = d aref + (1 - d) a_free, else a = a_free = -gravity_ratio.
-
-    Args:
-        zeta: damping ratios, shape (nz,).
-        w0dt: w0 * timestep.
-        phases: contact-onset phases, shape (nph,).
-        gravity_ratio: g / (w0 v_in).
-        impedance: solimp d.
-
-    Returns:
-        e (nz x nph): velocity after the last force step / v_in;
-        penetration (nz x nph): max overlap * w0 / v_in;
-        steps (nz x nph): number of steps with a positive force.
-    """
-    zeta = np.asarray(zeta, float)[:, None]
-    ph = np.asarray(phases, float)[None, :]
-    shape = np.broadcast_shapes(zeta.shape, ph.shape)
-    y = np.broadcast_to(-ph * w0dt, shape).copy()
-    u = -np.ones(shape)
-    b = np.broadcast_to(2.0 * zeta, shape)
-    a_free = -gravity_ratio
-    u_out = np.zeros(shape)
-    pen = np.zeros(shape)
-    steps = np.zeros(shape, dtype=np.int64)
-    started = np.zeros(shape, bool)
-    done = np.zeros(shape, bool)
-    for _ in range(int(40.0 / w0dt) + 100):
-        aref = -(b * u + y) / impedance
-        force = (y < 0.0) & (aref > a_free) & ~done
-        done |= started & ~force
-        if done.all():
-            break
-        a = np.where(force, impedance * aref + (1.0 - impedance) * a_free, a_free)
-        pen = np.maximum(pen, np.where(force, -y, 0.0))
-        u = u + w0dt * a
-        y = y + w0dt * u
-        pen = np.maximum(pen, np.where(force, -y, 0.0))
-        started |= force
-        steps += force
-        u_out = np.where(force, u, u_out)
-    return u_out, pen, steps
+def speed_in(h: float, gr: np.ndarray | float, scheme: str) -> np.ndarray | float:
+    """The impact speed as the recorder takes it (before any contact force acted), in units
+    of the speed in the last state before the overlap (w0 = 1): Euler's first state in
+    contact has fallen one more step (1 + h gr); RK4's is that state, since the later stages
+    of its step already meet the surface (1). Divide the emulation's velocities by it."""
+    return 1.0 + h * np.asarray(gr) if scheme == "euler" else 1.0
 
 
 def emulate_surface(
@@ -155,14 +99,12 @@ def emulate_surface(
     w0dt: float,
     phases: np.ndarray,
     gravity_ratio: float | np.ndarray = 0.0,
-    impedance: float = IMPEDANCE,
-    t_max: float = 40.0,
     integrator: str = "Euler",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """mj_step emulation of one impact, continued until the ball is back at the surface.
 
-    Units w0 = 1 and v_in = 1, v_in being the speed in the last state before the overlap (what
-    the analysis stage takes). That state is ``(1 - phase)`` free-flight steps above the
+    Units w0 = 1 and the speed in the last state before the overlap = 1 (`speed_in` turns
+    them into the recorder's). That state is ``(1 - phase)`` free-flight steps above the
     surface, phase in (0, 1]. Each step applies MuJoCo's rule (the constraint pushes while
     dist < 0 and aref > a_free, at every stage of the integrator), also after the force has let
     go, until the first state with dist >= 0.
@@ -172,8 +114,6 @@ def emulate_surface(
         w0dt: w0 * timestep.
         phases: contact-onset phases.
         gravity_ratio: g / (w0 v_in), scalar or broadcastable with phases.
-        impedance: solimp d.
-        t_max: give up (e = 0: the ball does not leave) after this time, in 1 / w0.
         integrator: MuJoCo's integrator name (:data:`SCHEMES`).
 
     Returns:
@@ -197,8 +137,8 @@ def emulate_surface(
     entered = np.zeros(shape, bool)
     done = np.zeros(shape, bool)
     weightless = not np.any(gr)
-    for _ in range(int(t_max / h) + 100):
-        y_new, u_new, any_force, _ = step(y, u, h, b, gr, scheme, impedance)
+    for _ in range(int(40.0 / h) + 100):  # 0: the ball does not leave within 40 / w0
+        y_new, u_new, any_force = step(y, u, h, b, gr, scheme)
         let_go = pushed & ~any_force & ~released & ~done
         release = np.where(let_go, u, release)
         released |= let_go

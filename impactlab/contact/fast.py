@@ -1,12 +1,4 @@
-"""Gravity's surface-to-surface e without stepping through the contact (what the designer uses).
-
-While the constraint pushes at every evaluation of a step, the step is affine in (dist,
-velocity): the states of the force phase are powers of the step matrix. After the force lets
-go the ball flies freely and the first state at the surface follows from a quadratic. Only the
-steps where the force switches on or off are stepped (`emulation.step`). Columns that do not
-fit that picture (a force phase longer than 3.6 / w0, a constraint that grips again on the way
-out at very low impact speeds) are stepped throughout, so the result is always the emulation's.
-"""
+"""Gravity's effect on e without stepping through the contact: the force phase in closed form."""
 
 from __future__ import annotations
 
@@ -53,8 +45,8 @@ def _matrices(h: float, b: float, scheme: str) -> tuple[np.ndarray, list[np.ndar
     return m, [i, i + hj / 2.0, i + hj / 2.0 + hj2 / 4.0, i + hj + hj2 / 2.0 + hj3 / 4.0]
 
 
-def _pushes(y: np.ndarray, u: np.ndarray, b: float, gr: np.ndarray, d: float) -> np.ndarray:
-    pushes: np.ndarray = (y < 0.0) & (b * u + y < d * gr)
+def _pushes(y: np.ndarray, u: np.ndarray, b: float, gr: np.ndarray) -> np.ndarray:
+    pushes: np.ndarray = (y < 0.0) & (b * u + y < IMPEDANCE * gr)
     return pushes
 
 
@@ -63,7 +55,6 @@ def impact_fast(
     w0dt: float,
     phases: np.ndarray,
     gravity_ratio: np.ndarray,
-    impedance: float = IMPEDANCE,
     integrator: str = "Euler",
 ) -> tuple[np.ndarray, np.ndarray]:
     """(release, surface) of :func:`emulation.emulate_surface`, without stepping the contact.
@@ -73,20 +64,19 @@ def impact_fast(
         w0dt: w0 * timestep.
         phases: contact-onset phases in (0, 1], shape (n,).
         gravity_ratio: g / (w0 v_in), scalar or shape (n,).
-        impedance: solimp d.
         integrator: MuJoCo's integrator name.
 
     Returns:
         (release, surface), each shape (n,), equal to the emulation's to rounding.
     """
     scheme = scheme_of(integrator)
-    h, d, b = float(w0dt), impedance, 2.0 * zeta
+    h, d, b = float(w0dt), IMPEDANCE, 2.0 * zeta
     ph = np.asarray(phases, float)
     gr = np.broadcast_to(np.asarray(gravity_ratio, float), ph.shape).copy()
     y0 = (1.0 - ph) * free_step_travel(h, gr, scheme)
     u0 = -np.ones(ph.shape)
     # the onset step (free, or with force at some stages), then the force phase in closed form
-    ys, us, _, _ = step(y0, u0, h, b, gr, scheme, d)
+    ys, us, _ = step(y0, u0, h, b, gr, scheme)
     fixed = np.stack([-(1.0 - d) * gr, np.zeros(ph.shape)])  # (2, n)
     m, stages = _matrices(h, b, scheme)
     n = int(3.6 / h) + 3
@@ -94,7 +84,7 @@ def impact_fast(
     pushes = np.ones((n, ph.size), bool)
     for s in stages:
         x = np.einsum("ij,kjn->kin", s, rel) + fixed[None]
-        pushes &= _pushes(x[:, 0], x[:, 1], b, gr, d)
+        pushes &= _pushes(x[:, 0], x[:, 1], b, gr)
     ok = pushes[0] & ~pushes.all(axis=0)
     r = np.argmin(pushes, axis=0)
     cols = np.arange(ph.size)
@@ -107,7 +97,7 @@ def impact_fast(
     released = np.zeros(ph.shape, bool)
     for _ in range(_RELEASE_STEPS):
         active = ~done & ~flying
-        y1, u1, any_force, _ = step(y, u, h, b, gr, scheme, d)
+        y1, u1, any_force = step(y, u, h, b, gr, scheme)
         released |= active & ~any_force
         release = np.where(active & any_force & ~released, u1, release)
         y, u = np.where(active, y1, y), np.where(active, u1, u)
@@ -139,13 +129,13 @@ def impact_fast(
     # the constraint stays off on the way out if it is off at every stage of the last step
     # inside (the margin dist + 2 zeta u - d gr is concave along the flight)
     last_y, last_u = dist(k - 1.0), u - (k - 1.0) * h * gr
-    _, _, grips, _ = step(last_y, last_u, h, b, gr, scheme, d)
+    _, _, grips = step(last_y, last_u, h, b, gr, scheme)
     u_out = u - k * h * gr
     ok &= ~flying | (~grips & (dist(k) >= 0.0) & (u_out >= 0.0))
     surface = np.where(flying, np.maximum(u_out, 0.0), surface)
     if not ok.all():
         bad = ~ok
         release, surface = release.copy(), surface.copy()
-        r_bad, s_bad, _ = emulate_surface(zeta, h, ph[bad], gr[bad], d, integrator=integrator)
+        r_bad, s_bad, _ = emulate_surface(zeta, h, ph[bad], gr[bad], integrator=integrator)
         release[bad], surface[bad] = r_bad, s_bad
     return release, surface

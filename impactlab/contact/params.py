@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from impactlab.mjcf.pairs import quoteattr
+
 
 @dataclass(frozen=True)
 class ContactParams:
@@ -72,20 +74,6 @@ class ContactParams:
         """The one MJCF ``<pair>`` builder: the pair of geoms with this contact (frictionless
         with condim 1), `extra` attributes (e.g. ``friction="1 0.005 0.0001"``) before it."""
         a = self.mjcf_attributes()
-        attrs = [f"geom1={_quoteattr(geom1)}", f"geom2={_quoteattr(geom2)}", f'condim="{condim}"']
+        attrs = [f"geom1={quoteattr(geom1)}", f"geom2={quoteattr(geom2)}", f'condim="{condim}"']
         attrs += [*extra, f'solref="{a["solref"]}"', f'solimp="{a["solimp"]}"']
         return "<pair " + " ".join(attrs) + "/>"
-
-
-_ATTR_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
-
-
-def _quoteattr(value: str) -> str:
-    """`xml.sax.saxutils.quoteattr`, whose module imports urllib.request, http and ssl (about
-    15 ms of every record command's start-up)."""
-    text = "".join(_ATTR_ESCAPES.get(ch, ch) for ch in value)
-    if '"' not in text:
-        return f'"{text}"'
-    if "'" not in text:
-        return f"'{text}'"
-    return '"' + text.replace('"', "&quot;") + '"'

@@ -1,10 +1,4 @@
-"""The discretisation tables: how MuJoCo's time steps change e, over (zeta, w0 * dt).
-
-One table per stepping scheme (`emulation.SCHEMES`): `restitution_table.json` for Euler (and
-implicit, implicitfast), `restitution_table_rk4.json` for RK4. Computed once with the step
-emulation and committed; regenerate with `python -m impactlab.contact.table`, check with
-`--check` (numerically: the last bit of a float differs between CPUs, the table must not).
-"""
+"""The discretisation tables: how MuJoCo's steps change e over (zeta, w0 * dt)."""
 
 from __future__ import annotations
 
@@ -19,9 +13,13 @@ from typing import Any, TypedDict
 
 import numpy as np
 
-from impactlab.contact.checks import ZETA_MAX, bisect
-from impactlab.contact.closed_form import max_penetration_factor, restitution_closed_form
-from impactlab.contact.emulation import IMPEDANCE, emulate_impact, emulate_surface
+from impactlab.contact.closed_form import (
+    ZETA_MAX,
+    bisect,
+    max_penetration_factor,
+    restitution_closed_form,
+)
+from impactlab.contact.emulation import IMPEDANCE, emulate_surface
 
 RESTITUTION_TOLERANCE = 0.005
 """Accuracy promised for |e_measured - e_target| at every impact speed in the contact's range."""
@@ -76,13 +74,11 @@ def generate_table(scheme: str = "euler") -> TableDocument:
     nz, nw = len(_TABLE_ZETA), len(_TABLE_W0DT)
     delta, half, pen = (np.zeros((nz, nw)) for _ in range(3))
     closed = np.array([restitution_closed_form(z) for z in _TABLE_ZETA])
+    integrator = "Euler" if scheme == "euler" else "RK4"
     for j, wh in enumerate(_TABLE_W0DT):
-        if scheme == "euler":
-            e, p, _ = emulate_impact(_TABLE_ZETA, float(wh), _TABLE_PHASES)
-        else:
-            _, e, p = emulate_surface(
-                _TABLE_ZETA[:, None], float(wh), _TABLE_PHASES[None, :], integrator="RK4"
-            )
+        _, e, p = emulate_surface(
+            _TABLE_ZETA[:, None], float(wh), _TABLE_PHASES[None, :], integrator=integrator
+        )
         delta[:, j] = 0.5 * (e.max(1) + e.min(1)) - closed
         half[:, j] = 0.5 * (e.max(1) - e.min(1))
         pen[:, j] = p.max(1)
@@ -177,22 +173,6 @@ def calibrated_zeta(e: float, w0dt: float, scheme: str = "euler") -> float:
     )
 
 
-def w0dt_max(e: float, budget: float = PHASE_BUDGET, scheme: str = "euler") -> float:
-    """Largest w0 * dt (within the table) at which the calibrated phase error fits `budget`."""
-    tab = table(scheme)
-    prev_wh, prev_err = None, None
-    for lw in tab.log_w0dt:
-        wh = float(math.exp(lw))
-        _, half, _ = discrete(calibrated_zeta(e, wh, scheme), wh, scheme)
-        if half > budget:
-            if prev_wh is None or prev_err is None:
-                return wh * budget / half
-            t = (budget - prev_err) / (half - prev_err)
-            return math.exp(math.log(prev_wh) + t * (lw - math.log(prev_wh)))
-        prev_wh, prev_err = wh, half
-    return tab.w0dt_max
-
-
 CHECK_RTOL = 1e-12
 CHECK_ATOL = 2e-10
 """A regenerated table equals the committed one when every number agrees within
@@ -222,16 +202,10 @@ def table_difference(committed: Mapping[str, Any], fresh: Mapping[str, object]) 
 def main(argv: Sequence[str] | None = None) -> int:
     """Regenerate (or check) the committed calibration tables."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument(
-        "--scheme", choices=sorted(TABLE_PATHS), action="append", help="only this table"
-    )
-    parser.add_argument(
-        "--check", action="store_true", help="fail if a committed table is out of date"
-    )
+    parser.add_argument("--check", action="store_true", help="fail if a table is out of date")
     args = parser.parse_args(argv)
     status = 0
-    for scheme in args.scheme or sorted(TABLE_PATHS):
-        path = TABLE_PATHS[scheme]
+    for scheme, path in sorted(TABLE_PATHS.items()):
         fresh = generate_table(scheme)
         if args.check:
             current = json.loads(path.read_text()) if path.exists() else {}

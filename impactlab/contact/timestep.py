@@ -3,81 +3,33 @@
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 
 from impactlab.contact.calibration import evaluate, shift_speeds
-from impactlab.contact.checks import ContactModelError, positive
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import (
-    PHASE_BUDGET,
-    RESTITUTION_TOLERANCE,
-    discrete,
-    table,
-    w0dt_max,
-)
+from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE, discrete, table
 
 
-def check_timestep(
-    params: ContactParams,
-    timestep_s: float,
-    *,
-    allow_coarse: bool = False,
-    timestep_max_s: float | None = None,
-) -> int:
-    """Check that a timestep resolves the contact well enough for the restitution tolerance.
+def timestep_problem(params: ContactParams, timestep_max_s: float | None = None) -> str | None:
+    """Why the contact's timestep does not resolve it well enough for the tolerance, or None.
 
     The worst case over the speed range and over where in a step the contact begins is
     predicted from the calibration table: |midrange e(zeta, w0 dt) + gravity shift - target|
     + half range + gravity's half spread. It must be within PHASE_BUDGET (the tolerance
-    minus 0.001 for the table's interpolation).
-
-    Args:
-        params: parameters from :func:`contact_params`.
-        timestep_s: simulation timestep in s.
-        allow_coarse: warn (UserWarning) instead of raising.
-        timestep_max_s: the largest timestep the message names (default: this contact's
-            `largest_timestep`; a designer passes the one its design at that timestep meets).
-
-    Returns:
-        Steps per contact, floor(duration_s / timestep_s).
-
-    Raises:
-        ContactModelError: the timestep is too coarse (message names steps per contact, the
-            steps needed and the largest timestep that would work).
+    minus 0.001 for the table's interpolation). The message names the steps per contact, the
+    steps needed and the largest timestep that works (`timestep_max_s`, else this
+    stiffness's `largest_timestep`).
     """
-    dt = positive("timestep_s", timestep_s)
+    dt, e, (lo, hi) = params.timestep_s, params.restitution, params.speed_range_mps
     scheme = scheme_of(params.integrator)
-    w0 = math.sqrt(params.stiffness)
-    w0dt = w0 * dt
-    steps = int(params.duration_s / dt)
-    e = params.restitution
+    w0dt = math.sqrt(params.stiffness) * dt
     cap = table(scheme).w0dt_max
     mid, half, _ = discrete(params.zeta, min(w0dt, cap), scheme)
     err = abs(mid + params.gravity_shift - e) + half + params.gravity_spread
-    too_coarse = w0dt > cap * (1.0 + 1e-9)
-    if err <= PHASE_BUDGET + 1e-6 and not too_coarse:
-        return steps
-    coarse = dt >= params.timestep_s * (1.0 - 1e-9)
-    msg = coarse_message(params, dt, timestep_max_s) if coarse else None
-    if msg is None:
-        msg = (
-            f"contact parameters were calibrated for timestep {params.timestep_s:.3g} s, not "
-            f"{dt:.3g} s: predicted worst-case error {err:.4f} > {PHASE_BUDGET}; call "
-            f"contact_params with timestep_s={dt:.6g}"
-        )
-    if allow_coarse:
-        warnings.warn(msg, UserWarning, stacklevel=2)
-        return steps
-    raise ContactModelError(msg)
-
-
-def coarse_message(params: ContactParams, dt: float, timestep_max_s: float | None = None) -> str:
-    """Why a timestep is too coarse for a contact, and the largest one that works
-    (`timestep_max_s`, else `largest_timestep`)."""
-    e, (lo, hi) = params.restitution, params.speed_range_mps
-    steps = int(params.duration_s / dt)
+    if err <= PHASE_BUDGET + 1e-6 and w0dt <= cap * (1.0 + 1e-9):
+        return None
     where = f"at {hi:g} m/s" if lo == hi else f"over {lo:g}..{hi:g} m/s"
     if params.gravity_spread >= PHASE_BUDGET:
         return (
@@ -86,11 +38,10 @@ def coarse_message(params: ContactParams, dt: float, timestep_max_s: float | Non
             f"{RESTITUTION_TOLERANCE} needs a shorter contact or a narrower speed range"
         )
     dt_max = largest_timestep(params) if timestep_max_s is None else timestep_max_s
-    steps_needed = math.ceil(params.duration_s / dt_max)
     return (
-        f"timestep {dt:.3g} s gives {steps} steps per contact (w0*dt = "
-        f"{math.sqrt(params.stiffness) * dt:.3g}); e = {e:.4g} within {RESTITUTION_TOLERANCE} "
-        f"{where} needs >= {steps_needed} steps, i.e. timestep <= {dt_max:.3g} s for "
+        f"timestep {dt:.3g} s gives {int(params.duration_s / dt)} steps per contact (w0*dt = "
+        f"{w0dt:.3g}); e = {e:.4g} within {RESTITUTION_TOLERANCE} {where} needs >= "
+        f"{math.ceil(params.duration_s / dt_max)} steps, i.e. timestep <= {dt_max:.3g} s for "
         f"stiffness {params.stiffness:.4g} (or a softer contact: larger max penetration, "
         "longer duration, or a narrower speed range)"
     )
@@ -102,17 +53,16 @@ def largest_timestep(params: ContactParams) -> float:
     lo_v, hi_v = params.speed_range_mps
     speeds = shift_speeds(lo_v, hi_v)
     w0 = math.sqrt(params.stiffness)
-    budget = max(PHASE_BUDGET - params.gravity_spread, 1e-6)
-    estimate = w0dt_max(e, budget, scheme_of(integrator)) / w0
+    cap = table(scheme_of(integrator)).w0dt_max
 
     def ok(dt: float) -> bool:
         try:
             ev = evaluate(e, w0, dt, speeds, g, integrator)
         except ContactModelError:
             return False
-        return ev.w0dt <= table(scheme_of(integrator)).w0dt_max and ev.error <= PHASE_BUDGET
+        return ev.w0dt <= cap and ev.error <= PHASE_BUDGET
 
-    lo, hi = estimate, estimate
+    lo = hi = cap / w0  # the table's coarsest step: halved until it resolves the contact
     for _ in range(40):
         if ok(lo):
             break

@@ -1,35 +1,27 @@
-"""Tune a user's MJCF model: a calibrated ``<pair>`` for each pair of geoms asked for.
-
-The model gives the timestep, the integrator and, per pair, the radius and gravity along the
-contact normal (`mjcf.model_pairs`); the user gives the target e per pair and the impact
-speeds (per pair, for all pairs, or, for a sphere above a static plane, derived from the
-model's initial state: from the first impact down to ``SPEED_FLOOR_MPS``).
-"""
+"""Tune a user's MJCF model: a calibrated ``<pair>`` for each pair of geoms asked for."""
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from impactlab.contact.advice import ContactDesign, design_contact
-from impactlab.contact.checks import ContactModelError
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.design import SPEED_FLOOR_MPS
-from impactlab.contact.mjcf import (
+from impactlab.contact.pairs import (
     ModelOptions,
     ModelPair,
-    check_not_input,
     check_tuned,
-    load_model,
     model_options,
     model_pairs,
     pair_element,
 )
-from impactlab.contact.mjcf_text import with_pairs
+from impactlab.errors import SpecError
 from impactlab.files import atomic_path
-
-_PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
+from impactlab.mjcf.files import check_not_input
+from impactlab.mjcf.load import load_model, parse_mjcf
+from impactlab.mjcf.pairs import with_pairs
 
 
 @dataclass(frozen=True)
@@ -65,41 +57,6 @@ class TunedModel:
         return all(t.design.ok for t in self.pairs)
 
 
-def parse_number(text: str, what: str) -> float:
-    """A finite number from the command line, or ContactModelError naming `what`."""
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
-        raise ContactModelError(f"{what} must be a number, got {text!r}") from None
-    if value != value or value in (float("inf"), float("-inf")):
-        raise ContactModelError(f"{what} must be finite, got {text!r}")
-    return value
-
-
-def parse_speeds(text: str, what: str = "--speed") -> tuple[float, float]:
-    """``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
-    lo_text, sep, hi_text = text.partition("..")
-    lo = parse_number(lo_text, what)
-    hi = parse_number(hi_text, what) if sep else lo
-    if not 0.0 < lo <= hi:
-        raise ContactModelError(f"{what} must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
-    return lo, hi
-
-
-def parse_pair(text: str) -> PairRequest:
-    """``G1/G2[=E][@LO..HI]`` -> PairRequest."""
-    m = _PAIR.match(text)
-    if not m:
-        raise ContactModelError(f"--pair must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
-    g1, g2, e, speeds = m.groups()
-    return PairRequest(
-        g1,
-        g2,
-        None if e is None else parse_number(e, f"--pair {text}: restitution"),
-        None if speeds is None else parse_speeds(speeds, f"--pair {text}: speeds"),
-    )
-
-
 def tune_model(
     path: Path,
     requests: Sequence[PairRequest],
@@ -113,7 +70,8 @@ def tune_model(
     """Design every requested pair of a model (nothing written).
 
     Raises:
-        ContactModelError: the model, a geom name, a target or the speeds are wrong.
+        SpecError: the model's file cannot be read, parsed or compiled.
+        ContactModelError: a geom name, a target or the speeds are wrong.
     """
     if not requests:
         raise ContactModelError("name the pairs to calibrate: --pair GEOM1/GEOM2=E")
@@ -173,17 +131,19 @@ def write_tuned(tuned: TunedModel, out: Path) -> Path:
     compiling it with MuJoCo from its new folder.
 
     Raises:
-        ContactModelError: a pair misses its target, or the written model does not compile
-            or does not carry the pairs (nothing is left behind then).
+        ContactModelError: a pair misses its target.
+        SpecError: `out` is a file the model reads, or the written model does not compile or
+            does not carry the pairs (nothing is left behind then).
     """
     if not tuned.ok:
         raise ContactModelError("a pair misses its target: nothing written")
-    check_not_input(out, tuned.path)
+    check_not_input(out, tuned.path, parse_mjcf(tuned.path))
     try:
         raw = tuned.path.read_bytes()
     except OSError as exc:
-        raise ContactModelError(f"{tuned.path}: cannot read: {exc.strerror or exc}") from None
-    data = with_pairs(raw, [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs])
+        raise SpecError(str(tuned.path), "", f"cannot read: {exc.strerror or exc}") from None
+    pairs = [(t.pair.geom1, t.pair.geom2, t.element) for t in tuned.pairs]
+    data = with_pairs(raw, pairs, str(tuned.path))
     with atomic_path(out) as tmp:
         tmp.write_bytes(data)
         check_tuned(tmp, [(t.pair, t.design.params) for t in tuned.pairs])

@@ -7,8 +7,9 @@ and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record jo
 plans, keeping a sweep as its grid (`PlannedRuns`), `work` estimates and refuses absurd jobs,
 `recorder` runs here or as executor `tasks`).
 
-May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.executors`,
-MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`, `impactlab.calibrate`.
+May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.mjcf`,
+`impactlab.executors`, MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`,
+`impactlab.calibrate`.
 
 This package is also the function `impactlab.record(...)` (see `record` below).
 """

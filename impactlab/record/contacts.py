@@ -51,7 +51,10 @@ class ContactTape:
     MuJoCo keeps `mjData.contact` at the start of its arena; `_contacts` views it as a
     structured array (`CONTACT_DTYPE`), so a step's contacts are copied in one operation.
     Per constraint row: MuJoCo's force, its velocity J v at the step's start and J v' after
-    the step (`mj_mulJacVec` with the new velocity), and with `types` its constraint type.
+    the step (`mj_mulJacVec` with the new velocity), J v before any contact force acted
+    (`arrive`: at the step's start, but for RK4 at the previous step's start, whose later
+    stages already meet a contact the start state shows first), and with `types` its
+    constraint type.
     """
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, types: bool) -> None:
@@ -69,6 +72,7 @@ class ContactTape:
             self.force = np.empty(256)
             self.vel = np.empty(256)
             self.vel_after = np.empty(256)
+            self.arrive = np.empty(256)
             self.type = np.empty(256, np.int32)
             self.row_step = np.empty(256, np.int64)
 
@@ -102,9 +106,11 @@ class ContactTape:
         if r + nefc > self.force.size:
             self.force, self.vel = _grow(self.force, r + nefc), _grow(self.vel, r + nefc)
             self.vel_after = _grow(self.vel_after, r + nefc)
+            self.arrive = _grow(self.arrive, r + nefc)
             self.type, self.row_step = _grow(self.type, r + nefc), _grow(self.row_step, r + nefc)
         self.force[r : r + nefc] = data.efc_force
         self.vel[r : r + nefc] = data.efc_vel
+        self.arrive[r : r + nefc] = data.efc_vel
         if after:
             mujoco.mj_mulJacVec(self.model, data, self.vel_after[r : r + nefc], data.qvel)
         else:
@@ -123,20 +129,27 @@ class ContactTape:
             return nnz, adr, data.efc_J_colind.copy(), data.efc_J.copy()
         return (data.efc_J[: nefc * self.model.nv].reshape(nefc, self.model.nv).copy(),)
 
-    def after_step(self, qvel: np.ndarray) -> None:
-        """J v' of the rows kept by `add(after=False)`, with the step's new velocity."""
+    def after_step(self, qvel: np.ndarray, before: np.ndarray) -> None:
+        """For the rows kept by `add(after=False)`: J v' with the step's new velocity, and
+        `arrive`, J v with the velocity at the previous step's start (`before`)."""
         r, nefc, rows = self._jacobian
+        self.vel_after[r : r + nefc] = self._times_jacobian(rows, nefc, qvel)
+        self.arrive[r : r + nefc] = self._times_jacobian(rows, nefc, before)
+
+    @staticmethod
+    def _times_jacobian(rows: tuple[np.ndarray, ...], nefc: int, v: np.ndarray) -> np.ndarray:
+        """J v for the Jacobian rows kept by `_jacobian_rows` (dense or sparse)."""
         if len(rows) == 1:
-            self.vel_after[r : r + nefc] = rows[0] @ qvel
-            return
+            product: np.ndarray = rows[0] @ v
+            return product
         nnz, adr, col, values = rows
         end = int(adr[-1] + nnz[-1])
-        products = values[:end] * qvel[col[:end]]
+        products = values[:end] * v[col[:end]]
         starts = adr[nnz > 0]
         sums = np.zeros(nefc)
         if starts.size:
             sums[nnz > 0] = np.add.reduceat(products, starts)
-        self.vel_after[r : r + nefc] = sums
+        return sums
 
     def check(self) -> None:
         """Raise if MuJoCo moved its contact array (the view would read stale memory)."""
@@ -162,9 +175,10 @@ class StepContacts:
 
     Forces in N and velocities in m/s along the contact frame (normal from side 1 to side
     2); `v_start`/`v_end` the relative normal velocity at the step's start and end (< 0:
-    approaching); `power_normal`/`power_friction` the power of the normal and friction
-    forces over the step (W, at the step's mean velocity). Sides are geom ids, or -1 for a
-    flex (`flex1`, `flex2` then give it).
+    approaching), `v_arrive` before any contact force acted (`ContactTape`);
+    `power_normal`/`power_friction` the power of the normal and friction forces over the
+    step (W, at the step's mean velocity). Sides are geom ids, or -1 for a flex (`flex1`,
+    `flex2` then give it).
     """
 
     step: np.ndarray
@@ -178,6 +192,7 @@ class StepContacts:
     force: np.ndarray  # (n, 3): normal, friction along the frame's two tangents
     v_start: np.ndarray
     v_end: np.ndarray
+    v_arrive: np.ndarray
     power_normal: np.ndarray
     power_friction: np.ndarray
 
@@ -201,6 +216,7 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
     raw = tape.contact[: tape.ncontact].view(CONTACT_DTYPE)[:, 0]
     n_rows = tape.nrow
     force, vel, after = tape.force[:n_rows], tape.vel[:n_rows], tape.vel_after[:n_rows]
+    arrive = tape.arrive[:n_rows]
     power = force * 0.5 * (vel + after)
     active = (raw["exclude"] == 0) & (raw["efc_address"] >= 0)
     raw, step = raw[active], tape.contact_step[: tape.ncontact][active]
@@ -221,6 +237,7 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
         second = first_row + paired
         v_start = 0.5 * (vel[first_row] + vel[second])
         v_end = 0.5 * (after[first_row] + after[second])
+        v_arrive = 0.5 * (arrive[first_row] + arrive[second])
         mu = raw["friction"]
         for j in range(2):
             has = friction_dims > j
@@ -228,7 +245,7 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
             f3[has, 1 + j] = mu[has, j] * (force[a] - force[a + 1])
     else:
         f3[:, 0] = force[first_row]
-        v_start, v_end = vel[first_row], after[first_row]
+        v_start, v_end, v_arrive = vel[first_row], after[first_row], arrive[first_row]
         for j in range(2):
             has = friction_dims > j
             f3[has, 1 + j] = force[first_row[has] + 1 + j]
@@ -245,6 +262,7 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
         force=f3,
         v_start=v_start,
         v_end=v_end,
+        v_arrive=v_arrive,
         power_normal=power_normal,
         power_friction=total_power - power_normal,
     )

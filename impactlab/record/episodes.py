@@ -19,8 +19,10 @@ class Episode:
 
     `side1` < `side2` are party ids (`InstrumentedModel.party_names`); normals point from
     side 1 to side 2. Velocities are the relative normal velocity of the contact points
-    (< 0: approaching), MuJoCo's J v: `v_in` at the start of the first step in contact (the
-    velocity the surfaces met with), `v_out` after the last (the one they parted with),
+    (< 0: approaching), MuJoCo's J v: `v_in` before any contact force acted (the velocity the
+    surfaces met with: at the start of the first step in contact, for RK4 at the start of
+    the step before, whose later stages met the surface), `v_out` after the last step in
+    contact (the one they parted with),
     each the mean over the pair's contact points then. Works (J) are the normal force's
     while the points approach (`work_c` <= 0) and separate (`work_r` >= 0) and the friction
     force's; `state_in`/`state_out` the two sides' states (13 values each, NaN for a side
@@ -67,6 +69,7 @@ class _PairSteps:
     penetration: np.ndarray
     v_start: np.ndarray
     v_end: np.ndarray
+    v_arrive: np.ndarray
     point: np.ndarray
     normal: np.ndarray
     geoms: np.ndarray  # (k, 2) the first contact's geoms at each step
@@ -150,6 +153,7 @@ class Episodes:
         force, pen = total(contacts.force[:, 0]), contacts.penetration[pick]
         p_n, p_f = total(contacts.power_normal), total(contacts.power_friction)
         v_start, v_end = total(contacts.v_start) / count, total(contacts.v_end) / count
+        v_arrive = total(contacts.v_arrive) / count
         point = total(contacts.pos) / count[:, None]
         geoms = np.stack([contacts.geom1[pick][starts], contacts.geom2[pick][starts]], axis=1)
         penetration = np.maximum.reduceat(pen, starts)
@@ -162,6 +166,7 @@ class Episodes:
                 penetration[a:b],
                 v_start[a:b],
                 v_end[a:b],
+                v_arrive[a:b],
                 point[a:b],
                 normal[a:b],
                 geoms[a:b],
@@ -208,7 +213,7 @@ class Episodes:
             geom2=int(pair.geoms[i, 1]),
             onset=int(step),
             last=int(step),
-            v_in=float(pair.v_start[i]),
+            v_in=float(pair.v_arrive[i]),
             point_in=pair.point[i],
             normal_in=pair.normal[i],
         )

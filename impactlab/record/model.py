@@ -175,10 +175,9 @@ def model_from_mjcf(
     MuJoCo reads the model and every file it names; the log keeps its text and, when the text
     alone does not reproduce it, the compiled model (`impactlab.record.model_files`).
     """
-    from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files, parse_mjcf
+    from impactlab.mjcf.load import parse_mjcf
+    from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files
 
-    if not path.is_file():
-        raise SpecError(str(path), "", "file not found")
     spec = parse_mjcf(path)
     files = model_files(spec, path)
     try:

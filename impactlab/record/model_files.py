@@ -10,11 +10,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
-from impactlab.contact.mjcf import asset_files
-from impactlab.contact.mjcf_files import encoding, included_files, read_text
-from impactlab.contact.mujoco_log import nan_warning, parse_warnings
 from impactlab.errors import SpecError
+from impactlab.mjcf.files import asset_files, encoding, included_files, read_text
 
 BINARY_ATTACHMENT = "model.mjb"
 _DECLARATION = re.compile(r"^(\ufeff?\s*<\?xml[^>]*encoding\s*=\s*)([\"'])[^\"']*\2")
@@ -35,45 +32,14 @@ class ModelFiles:
     needs_binary: bool = False
 
 
-def parse_mjcf(path: Path) -> mujoco.MjSpec:
-    """Parse an MJCF file with MuJoCo (its includes and assets as MuJoCo resolves them), its
-    warnings kept from the working folder; every file it names must be a regular file.
-
-    Raises:
-        SpecError: MuJoCo cannot parse it, it holds a NaN, or a file it names is not a
-            regular file (a FIFO, a device).
-    """
-    try:
-        named = [path, *included_files(path)]
-    except ContactModelError as exc:
-        raise SpecError(str(path), "", str(exc)) from None
-    for file in named:
-        if file.exists() and not file.is_file():  # MuJoCo would read a FIFO forever
-            raise SpecError(str(path), "", f"{file} is not a regular file")
-    # MuJoCo caches compiled meshes and textures by file name: a file edited since would be
-    # read from the cache, stale, so every user model is read from its files again
-    mujoco.mj_clearCache(mujoco.mj_getCache())
-    try:
-        spec, fresh = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
-    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
-        raise SpecError(str(path), "", f"invalid MJCF: {' '.join(str(exc).split())}") from None
-    nan = nan_warning(fresh)
-    if nan is not None:
-        raise SpecError(str(path), "", f"invalid MJCF: a number is NaN ({nan})")
-    return spec
-
-
 def model_files(spec: mujoco.MjSpec, path: Path) -> ModelFiles:
     """The text the log keeps of a parsed model and whether it needs the compiled model.
 
     Raises:
         SpecError: the model's file cannot be read or decoded.
     """
-    try:
-        whole = not included_files(path) and not [p for p in asset_files(spec, path) if p.exists()]
-        xml = _as_utf8(read_text(path), path) if whole else spec.to_xml()
-    except ContactModelError as exc:
-        raise SpecError(str(path), "", str(exc)) from None
+    whole = not included_files(path) and not [p for p in asset_files(spec, path) if p.exists()]
+    xml = _as_utf8(read_text(path), path) if whole else spec.to_xml()
     return ModelFiles(xml, needs_binary=not whole)
 
 
@@ -94,8 +60,8 @@ def model_digest(model: mujoco.MjModel) -> str:
 def _as_utf8(text: str, path: Path) -> str:
     """The text with its XML declaration saying UTF-8 (the log stores it as UTF-8)."""
     try:
-        charset = encoding(path.read_bytes()[:200])
-    except ContactModelError:
+        charset = encoding(path.read_bytes()[:200], str(path))
+    except SpecError:
         charset = "utf-8"
     if charset in ("utf-8", "utf-8-sig"):
         return text.removeprefix("\ufeff")

@@ -113,6 +113,7 @@ class _Run:
         self.monitor = StopMonitor(inst, request.stop, timestep=self.dt)
         self.work_done = np.zeros(len(budget.WORK_KINDS))
         self.v_last = self.data.qvel.copy()
+        self.v_before = self.v_last  # RK4: the previous step's start velocity (`_steps`)
         self.step0 = 0
         self.logged = 0
         self.last_t_ns = 0
@@ -175,6 +176,7 @@ class _Run:
         ]
         tape.reset()
         step = mujoco.mj_step
+        before = self.v_before  # RK4: the velocity at the previous step's start
         for i in range(n):
             times[i] = data.time
             if qpos is not None:
@@ -192,9 +194,11 @@ class _Run:
                     mul_m(model, data, unbalanced[i], qacc)
                     unbalanced[i] -= smooth
                     unbalanced[i] -= constraint
+                start = qvel.copy()
                 mujoco.mj_RungeKutta(model, data, 4)
                 if nefc:
-                    tape.after_step(qvel)
+                    tape.after_step(qvel, before)
+                before = start
             else:
                 step(model, data)
                 for buf, src in copies:
@@ -206,6 +210,7 @@ class _Run:
                     unbalanced[i] -= constraint
             rows[i] = sensordata
             vel[i] = qvel
+        self.v_before = before
 
     def _work(self, n: int, v_start: np.ndarray) -> np.ndarray:
         """Work of each kind of force during each step of the chunk, (n, kinds) J."""

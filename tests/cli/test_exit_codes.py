@@ -238,11 +238,12 @@ def test_a_closed_pipe_elsewhere_is_not_taken_for_stdout(monkeypatch, capsys):
         cli.command()
 
 
-def test_calibrate_runs_the_quick_grid_and_lab_analyzes_as_analyze_does():
+def test_the_lab_calibrates_when_asked_and_analyzes_as_analyze_does():
     from impactlab.cli import build_parser
-    from impactlab.cli.calibrate import GRID_RUNS
 
     parser = build_parser()
-    assert parser.parse_args(["calibrate"]).grid == "quick" and GRID_RUNS["quick"] == 43
+    assert parser.parse_args(["calibrate"]).targets is None
+    assert not parser.parse_args(["lab"]).calibration
+    assert parser.parse_args(["lab", "--calibration"]).calibration
     lab, analyze = parser.parse_args(["lab"]), parser.parse_args(["analyze", "x"])
     assert lab.executor == analyze.executor == "processes"

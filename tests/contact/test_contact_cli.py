@@ -42,7 +42,10 @@ def run_cli(capsys, *args: str) -> tuple[int, str, str]:
 
 
 def bounces(model: mujoco.MjModel, radius: float, seconds: float) -> list[tuple[float, float]]:
-    """(impact speed, e) of every complete bounce of the model's first free body on z = 0."""
+    """(impact speed, e) of every complete bounce of the model's first free body on z = 0,
+    as the recorder takes them: the speed before any contact force acted (in the first state
+    in contact; RK4: the state before, whose step's later stages met the floor) and in the
+    first state out of contact."""
     data = mujoco.MjData(model)
     kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
     state0 = np.empty(mujoco.mj_stateSize(model, kind))
@@ -50,11 +53,13 @@ def bounces(model: mujoco.MjModel, radius: float, seconds: float) -> list[tuple[
     state, _ = rollout.rollout(model, data, state0[None], nstep=int(seconds / model.opt.timestep))
     z, vz = state[0, :, 3], state[0, :, 1 + model.nq + 2]
     inside = z < radius
+    before = int(model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4)
     out = []
     for start in np.flatnonzero(~inside[:-1] & inside[1:]) + 1:
         end = start + int(np.argmax(~inside[start:]))
         if end > start:
-            out.append((-vz[start - 1], -vz[end] / vz[start - 1]))
+            v_in = vz[start - before]
+            out.append((-v_in, -vz[end] / v_in))
     return out
 
 

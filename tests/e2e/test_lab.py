@@ -25,7 +25,7 @@ def test_lab_records_analyzes_and_links_replays(tmp_path, capsys):
     (experiments / "tiny_drop.toml").write_text(DROP)
     (experiments / "tiny_collision.toml").write_text(COLLISION)
     out = tmp_path / "lab"
-    args = ["lab", "--experiments", str(experiments), "-o", str(out), "--calibration", "none"]
+    args = ["lab", "--experiments", str(experiments), "-o", str(out)]
     assert main(args) == 0
     printed = capsys.readouterr().out
     assert printed.strip().splitlines()[-1] == f"report: {out / 'results' / 'report.md'}"
@@ -69,3 +69,26 @@ def test_lab_without_specs_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no experiment specs" in err[0]
     assert not Path(tmp_path / "o").exists()
+
+
+def test_lab_with_the_calibration_puts_its_table_in_the_appendix(tmp_path, monkeypatch, capsys):
+    """`impactlab lab --calibration` (the calibration experiment cut to one run here)."""
+    import impactlab.calibrate.job as job
+
+    one = drop("one_impact", z=0.10013, vel=[0.0, 0.0, -2.0], timestep=1e-5, max_time=0.02)
+    monkeypatch.setattr(
+        job, "calibration_specs", lambda: [{**one, "contact": {"restitution": 0.7}}]
+    )
+    experiments = tmp_path / "experiments"
+    experiments.mkdir()
+    (experiments / "tiny_drop.toml").write_text(DROP)
+    out = tmp_path / "lab"
+    args = ["lab", "--experiments", str(experiments), "-o", str(out), "--no-replay"]
+    assert main([*args, "--calibration"]) == 0
+    appendix = (out / "results" / "report-appendix.md").read_text()
+    section = appendix.split("## Calibration: e against its target at every impact")[1]
+    assert "every impact meets its bound" in section
+    assert "](calibration/results/calibration.parquet)" in section
+    row = next(line for line in section.splitlines() if line.startswith("| one_impact-"))
+    assert "| plane/ball | 1 | 0.700 |" in row and row.endswith("| yes |  |")
+    assert (out / "results" / "calibration" / "results" / "report.md").is_file()

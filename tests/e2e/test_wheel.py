@@ -94,10 +94,8 @@ def test_the_wheel_holds_the_package_data_and_metadata(dist):
     names = set(zipfile.ZipFile(wheel).namelist())
     for table in ("restitution_table.json", "restitution_table_rk4.json"):
         assert f"impactlab/contact/{table}" in names
-    specs = sorted(p.name for p in (ROOT / "experiments").glob("*.toml"))
-    assert (
-        sorted(n.split("/")[-1] for n in names if n.startswith("impactlab/experiments/")) == specs
-    )
+    specs = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "experiments").rglob("*.toml"))
+    assert sorted(n.removeprefix("impactlab/") for n in names if "/experiments/" in n) == specs
     assert {"impactlab/py.typed", "impactlab/proto/impactlab_pb2.pyi"} <= names
     modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / "impactlab").rglob("*.py")}
     assert modules - names == set()  # every module of every package (setup.py finds them)
@@ -180,12 +178,14 @@ def test_contact_designs_and_tunes_a_model_from_an_empty_folder(venv, empty):
     assert "<pair" in (empty / "t.xml").read_text()
 
 
-def test_calibrate_quick_from_an_empty_folder(venv, empty):
-    done = run([str(venv / "impactlab"), "calibrate", "--grid", "quick"], empty)
-    out = empty / "calibration"
-    for name in ("calibration.md", "summary.json", "points.parquet", "calibration.png"):
+def test_calibrate_from_an_empty_folder(venv, empty):
+    """The shipped calibration experiment (cut to one target) from the installed package."""
+    done = run([str(venv / "impactlab"), "calibrate", "--targets", "0.8"], empty)
+    out = empty / "calibration" / "results"
+    for name in ("report.md", "calibration.parquet", "bounces.parquet", "collisions.parquet"):
         assert (out / name).is_file(), name
-    assert "calibration written to calibration/" in done.stdout
+    assert "## Calibration: e against its target" in (out / "report.md").read_text()
+    assert "every impact meets its bound" in done.stdout
     # a mistake: one line, exit 2, and no folder left behind
     bad = run(
         [str(venv / "impactlab"), "calibrate", "-o", "cal2", "--targets", "5"], empty, check=False
@@ -195,7 +195,7 @@ def test_calibrate_quick_from_an_empty_folder(venv, empty):
 
 
 def test_lab_runs_the_packaged_experiments_from_an_empty_folder(venv, empty):
-    done = run([str(venv / "impactlab"), "lab", "--calibration", "none"], empty)
+    done = run([str(venv / "impactlab"), "lab"], empty)
     assert "running the handout's experiments shipped with impactlab" in done.stdout + done.stderr
     results = empty / "lab-output" / "results"
     appendix = (results / "report-appendix.md").read_text()

@@ -376,7 +376,7 @@ def test_calibrate_with_a_target_twice_is_one_line_and_leaves_nothing(
     tmp_path, capsys, monkeypatch
 ):
     monkeypatch.chdir(tmp_path)
-    code, _, err = cli(capsys, "calibrate", "--quick", "--targets", "0.8", "0.8", "-o", "out")
+    code, _, err = cli(capsys, "calibrate", "--targets", "0.8", "0.8", "-o", "out")
     assert code == 2
     one_error(err, "--targets", "0.8")
     assert list(tmp_path.iterdir()) == []

@@ -216,7 +216,7 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
         else:
             g = float(np.linalg.norm(run.gravity))
             links = frozenset(n for n, i in run.body_info.items() if i.motion != "free")
-            col = with_surroundings(col, mine, g, links)
+            col = _with_targets(with_surroundings(col, mine, g, links), targets)
         if col.is_empty() and len(names) >= 2 and expects_collision(run):
             col = no_collision_rows(
                 rid,
@@ -250,9 +250,12 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
 
 def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]:
     """The run's calibrated pairs (`TARGET_SCHEMA` rows) by the parties their geoms belong
-    to, as the log's contacts name them (both orders); a pair that never touched has none."""
+    to, as the log's contacts name them (both orders); a pair that never touched has none.
+    Each speed range is widened by one step of gravity: the recorder takes the speed at a
+    step, up to g dt from the speed the pair was designed for (a drop's first impact)."""
     if not run.contact_targets or run.contacts.is_empty():
         return []
+    step = float(np.linalg.norm(run.gravity)) * run.timestep_s
     sides = run.contacts.select(
         geom=pl.concat_list("geom1", "geom2"), party=pl.concat_list("body1", "body2")
     )
@@ -262,10 +265,26 @@ def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]
         a, b = party.get(t.geom1), party.get(t.geom2)
         if a is None or b is None or t.speed_range_mps is None:
             continue
-        low, high = t.speed_range_mps
+        low, high = t.speed_range_mps[0] - step, t.speed_range_mps[1] + step
         rows += [(run.run_id, a, b, t.restitution, low, high)]
         rows += [(run.run_id, b, a, t.restitution, low, high)]
     return rows
+
+
+def _with_targets(col: pl.DataFrame, targets: pl.DataFrame) -> pl.DataFrame:
+    """Collisions with their pair's target e when the closing speed is in its speed range."""
+    pairs = targets.rename({"body": "body1", "other": "body2"})
+    closing = pl.col("v1n_before_mps") - pl.col("v2n_before_mps")
+    return (
+        col.drop("target_e")
+        .join(pairs, on=["run_id", "body1", "body2"], how="left", maintain_order="left")
+        .with_columns(
+            pl.when(closing.is_between(pl.col("low_mps"), pl.col("high_mps")))
+            .then(pl.col("target"))
+            .alias("target_e")
+        )
+        .select(col.columns)
+    )
 
 
 def _budget(run: RunLog, total: pl.DataFrame) -> pl.DataFrame:

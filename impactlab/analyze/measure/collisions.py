@@ -47,6 +47,7 @@ COLLISION_SCHEMA = pl.Schema(
         "ke_loss_frac": pl.Float64,
         "e_velocity": pl.Float64,
         "e_energy": pl.Float64,
+        "target_e": pl.Float64,
         "ke_loss_predicted_J": pl.Float64,
         "v1n_after_e_mps": pl.Float64,
         "v2n_after_e_mps": pl.Float64,
@@ -223,7 +224,7 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
     out = out.with_columns(
         *[
             pl.lit(None, dtype=COLLISION_SCHEMA[c]).alias(c)
-            for c in ("touched_by", "gravity_impulse_rel")
+            for c in ("touched_by", "gravity_impulse_rel", "target_e")
             if c not in out.columns
         ]
     )

@@ -55,3 +55,37 @@ def test_no_collision_gives_a_row_with_the_reason(record_spec):
     assert "never happened" in row["note"]
     assert row["v1x_after_mps"] == pytest.approx(V1)  # "after" equals "before"
     assert a.summary["note"]
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_calibrated_impacts_carry_their_target_in_its_range(record_spec, integrator):
+    """A drop's first impact, at the top of the range its contact was designed for (measured
+    within a step of gravity of it, either way), and a calibrated collision carry the pair's
+    target e; the known collision, not calibrated, none."""
+    from specs import collision, drop, toml
+
+    (path,) = record_spec(
+        f"target_drop_{integrator}",
+        toml(
+            drop(
+                "target_drop",
+                z=0.6,
+                timestep=1e-5,
+                integrator=integrator,
+                contact={"restitution": 0.8},
+                bounces=2,
+                max_time=2.0,
+            )
+        ),
+    )
+    bounces = analyze_run(load_log(path)).bounces
+    assert bounces["target_e"].to_list() == [0.8, 0.8]
+    (path,) = record_spec(
+        f"target_collision_{integrator}",
+        toml(collision("target_collision", timestep=1e-5, contact={"restitution": 0.7})),
+    )
+    assert analyze_run(load_log(path)).collisions["target_e"].to_list() == [0.7]
+
+
+def test_a_collision_without_a_calibrated_pair_has_no_target(hit):
+    assert hit.collisions["target_e"].to_list() == [None]

@@ -1,6 +1,9 @@
-"""Measure one impact in MuJoCo itself (plain `mj_step`), as the analysis stage does.
+"""One impact measured in plain MuJoCo (`mj_step`), e as the recorder defines it: the tests'
+oracle for the contact designer, independent of impactlab's recorder.
 
-Used by the tests and the calibration to check the designer against the simulator.
+v_in is the normal velocity before any contact force acted: in the first state in contact,
+for RK4 in the state before (the later stages of its step meet the surface already); v_out in
+the first state out of contact after it.
 """
 
 from __future__ import annotations
@@ -8,27 +11,21 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
+import mujoco
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
-from impactlab.contact.params import ContactParams
-
-if TYPE_CHECKING:
-    import mujoco  # imported where used: `impactlab.contact` loads without it
+from impactlab.contact import ContactModelError, ContactParams
 
 
 @dataclass(frozen=True)
 class ImpactMeasurement:
     """One impact measured in MuJoCo (normal components; ball 1 moves towards ball 2 / floor).
 
-    Measured surface to surface, as the analysis stage does (``impactlab.analyze.measure.bounces``).
-
     Attributes:
         restitution: -(relative normal velocity after) / (relative normal velocity before).
-        v_before_mps: body velocities (z for the floor, x for two balls) in the last state
-            before the bodies overlap, shape (nbody,).
+        v_before_mps: body velocities (z for the floor, x for two balls) before any contact
+            force acted (see the module docstring), shape (nbody,).
         v_after_mps: body velocities in the first state after the overlap, (nbody,).
         max_penetration_m: largest overlap in m.
         steps_in_contact: number of steps with a positive contact force.
@@ -78,13 +75,9 @@ def _measure(
     overlap: Callable[[mujoco.MjData], float],
     max_steps: int,
 ) -> ImpactMeasurement:
-    """Step until the bodies overlap and part again; velocities just outside the overlap.
-
-    As the analysis stage does: v_before is the state before the first overlapping one,
-    v_after the first state without overlap after it (surface to surface).
-    """
-    import mujoco
-
+    """Step until the bodies overlap and part again; the velocities in and out (see the
+    module docstring)."""
+    rk4 = model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     v_prev: np.ndarray | None = None
     v_before: np.ndarray | None = None
     v_after: np.ndarray | None = None
@@ -96,7 +89,7 @@ def _measure(
             if v_before is None:
                 if v_prev is None:
                     raise ContactModelError("the bodies overlap in the initial state")
-                v_before = v_prev
+                v_before = v_prev if rk4 else v_now
             pen = max(pen, overlap(data))
         elif v_before is not None:
             v_after = v_now
@@ -131,8 +124,6 @@ def measure_ball_plane(
     The ball starts ``gap_m`` above the plane (default 2.37 steps of travel) moving down at
     the speed that makes it arrive at ``impact_speed_mps``.
     """
-    import mujoco
-
     model = mujoco.MjModel.from_xml_string(
         ball_plane_mjcf(params, radius_m=radius_m, mass_kg=mass_kg, gravity_mps2=gravity_mps2)
     )
@@ -172,8 +163,6 @@ def measure_ball_ball(
     Ball 1 (left) moves at velocity_mps[0], ball 2 (right) at velocity_mps[1] (closing speed
     v1 - v2 > 0); they start ``gap_m`` apart (default 2.37 steps of closing travel).
     """
-    import mujoco
-
     model = mujoco.MjModel.from_xml_string(
         ball_ball_mjcf(params, radius_m=radius_m, mass_kg=mass_kg)
     )

@@ -1,11 +1,4 @@
-"""Calibrated contacts for a user's MJCF model: what each pair of geoms is, and the model with them.
-
-:func:`model_pairs` reads a model with MuJoCo and describes the pairs a user asks for (radius,
-gravity along the contact normal, the first impact speed when it follows from the model's
-initial state); `mjcf_text.with_pairs` writes the model's own text back with one ``<pair>`` per
-calibrated pair, replacing a ``<pair>`` of the same geoms and leaving every other byte as it
-was; :func:`check_tuned` compiles the result and checks that MuJoCo sees those parameters.
-"""
+"""A user's model as the designer sees it: each pair's radius, gravity and speeds, its `<pair>`."""
 
 from __future__ import annotations
 
@@ -17,10 +10,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from impactlab.contact.checks import ContactModelError
-from impactlab.contact.mjcf_files import included_files
-from impactlab.contact.mujoco_log import nan_warning, parse_warnings
+from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.params import ContactParams
+from impactlab.mjcf.load import load_model
 
 if TYPE_CHECKING:
     import mujoco  # imported where used: `impactlab.contact` loads without it
@@ -59,122 +51,15 @@ class ModelOptions:
 
     timestep_s: float
     integrator: str
-    gravity: tuple[float, float, float]
-
-
-def load_model(path: Path) -> mujoco.MjModel:
-    """Compile an MJCF file with MuJoCo.
-
-    Raises:
-        ContactModelError: the file is missing or MuJoCo cannot compile it.
-    """
-    import mujoco
-
-    if not path.is_file():
-        raise ContactModelError(f"{path}: file not found")
-    try:
-        model, warned = parse_warnings(lambda: mujoco.MjModel.from_xml_path(str(path)))
-    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
-        raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
-    nan = nan_warning(warned)
-    if nan is not None:
-        raise ContactModelError(f"invalid MJCF: a number is NaN ({nan})")
-    check_names(model)
-    return model
-
-
-def check_names(model: mujoco.MjModel) -> None:
-    """MuJoCo keeps names as the file's bytes; Python reads them as UTF-8.
-
-    Raises:
-        ContactModelError: a name is not UTF-8 (e.g. an ISO-8859-1 model with an accent).
-    """
-    try:
-        bytes(model.names).decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raw = bytes(model.names)
-        start = raw.rfind(b"\0", 0, exc.start) + 1
-        stop = raw.find(b"\0", exc.start)
-        name = raw[start : stop if stop >= 0 else None].decode("utf-8", "backslashreplace")
-        raise ContactModelError(
-            f"the name {name!r} is not UTF-8 text (MuJoCo reads names as UTF-8 bytes): "
-            "save the model as UTF-8"
-        ) from None
-
-
-def asset_files(spec: mujoco.MjSpec, path: Path) -> list[Path]:
-    """The mesh, texture, height-field and skin files a parsed model (`MjSpec`) reads, in
-    the order MuJoCo lists them, each once (paths as MuJoCo resolves them; they may be
-    missing)."""
-    base = path.parent
-    out: list[Path] = []
-
-    def add(folder: str, file: str) -> None:
-        if file:
-            target = base / folder / file
-            if target not in out:
-                out.append(target)
-
-    for mesh in spec.meshes:
-        add(spec.meshdir, mesh.file)
-    for skin in spec.skins:
-        add(spec.meshdir, skin.file)
-    for hfield in spec.hfields:
-        add(spec.meshdir, hfield.file)
-    for texture in spec.textures:
-        for file in (texture.file, *texture.cubefiles):
-            add(spec.texturedir, file)
-    return out
-
-
-def model_inputs(path: Path) -> list[Path]:
-    """Every file the model at `path` is read from: itself, its includes, its assets.
-
-    Raises:
-        ContactModelError: the model cannot be read or parsed.
-    """
-    import mujoco
-
-    files = [path, *included_files(path)]
-    try:
-        spec, _ = parse_warnings(lambda: mujoco.MjSpec.from_file(str(path)))
-    except Exception as exc:  # MuJoCo raises ValueError with the parser's message
-        raise ContactModelError(f"{path}: invalid MJCF: {' '.join(str(exc).split())}") from None
-    return files + asset_files(spec, path)
-
-
-def check_not_input(out: Path, model: Path) -> None:
-    """Refuse to write `out` over the model or any file it is read from.
-
-    Raises:
-        ContactModelError: `out` is one of the model's files (same path or same inode).
-    """
-    if not out.exists():
-        return
-    for file in model_inputs(model):
-        try:
-            same = file.exists() and out.samefile(file)
-        except OSError:
-            same = out.resolve() == file.resolve()
-        if same:
-            what = "the model" if file == model else f"a file the model reads ({file})"
-            raise ContactModelError(
-                f"-o {out} is {what}: give another file name (the model is never overwritten)"
-            )
 
 
 def model_options(model: mujoco.MjModel) -> ModelOptions:
-    """Timestep, integrator and gravity of a compiled model."""
+    """Timestep and integrator of a compiled model."""
     import mujoco
 
     integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
-    gx, gy, gz = (float(x) for x in model.opt.gravity)
     names = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
-    return ModelOptions(
-        timestep_s=float(model.opt.timestep),
-        integrator=names.get(integrator, integrator),
-        gravity=(gx, gy, gz),
-    )
+    return ModelOptions(float(model.opt.timestep), names.get(integrator, integrator))
 
 
 def model_pairs(model: mujoco.MjModel, names: Sequence[tuple[str, str]]) -> list[ModelPair]:

@@ -1,4 +1,4 @@
-"""The files an MJCF model is made of (its includes and attached models), and its text."""
+"""The files an MJCF model is made of: its includes and attached models, assets, and its text."""
 
 from __future__ import annotations
 
@@ -7,8 +7,12 @@ import re
 import xml.parsers.expat
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from impactlab.contact.checks import ContactModelError
+from impactlab.errors import SpecError
+
+if TYPE_CHECKING:
+    import mujoco
 
 MAX_INCLUDES = 1000  # files of one model: more is a loop or not a model
 _DECLARED = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([A-Za-z0-9._-]+)[\"']")
@@ -22,8 +26,12 @@ class _Element:
     attrs: dict[str, str]
 
 
-def encoding(raw: bytes) -> str:
-    """The encoding of an XML document's bytes: its BOM, its declaration, else UTF-8."""
+def encoding(raw: bytes, source: str = "") -> str:
+    """The encoding of an XML document's bytes: its BOM, its declaration, else UTF-8.
+
+    Raises:
+        SpecError: the declaration names an encoding Python does not know.
+    """
     if raw.startswith(codecs.BOM_UTF8):
         return "utf-8-sig"
     for bom, name in ((codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16")):
@@ -36,32 +44,32 @@ def encoding(raw: bytes) -> str:
     try:
         return codecs.lookup(name).name
     except LookupError:
-        raise ContactModelError(f"unknown encoding {name!r} in the XML declaration") from None
+        raise SpecError(source, "", f"unknown encoding {name!r} in the XML declaration") from None
 
 
 def read_text(path: Path) -> str:
     """An XML file's text, decoded as its declaration says (line ends kept as they are).
 
     Raises:
-        ContactModelError: the file cannot be read or is not text in its encoding.
+        SpecError: the file cannot be read or is not text in its encoding.
     """
     raw = _read(path)
-    name = encoding(raw)
+    name = encoding(raw, str(path))
     try:
         return raw.decode(name)
     except UnicodeDecodeError as exc:
-        raise ContactModelError(
-            f"{path}: not {name} text: {exc.reason} at byte {exc.start}"
+        raise SpecError(
+            str(path), "", f"not {name} text: {exc.reason} at byte {exc.start}"
         ) from None
 
 
 def _read(path: Path) -> bytes:
     if path.exists() and not path.is_file():  # a FIFO or a device: never read it
-        raise ContactModelError(f"{path}: not a regular file")
+        raise SpecError(str(path), "", "not a regular file")
     try:
         return path.read_bytes()
     except OSError as exc:
-        raise ContactModelError(f"{path}: cannot read: {exc.strerror or exc}") from None
+        raise SpecError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
 
 
 def _elements(
@@ -99,7 +107,7 @@ def _elements(
     except xml.parsers.expat.ExpatError as exc:
         lenient = _lenient(raw)
         if lenient is None:
-            raise ContactModelError(f"{path}: the XML cannot be parsed: {exc}") from None
+            raise SpecError(str(path), "", f"the XML cannot be parsed: {exc}") from None
         return lenient
     return (root[0] if root else None), found
 
@@ -134,7 +142,7 @@ def tag_end(raw: bytes, begin: int) -> int:
             quote = c
         elif c == b">":
             return i + 1
-    raise ContactModelError("the model's XML ends inside a tag")
+    raise ValueError("the XML ends inside a tag")  # expat read the tag: never
 
 
 def included_files(path: Path) -> list[Path]:
@@ -143,7 +151,7 @@ def included_files(path: Path) -> list[Path]:
     including file) and as MuJoCo 3 did (beside the main model), each that exists.
 
     Raises:
-        ContactModelError: a file cannot be read or parsed, or includes itself.
+        SpecError: a file cannot be read or parsed, or includes itself.
     """
     out: list[Path] = []
     _walk(path, path, [path.resolve()], out)
@@ -155,7 +163,7 @@ def _walk(main: Path, path: Path, chain: list[Path], out: list[Path]) -> None:
     for element in elements:
         file = element.attrs.get("file")
         if not file:
-            raise ContactModelError(f"{path}: an <include> without a file")
+            raise SpecError(str(path), "", "an <include> without a file")
         if element.attrs.get("tag") == "model":  # an attached model: a main model of its own
             targets = [path.parent / file]
             inner_main = targets[0]
@@ -165,11 +173,59 @@ def _walk(main: Path, path: Path, chain: list[Path], out: list[Path]) -> None:
             inner_main = main
         for target in targets:
             if target.resolve() in chain:
-                raise ContactModelError(f"{path}: includes {target}, which includes it")
+                raise SpecError(str(path), "", f"includes {target}, which includes it")
             if target in out:
                 continue
             out.append(target)
             if len(out) > MAX_INCLUDES:
-                raise ContactModelError(f"{main}: more than {MAX_INCLUDES} included files")
+                raise SpecError(str(main), "", f"more than {MAX_INCLUDES} included files")
             if target.exists():
                 _walk(inner_main, target, [*chain, target.resolve()], out)
+
+
+def asset_files(spec: mujoco.MjSpec, path: Path) -> list[Path]:
+    """The mesh, texture, height-field and skin files a parsed model (`MjSpec`) reads, in
+    the order MuJoCo lists them, each once (paths as MuJoCo resolves them; they may be
+    missing)."""
+    base = path.parent
+    out: list[Path] = []
+
+    def add(folder: str, file: str) -> None:
+        if file:
+            target = base / folder / file
+            if target not in out:
+                out.append(target)
+
+    for mesh in spec.meshes:
+        add(spec.meshdir, mesh.file)
+    for skin in spec.skins:
+        add(spec.meshdir, skin.file)
+    for hfield in spec.hfields:
+        add(spec.meshdir, hfield.file)
+    for texture in spec.textures:
+        for file in (texture.file, *texture.cubefiles):
+            add(spec.texturedir, file)
+    return out
+
+
+def check_not_input(out: Path, model: Path, spec: mujoco.MjSpec) -> None:
+    """Refuse to write `out` over the model or any file it is read from (its includes and
+    the assets of its parsed `spec`).
+
+    Raises:
+        SpecError: `out` is one of the model's files (same path or same inode).
+    """
+    if not out.exists():
+        return
+    for file in [model, *included_files(model), *asset_files(spec, model)]:
+        try:
+            same = file.exists() and out.samefile(file)
+        except OSError:
+            same = out.resolve() == file.resolve()
+        if same:
+            what = "the model" if file == model else f"a file the model reads ({file})"
+            raise SpecError(
+                str(model),
+                "-o",
+                f"{out} is {what}: give another file name (the model is never overwritten)",
+            )
