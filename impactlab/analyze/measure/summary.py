@@ -149,8 +149,8 @@ def summary_row(
     if col is not None and not col["complete"] and col["note"]:
         notes.append(col["note"])
     scale = abs(energy_start) if energy_start else None
-    contact = ("work_contact_normal_J", "work_contact_friction_J")
-    forced = any(  # a force besides gravity and the contacts works: no free-flight formula
+    contact = ("work_contact_normal_J", "work_contact_friction_J", "work_solver_J")
+    forced = any(  # a force besides gravity and the contacts' works: no free-flight formula
         abs(ph[c] or 0.0) > NEGLIGIBLE_ENERGY_J * max(1.0, scale or 0.0)
         for c in WORK_COLUMNS
         if c not in contact
