@@ -169,14 +169,6 @@ def test_bodies_touching_at_the_start_are_analyzed_and_said_to(zoo_run, tmp_path
     assert row["e_velocity"] is None and row["e_energy"] is None and not row["complete"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the collisions row of boxes touching at t = 0 says \"no 'before'\" yet fills the "
-    "before columns (v1n_before_mps, ke_before_J, p*_before_Ns: the state at t = 0), the "
-    "elastic and inelastic outcomes from them (v1n_after_elastic_mps 0.0), and "
-    "gravity_impulse_rel = inf: collisions.from_pair_states nulls only the 'after' columns "
-    "of an incomplete row, with_surroundings divides by a zero momentum",
-)
 def test_a_pair_touching_from_the_start_has_no_before_state(zoo_run):
     run = zoo_run("models/stacked_boxes.xml", 1)
     collisions = pl.read_parquet(run.folder / "results" / "collisions.parquet")

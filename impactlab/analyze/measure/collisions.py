@@ -235,9 +235,12 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         or c.startswith("ke_loss")
         or c in ("e_velocity", "momentum_rel_change")
     ]
+    before_cols = [  # a pair touching from the start has no state before an impact
+        c for c in COLLISION_SCHEMA if "before" in c or c in ELASTIC_COLUMNS
+    ]
     out = out.with_columns(
         *[pl.when(pl.col("complete")).then(pl.col(c)).alias(c) for c in after_cols]
-    )
+    ).with_columns(*[pl.when(~pl.col("initial")).then(pl.col(c)).alias(c) for c in before_cols])
     return out.select(list(COLLISION_SCHEMA)).cast(COLLISION_SCHEMA).sort("impact_t_s")
 
 

@@ -87,7 +87,8 @@ def run_figures(
                 ),
             )
         )
-    for row in a.collisions.head(1).iter_rows(named=True):
+    impacts = a.collisions.filter(pl.col("px_before_Ns").is_not_null())  # a state before
+    for row in impacts.head(1).iter_rows(named=True):
         path = fig_dir / f"collision-{file_part(a.run.run_id)}.png"
         key = figure_key("collision", a.states, row, contacts, title)
         made.append(
