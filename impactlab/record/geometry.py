@@ -177,7 +177,7 @@ def support(
     elif kind == mujoco.mjtGeom.mjGEOM_BOX:
         extent = size[0] * x + size[1] * y + size[2] * z
     elif kind == mujoco.mjtGeom.mjGEOM_MESH:
-        extent = _blocked_max(mesh_hull(model, g)[0], local)
+        extent = _blocked_max(mesh_hull(model, g)[0], local)  # hull vertices x directions
     elif kind == mujoco.mjtGeom.mjGEOM_HFIELD:
         extent = size[2] * z  # the top of the field's elevation range
     else:  # plane, sdf
@@ -187,16 +187,17 @@ def support(
     return reach
 
 
-def mesh_hull(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray]:
-    """A mesh geom's convex hull as MuJoCo computed it: vertices (n, 3) and outward unit
-    face normals (f, 3), in the geom's frame. A mesh without one (too few vertices for
-    MuJoCo to build it) gives its vertices and no normals."""
+def mesh_hull(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A mesh geom's convex hull as MuJoCo computed it, in the geom's frame: vertices (n, 3),
+    outward unit face normals (f, 3) and each face's support along its normal (f,), the
+    hull's extent in that direction. A mesh without one (too few vertices for MuJoCo to build
+    it) gives its vertices and no faces."""
     mesh = int(model.geom_dataid[g])
     start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
     vertices = np.asarray(model.mesh_vert[start : start + count], dtype=float)
     adr = int(model.mesh_graphadr[mesh])
     if adr < 0:
-        return vertices, np.empty((0, 3))
+        return vertices, np.empty((0, 3)), np.empty(0)
     graph = model.mesh_graph
     numvert, numface = int(graph[adr]), int(graph[adr + 1])
     ids = np.asarray(graph[adr + 2 + numvert : adr + 2 + 2 * numvert], dtype=int)
@@ -205,10 +206,13 @@ def mesh_hull(model: mujoco.MjModel, g: int) -> tuple[np.ndarray, np.ndarray]:
     v = vertices[faces]
     normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     length = np.linalg.norm(normals, axis=1)
-    normals = normals[length > 0] / length[length > 0, None]
+    kept = length > 0
+    normals = normals[kept] / length[kept, None]
+    corner = v[kept, 0]
     centre = vertices[ids].mean(axis=0)
-    outward = np.einsum("ij,ij->i", normals, v[length > 0, 0] - centre) >= 0
-    return vertices[ids], np.where(outward[:, None], normals, -normals)
+    outward = np.where((np.einsum("ij,ij->i", normals, corner - centre) >= 0)[:, None], 1, -1)
+    normals = normals * outward
+    return vertices[ids], normals, np.einsum("ij,ij->i", normals, corner)
 
 
 def spread_directions(n: int = SPREAD_DIRECTIONS) -> np.ndarray:
@@ -232,10 +236,18 @@ def rest_height(
     for g in geoms:
         rot = data.geom_xmat[g].reshape(3, 3)
         dirs += [rot.T, -rot.T]  # the geom's axes in the world frame
-        if int(model.geom_type[g]) == mujoco.mjtGeom.mjGEOM_MESH:
-            dirs.append(mesh_hull(model, g)[1] @ rot.T)
-    d = np.concatenate(dirs)
-    return float(np.max([support(model, data, g, d, com) for g in geoms], axis=0).min())
+    general = np.concatenate(dirs)
+    lowest = np.max([support(model, data, g, general, com) for g in geoms], axis=0).min()
+    for g in geoms:  # a hull rests on its faces: along a face's normal its support is known
+        if int(model.geom_type[g]) != mujoco.mjtGeom.mjGEOM_MESH:
+            continue
+        _, normals, offsets = mesh_hull(model, g)
+        rot = data.geom_xmat[g].reshape(3, 3)
+        faces = normals @ rot.T
+        own = offsets + faces @ (data.geom_xpos[g] - com)
+        others = [support(model, data, h, faces, com) for h in geoms if h != g]
+        lowest = min(lowest, np.max([own, *others], axis=0).min(initial=np.inf))
+    return float(lowest)
 
 
 def _blocked_max(points: np.ndarray, dirs: np.ndarray, block: int = 1 << 22) -> np.ndarray:
