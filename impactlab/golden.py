@@ -33,9 +33,9 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.logs.diff import LogDiff, Tolerance, channel_tables, diff_logs
 from impactlab.logs.load import RunLog, load_log
 from impactlab.record import plan, record_runs
+from impactlab.tools.diff import LogDiff, Tolerance, channel_tables, diff_logs
 
 GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"
 SPECS_DIR = GOLDEN_DIR / "specs"

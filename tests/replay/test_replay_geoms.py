@@ -641,9 +641,9 @@ def test_a_damaged_geom_table_loses_only_the_bad_rows():
 
 
 def test_diff_compares_meshes_within_float32_precision():
-    from impactlab.logs.diff_meta import compare_attachments
-    from impactlab.logs.diff_result import EXACT
     from impactlab.logs.geoms import encode_stl
+    from impactlab.tools.compare import EXACT
+    from impactlab.tools.diff import compare_attachments
 
     tri = np.random.default_rng(1).normal(size=(20, 3, 3))
     a = {"meshes/m.stl": encode_stl(tri)}
