@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,13 +46,13 @@ EXACT = Tolerance(atol=0.0, rtol=0.0)
 
 
 def differences(
-    a: pl.DataFrame, b: pl.DataFrame, on: list[str], columns: Mapping[str, tuple[float, float]]
+    a: pl.DataFrame, b: pl.DataFrame, on: Sequence[str], columns: Mapping[str, tuple[float, float]]
 ) -> pl.DataFrame:
     """The rows of `a` and `b` with the same keys `on`, sorted, and per compared column `c`
     (with its (atol, rtol)) its value in B `c_b`, `c_d` = |a - b| (0 when equal: NaN equals
     NaN, null null; inf when only one is a number), `c_tol` and `c_beyond`: beyond the
     tolerance, or not finite, or text that differs."""
-    joined = a.join(b, on=on, how="inner", suffix="_b", nulls_equal=True).sort(on)
+    joined = a.join(b, on=list(on), how="inner", suffix="_b", nulls_equal=True).sort(on)
     columns_out = []
     for c, (atol, rtol) in columns.items():
         x, y = pl.col(c), pl.col(f"{c}_b")
