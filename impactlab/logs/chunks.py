@@ -1,11 +1,9 @@
-"""MCAP chunks assembled from whole arrays of messages, in a file mcap's Writer writes and sums up.
+"""MCAP chunks built from whole arrays of messages, in a file mcap's Writer writes and sums up.
 
-mcap's `Writer.add_message` costs about 10 us a message in Python; here a chunk's message
-records and indexes are built from arrays in a few numpy operations (time-sorted inside the
-chunk), and the Writer writes everything else: header, schemas, channels, metadata,
-attachments and the summary. mcap has no public way to add a chunk built elsewhere:
-`ChunkWriter` is the one adapter, and reaches into the two parts of the Writer's private
-state the summary is made from (`PRIVATE`, as of mcap `MCAP_VERSION`).
+`Writer.add_message` costs about 10 us a message: a chunk's records and indexes are built in
+a few numpy operations instead. mcap has no public way to add a chunk built elsewhere:
+`ChunkWriter` is the one adapter, reaching into the two parts of the Writer's private state
+its summary is made from (`PRIVATE`, as of mcap `MCAP_VERSION`).
 """
 
 from __future__ import annotations

@@ -42,30 +42,12 @@ def _empty(names: tuple[str, ...]) -> pl.DataFrame:
 
 @dataclass
 class RunLog:
-    """One decoded log.
-
-    Attributes:
-        path: the file.
-        run_id: the run's id (file stem when the metadata lacks it).
-        meta: the `impactlab.run` record merged with `impactlab.outcome`, as stored (strings).
-        bodies: per body name, a frame (run_id, t_ns, t_s, x .. wz), world frame, SI units.
-        contacts: one row per contact point (run_id, t_ns, t_s, geom1, geom2, body1, body2,
-            point, x .. fz), see `schemas/impactlab.proto`.
-        energy: MuJoCo's energy (run_id, t_ns, t_s, kinetic, potential, total), J.
-        events: the log's text events (run_id, t_ns, level, message).
-        partial: the file is damaged or incomplete, or its metadata; `problems` says how.
-        checked: the metadata checked against its models and the channels (typed values and
-            the problem of each bad key); the properties read it: a bad value is unknown.
-        clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
-            surface, clearance_m); empty in logs written before it was recorded.
-        joint_energy: the joints' rotor kinetic, spring potential and total energy, J; empty
-            when the model has neither.
-        impacts: each contact episode of each pair of parties (`decode.IMPACT_SCHEMA`);
-            empty in logs before format 3.
-        work: the work of each kind of force so far (run_id, t_ns, t_s, *WORK_FIELDS), J;
-            empty in logs before format 3.
-        scene: the `impactlab.scene` record as stored (the geom table, `logs.geoms`).
-    """
+    """One decoded log: a frame per channel family (run_id, t_ns, t_s, then its fields, SI
+    units; `bodies` one per body; `contacts` a row per point; `clearance` a row per step and
+    surface; `impacts` a row per contact episode, `decode.IMPACT_SCHEMA`), `meta` (the run
+    and outcome records as stored), `checked` (their typed values and each bad key's
+    problem: the properties read it, a bad value is unknown), `scene` (the geom table, as
+    stored), and whether it is `partial` (damaged, incomplete, or bad metadata: `problems`)."""
 
     path: Path
     run_id: str
@@ -115,8 +97,7 @@ class RunLog:
 
     @property
     def surfaces(self) -> list[Surface] | None:
-        """The ground surfaces; None for logs written before they were recorded (or when
-        the value is damaged: the analysis refuses such a run)."""
+        """The ground surfaces; None when the log does not say (the analysis refuses it)."""
         ground = self._value("ground")
         return None if ground is None else list(ground)
 
@@ -181,8 +162,7 @@ class RunLog:
         return list(self._value("warnings", ()))
 
     def unanalyzable(self) -> str | None:
-        """Why the analysis cannot trust this run's metadata (`ANALYSIS_KEYS`: every energy,
-        height and restitution depends on them; older logs may lack some), or None."""
+        """Why the analysis cannot trust this run's metadata (`ANALYSIS_KEYS`), or None."""
         optional = optional_keys(self._value("log_format_version"))
         missing = [
             k
@@ -240,15 +220,9 @@ class RunLog:
 
 
 def load_log(path: str | Path) -> RunLog:
-    """Decode one log into frames.
-
-    Damage and bad metadata do not raise: whatever is readable is returned, marked partial,
-    with one problem per damage and per bad metadata key (`RunLog.problems`).
-
-    Raises:
-        LogError: the file does not exist, is not a regular file, is too large, is not MCAP,
-            or holds no impactlab channel or metadata.
-    """
+    """Decode one log into frames: whatever is readable, marked partial with one problem per
+    damage and bad metadata key. LogError when the file does not exist, is not a regular
+    file, is too large, is not MCAP, or holds no impactlab channel or metadata."""
     path = Path(path)
     try:
         raw = read_mcap(path, skip_topics=UNREAD_TOPICS)

@@ -1,13 +1,4 @@
-"""The log's per-step messages as arrays: fixed protobuf layouts encoded and decoded by numpy.
-
-A message whose only varying fields are doubles, all written, has the same bytes in every
-instance but for those doubles: `Template` learns where they land from the protobuf library
-(one message with distinct sentinel values) and checks every fixed byte when decoding, so a
-payload of another layout is never misread (the caller then decodes it with the library).
-Value orders: BodyState `BODY_FIELDS`; Energy kinetic potential total; Work `WORK_FIELDS`;
-Clearance one distance per surface; a ContactPoint `POINT_FIELDS` and its two sides;
-FrameTransforms per body tx ty tz qw qx qy qz, each stamped with the message's log time.
-"""
+"""The log's per-step messages as arrays: fixed protobuf layouts encoded and decoded by numpy."""
 
 from __future__ import annotations
 
@@ -32,8 +23,9 @@ WORK_FIELDS = tuple(f.name for f in pb.Work.DESCRIPTOR.fields)
 
 @dataclass(frozen=True)
 class Template:
-    """The bytes of one fixed-layout message: `template` (size,) uint8 with zeros where the
-    doubles go, their byte offsets `slots` (k,), and `fixed`, the bytes that never change."""
+    """A message whose only varying fields are doubles, all written: its bytes `template`
+    (size,) uint8 with zeros where the doubles go, their offsets `slots` (k,), and `fixed`,
+    the bytes every payload of this layout has (so another layout is never misread)."""
 
     template: np.ndarray
     slots: np.ndarray
@@ -48,11 +40,8 @@ class Template:
     def learn(
         cls, msg: Message, setter: Callable[[Message, Sequence[float]], None], k: int
     ) -> Template:
-        """The layout of `msg` with its k doubles set by `setter(msg, values)`.
-
-        Raises:
-            ValueError: a double is missing from the serialised message, or repeated.
-        """
+        """The layout of `msg` with its k doubles set by `setter(msg, values)`, learnt from
+        the protobuf library with distinct sentinels; ValueError when one is missing."""
         sentinels = [1.0 + (i + 1) * 2.0**-20 + 2.0**-40 for i in range(k)]
         setter(msg, sentinels)
         raw = msg.SerializeToString()
@@ -217,16 +206,9 @@ def _varint_length(v: np.ndarray) -> np.ndarray:
 def stamped_transforms(
     bodies: tuple[str, ...], t_ns: np.ndarray, poses: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """`foxglove.FrameTransforms` payloads whose transforms carry their row's time.
-
-    Args:
-        t_ns: row times, ns, (n,), below 2^35 s.
-        poses: per row and body tx ty tz qw qx qy qz, (n, 7 nbody).
-
-    Returns:
-        (row indices, payloads (k, L) uint8) per group of rows whose stamps' varints have
-        the same lengths (a handful: the layout is otherwise fixed).
-    """
+    """`foxglove.FrameTransforms` payloads of poses (n, 7 nbody: tx ty tz qw qx qy qz), each
+    transform stamped with its row's time `t_ns` (n,): (rows, payloads (k, L) uint8) per group
+    of rows whose stamps' varints have the same lengths (a handful)."""
     sec, nanos = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
     key = _varint_length(sec) * 8 + _varint_length(nanos)
     out = []

@@ -36,7 +36,7 @@ Positive = Annotated[Number, Field(gt=0, le=BIG)]
 Inertia = Annotated[Number, Field(ge=0, le=1e12)]
 
 
-def _check(test: Any, problem: str) -> AfterValidator:
+def valid_if(test: Any, problem: str) -> AfterValidator:
     """A validator that refuses a value for which `test` is false, saying `problem`."""
 
     def check(value: Any) -> Any:
@@ -47,8 +47,8 @@ def _check(test: Any, problem: str) -> AfterValidator:
     return AfterValidator(check)
 
 
-def _one_of(*names: str) -> AfterValidator:
-    return _check(lambda v: v in names, f"is not one of {', '.join(names)}")
+def one_of(*names: str) -> AfterValidator:
+    return valid_if(lambda v: v in names, f"is not one of {', '.join(names)}")
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ class Body:
     shape: Text = ""
     rest_height_m: Within | None = None
     geoms: Sequence[Text] = ()
-    motion: Annotated[str, _one_of("free", "articulated")] = Field(
+    motion: Annotated[str, one_of("free", "articulated")] = Field(
         default="free", exclude_if=lambda m: m == "free"
     )
 
@@ -98,7 +98,7 @@ class PairTarget:
     geom2: Name
     restitution: Annotated[Number, Field(ge=0, le=1)]
     speed_range_mps: Annotated[
-        tuple[Positive, Positive] | None, _check(lambda s: s is None or s[0] <= s[1], "lo > hi")
+        tuple[Positive, Positive] | None, valid_if(lambda s: s is None or s[0] <= s[1], "lo > hi")
     ]
 
     @property
@@ -133,29 +133,29 @@ class RunMeta:
     description: Text
     source: Text
     run_id: Annotated[str, Field(strict=True, pattern=r"\S")]
-    spec: Annotated[Mapping[str, Any], _check(_spec, "its bodies or sections are not tables")]
+    spec: Annotated[Mapping[str, Any], valid_if(_spec, "its bodies or sections are not tables")]
     sweep: Mapping[str, Any]
     spec_hash: Text
     timestep_s: Annotated[Number, Field(ge=1e-9, le=10)]
     log_every: Annotated[Whole, Field(ge=1, le=10**9)]
     gravity: tuple[Within, Within, Within]
     bodies: Annotated[
-        Sequence[Body], _check(lambda b: len({x.name for x in b}) == len(b), "a name twice")
+        Sequence[Body], valid_if(lambda b: len({x.name for x in b}) == len(b), "a name twice")
     ]
     plane_z: Within | None
     mujoco_version: Text
     sweep_index: Whole = 0
     sweep_size: Annotated[Whole, Field(ge=1)] = 1
-    integrator: Annotated[str, _one_of(*INTEGRATORS)] = "Euler"
+    integrator: Annotated[str, one_of(*INTEGRATORS)] = "Euler"
     ground: Annotated[
-        Sequence[Surface], _check(lambda g: all(abs(s.level_m) <= BIG for s in g), "a level")
+        Sequence[Surface], valid_if(lambda g: all(abs(s.level_m) <= BIG for s in g), "a level")
     ] = ()
     static_potential_J: Annotated[Number, Field(ge=-1e15, le=1e15)] = 0.0
     contact_targets: Sequence[PairTarget] = ()
     geom_contact: GeomContact | None = None
     separation_m: Positive | None = None
     half_step_s: Annotated[Number, Field(ge=0, le=5)] | None = None  # written: the integrator's
-    log_format_version: Annotated[str, _one_of(*logformat.READABLE_FORMATS)] = (
+    log_format_version: Annotated[str, one_of(*logformat.READABLE_FORMATS)] = (
         logformat.LOG_FORMAT_VERSION
     )
     impactlab_version: Text = __version__
@@ -170,7 +170,7 @@ class RunMeta:
 class Outcome:
     """The `impactlab.outcome` record: how the run ended (also the /events messages)."""
 
-    outcome: Annotated[str, _one_of("completed", "unstable")]
+    outcome: Annotated[str, one_of("completed", "unstable")]
     reason: Text
     steps: Whole
     warnings: Sequence[Text] = ()

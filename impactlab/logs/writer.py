@@ -21,9 +21,16 @@ from mcap_protobuf.schema import build_file_descriptor_set
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.chunks import Block, ChunkWriter
-from impactlab.logs.geoms import SCENE_METADATA, STL_MEDIA_TYPE, FlexShape, encode_stl, scene_record
+from impactlab.logs.geoms import (
+    SCENE_METADATA,
+    STL_MEDIA_TYPE,
+    FlexShape,
+    GeomShape,
+    encode_stl,
+    scene_record,
+    scene_update,
+)
 from impactlab.logs.metadata import Outcome, RunMeta
-from impactlab.logs.scene import GeomShape, scene_update
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.version import __version__
 

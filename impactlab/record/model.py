@@ -11,9 +11,8 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
-from impactlab.logs.geoms import FlexShape
+from impactlab.logs.geoms import FlexShape, GeomShape
 from impactlab.logs.metadata import Surface
-from impactlab.logs.scene import GeomShape
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
