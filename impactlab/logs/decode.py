@@ -74,14 +74,15 @@ def frame(run_id: str, t_ns: np.ndarray, columns: dict[str, Any]) -> pl.DataFram
 
 def payloads(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:
     """A channel's messages as (times, payload bytes), sorted by time."""
-    times = (
-        np.concatenate([t for t, _ in channel.pieces]) if channel.pieces else np.empty(0, np.int64)
-    )
-    data = [
-        p if isinstance(p, bytes) else p.tobytes() for _, piece in channel.pieces for p in piece
-    ]
-    order = np.argsort(times, kind="stable")
-    return times[order], [data[i] for i in order.tolist()]
+    times = [np.empty(0, np.int64), *(t for t, _ in channel.pieces)]
+    data: list[bytes] = []
+    for _, piece in channel.pieces:
+        data += piece if isinstance(piece, list) else [row.tobytes() for row in piece]
+    t = np.concatenate(times)
+    if (np.diff(t) >= 0).all():
+        return t, data
+    order = np.argsort(t, kind="stable")
+    return t[order], [data[i] for i in order.tolist()]
 
 
 def fixed(
