@@ -154,7 +154,7 @@ class RunMeta:
     contact_targets: Sequence[PairTarget] = ()
     geom_contact: GeomContact | None = None
     separation_m: Positive | None = None
-    half_step_s: Annotated[Number, Field(ge=0, le=5)] | None = None  # written: the integrator's
+    half_step_s: Annotated[Number, Field(ge=0, le=5)] = 0.0  # written: the integrator's (`record`)
     log_format_version: Annotated[str, one_of(*logformat.READABLE_FORMATS)] = (
         logformat.LOG_FORMAT_VERSION
     )
