@@ -196,8 +196,10 @@ def table_changes(old: pl.DataFrame, new: pl.DataFrame) -> list[str]:
         parts = [f"{beyond.height} row(s) differ"]
         if f"{c}_d" in both.columns:
             largest = beyond.select(pl.col(f"{c}_d").filter(pl.col(f"{c}_d").is_finite()).max())
-            now = [beyond.select((pl.col(x).is_null() & pl.col(y).is_not_null()).sum()).item()
-                   for x, y in ((c, f"{c}_b"), (f"{c}_b", c))]  # fmt: skip
+            now = [
+                beyond.select((pl.col(x).is_null() & pl.col(y).is_not_null()).sum()).item()
+                for x, y in ((c, f"{c}_b"), (f"{c}_b", c))
+            ]
             parts += [f"max |change| {largest.item():.3g}"] if largest.item() else []
             parts += [f"{now[0]} value(s) now measured"] if now[0] else []
             parts += [f"{now[1]} value(s) now empty"] if now[1] else []

@@ -29,24 +29,16 @@ CLEARANCE_SCHEMA: dict[str, Any] = {
     "surface": pl.String,
     "clearance_m": pl.Float64,
 }
+IMPACT_NUMBERS = (
+    "v_in_mps v_out_mps work_compression_J work_restitution_J work_friction_J peak_force_N "
+    "impulse_Ns max_penetration_m"
+)
 IMPACT_SCHEMA: dict[str, Any] = {
     "run_id": pl.String,
     **dict.fromkeys(("side1", "kind1", "side2", "kind2", "geom1", "geom2"), pl.String),
     "onset_ns": pl.Int64,
     "release_ns": pl.Int64,
-    **dict.fromkeys(
-        (
-            "v_in_mps",
-            "v_out_mps",
-            "work_compression_J",
-            "work_restitution_J",
-            "work_friction_J",
-            "peak_force_N",
-            "impulse_Ns",
-            "max_penetration_m",
-        ),
-        pl.Float64,
-    ),
+    **dict.fromkeys(IMPACT_NUMBERS.split(), pl.Float64),
     "steps": pl.Int64,
     "open": pl.Boolean,
     **{f"{v}{c}_{w}": pl.Float64 for w in ("in", "out") for v in ("p", "n") for c in "xyz"},
@@ -59,12 +51,9 @@ and the first after (`s1_in_x` .. `s2_out_wz`; null for a side that is not a rig
 
 def frame(run_id: str, t_ns: np.ndarray, columns: dict[str, Any]) -> pl.DataFrame:
     """(run_id, t_ns, t_s, *columns) of times (n,) int64 ns and columns of n values."""
-    n = len(t_ns)
     return pl.DataFrame(
         [
-            pl.Series("run_id", [run_id], pl.String).new_from_index(0, n)
-            if n
-            else pl.Series("run_id", [], pl.String),
+            pl.Series("run_id", [run_id], pl.String).new_from_index(0, len(t_ns)),
             pl.Series("t_ns", t_ns, pl.Int64),
             pl.Series("t_s", t_ns / 1e9, pl.Float64),
             *(pl.Series(name, values) for name, values in columns.items()),

@@ -233,11 +233,13 @@ def _primitives(entity: SceneEntity, geom: GeomShape, stl: bytes | None) -> None
         model.scale.x = model.scale.y = model.scale.z = 1.0
         parts.append((model, (0, 0, 0), (0, 0, 0)))
     w, x, y, z = geom.quat
-    rot = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])  # fmt: skip
+    rot = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     for prim, size, offset in parts:
         if prim.DESCRIPTOR.name != "ModelPrimitive":
             prim.size.x, prim.size.y, prim.size.z = size

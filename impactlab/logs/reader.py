@@ -28,8 +28,14 @@ MAGIC = b"\x89MCAP0\r\n"
 OP_MESSAGE, OP_INDEX, OP_CHUNK = int(Opcode.MESSAGE), int(Opcode.MESSAGE_INDEX), int(Opcode.CHUNK)
 FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, summary offset start, CRC
 HEAD = 1 + 8 + 2 + 4 + 8 + 8  # a message record: opcode, length, channel, sequence, two times
-HEADER = np.dtype({"names": ["op", "length", "channel", "log_time"], "itemsize": HEAD,
-                   "formats": ["u1", "<u8", "<u2", "<u8"], "offsets": [0, 1, 9, 15]})  # fmt: skip
+HEADER = np.dtype(
+    {
+        "names": ["op", "length", "channel", "log_time"],
+        "itemsize": HEAD,
+        "formats": ["u1", "<u8", "<u2", "<u8"],
+        "offsets": [0, 1, 9, 15],
+    }
+)
 UNREADABLE = (ValueError, IndexError, KeyError, McapError, struct.error)  # a record's bytes
 MAX_TIME_NS = (1 << 63) - 1  # the largest log_time the frames' signed nanoseconds hold
 MAX_CHUNK_BYTES = 256 << 20
@@ -71,7 +77,7 @@ class McapContent:
     channels: dict[int, ChannelData]
     metadata: dict[str, dict[str, str]]
     problems: list[str]
-    attachments: dict[str, bytes] = field(default_factory=dict)
+    attachments: dict[str, memoryview] = field(default_factory=dict)  # views of the file
     summary: bool = False  # the footer points at a summary section
     library: str = ""  # the writer, as its header says
 
@@ -184,12 +190,13 @@ def read_attachments(path: Path) -> dict[str, bytes]:
     """Every complete, CRC-checked attachment of an MCAP file by name ({} when it cannot be
     read; chunks are not decompressed)."""
     try:
-        return read_mcap(Path(path), messages=False).attachments
+        found = read_mcap(Path(path), messages=False).attachments
     except (OSError, ValueError):
         return {}
+    return {name: bytes(data) for name, data in found.items()}
 
 
-def _attachment(body: memoryview) -> tuple[str, bytes | None]:
+def _attachment(body: memoryview) -> tuple[str, memoryview | None]:
     """Name and data of an Attachment record body (None: cut short, or a CRC mismatch)."""
     at = 16 + 4 + int.from_bytes(body[16:20], "little")  # log time, create time, name
     name = bytes(body[20:at]).decode()
@@ -198,7 +205,7 @@ def _attachment(body: memoryview) -> tuple[str, bytes | None]:
     crc = int.from_bytes(body[at + 8 + size : at + 12 + size], "little")
     if at + 8 + size + 4 > len(body) or (crc and crc32(body[: at + 8 + size]) != crc):
         return name, None
-    return name, bytes(body[at + 8 : at + 8 + size])
+    return name, body[at + 8 : at + 8 + size]
 
 
 class _Walk:
