@@ -22,6 +22,7 @@ from impactlab.logs.metadata import (
     GeomContact,
     PairTarget,
     Positive,
+    adapter,
 )
 from impactlab.physics import INTEGRATORS, half_step_s
 
@@ -181,7 +182,7 @@ def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
 
     separation = (spec.get("stop") or {}).get("separation")
     out: dict[str, Any] = {"contact_targets": (), "geom_contact": None}
-    out["separation_m"] = valid(TypeAdapter(Positive).validate_python, separation)
+    out["separation_m"] = valid(adapter(Positive).validate_python, separation)
     bodies, contact = spec.get("bodies"), spec.get("contact") or {}
     if not isinstance(bodies, dict):
         return out  # a user's model: its geoms' contact is in model.xml only

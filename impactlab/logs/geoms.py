@@ -11,10 +11,10 @@ import numpy as np
 import pydantic
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
-from pydantic import Field, TypeAdapter, ValidationError
+from pydantic import Field, ValidationError
 
 from impactlab.logs import format as logformat
-from impactlab.logs.metadata import Number, Text, one_of, valid_if
+from impactlab.logs.metadata import Number, Text, adapter, one_of, valid_if
 
 if TYPE_CHECKING:
     from impactlab.logs.load import RunLog
@@ -104,13 +104,13 @@ def scene_record(
     geoms: Sequence[GeomShape], meshes: Mapping[str, np.ndarray], flexes: Sequence[FlexShape] = ()
 ) -> dict[str, str]:
     """The `impactlab.scene` metadata record: every value a string."""
-    table = TypeAdapter(list[GeomShape]).dump_python(list(geoms), mode="json")
+    table = adapter(list[GeomShape]).dump_python(list(geoms), mode="json")
     listed = [
         {"name": n.split("/", 1)[-1].removesuffix(".stl"), "attachment": n, "triangles": len(t)}
         for n, t in meshes.items()
     ]
     out = {"geoms": json.dumps(table), "meshes": json.dumps(listed)}
-    flex_table = TypeAdapter(list[FlexShape]).dump_python(list(flexes), mode="json")
+    flex_table = adapter(list[FlexShape]).dump_python(list(flexes), mode="json")
     return out | ({"flexes": json.dumps(flex_table)} if flexes else {})
 
 
@@ -153,7 +153,7 @@ def read_scene(record: Mapping[str, str] | None, attachments: Mapping[str, bytes
         return scene
     for i, item in enumerate(table):
         try:
-            geom = TypeAdapter(GeomShape).validate_python(item)
+            geom = adapter(GeomShape).validate_python(item)
             if geom.mesh is not None and geom.mesh not in scene.meshes:
                 where = f"mesh {geom.mesh!r}: "
                 if geom.mesh not in attachments:
@@ -167,7 +167,7 @@ def read_scene(record: Mapping[str, str] | None, attachments: Mapping[str, bytes
         )
     try:
         flexes = json.loads((record or {}).get("flexes", "[]"))
-        scene.flexes = TypeAdapter(list[FlexShape]).validate_python(flexes)
+        scene.flexes = adapter(list[FlexShape]).validate_python(flexes)
     except ValueError as exc:
         scene.problems.append(f"{SCENE_METADATA} flexes: {_said(exc)}")
     return scene

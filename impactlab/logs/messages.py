@@ -55,24 +55,31 @@ class Template:
         return cls(template, np.array(slots, np.int64), fixed)
 
     @cached_property
-    def _doubles(self) -> np.dtype:
-        """One payload as k little-endian doubles at the slots."""
-        names = [f"v{j}" for j in range(self.slots.size)]
-        return np.dtype(
-            {
-                "names": names,
-                "formats": ["<f8"] * len(names),
-                "offsets": self.slots.tolist(),
-                "itemsize": self.size,
-            }
-        )
+    def _runs(self) -> list[tuple[int, int, int, int]]:
+        """The doubles in runs of even spacing: (first value, count, byte offset, spacing)."""
+        runs, slots, j = [], self.slots.tolist(), 0
+        while j < len(slots):
+            step = slots[j + 1] - slots[j] if j + 1 < len(slots) else 8
+            n = 1
+            while j + n < len(slots) and slots[j + n] - slots[j + n - 1] == step:
+                n += 1
+            runs.append((j, n, slots[j], step))
+            j += n
+        return runs
+
+    def _numbers(self, payloads: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """Per run, its first value and a (n, count) float64 view of C-ordered payloads."""
+        rows, m = payloads.strides[0], len(payloads)
+        return [
+            (j, np.ndarray((m, n), "<f8", payloads, at, (rows, step)) if m else np.empty((0, n)))
+            for j, n, at, step in self._runs
+        ]
 
     def encode(self, values: np.ndarray) -> np.ndarray:
         """Payloads of rows of doubles: (n, k) float64 -> (n, size) uint8."""
         out = np.tile(self.template, (len(values), 1))
-        fields = out.view(self._doubles)[:, 0]
-        for j, name in enumerate(self._doubles.names or ()):
-            fields[name] = values[:, j]
+        for j, view in self._numbers(out):
+            view[:] = values[:, j : j + view.shape[1]]
         return out
 
     def decode(self, payloads: np.ndarray) -> np.ndarray | None:
@@ -82,8 +89,10 @@ class Template:
             return None
         if not (payloads[:, self.fixed] == self.template[self.fixed]).all():
             return None
-        fields = np.ascontiguousarray(payloads).view(self._doubles)[:, 0]
-        return np.stack([fields[name] for name in self._doubles.names or ()]).T
+        out = np.empty((self.slots.size, len(payloads)))
+        for j, view in self._numbers(np.ascontiguousarray(payloads)):
+            out[j : j + view.shape[1]] = view.T
+        return out.T
 
 
 def _setter(names: Sequence[str]) -> Callable[[Message, Sequence[float]], None]:

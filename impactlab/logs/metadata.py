@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, NamedTuple
@@ -34,6 +35,12 @@ Name = Annotated[str, Field(strict=True, min_length=1)]
 Within = Annotated[Number, Field(ge=-BIG, le=BIG)]
 Positive = Annotated[Number, Field(gt=0, le=BIG)]
 Inertia = Annotated[Number, Field(ge=0, le=1e12)]
+
+
+@functools.cache
+def adapter(kind: Any) -> TypeAdapter[Any]:
+    """The validator and serializer of a type, built once (building one takes milliseconds)."""
+    return TypeAdapter(kind)
 
 
 def valid_if(test: Any, problem: str) -> AfterValidator:
@@ -182,7 +189,8 @@ class Outcome:
 
 def _store(record: RunMeta | Outcome, keys: Mapping[str, str]) -> dict[str, str]:
     """Each key's value as stored: text as is, none as "", anything else as JSON."""
-    dumped = TypeAdapter(type(record)).dump_python(record, mode="json")
+    kind: Any = type(record)
+    dumped = adapter(kind).dump_python(record, mode="json")
 
     def stored(k: str, v: Any) -> str:
         return (
