@@ -71,9 +71,7 @@ class Body:
     shape: Text = ""
     rest_height_m: Within | None = None
     geoms: Sequence[Text] = ()
-    motion: Annotated[str, one_of("free", "articulated")] = Field(
-        default="free", exclude_if=lambda m: m == "free"
-    )
+    motion: Annotated[str, one_of("free", "articulated")] = "free"  # written unless free
 
     @model_validator(mode="before")
     @classmethod
@@ -191,6 +189,10 @@ def _store(record: RunMeta | Outcome, keys: Mapping[str, str]) -> dict[str, str]
     """Each key's value as stored: text as is, none as "", anything else as JSON."""
     kind: Any = type(record)
     dumped = adapter(kind).dump_python(record, mode="json")
+    if "bodies" in dumped:  # a free body's motion is not written (logs before it had none)
+        dumped["bodies"] = [
+            {k: v for k, v in b.items() if (k, v) != ("motion", "free")} for b in dumped["bodies"]
+        ]
 
     def stored(k: str, v: Any) -> str:
         return (
