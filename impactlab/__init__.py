@@ -27,11 +27,11 @@ from impactlab.version import __version__
 
 if TYPE_CHECKING:
     from impactlab.analyze import analyze as analyze
-    from impactlab.logs.diff import LogDiff
     from impactlab.logs.load import RunLog
     from impactlab.record import plan as plan
     from impactlab.record import record as record
     from impactlab.replay import replay as replay
+    from impactlab.tools.diff import LogDiff
 
 __all__ = ["__version__", "analyze", "diff", "load", "plan", "record", "replay"]
 
@@ -70,16 +70,11 @@ def diff(
 ) -> LogDiff:
     """Compare two logs (paths or loaded logs) channel by channel and field by field.
 
-    Returns an `impactlab.logs.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).
+    Returns an `impactlab.tools.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).
     """
-    from impactlab.logs.diff import diff_logs
-    from impactlab.logs.diff_result import (
-        DEFAULT_ATOL,
-        DEFAULT_IGNORED_META,
-        DEFAULT_RTOL,
-        Tolerance,
-    )
     from impactlab.logs.load import RunLog, load_log
+    from impactlab.tools import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
+    from impactlab.tools.diff import Tolerance, diff_logs
 
     la = a if isinstance(a, RunLog) else load_log(a)
     lb = b if isinstance(b, RunLog) else load_log(b)

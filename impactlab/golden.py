@@ -1,25 +1,5 @@
-"""Regenerate the golden logs of the regression tests on purpose: `python -m impactlab.golden`.
-
-The golden specs live in `tests/golden/specs/`, their logs in `tests/golden/logs/<name>.mcap`
-and the analysis tables of those logs in `tests/golden/results/`. This script records every
-golden spec into a temporary folder, prints what changed against the committed logs (with
-`impactlab.logs.diff` and `golden_tolerance`) and then replaces the changed ones; `--check`
-only reports and exits 1 when anything changed. A log whose only differences are in the
-metadata keys `GOLDEN_IGNORED_META` (where the spec file was, the impactlab version) or below
-the tolerance is kept as is, so regenerating without a change in the physics leaves the files
-untouched.
-
-Any machine: the goldens were recorded on one CPU and are checked on whatever CPU runs the
-tests. MuJoCo and numpy's vectorised kernels (the contact designer's exp and log, for one)
-may round the last bit differently on another CPU (AVX-512 or not, AMD or Intel), so values
-are compared to 12 significant digits of their channel's scale (`golden_tolerance`), never
-bit for bit. A change of the physics moves them by far more: the smallest change the tests
-make (one contact damping) moves the bounce velocity by 1e-3 of its scale.
-
-Regenerate only when a change of the recorded values is intended (a new MuJoCo pin, a new
-log format version, a deliberate change of the recorder); `tests/e2e/test_golden.py` fails
-otherwise, naming the channel, field and time where a new recording departs from the golden.
-"""
+"""Regenerate the golden logs of the regression tests on purpose: `python -m impactlab.golden`
+(`--check` only reports, exit 1 when anything changed; docs/log-format.md, "Golden logs")."""
 
 from __future__ import annotations
 
@@ -33,9 +13,10 @@ from pathlib import Path
 
 import polars as pl
 
-from impactlab.logs.diff import LogDiff, Tolerance, channel_tables, diff_logs
 from impactlab.logs.load import RunLog, load_log
 from impactlab.record import plan, record_runs
+from impactlab.tools.compare import differences
+from impactlab.tools.diff import LogDiff, Tolerance, channel_tables, diff_logs
 
 GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"
 SPECS_DIR = GOLDEN_DIR / "specs"
@@ -105,11 +86,8 @@ GOLDENS = (
 def record_golden(
     golden: Golden, out_dir: Path, *, overrides: Sequence[str] = (), name: str | None = None
 ) -> Path:
-    """Record one golden spec (plus extra overrides) to `out_dir/<name>.mcap`; returns the path.
-
-    Raises:
-        SpecError: the spec or an override is wrong, or it gives more than one run.
-    """
+    """Record one golden spec (plus extra overrides) to `out_dir/<name>.mcap`, its path;
+    SpecError when the spec or an override is wrong, or it gives more than one run."""
     from impactlab.errors import SpecError
 
     runs = plan([golden.spec_path], overrides=[*golden.overrides, *overrides])
@@ -174,10 +152,8 @@ def tables_match(new: pl.DataFrame, golden: pl.DataFrame) -> bool:
 
 
 def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
-    """Analyze every log of a folder (`impactlab analyze`); the RESULT_TABLES, sorted.
-
-    Columns that hold file paths are dropped, so the tables do not depend on the checkout.
-    """
+    """Analyze every log of a folder (`impactlab analyze`); the RESULT_TABLES, sorted, without
+    the columns that name files (the tables do not depend on the checkout)."""
     from impactlab.analyze.job import run_analysis
 
     result = run_analysis([logs_dir], work_dir)
@@ -195,39 +171,39 @@ def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
 
 def table_changes(old: pl.DataFrame, new: pl.DataFrame) -> list[str]:
     """What changed between two versions of an analysis table, one line each: columns added
-    or removed, rows per run, and per column the largest change of the rows in both."""
-    lines = []
-    added = [c for c in new.columns if c not in old.columns]
-    removed = [c for c in old.columns if c not in new.columns]
-    if added:
-        lines.append(f"columns added: {', '.join(added)}")
-    if removed:
-        lines.append(f"columns removed: {', '.join(removed)}")
+    or removed, rows per run, and per column the values beyond tolerance (`differences`)."""
+    lines = [
+        f"columns {what}: {', '.join(cols)}"
+        for what, cols in (
+            ("added", [c for c in new.columns if c not in old.columns]),
+            ("removed", [c for c in old.columns if c not in new.columns]),
+        )
+        if cols
+    ]
+    counts = [dict(f.group_by("run_id").len().iter_rows()) for f in (old, new)]
+    for run_id in sorted(counts[0].keys() | counts[1].keys()):
+        a, b = counts[0].get(run_id, 0), counts[1].get(run_id, 0)
+        lines += [f"{run_id}: {a} -> {b} row(s)"] if a != b else []
     keys = [c for c in ("run_id", "body", "surface", "bounce", "collision") if c in old.columns]
     keys = [c for c in keys if c in new.columns]
-    counts = {
-        label: dict(frame.group_by("run_id").len().iter_rows())
-        for label, frame in (("old", old), ("new", new))
-    }
-    for run_id in sorted(counts["old"].keys() | counts["new"].keys()):
-        a, b = counts["old"].get(run_id, 0), counts["new"].get(run_id, 0)
-        if a != b:
-            lines.append(f"{run_id}: {a} -> {b} row(s)")
-    both = old.join(new, on=keys, how="inner", suffix="__new", nulls_equal=True)
-    for col in [c for c in old.columns if c in new.columns and c not in keys]:
-        a, b = both[col], both[f"{col}__new"]
-        if a.dtype.is_numeric() and b.dtype.is_numeric():
-            became = int((a.is_null() & b.is_not_null()).sum())
-            lost = int((a.is_not_null() & b.is_null()).sum())
-            change = pl.col(col).cast(pl.Float64) - pl.col(f"{col}__new").cast(pl.Float64)
-            diff = both.select(change.abs().max()).item()
-            parts = [f"max |change| {diff:.3g}"] if diff else []
-            parts += [f"{became} value(s) now measured"] if became else []
-            parts += [f"{lost} value(s) now empty"] if lost else []
-            if parts:
-                lines.append(f"{col}: {', '.join(parts)}")
-        elif not a.equals(b):
-            lines.append(f"{col}: {int((a.ne_missing(b)).sum())} row(s) differ")
+    common = [c for c in old.columns if c in new.columns and c not in keys]
+    bounds = {c: (TABLE_ATOL, TABLE_RTOL) for c in common}
+    both = differences(old.select(*keys, *common), new.select(*keys, *common), keys, bounds)
+    for c in common:
+        beyond = both.filter(pl.col(f"{c}_beyond"))
+        if not beyond.height:
+            continue
+        parts = [f"{beyond.height} row(s) differ"]
+        if f"{c}_d" in both.columns:
+            largest = beyond.select(pl.col(f"{c}_d").filter(pl.col(f"{c}_d").is_finite()).max())
+            now = [
+                beyond.select((pl.col(x).is_null() & pl.col(y).is_not_null()).sum()).item()
+                for x, y in ((c, f"{c}_b"), (f"{c}_b", c))
+            ]
+            parts += [f"max |change| {largest.item():.3g}"] if largest.item() else []
+            parts += [f"{now[0]} value(s) now measured"] if now[0] else []
+            parts += [f"{now[1]} value(s) now empty"] if now[1] else []
+        lines.append(f"{c}: {', '.join(parts)}")
     return lines
 
 

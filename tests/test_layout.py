@@ -21,7 +21,11 @@ STAGES = ("record", "analyze", "replay", "calibrate")
 # package -> the impactlab packages and third-party roots it must not import
 FORBIDDEN = {
     "impactlab.logs": {
-        "impactlab": {*STAGES, "contact", "executors", "cli", "lab", "golden"},
+        "impactlab": {*STAGES, "contact", "executors", "cli", "lab", "golden", "tools"},
+        "third": {"mujoco", "matplotlib", "rerun"},
+    },
+    "impactlab.tools": {
+        "impactlab": {*STAGES, "contact", "executors", "cli", "lab", "golden", "testing"},
         "third": {"mujoco", "matplotlib", "rerun"},
     },
     "impactlab.contact": {
@@ -223,7 +227,7 @@ def test_help_and_info_import_no_heavy_library(tmp_path):
     """The command line starts fast: building the parser imports no heavy library."""
     code = (
         "import sys; from impactlab.cli import build_parser; build_parser()\n"
-        "import impactlab.logs.info\n"
+        "import impactlab.tools.info\n"
         "heavy = ('mujoco', 'polars', 'matplotlib', 'rerun')\n"
         "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))"
     )

@@ -1,7 +1,7 @@
 """The log is the whole contract: `analyze` and `replay` never read a run's spec.
 
 What they need of a run besides its channels is a declared metadata key read through a typed
-`RunLog` field (`impactlab.logs.contract`, docs/log-format.md); the spec stays in the log to
+`RunLog` field (`impactlab.logs.metadata`, docs/log-format.md); the spec stays in the log to
 reproduce the run. The check reads the source (like `test_layout.py`): any `.spec` attribute,
 and any "spec" key read out of a mapping (`meta["spec"]`, `values.get("spec")`), in a module
 of those packages fails here, naming the module and the line.
@@ -60,6 +60,6 @@ def test_analyze_and_replay_read_no_spec(package: str):
         for line in spec_reads(path.read_text())
     ]
     assert not bad, (
-        f"{package} reads a run's spec (use a declared key of impactlab.logs.contract "
+        f"{package} reads a run's spec (use a declared key of impactlab.logs.metadata "
         f"through a RunLog field): {', '.join(bad)}"
     )

@@ -14,8 +14,8 @@ import math
 import sys
 from pathlib import Path
 
-from impactlab.logs.diff_defaults import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
 from impactlab.text import terminal_text
+from impactlab.tools import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
 
@@ -96,9 +96,8 @@ def _field_tolerance(text: str) -> tuple[str, float]:
 def run(args: argparse.Namespace) -> int:
     """Compare; exit 0 equal, 1 different, 2 bad input."""
     from impactlab.errors import LogError
-    from impactlab.logs.diff import diff_logs
-    from impactlab.logs.diff_result import Tolerance
     from impactlab.logs.load import load_log
+    from impactlab.tools.diff import Tolerance, diff_logs
 
     try:
         a, b = load_log(args.a), load_log(args.b)

@@ -19,9 +19,9 @@ def run(args: argparse.Namespace) -> int:
     one line, exit 2."""
     from impactlab.cli.inputs import check_log_inputs
     from impactlab.errors import ImpactlabError
-    from impactlab.logs.info import describe
     from impactlab.logs.inputs import require_logs
     from impactlab.text import terminal_text
+    from impactlab.tools.info import describe
 
     check_log_inputs(args.logs)
     paths, empty = require_logs(args.logs)

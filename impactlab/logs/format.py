@@ -1,103 +1,72 @@
-"""What an impactlab log holds: topics, schema names and metadata keys, shared by every stage.
+"""What an impactlab log holds: topics, schemas, metadata records and keys (docs/log-format.md).
 
-One MCAP file per run. log_time (= publish_time) is simulation time in integer nanoseconds.
-
-| topic                       | schema                  | when                                |
-|-----------------------------|-------------------------|-------------------------------------|
-| /bodies/<body>/state        | impactlab.BodyState     | every logged step                   |
-| /bodies/<body>/clearance    | impactlab.Clearance     | every logged step (bodies with a    |
-|                             |                         | ground surface to measure against)  |
-| /contacts                   | impactlab.Contacts      | every logged step with a contact    |
-| /impacts                    | impactlab.Impact        | each contact episode, at the end    |
-| /energy                     | impactlab.Energy        | every logged step                   |
-| /energy/work                | impactlab.Work          | every logged step                   |
-| /energy/joints              | impactlab.Energy        | every logged step (models with      |
-|                             |                         | rotor inertia or springs)           |
-| /tf                         | foxglove.FrameTransforms| every logged step (each transform   |
-|                             |                         | stamped with the log time)          |
-| /scene                      | foxglove.SceneUpdate    | once, at t = 0: every visible geom  |
-| /events                     | foxglove.Log            | at the end (outcome, warnings)      |
-
-Metadata records: `impactlab.run` right after the header (what the run is: spec, sweep,
-versions, bodies; and since format 2 what the stages read instead of the spec, declared in
-`impactlab.logs.contract`), `impactlab.outcome` at the end (how it ended), so a truncated log still
-says what it was and, by lacking the outcome, that it is incomplete. Attachment `model.xml`:
-the compiled MJCF, whose keyframe `initial` holds the initial state (a user's model: its text
-with includes inlined); `model.mjb` too for a model that reads mesh or texture files. What
-draws the model without MuJoCo: the metadata record `impactlab.scene` (the geom table) and
-the STL attachments `meshes/<mesh>.stl`, `hfields/<hfield>.stl` (`impactlab.logs.geoms`,
-added to format 1).
+One MCAP file per run; log_time (= publish_time) is simulation time in integer nanoseconds.
 """
 
 from __future__ import annotations
 
 LOG_FORMAT_VERSION = "3"
 READABLE_FORMATS = ("1", "2", "3")  # 1, 2: read for info, diff and replay, not analyzed
-PROFILE = ""  # no MCAP well-known profile fits protobuf logs of a simulator
 ENCODING = "protobuf"
 
-BODY_STATE_TOPIC = "/bodies/{body}/state"
-CLEARANCE_TOPIC = "/bodies/{body}/clearance"
-CONTACTS_TOPIC = "/contacts"  # every contact point of a logged step (format 3 on)
-CONTACTS_SCHEMA = "impactlab.Contacts"
+BODY_STATE_TOPIC = "/bodies/{body}/state"  # impactlab.BodyState, every logged step
+CLEARANCE_TOPIC = "/bodies/{body}/clearance"  # impactlab.Clearance, bodies over a ground
+CONTACTS_TOPIC = "/contacts"  # impactlab.Contacts: every contact of a logged step (format 3)
 CONTACT_TOPIC_PREFIX = "/contacts/"  # + <geom1>/<geom2>: one pair's contacts (formats 1, 2)
-ENERGY_TOPIC = "/energy"
-JOINT_ENERGY_TOPIC = "/energy/joints"  # the joints' rotor kinetic and spring potential energy
-TF_TOPIC = "/tf"
-SCENE_TOPIC = "/scene"
-EVENTS_TOPIC = "/events"
+ENERGY_TOPIC = "/energy"  # impactlab.Energy, every logged step
+JOINT_ENERGY_TOPIC = "/energy/joints"  # rotor kinetic and spring potential energy
+WORK_TOPIC = "/energy/work"  # impactlab.Work: the work of each kind of force so far
+IMPACTS_TOPIC = "/impacts"  # impactlab.Impact: each contact episode, at its release
+TF_TOPIC = "/tf"  # foxglove.FrameTransforms, every logged step
+SCENE_TOPIC = "/scene"  # foxglove.SceneUpdate, once: every visible geom
+EVENTS_TOPIC = "/events"  # foxglove.Log, at the end: outcome and warnings
 WORLD_FRAME = "world"
 
 BODY_STATE_SCHEMA = "impactlab.BodyState"
 CLEARANCE_SCHEMA = "impactlab.Clearance"
+CONTACTS_SCHEMA = "impactlab.Contacts"
 CONTACT_SCHEMA = "impactlab.Contact"
-IMPACT_SCHEMA = "impactlab.Impact"
-IMPACTS_TOPIC = "/impacts"  # each contact episode of a pair of parties (record.episodes)
-WORK_SCHEMA = "impactlab.Work"
-WORK_TOPIC = "/energy/work"  # the work of each kind of force so far (record.budget)
 ENERGY_SCHEMA = "impactlab.Energy"
+IMPACT_SCHEMA = "impactlab.Impact"
+WORK_SCHEMA = "impactlab.Work"
 
-RUN_METADATA = "impactlab.run"
-OUTCOME_METADATA = "impactlab.outcome"
+RUN_METADATA = "impactlab.run"  # right after the header: what the run is
+OUTCOME_METADATA = "impactlab.outcome"  # last: how it ended (a cut log lacks it)
+SCENE_METADATA = "impactlab.scene"  # the geom table (`impactlab.logs.geoms`)
 MODEL_ATTACHMENT = "model.xml"
-SCENE_METADATA = "impactlab.scene"  # the geom table (impactlab.logs.geoms), added to format 1
 
-# keys of the run metadata record
-RUN_KEYS = (
-    "log_format_version",
-    "impactlab_version",
-    "mujoco_version",
-    "experiment",
-    "description",
-    "source",
-    "run_id",
-    "spec",  # JSON: the resolved spec document (or the MJCF path and duration)
-    "sweep",  # JSON: {dotted path: value} of this run's sweep point
-    "sweep_index",  # this run's place in the sweep grid, 0-based
-    "sweep_size",  # runs in the sweep grid (1 without a sweep)
-    "spec_hash",
-    "timestep_s",
-    "log_every",
-    "gravity",  # JSON [gx, gy, gz], m/s^2
-    "bodies",  # JSON [{name, mass, inertia, radius, shape, rest_height_m, geoms}], kg, kg m^2, m
-    "plane_z",  # height of the plane in m, or "" when there is none
-    "integrator",  # MuJoCo's integrator (Euler, RK4, implicit, implicitfast)
-    "ground",  # JSON [{name, type, level_m, distance}]: the static geoms bodies can land on
-    "static_potential_J",  # MuJoCo's potential energy of the static bodies (a constant), J
-    "contact_targets",  # JSON [{geom1, geom2, restitution, speed_range_mps}]: calibrated pairs
-    "geom_contact",  # JSON {solref, solimp} every geom shares, or "" when they differ
-    "separation_m",  # the separation stop rule in m (a collision), or "" when there is none
-    "half_step_s",  # the integrator's half step: dt / 2 (semi-implicit), 0 (RK4), s
-)
-# keys added after format version 1 was first written; older logs lack them (compatible)
-RUN_KEYS_ADDED = ("integrator", "ground", "static_potential_J")
-# keys format 2 added: what the analysis reads instead of the spec (`impactlab.logs.contract`);
-# every format-2 log has them, and a format-1 log gets them derived from its spec
+RUN_KEYS = {  # key: what it holds (`impactlab.logs.metadata` declares each)
+    "log_format_version": "the log format's version",
+    "impactlab_version": "the recorder's version",
+    "mujoco_version": "MuJoCo's version",
+    "experiment": "the experiment's name",
+    "description": "the experiment's description",
+    "source": "the spec file as given",
+    "run_id": "the run's id",
+    "spec": "JSON object: the resolved spec (its sections objects too)",
+    "sweep": "JSON object: {dotted path: value}",
+    "sweep_index": "whole number 0 .. 1e+15",
+    "sweep_size": "whole number 1 .. 1e+15",
+    "spec_hash": "hash of the spec",
+    "timestep_s": "number 1e-09 .. 10 s",
+    "log_every": "whole number 1 .. 1e+09",
+    "gravity": "JSON [gx, gy, gz], each within ±1e+06 m/s^2",
+    "bodies": "JSON [{name, mass > 0, inertia [3] >= 0, radius > 0 or null, ...}]",
+    "plane_z": "number within ±1e+06 m, or empty: no plane",
+    "integrator": "one of Euler, RK4, implicit, implicitfast",
+    "ground": "JSON [{name, type, level_m, distance}]",
+    "static_potential_J": "number within ±1e+15 J",
+    "contact_targets": "JSON [{geom1, geom2, restitution, speed_range_mps: [lo, hi]}], m/s",
+    "geom_contact": "JSON {solref: [2 numbers], solimp: [3 to 5]}, or empty: the geoms differ",
+    "separation_m": "number > 0 m, or empty: no separation rule",
+    "half_step_s": "number 0 .. 5 s: dt / 2, or 0 for RK4",
+}
+OUTCOME_KEYS = {
+    "outcome": "one of completed, unstable",
+    "reason": "why the run ended",
+    "warnings": "JSON list of sentences",
+    "steps": "whole number 0 .. 1e+15",
+}
+RUN_KEYS_ADDED = ("integrator", "ground", "static_potential_J")  # after format 1: may be missing
 RUN_KEYS_FORMAT_2 = ("contact_targets", "geom_contact", "separation_m", "half_step_s")
-# keys of the outcome metadata record
-OUTCOME_KEYS = (
-    "outcome",  # completed | unstable
-    "reason",
-    "warnings",  # JSON list of sentences
-    "steps",  # number of simulated steps
-)
+"""What the stages read instead of the spec: in every log from format 2, derived in format 1."""

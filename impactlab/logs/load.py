@@ -1,12 +1,4 @@
-"""Read impactlab MCAP logs into polars frames. All decoding of log files happens here.
-
-Each channel family becomes one frame with one row per message (per contact point for
-contacts), with the run's id and the time (`t_ns`, integer ns; `t_s`, float s) as columns.
-Records are gathered as arrays (`records.read_mcap`) and the fixed-layout messages decoded
-as whole arrays (`codec.Template`), with the protobuf library as the fallback for any
-other layout. A truncated or damaged file still yields every complete message before the
-damage; such a run is marked `partial`.
-"""
+"""Read impactlab logs into polars frames: one frame per channel family, with their metadata."""
 
 from __future__ import annotations
 
@@ -19,34 +11,17 @@ import polars as pl
 from google.protobuf.message import DecodeError
 
 from impactlab.errors import LogError
+from impactlab.logs import decode, messages
 from impactlab.logs import format as logformat
-from impactlab.logs import messages
-from impactlab.logs.bodies import BodyInfo as BodyInfo  # re-exported: readers import it here
-from impactlab.logs.bodies import SurfaceInfo as SurfaceInfo
-from impactlab.logs.contract import GeomContact, PairTarget, optional_keys
-from impactlab.logs.decode import (
-    Columns,
-    body_state_values,
-    decode_clearance,
-    decode_contacts,
-    decode_events,
-    decode_fixed,
-    decode_impacts,
-    decode_pair_contacts,
-    empty_clearance,
-    empty_contacts,
-    empty_frame,
-    empty_impacts,
-    energy_values,
-    fixed_frame,
-    loose_payloads,
-)
-from impactlab.logs.geoms import SCENE_METADATA
+from impactlab.logs.checks import MetadataCheck, check_channels, check_metadata, optional_keys
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, WORK_FIELDS
-from impactlab.logs.metadata import ANALYSIS_KEYS, MetadataCheck, check_channels, check_metadata
+from impactlab.logs.metadata import ANALYSIS_KEYS, Body, GeomContact, PairTarget, Surface
 from impactlab.logs.reader import read_mcap
 from impactlab.proto import impactlab_pb2 as pb
+from impactlab.show import count, html_table, plain
 
+BodyInfo = Body  # the names readers know them by
+SurfaceInfo = Surface
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
 DATA_SCHEMAS = frozenset(
     {
@@ -61,34 +36,18 @@ DATA_SCHEMAS = frozenset(
 )
 
 
+def _empty(names: tuple[str, ...]) -> pl.DataFrame:
+    return decode.frame("", np.empty(0, np.int64), {n: np.empty(0) for n in names})
+
+
 @dataclass
 class RunLog:
-    """One decoded log.
-
-    Attributes:
-        path: the file.
-        run_id: the run's id (file stem when the metadata lacks it).
-        meta: the `impactlab.run` record merged with `impactlab.outcome`, as stored (strings).
-        bodies: per body name, a frame (run_id, t_ns, t_s, x .. wz), world frame, SI units.
-        contacts: one row per contact point (run_id, t_ns, t_s, geom1, geom2, body1, body2,
-            point, x .. fz), see `schemas/impactlab.proto`.
-        energy: MuJoCo's energy (run_id, t_ns, t_s, kinetic, potential, total), J.
-        events: the log's text events (run_id, t_ns, level, message).
-        partial: the file is damaged or incomplete, or its metadata; `problems` says how.
-        clearance: each body's distance to each ground surface (run_id, t_ns, t_s, body,
-            surface, clearance_m); empty in logs written before it was recorded.
-        impacts: each contact episode of each pair of parties, found at every simulated
-            step (`decode.IMPACT_SCHEMA`); empty in logs before format 3.
-        work: the work of each kind of force so far (run_id, t_ns, t_s, *WORK_FIELDS), J;
-            empty in logs before format 3.
-        joint_energy: the energy MuJoCo counts in joints (run_id, t_ns, t_s, kinetic: rotor
-            inertia, potential: springs, total), J; empty when the model has neither.
-        checked: the metadata checked against its schema and the channels
-            (`impactlab.logs.metadata`): typed values, and the problem of each bad key. The
-            properties below read it, so a bad value reads as unknown.
-        scene: the `impactlab.scene` record as stored (the geom table, `logs.geoms`; empty
-            in logs written before it was recorded).
-    """
+    """One decoded log: a frame per channel family (run_id, t_ns, t_s, then its fields, SI
+    units; `bodies` one per body; `contacts` a row per point; `clearance` a row per step and
+    surface; `impacts` a row per contact episode, `decode.IMPACT_SCHEMA`), `meta` (the run
+    and outcome records as stored), `checked` (their typed values and each bad key's
+    problem: the properties read it, a bad value is unknown), `scene` (the geom table, as
+    stored), and whether it is `partial` (damaged, incomplete, or bad metadata: `problems`)."""
 
     path: Path
     run_id: str
@@ -100,71 +59,57 @@ class RunLog:
     partial: bool = False
     problems: list[str] = field(default_factory=list)
     checked: MetadataCheck = field(default_factory=lambda: MetadataCheck({}, {}))
-    clearance: pl.DataFrame = field(default_factory=lambda: empty_clearance(""))
-    joint_energy: pl.DataFrame = field(default_factory=lambda: empty_frame(ENERGY_FIELDS, ""))
-    impacts: pl.DataFrame = field(default_factory=lambda: empty_impacts(""))
-    work: pl.DataFrame = field(default_factory=lambda: empty_frame(WORK_FIELDS, ""))
+    clearance: pl.DataFrame = field(
+        default_factory=lambda: pl.DataFrame(schema=decode.CLEARANCE_SCHEMA)
+    )
+    joint_energy: pl.DataFrame = field(default_factory=lambda: _empty(ENERGY_FIELDS))
+    impacts: pl.DataFrame = field(default_factory=lambda: pl.DataFrame(schema=decode.IMPACT_SCHEMA))
+    work: pl.DataFrame = field(default_factory=lambda: _empty(WORK_FIELDS))
     scene: dict[str, str] = field(default_factory=dict)
+
+    def _value(self, key: str, default: Any = None) -> Any:
+        return self.checked.values.get(key, default)
 
     @property
     def experiment(self) -> str:
         """The experiment's name ("" when unknown)."""
-        experiment: str = self.checked.values.get("experiment", "")
-        return experiment
+        return str(self._value("experiment", ""))
 
     @property
     def sweep(self) -> dict[str, Any]:
         """This run's sweep point: {dotted path: value} ({} when unknown)."""
-        sweep: dict[str, Any] = self.checked.values.get("sweep", {})
-        return sweep
+        return dict(self._value("sweep", {}))
 
     @property
     def sweep_point(self) -> tuple[int, int]:
         """(index, size) of this run in its sweep grid; (0, 1) without a sweep or unknown."""
-        values = self.checked.values
-        return values.get("sweep_index", 0), values.get("sweep_size", 1)
+        return self._value("sweep_index", 0), self._value("sweep_size", 1)
 
     @property
     def spec(self) -> dict[str, Any]:
         """The resolved spec document the run was made from ({} when unknown)."""
-        spec: dict[str, Any] = self.checked.values.get("spec", {})
-        return spec
+        return dict(self._value("spec", {}))
 
     @property
-    def body_info(self) -> dict[str, BodyInfo]:
-        """Mass, inertia, radius and shape of each free body ({} when unknown)."""
-        out = {}
-        for b in self.checked.values.get("bodies", []):
-            radius = b.get("radius")
-            rest = b.get("rest_height_m", radius)  # older logs: spheres only
-            shape = b.get("shape", "sphere" if radius is not None else "")
-            ix, iy, iz = (float(x) for x in b["inertia"])
-            geoms, motion = tuple(b.get("geoms", ())), b.get("motion", "free")
-            fields = (b["name"], float(b["mass"]), (ix, iy, iz), radius, rest, shape, geoms, motion)
-            out[b["name"]] = BodyInfo(*fields)
-        return out
+    def body_info(self) -> dict[str, Body]:
+        """Mass, inertia, radius and shape of each body ({} when unknown)."""
+        return {b.name: b for b in self._value("bodies", ())}
 
     @property
-    def surfaces(self) -> list[SurfaceInfo] | None:
-        """The ground surfaces; None for logs written before they were recorded (or when
-        the value is damaged: the analysis refuses such a run)."""
-        ground = self.checked.values.get("ground")
-        if ground is None:
-            return None
-        return [
-            SurfaceInfo(s["name"], s["type"], float(s["level_m"]), bool(s["distance"]))
-            for s in ground
-        ]
+    def surfaces(self) -> list[Surface] | None:
+        """The ground surfaces; None when the log does not say (the analysis refuses it)."""
+        ground = self._value("ground")
+        return None if ground is None else list(ground)
 
     @property
     def static_potential_J(self) -> float:
         """MuJoCo's potential energy of the static bodies (0 in logs that do not say), J."""
-        return float(self.checked.values.get("static_potential_J", 0.0))
+        return float(self._value("static_potential_J", 0.0))
 
     @property
     def integrator(self) -> str:
         """MuJoCo's integrator ("Euler" for logs that do not say)."""
-        return self.checked.values.get("integrator") or "Euler"
+        return str(self._value("integrator") or "Euler")
 
     @property
     def half_step_s(self) -> float:
@@ -174,66 +119,51 @@ class RunLog:
     @property
     def contact_targets(self) -> tuple[PairTarget, ...]:
         """The pairs calibrated to a target e, with their speed ranges (() when none)."""
-        return tuple(self.checked.values.get("contact_targets", ()))
+        return tuple(self._value("contact_targets", ()))
 
     @property
     def geom_contact(self) -> GeomContact | None:
         """The contact parameters every geom shares (None: they differ, or unknown)."""
-        return self.checked.values.get("geom_contact")
+        return self._value("geom_contact")  # type: ignore[no-any-return]
 
     @property
     def separation_m(self) -> float | None:
         """The separation stop rule, m: a collision was expected (None: no rule, unknown)."""
-        return self.checked.values.get("separation_m")
+        return self._value("separation_m")  # type: ignore[no-any-return]
 
     @property
     def gravity(self) -> np.ndarray:
-        """Gravity vector, m/s^2, (3,).
-
-        Raises:
-            LogError: the log does not say (its metadata is missing or damaged).
-        """
+        """Gravity vector, m/s^2, (3,); LogError when the log does not say."""
         return np.array(self._known("gravity"), dtype=float)
 
     @property
     def plane_z(self) -> float | None:
         """Height of the ground plane in m, or None without a plane (or when unknown)."""
-        return self.checked.values.get("plane_z")
+        return self._value("plane_z")  # type: ignore[no-any-return]
 
     @property
     def timestep_s(self) -> float:
-        """The simulation timestep in s.
-
-        Raises:
-            LogError: the log does not say (its metadata is missing or damaged).
-        """
+        """The simulation timestep in s; LogError when the log does not say."""
         return float(self._known("timestep_s"))
 
     @property
     def log_every(self) -> int:
         """Simulation steps between two logged rows (1 when the log does not say)."""
-        return int(self.checked.values.get("log_every", 1))
+        return int(self._value("log_every", 1))
 
     @property
     def outcome(self) -> str:
         """completed, unstable, or incomplete (no outcome record, or an unknown outcome)."""
-        outcome: str = self.checked.values.get("outcome", "incomplete")
-        return outcome
+        return str(self._value("outcome", "incomplete"))
 
     @property
     def warnings(self) -> list[str]:
         """The run's warnings, as recorded ([] when unknown)."""
-        warnings: list[str] = self.checked.values.get("warnings", [])
-        return warnings
+        return list(self._value("warnings", ()))
 
     def unanalyzable(self) -> str | None:
-        """Why the analysis cannot trust this run's metadata, or None.
-
-        The masses, sizes, gravity, ground, timestep, logging stride and integrator must be
-        known and agree with the channels: every energy, height and restitution depends on
-        them (keys older logs lack, `contract.optional_keys`, may be missing).
-        """
-        optional = optional_keys(self.checked.values.get("log_format_version"))
+        """Why the analysis cannot trust this run's metadata (`ANALYSIS_KEYS`), or None."""
+        optional = optional_keys(self._value("log_format_version"))
         missing = [
             k
             for k in ANALYSIS_KEYS
@@ -245,37 +175,57 @@ class RunLog:
         parts += [f"{k}: missing" for k in missing]
         return f"damaged metadata: {'; '.join(parts)}: cannot analyze" if parts else None
 
-    def __repr__(self) -> str:
-        from impactlab.logs.view import log_repr
-
-        return log_repr(self)
-
-    def _repr_html_(self) -> str:
-        """A small table for notebooks (`impactlab.logs.view`)."""
-        from impactlab.logs.view import log_html
-
-        return log_html(self)
-
     def _known(self, key: str) -> Any:
         if key in self.checked.values:
             return self.checked.values[key]
         problem = self.checked.problems.get(key, "missing")
         raise LogError(str(self.path), f"damaged metadata: {key}: {problem}")
 
+    def __repr__(self) -> str:
+        """`<RunLog drop-1: drop, completed, 1.39 s, 1 body, 13,903 states, 26 contact points>`."""
+        parts = [plain(self.experiment) or "unknown experiment", plain(self.outcome)]
+        ends = [float(f["t_s"][-1]) for f in self.bodies.values() if f.height]
+        parts += [f"{max(ends):.4g} s"] if ends else []
+        parts += [
+            count(len(self.bodies), "body", "bodies"),
+            count(sum(f.height for f in self.bodies.values()), "state"),
+            count(self.contacts.height, "contact point"),
+        ]
+        parts += [f"partial: {count(len(self.problems), 'problem')}"] if self.partial else []
+        return f"<RunLog {plain(self.run_id)}: {', '.join(parts)}>"
+
+    def _repr_html_(self) -> str:
+        """The run, its outcome, and one row per channel with its rows and time span."""
+        channels = [(f"body {n}", f) for n, f in self.bodies.items()]
+        channels += [("contact points", self.contacts), ("energy", self.energy)]
+        rows: list[list[object]] = [
+            [
+                label,
+                f.height,
+                f["t_s"].min() if f.height else None,
+                f["t_s"].max() if f.height else None,
+            ]
+            for label, f in channels
+        ]
+        rows.append(["events", self.events.height, None, None])
+        reason = self.meta.get("reason", "")
+        caption = f"{self.run_id} ({self.experiment or 'unknown experiment'}): {self.outcome}"
+        caption += (f" ({reason})" if reason else "") + f"; {self.path}"
+        table = html_table(["channel", "rows", "first t (s)", "last t (s)"], rows, caption=caption)
+        if self.problems:
+            table += html_table(
+                ["problems (partial log)"], [[p] for p in self.problems], unit="problems"
+            )
+        return table
+
 
 def load_log(path: str | Path) -> RunLog:
-    """Decode one log into frames.
-
-    Damage and bad metadata do not raise: whatever is readable is returned, marked partial,
-    with one problem per damage and per bad metadata key (`RunLog.problems`).
-
-    Raises:
-        LogError: the file does not exist, is not a regular file, is too large, is not MCAP,
-            or holds no impactlab channel or metadata.
-    """
+    """Decode one log into frames: whatever is readable, marked partial with one problem per
+    damage and bad metadata key. LogError when the file does not exist, is not a regular
+    file, is too large, is not MCAP, or holds no impactlab channel or metadata."""
     path = Path(path)
     try:
-        raw = read_mcap(path, skip_topics=UNREAD_TOPICS, reuse_memory=True)
+        raw = read_mcap(path, skip_topics=UNREAD_TOPICS)
     except FileNotFoundError:
         raise LogError(str(path), "file not found") from None
     except IsADirectoryError:
@@ -289,9 +239,7 @@ def load_log(path: str | Path) -> RunLog:
         reason = raw.problems[0] if raw.problems else "no impactlab channels or metadata"
         raise LogError(str(path), f"not an impactlab log ({reason})")
     meta = dict(raw.metadata.get(logformat.RUN_METADATA, {}))
-    problems = list(raw.problems)
-    if not meta:
-        problems.append("no impactlab.run metadata")
+    problems = list(raw.problems) + ([] if meta else ["no impactlab.run metadata"])
     if logformat.OUTCOME_METADATA in raw.metadata:
         meta.update(raw.metadata[logformat.OUTCOME_METADATA])
     else:
@@ -299,50 +247,39 @@ def load_log(path: str | Path) -> RunLog:
     checked = check_metadata(raw.metadata)
     run_id = checked.values.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
-    contact_frames: list[pl.DataFrame] = []
-    clearance_frames: list[pl.DataFrame] = []
-    impacts: pl.DataFrame | None = None
-    work: pl.DataFrame | None = None
-    energy: pl.DataFrame | None = None
-    columns = Columns()  # the columns the frames repeat, built once
-    joint_energy: pl.DataFrame | None = None
-    events: pl.DataFrame | None = None
+    contacts: list[pl.DataFrame] = []
+    clearance: list[pl.DataFrame] = []
+    frames: dict[str, pl.DataFrame] = {}  # energy, joint_energy, work, impacts, events
     for channel in raw.channels.values():
         schema, topic = channel.schema, channel.topic
         try:
             if schema == logformat.BODY_STATE_SCHEMA:
-                t, values = decode_fixed(channel, messages.body_state(), body_state_values)
                 name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]
-                bodies[name] = fixed_frame(run_id, t, values, BODY_FIELDS, columns)
-            elif schema == logformat.CONTACTS_SCHEMA:
-                contact_frames.append(decode_contacts(run_id, channel))
-            elif schema == logformat.CONTACT_SCHEMA:
-                contact_frames.append(decode_pair_contacts(run_id, channel))
+                bodies[name] = decode.values_frame(
+                    run_id, channel, messages.body_state(), BODY_FIELDS, pb.BodyState
+                )
+            elif schema in (logformat.CONTACTS_SCHEMA, logformat.CONTACT_SCHEMA):
+                contacts.append(decode.contacts(run_id, channel))
             elif schema == logformat.CLEARANCE_SCHEMA:
-                clearance_frames.append(decode_clearance(run_id, channel, columns))
+                clearance.append(decode.clearance(run_id, channel))
             elif schema == logformat.IMPACT_SCHEMA:
-                impacts = decode_impacts(run_id, loose_payloads(channel)[1])
+                frames["impacts"] = decode.impacts(run_id, channel)
             elif schema == logformat.WORK_SCHEMA:
-                t, values = decode_fixed(channel, messages.work(), _work_values)
-                work = fixed_frame(run_id, t, values, WORK_FIELDS, columns)
+                frames["work"] = decode.values_frame(
+                    run_id, channel, messages.work(), WORK_FIELDS, pb.Work
+                )
             elif schema == logformat.ENERGY_SCHEMA:
-                t, values = decode_fixed(channel, messages.energy(), energy_values)
-                if topic == logformat.JOINT_ENERGY_TOPIC:
-                    joint_energy = fixed_frame(run_id, t, values, ENERGY_FIELDS, columns)
-                else:
-                    energy = fixed_frame(run_id, t, values, ENERGY_FIELDS, columns)
+                key = "joint_energy" if topic == logformat.JOINT_ENERGY_TOPIC else "energy"
+                frames[key] = decode.values_frame(
+                    run_id, channel, messages.energy(), ENERGY_FIELDS, pb.Energy
+                )
             elif schema == "foxglove.Log" and topic == logformat.EVENTS_TOPIC:
-                t, payloads = loose_payloads(channel)
-                events = decode_events(run_id, t, payloads)
+                frames["events"] = decode.events(run_id, channel)
         except (DecodeError, ValueError) as exc:  # e.g. another tool's encoding of the schema
             raise LogError(str(path), f"{topic}: undecodable message ({exc})") from None
-    if len(contact_frames) == 1 and contact_frames[0]["t_ns"].is_sorted():
-        contacts = contact_frames[0]  # as sorting would leave it
-    elif contact_frames:
-        contacts = pl.concat(contact_frames).sort("t_ns", maintain_order=True)
-    else:
-        contacts = empty_contacts(run_id)
-    times = {name: f["t_ns"].to_numpy() for name, f in bodies.items()}
+    if len(contacts) > 1 or (contacts and not contacts[0]["t_ns"].is_sorted()):
+        contacts = [pl.concat(contacts).sort("t_ns", maintain_order=True)]
+    times = {name: frame["t_ns"].to_numpy() for name, frame in bodies.items()}
     check_channels(checked, times, complete=not raw.problems)
     problems += checked.lines()
     return RunLog(
@@ -350,21 +287,15 @@ def load_log(path: str | Path) -> RunLog:
         run_id=run_id,
         meta=meta,
         bodies=dict(sorted(bodies.items())),
-        contacts=contacts,
-        energy=empty_frame(ENERGY_FIELDS, run_id) if energy is None else energy,
-        events=decode_events(run_id, np.empty(0, np.int64), []) if events is None else events,
+        contacts=contacts[0] if contacts else pl.DataFrame(schema=decode.CONTACT_SCHEMA),
+        energy=frames.pop("energy") if "energy" in frames else _empty(ENERGY_FIELDS),
+        events=frames.pop("events") if "events" in frames else decode.events(run_id, None),
         partial=bool(problems),
         problems=problems,
         checked=checked,
-        clearance=pl.concat(clearance_frames) if clearance_frames else empty_clearance(run_id),
-        joint_energy=empty_frame(ENERGY_FIELDS, run_id) if joint_energy is None else joint_energy,
-        impacts=empty_impacts(run_id) if impacts is None else impacts,
-        work=empty_frame(WORK_FIELDS, run_id) if work is None else work,
-        scene=dict(raw.metadata.get(SCENE_METADATA, {})),
+        clearance=pl.concat(clearance)
+        if clearance
+        else pl.DataFrame(schema=decode.CLEARANCE_SCHEMA),
+        scene=dict(raw.metadata.get(logformat.SCENE_METADATA, {})),
+        **frames,
     )
-
-
-def _work_values(data: bytes) -> list[float]:
-    """One `impactlab.Work` payload's values, by the protobuf library."""
-    w = pb.Work.FromString(data)
-    return [getattr(w, f) for f in WORK_FIELDS]

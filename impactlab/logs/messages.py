@@ -1,27 +1,18 @@
-"""Fixed layouts (`codec.Template`) of the log's per-step messages, shared by record and analyze.
-
-Value orders:
-- BodyState: x y z, qw qx qy qz, vx vy vz, wx wy wz (`BODY_FIELDS`).
-- Energy: kinetic potential total.
-- Work: the fields of `impactlab.Work` in number order (`WORK_FIELDS`).
-- Clearance: one distance per surface, in the order of the channel's `surfaces`.
-- ContactPoint: the fields of `impactlab.ContactPoint` in number order (`POINT_FIELDS`).
-- FrameTransforms: per body tx ty tz, qw qx qy qz; each transform's timestamp is the message's
-  log time (`stamped_transforms`).
-"""
+"""The log's per-step messages as arrays: fixed protobuf layouts encoded and decoded by numpy."""
 
 from __future__ import annotations
 
 import itertools
+import struct
 from collections.abc import Callable, Sequence
-from functools import cache
+from dataclasses import dataclass
+from functools import cache, cached_property
 
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from google.protobuf.message import Message
 
 from impactlab.logs import format as logformat
-from impactlab.logs.codec import Template
 from impactlab.proto import impactlab_pb2 as pb
 
 BODY_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz")
@@ -30,7 +21,81 @@ POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields if f.type
 WORK_FIELDS = tuple(f.name for f in pb.Work.DESCRIPTOR.fields)
 
 
-def _set_fields(names: Sequence[str]) -> Callable[[Message, Sequence[float]], None]:
+@dataclass(frozen=True)
+class Template:
+    """A message whose only varying fields are doubles, all written: its bytes `template`
+    (size,) uint8 with zeros where the doubles go, their offsets `slots` (k,), and `fixed`,
+    the bytes every payload of this layout has (so another layout is never misread)."""
+
+    template: np.ndarray
+    slots: np.ndarray
+    fixed: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Payload length in bytes."""
+        return int(self.template.size)
+
+    @classmethod
+    def learn(
+        cls, msg: Message, setter: Callable[[Message, Sequence[float]], None], k: int
+    ) -> Template:
+        """The layout of `msg` with its k doubles set by `setter(msg, values)`, learnt from
+        the protobuf library with distinct sentinels; ValueError when one is missing."""
+        sentinels = [1.0 + (i + 1) * 2.0**-20 + 2.0**-40 for i in range(k)]
+        setter(msg, sentinels)
+        raw = msg.SerializeToString()
+        slots = [raw.find(struct.pack("<d", v)) for v in sentinels]
+        if min(slots, default=0) < 0 or any(raw.count(struct.pack("<d", v)) > 1 for v in sentinels):
+            raise ValueError("message layout is not fixed: a double is missing or repeated")
+        template = np.frombuffer(raw, np.uint8).copy()
+        fixed = np.ones(template.size, bool)
+        for at in slots:
+            template[at : at + 8], fixed[at : at + 8] = 0, False
+        return cls(template, np.array(slots, np.int64), fixed)
+
+    @cached_property
+    def _runs(self) -> list[tuple[int, int, int, int]]:
+        """The doubles in runs of even spacing: (first value, count, byte offset, spacing)."""
+        runs, slots, j = [], self.slots.tolist(), 0
+        while j < len(slots):
+            step = slots[j + 1] - slots[j] if j + 1 < len(slots) else 8
+            n = 1
+            while j + n < len(slots) and slots[j + n] - slots[j + n - 1] == step:
+                n += 1
+            runs.append((j, n, slots[j], step))
+            j += n
+        return runs
+
+    def _numbers(self, payloads: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """Per run, its first value and a (n, count) float64 view of C-ordered payloads."""
+        rows, m = payloads.strides[0], len(payloads)
+        return [
+            (j, np.ndarray((m, n), "<f8", payloads, at, (rows, step)) if m else np.empty((0, n)))
+            for j, n, at, step in self._runs
+        ]
+
+    def encode(self, values: np.ndarray) -> np.ndarray:
+        """Payloads of rows of doubles: (n, k) float64 -> (n, size) uint8."""
+        out = np.tile(self.template, (len(values), 1))
+        for j, view in self._numbers(out):
+            view[:] = values[:, j : j + view.shape[1]]
+        return out
+
+    def decode(self, payloads: np.ndarray) -> np.ndarray | None:
+        """Doubles of payloads: (n, size) uint8 -> (n, k) float64 (each value's column
+        contiguous); None when any payload is of another layout."""
+        if payloads.ndim != 2 or payloads.shape[1] != self.size:
+            return None
+        if not (payloads[:, self.fixed] == self.template[self.fixed]).all():
+            return None
+        out = np.empty((self.slots.size, len(payloads)))
+        for j, view in self._numbers(np.ascontiguousarray(payloads)):
+            out[j : j + view.shape[1]] = view.T
+        return out.T
+
+
+def _setter(names: Sequence[str]) -> Callable[[Message, Sequence[float]], None]:
     def setter(msg: Message, values: Sequence[float]) -> None:
         for name, value in zip(names, values, strict=True):
             setattr(msg, name, value)
@@ -41,47 +106,39 @@ def _set_fields(names: Sequence[str]) -> Callable[[Message, Sequence[float]], No
 @cache
 def body_state() -> Template:
     """Layout of `impactlab.BodyState`."""
-    return Template.learn(pb.BodyState, _set_fields(BODY_FIELDS), len(BODY_FIELDS))
+    return Template.learn(pb.BodyState(), _setter(BODY_FIELDS), len(BODY_FIELDS))
 
 
 @cache
 def energy() -> Template:
     """Layout of `impactlab.Energy`."""
-    return Template.learn(pb.Energy, _set_fields(ENERGY_FIELDS), len(ENERGY_FIELDS))
+    return Template.learn(pb.Energy(), _setter(ENERGY_FIELDS), len(ENERGY_FIELDS))
 
 
 @cache
 def work() -> Template:
     """Layout of `impactlab.Work`."""
-    return Template.learn(pb.Work, _set_fields(WORK_FIELDS), len(WORK_FIELDS))
+    return Template.learn(pb.Work(), _setter(WORK_FIELDS), len(WORK_FIELDS))
 
 
 @cache
 def clearance(k: int) -> Template:
     """Layout of `impactlab.Clearance` with k distances."""
-
-    def setter(msg: pb.Clearance, values: Sequence[float]) -> None:
-        msg.distance.extend(values)
-
-    return Template.learn(pb.Clearance, setter, k)
+    return Template.learn(pb.Clearance(), lambda m, v: m.distance.extend(v), k)
 
 
 def _point_record() -> np.dtype:
-    """One `ContactPoint` inside `Contacts` as bytes: its tag and length, then each field's
-    tag and value (doubles, then the two sides' int32), checked against the protobuf library
-    (a point written with every field set: the same bytes, or the layout is refused)."""
+    """One `ContactPoint` inside `Contacts`: its tag and length, then each field's tag and
+    value (the doubles, then the sides' int32), checked against the protobuf library."""
     fields = [("tag", "u1"), ("len", "u1")]
     for name in POINT_FIELDS:
         fields += [(f"t_{name}", "u1"), (name, "<f8")]
-    fields += [("t_geom1", "u1"), ("geom1", "<i4"), ("t_geom2", "u1"), ("geom2", "<i4")]
-    record = np.dtype(fields)
-    probe = np.zeros(1, record)
-    for i, name in enumerate(POINT_FIELDS):
-        probe[f"t_{name}"] = (pb.ContactPoint.DESCRIPTOR.fields_by_name[name].number << 3) | 1
-        probe[name] = 1.0 + i
-    probe["t_geom1"], probe["geom1"] = (14 << 3) | 5, -7
-    probe["t_geom2"], probe["geom2"] = (15 << 3) | 5, 9
-    probe["tag"], probe["len"] = (1 << 3) | 2, record.itemsize - 2
+    record = np.dtype(
+        [*fields, ("t_geom1", "u1"), ("geom1", "<i4"), ("t_geom2", "u1"), ("geom2", "<i4")]
+    )
+    probe = _points(
+        np.zeros(1, int), np.array([[-7, 9]]), 1.0 + np.arange(len(POINT_FIELDS))[None], record
+    )
     message = pb.Contacts()
     point = message.points.add(geom1=-7, geom2=9)
     for i, name in enumerate(POINT_FIELDS):
@@ -91,20 +148,31 @@ def _point_record() -> np.dtype:
     return record
 
 
+def _points(row: np.ndarray, sides: np.ndarray, values: np.ndarray, record: np.dtype) -> np.ndarray:
+    """Points as records: `_tags(record)`, sides (m, 2) and values (m, 13) filled in."""
+    out = np.zeros(row.size, record)
+    for name, tag in _tags(record).items():
+        out[name] = tag
+    for i, name in enumerate(POINT_FIELDS):
+        out[name] = values[:, i]
+    out["geom1"], out["geom2"] = sides[:, 0], sides[:, 1]
+    return out
+
+
+def _tags(record: np.dtype) -> dict[str, int]:
+    """The fixed bytes of a point record: field tags (wire type 1: 64-bit, 5: 32-bit)."""
+    tags = {"tag": (1 << 3) | 2, "len": record.itemsize - 2}
+    tags |= {f"t_{n}": (i + 1) << 3 | 1 for i, n in enumerate(POINT_FIELDS)}
+    return tags | {"t_geom1": (14 << 3) | 5, "t_geom2": (15 << 3) | 5}
+
+
 POINT_RECORD = _point_record()
 
 
 def contact_payloads(row: np.ndarray, sides: np.ndarray, values: np.ndarray) -> list[bytes]:
     """`Contacts` payloads, one per logged row with contacts (rows ascending): the points'
-    rows (m,), sides (m, 2) int and values (m, 13) in `POINT_FIELDS` order, by row."""
-    records = np.zeros(row.size, POINT_RECORD)
-    records["tag"], records["len"] = (1 << 3) | 2, POINT_RECORD.itemsize - 2
-    for i, name in enumerate(POINT_FIELDS):
-        records[f"t_{name}"] = (i + 1) << 3 | 1
-        records[name] = values[:, i]
-    records["t_geom1"], records["geom1"] = (14 << 3) | 5, sides[:, 0]
-    records["t_geom2"], records["geom2"] = (15 << 3) | 5, sides[:, 1]
-    flat = records.view(np.uint8)
+    rows (m,), sides (m, 2) int (a geom id, or -1 - a flex id) and values (m, 13)."""
+    flat = _points(row, sides, values, POINT_RECORD).view(np.uint8)
     size = POINT_RECORD.itemsize
     bounds = np.flatnonzero(np.r_[True, np.diff(row) != 0, True])
     return [flat[a * size : b * size].tobytes() for a, b in itertools.pairwise(bounds)]
@@ -112,128 +180,87 @@ def contact_payloads(row: np.ndarray, sides: np.ndarray, values: np.ndarray) -> 
 
 def contact_points(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray] | None:
     """The points of `Contacts` payloads: records (m,) of `POINT_RECORD` and each payload's
-    point count; None when any payload is not in this layout (then read them one by one)."""
+    point count; None when any payload is not in this layout (read them one by one)."""
     size = POINT_RECORD.itemsize
-    counts = np.fromiter((len(p) for p in payloads), np.int64, len(payloads))
+    counts = np.fromiter(map(len, payloads), np.int64, len(payloads))
     if (counts % size).any():
         return None
     records = np.frombuffer(b"".join(payloads), POINT_RECORD)
-    tags = [records["tag"] == 10, records["len"] == size - 2]
-    tags += [records[f"t_{n}"] == (i + 1) << 3 | 1 for i, n in enumerate(POINT_FIELDS)]
-    tags += [records["t_geom1"] == (14 << 3) | 5, records["t_geom2"] == (15 << 3) | 5]
-    if not np.logical_and.reduce(tags).all():
+    if not all((records[name] == tag).all() for name, tag in _tags(POINT_RECORD).items()):
         return None
     return records, counts // size
 
 
 @cache
 def transforms(bodies: tuple[str, ...], stamp: tuple[int, int] = (0, 0)) -> Template:
-    """Layout of `foxglove.FrameTransforms`, world -> each body, every transform stamped with
-    `stamp` (seconds, nanos): the payloads of other stamps whose varints have the same lengths
-    differ only in the stamp's bytes (`stamped_transforms`)."""
+    """Layout of `foxglove.FrameTransforms`, world -> each body, each transform stamped with
+    (seconds, nanos) `stamp`: other stamps of the same varint lengths differ in its bytes only."""
 
     def setter(msg: FrameTransforms, values: Sequence[float]) -> None:
         for i, name in enumerate(bodies):
-            tf = msg.transforms.add()
+            tf = msg.transforms.add(parent_frame_id=logformat.WORLD_FRAME, child_frame_id=name)
             tf.timestamp.seconds, tf.timestamp.nanos = stamp
-            tf.parent_frame_id = logformat.WORLD_FRAME
-            tf.child_frame_id = name
             v = values[7 * i : 7 * i + 7]
             tf.translation.x, tf.translation.y, tf.translation.z = v[0:3]
             tf.rotation.w, tf.rotation.x, tf.rotation.y, tf.rotation.z = v[3:7]
 
-    return Template.learn(FrameTransforms, setter, 7 * len(bodies))
+    return Template.learn(FrameTransforms(), setter, 7 * len(bodies))
 
 
 def _varint_length(v: np.ndarray) -> np.ndarray:
-    """Bytes of each non-negative value's protobuf varint; 0 for 0 (proto3 omits the field)."""
-    bits = np.zeros(v.shape, np.int64)
-    nz = v > 0
-    bits[nz] = np.floor(np.log2(v[nz].astype(np.float64))).astype(np.int64) + 1
-    bits[nz & (v >= (1 << 53))] = 64  # beyond float precision: count exactly below
-    length = (bits + 6) // 7
-    big = np.flatnonzero(bits == 64)
-    length[big] = [len(_varint(int(x))) for x in v[big]]
-    return length
-
-
-def _varint(x: int) -> bytes:
-    out = bytearray()
-    while True:
-        out.append((x & 0x7F) | (0x80 if x > 0x7F else 0))
-        x >>= 7
-        if not x:
-            return bytes(out)
-
-
-def _varint_bytes(v: np.ndarray, n: int) -> np.ndarray:
-    """Each value's varint of exactly n bytes, (len(v), n) uint8."""
-    v = v.astype(np.uint64)
-    shifts = (7 * np.arange(n)).astype(np.uint64)
-    out = ((v[:, None] >> shifts) & np.uint64(0x7F)).astype(np.uint8)
-    out[:, : n - 1] |= 0x80
-    return out
+    """Bytes of each value's protobuf varint (0 < v < 2^35); 0 for 0 (proto3 omits it)."""
+    return np.searchsorted(1 << (7 * np.arange(1, 6)), v, side="right") + (v > 0)
 
 
 def stamped_transforms(
     bodies: tuple[str, ...], t_ns: np.ndarray, poses: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """`foxglove.FrameTransforms` payloads whose transforms carry their row's time.
-
-    Args:
-        t_ns: row times, ns, (n,) (non-negative).
-        poses: per row and body tx ty tz qw qx qy qz, (n, 7 nbody).
-
-    Returns:
-        (row indices, payloads (k, L) uint8) per group of rows whose stamps' varints have
-        the same lengths (a handful: the layout is otherwise fixed).
-    """
-    t = np.asarray(t_ns, np.int64)
-    sec, nanos = t // 1_000_000_000, t % 1_000_000_000
-    ls, ln = _varint_length(sec), _varint_length(nanos)
+    """`foxglove.FrameTransforms` payloads of poses (n, 7 nbody: tx ty tz qw qx qy qz), each
+    transform stamped with its row's time `t_ns` (n,): (rows, payloads (k, L) uint8) per group
+    of rows whose stamps' varints have the same lengths (a handful)."""
+    sec, nanos = np.divmod(np.asarray(t_ns, np.int64), 1_000_000_000)
+    key = _varint_length(sec) * 8 + _varint_length(nanos)
     out = []
-    key = ls * 8 + ln
-    # the keys present, without np.unique (its first call imports numpy.ma, 40 ms in each
-    # forked record worker): a key is at most 10 * 8 + 5
-    for k in np.flatnonzero(np.bincount(key.ravel())).tolist():
+    for k in np.flatnonzero(np.bincount(key)).tolist():  # np.unique would import numpy.ma
         a, b = divmod(k, 8)
         rows = np.flatnonzero(key == k)
         probe = ((1 << (7 * a - 7)) if a else 0, (1 << (7 * b - 7)) if b else 0)
-        layout = transforms(bodies, probe)
-        payloads = layout.encode(poses[rows])
+        payloads = transforms(bodies, probe).encode(poses[rows])
         if a or b:
-            stamp = np.concatenate(
-                [
-                    np.full((rows.size, 1 if a else 0), 0x08, np.uint8),
-                    _varint_bytes(sec[rows], a),
-                    np.full((rows.size, 1 if b else 0), 0x10, np.uint8),
-                    _varint_bytes(nanos[rows], b),
-                ],
-                axis=1,
-            )
+            stamp = np.concatenate(_stamp(sec[rows], nanos[rows], a, b), axis=1)
             for at in _stamp_offsets(bodies, probe, stamp.shape[1]):
                 payloads[:, at : at + stamp.shape[1]] = stamp
         out.append((rows, payloads))
     return out
 
 
+def _stamp(sec: np.ndarray, nanos: np.ndarray, a: int, b: int) -> list[np.ndarray]:
+    """The stamp's bytes: each present field's tag and varint of its length, (n, ...) uint8."""
+    out = []
+    for tag, values, n in ((0x08, sec, a), (0x10, nanos, b)):
+        if n:
+            shifts = (7 * np.arange(n)).astype(np.uint64)
+            varint = ((values.astype(np.uint64)[:, None] >> shifts) & np.uint64(0x7F)).astype(
+                np.uint8
+            )
+            varint[:, : n - 1] |= 0x80
+            out += [np.full((len(values), 1), tag, np.uint8), varint]
+    return out
+
+
 @cache
 def _stamp_offsets(bodies: tuple[str, ...], probe: tuple[int, int], size: int) -> tuple[int, ...]:
-    """Where each transform's stamp bytes lie in the payload of `transforms(bodies, probe)`:
-    the bytes that change when the stamp does: the probe (the smallest values of their varint
-    lengths) and the largest values of the same lengths differ in their first byte."""
+    """Where each transform's stamp lies in `transforms(bodies, probe)`'s payload: the probe
+    (the smallest values of its varint lengths) and the largest values of the same lengths
+    differ in their first byte; the stamp starts one byte before (its field tag)."""
     a = transforms(bodies, probe).template
     other = (
         (probe[0] << 7) - 1 if probe[0] else 0,
         min((probe[1] << 7) - 1, 999_999_999) if probe[1] else 0,
     )
-    b = transforms(bodies, other).template
-    differ = np.flatnonzero(a != b)
     starts: list[int] = []
-    for i in differ.tolist():
+    for i in np.flatnonzero(a != transforms(bodies, other).template).tolist():
         if not starts or i >= starts[-1] + size:
             starts.append(i)
-    # the stamp starts one byte before its first changed byte (the field tag)
-    offsets = tuple(s - 1 for s in starts)
-    assert len(offsets) == len(bodies), "FrameTransforms layout changed"
-    return offsets
+    assert len(starts) == len(bodies), "FrameTransforms layout changed"
+    return tuple(s - 1 for s in starts)

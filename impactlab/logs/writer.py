@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import os
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
@@ -15,20 +16,105 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from google.protobuf.message import Message
-from mcap.writer import Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.chunks import Block, ChunkWriter
-from impactlab.logs.content import LogHeader, LogRows, Outcome
-from impactlab.logs.geoms import SCENE_METADATA, STL_MEDIA_TYPE, encode_stl, scene_record
-from impactlab.logs.scene import scene_update
+from impactlab.logs.geoms import (
+    SCENE_METADATA,
+    STL_MEDIA_TYPE,
+    FlexShape,
+    GeomShape,
+    encode_stl,
+    scene_record,
+    scene_update,
+)
+from impactlab.logs.metadata import Outcome, RunMeta
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.version import __version__
 
 PARTIAL_SUFFIX = ".partial"
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
+
+
+@dataclass(frozen=True)
+class LogHeader:
+    """Everything a log holds besides its rows: the run, its scene and its model.
+
+    `clearance`: per body with a clearance channel, the surfaces its distances are measured
+    to, in value order; `meshes`: the triangles (m, 3, 3) of the geoms' meshes by attachment
+    name; `contact_sides`: the /contacts channel's metadata, what a point's sides refer to:
+    `geoms` (every geom's name, by id), `bodies` (the party of each geom), `flexes` (by id).
+    """
+
+    run: RunMeta
+    geoms: Sequence[GeomShape]
+    model_xml: str
+    clearance: Sequence[tuple[str, tuple[str, ...]]] = ()
+    joint_energy: bool = False  # whether rows carry `joint_energy` (`/energy/joints`)
+    attachments: Sequence[tuple[str, str, bytes]] = ()  # more files: name, media type, data
+    meshes: Mapping[str, np.ndarray] = field(default_factory=dict)
+    flexes: Sequence[FlexShape] = ()
+    contact_sides: Mapping[str, Sequence[str]] = field(default_factory=dict)
+
+
+@dataclass
+class LogRows:
+    """Consecutive logged rows of a run: times `t_ns` (n,) int ns; `bodies` (n, nbody, 13) in
+    `RunMeta.bodies` order and `messages.BODY_FIELDS` order; `energy` (n, 3) J; `work` (n, k)
+    J since the start, `messages.WORK_FIELDS`; `contacts`, one entry per point: its row (m,),
+    sides (m, 2) (a geom id, or -1 - a flex id) and values (m, 13) in `POINT_FIELDS` order;
+    `clearance` per body of `LogHeader.clearance` (n, k) m; `joint_energy` (n, 3) J or None."""
+
+    t_ns: np.ndarray
+    bodies: np.ndarray
+    energy: np.ndarray
+    work: np.ndarray
+    contacts: tuple[np.ndarray, np.ndarray, np.ndarray]
+    clearance: list[np.ndarray] = field(default_factory=list)
+    joint_energy: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.t_ns.size)
+
+    def slice(self, lo: int, hi: int) -> LogRows:
+        """Rows lo .. hi - 1."""
+        row, sides, values = self.contacts
+        mine = (row >= lo) & (row < hi)
+        return LogRows(
+            self.t_ns[lo:hi],
+            self.bodies[lo:hi],
+            self.energy[lo:hi],
+            self.work[lo:hi],
+            (row[mine] - lo, sides[mine], values[mine]),
+            [c[lo:hi] for c in self.clearance],
+            None if self.joint_energy is None else self.joint_energy[lo:hi],
+        )
+
+    @staticmethod
+    def concat(parts: Sequence[LogRows]) -> LogRows:
+        """The rows of `parts`, one after the other."""
+        if len(parts) == 1:
+            return parts[0]
+        offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
+
+        def cat(arrays: Sequence[np.ndarray]) -> np.ndarray:
+            return np.concatenate(arrays)
+
+        return LogRows(
+            cat([p.t_ns for p in parts]),
+            cat([p.bodies for p in parts]),
+            cat([p.energy for p in parts]),
+            cat([p.work for p in parts]),
+            (
+                cat([p.contacts[0] + o for p, o in zip(parts, offsets, strict=True)]),
+                cat([p.contacts[1] for p in parts]),
+                cat([p.contacts[2] for p in parts]),
+            ),
+            [cat([p.clearance[i] for p in parts]) for i in range(len(parts[0].clearance))],
+            None if parts[0].joint_energy is None else cat([p.joint_energy for p in parts]),  # type: ignore[misc]
+        )
 
 
 def partial_path(path: Path) -> Path:
@@ -39,11 +125,8 @@ def partial_path(path: Path) -> Path:
 
 
 class LogWriter:
-    """Writes one run's log as its rows arrive; `finish` makes it complete (see module doc).
-
-    Use as a context manager: leaving it with an exception, or without `finish`, removes
-    the temporary file.
-    """
+    """Writes one run's log as its rows arrive; `finish` makes it complete. Leaving it as a
+    context manager with an exception, or without `finish`, removes the temporary file."""
 
     def __init__(self, path: Path, header: LogHeader) -> None:
         self.path = Path(path)
@@ -57,65 +140,52 @@ class LogWriter:
             raise
 
     def _start(self) -> None:
-        header = self.header
+        header, bodies = self.header, tuple(b.name for b in self.header.run.bodies)
         assert self._stream is not None
-        self._out = ChunkWriter(
-            self._stream,
-            profile=logformat.PROFILE,
-            library=f"impactlab {__version__}; mcap-python {mcap.__version__}",
+        out = self._out = ChunkWriter(
+            self._stream, library=f"impactlab {__version__}; mcap-python {mcap.__version__}"
         )
-        writer = self._out.writer
+
+        def add(topic: str, kind: type[Message], metadata: Mapping[str, str] | None = None) -> int:
+            name = kind.DESCRIPTOR.full_name
+            return out.channel(topic, name, _schema_data(kind), dict(metadata or {}))
+
+        # every channel before the metadata, which writes them out (`ChunkWriter`)
+        self._scene = add(logformat.SCENE_TOPIC, SceneUpdate)
+        self._bodies = [
+            add(logformat.BODY_STATE_TOPIC.format(body=b), pb.BodyState, {"body": b})
+            for b in bodies
+        ]
+        self._clearance = [
+            add(
+                logformat.CLEARANCE_TOPIC.format(body=b),
+                pb.Clearance,
+                {"body": b, "surfaces": json.dumps(list(surfaces))},
+            )
+            for b, surfaces in header.clearance
+        ]
+        sides = {key: json.dumps(list(names)) for key, names in header.contact_sides.items()}
+        self._contacts = add(logformat.CONTACTS_TOPIC, pb.Contacts, sides)
+        self._energy = add(logformat.ENERGY_TOPIC, pb.Energy)
+        self._work = add(logformat.WORK_TOPIC, pb.Work)
+        self._joints = add(logformat.JOINT_ENERGY_TOPIC, pb.Energy) if header.joint_energy else None
+        self._tf = add(logformat.TF_TOPIC, FrameTransforms)
+        self._impacts = add(logformat.IMPACTS_TOPIC, pb.Impact)
+        self._events = add(logformat.EVENTS_TOPIC, Log)
+        writer = out.writer
         writer.add_metadata(logformat.RUN_METADATA, header.run.record())
         writer.add_metadata(
             SCENE_METADATA, scene_record(header.geoms, header.meshes, header.flexes)
         )
         for name, triangles in header.meshes.items():  # first: a cut log still draws the model
-            writer.add_attachment(
-                create_time=0,
-                log_time=0,
-                name=name,
-                media_type=STL_MEDIA_TYPE,
-                data=encode_stl(triangles),
-            )
-        channels = self._channels = _Channels(writer)
-        self._scene = channels.add(logformat.SCENE_TOPIC, SceneUpdate)
-        self._bodies = [
-            channels.add(
-                logformat.BODY_STATE_TOPIC.format(body=b.name), pb.BodyState, {"body": b.name}
-            )
-            for b in header.run.bodies
-        ]
-        self._clearance = [
-            (
-                channels.add(
-                    logformat.CLEARANCE_TOPIC.format(body=body),
-                    pb.Clearance,
-                    {"body": body, "surfaces": json.dumps(list(surfaces))},
-                ),
-                messages.clearance(len(surfaces)),
-            )
-            for body, surfaces in header.clearance
-        ]
-        self._contacts = channels.add(
-            logformat.CONTACTS_TOPIC,
-            pb.Contacts,
-            {key: json.dumps(list(names)) for key, names in header.contact_sides.items()},
-        )
-        self._energy = channels.add(logformat.ENERGY_TOPIC, pb.Energy)
-        self._work = channels.add(logformat.WORK_TOPIC, pb.Work)
-        self._joint_energy = (
-            channels.add(logformat.JOINT_ENERGY_TOPIC, pb.Energy) if header.joint_energy else None
-        )
-        self._tf = channels.add(logformat.TF_TOPIC, FrameTransforms)
-        self._events = channels.add(logformat.EVENTS_TOPIC, Log)
-        self._tf_bodies = tuple(b.name for b in header.run.bodies)
-        self._tf_layout = messages.transforms(self._tf_bodies, (1 << 27, 1 << 27))  # its size
+            writer.add_attachment(0, 0, name, STL_MEDIA_TYPE, encode_stl(triangles))
+        self._tf_bodies = bodies
         row_bytes = (
-            len(self._bodies) * messages.body_state().size
+            len(bodies) * messages.body_state().size
             + messages.energy().size * (2 if header.joint_energy else 1)
             + messages.work().size
-            + sum(layout.size for _, layout in self._clearance)
-            + self._tf_layout.size
+            + sum(messages.clearance(len(s)).size for _, s in header.clearance)
+            + messages.transforms(bodies, (1 << 27, 1 << 27)).size  # its largest stamp
             + 200
         )
         self.rows_per_chunk = max(1, CHUNK_BYTES // row_bytes)
@@ -139,14 +209,12 @@ class LogWriter:
         if not self._buffer:
             return
         rows = LogRows.concat(self._buffer)
-        n = len(rows)
-        per = self.rows_per_chunk
+        n, per = len(rows), self.rows_per_chunk
         end = (n // per) * per if whole_chunks_only else n
         for lo in range(0, end, per):
             self._write_chunk(rows.slice(lo, min(lo + per, end)))
         rest = rows.slice(end, n)
-        self._buffer = [rest] if len(rest) else []
-        self._buffered = len(rest)
+        self._buffer, self._buffered = ([rest] if len(rest) else []), len(rest)
 
     def _write_chunk(self, rows: LogRows) -> None:
         t = rows.t_ns
@@ -155,58 +223,48 @@ class LogWriter:
             blocks.append(Block(self._scene, t[:1], self._scene_payload))
             self._scene_payload = None
         for i, channel_id in enumerate(self._bodies):
-            blocks.append(Block(channel_id, t, rows.bodies[:, i], messages.body_state()))
-        for (channel_id, layout), values in zip(self._clearance, rows.clearance, strict=True):
-            blocks.append(Block(channel_id, t, values, layout))
-        row, sides, values = rows.contacts
-        blocks.append(Block(self._energy, t, rows.energy, messages.energy()))
-        blocks.append(Block(self._work, t, rows.work, messages.work()))
-        if self._joint_energy is not None and rows.joint_energy is not None:
-            blocks.append(Block(self._joint_energy, t, rows.joint_energy, messages.energy()))
+            blocks.append(Block(channel_id, t, messages.body_state().encode(rows.bodies[:, i])))
+        for channel_id, values in zip(self._clearance, rows.clearance, strict=True):
+            blocks.append(Block(channel_id, t, messages.clearance(values.shape[1]).encode(values)))
+        blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
+        blocks.append(Block(self._work, t, messages.work().encode(rows.work)))
+        if self._joints is not None and rows.joint_energy is not None:
+            blocks.append(Block(self._joints, t, messages.energy().encode(rows.joint_energy)))
         poses = rows.bodies[:, :, :7].reshape(len(t), -1)
-        for rows_tf, payloads in messages.stamped_transforms(self._tf_bodies, t, poses):
-            blocks.append(Block(self._tf, t[rows_tf], payloads))
+        for at, payloads in messages.stamped_transforms(self._tf_bodies, t, poses):
+            blocks.append(Block(self._tf, t[at], payloads))
         self._out.write_chunk(blocks)
+        row, sides, values = rows.contacts
         if row.size:  # messages of any length: a chunk of their own (the others are dense)
             points = messages.contact_payloads(row, sides, values)
             self._out.write_chunk([Block(self._contacts, t[np.unique(row)], points)])
 
     def finish(self, outcome: Outcome, impacts: Sequence[pb.Impact] = ()) -> Path:
-        """Write the rest, the impacts, the outcome, the model and the summary; rename.
-
-        `impacts`: the run's contact episodes (`/impacts`), in order of `release_ns`.
-        """
+        """Write the rest, the impacts (`/impacts`: the run's contact episodes, in order of
+        `release_ns`), the events, the model, the outcome and the summary; rename."""
         try:
             self._flush(whole_chunks_only=False)
-            if impacts:
-                channel = self._channels.add(logformat.IMPACTS_TOPIC, pb.Impact)
-                times = np.array([i.release_ns for i in impacts], dtype=np.int64)
-                payloads = [i.SerializeToString() for i in impacts]
-                self._out.write_chunk([Block(channel, times, payloads)])
+            times = np.array([i.release_ns for i in impacts], dtype=np.int64)
+            self._out.write_chunk(
+                [Block(self._impacts, times, [i.SerializeToString() for i in impacts])]
+            )
             if self._scene_payload is not None:  # a run with no rows still has its scene
-                scene = Block(self._scene, np.zeros(1, np.int64), self._scene_payload)
-                self._out.write_chunk([scene])
-                self._scene_payload = None
-            end = self.last_t_ns
+                self._out.write_chunk(
+                    [Block(self._scene, np.zeros(1, np.int64), self._scene_payload)]
+                )
             texts = [(Log.INFO, f"{outcome.outcome}: {outcome.reason}")]
             texts += [(Log.WARNING, w) for w in outcome.warnings]
-            payloads = [_log_message(end, level, text) for level, text in texts]
-            times = np.full(len(payloads), end, dtype=np.int64)
-            self._out.write_chunk([Block(self._events, times, payloads)])
-            writer = self._out.writer
-            writer.add_attachment(
-                create_time=0,
-                log_time=0,
-                name=logformat.MODEL_ATTACHMENT,
-                media_type="application/xml",
-                data=self.header.model_xml.encode(),
+            events = [_log_message(self.last_t_ns, level, text) for level, text in texts]
+            self._out.write_chunk(
+                [Block(self._events, np.full(len(events), self.last_t_ns), events)]
             )
+            writer = self._out.writer
+            model = self.header.model_xml.encode()
+            writer.add_attachment(0, 0, logformat.MODEL_ATTACHMENT, "application/xml", model)
             for name, media_type, data in self.header.attachments:
-                writer.add_attachment(
-                    create_time=0, log_time=0, name=name, media_type=media_type, data=data
-                )
+                writer.add_attachment(0, 0, name, media_type, data)
             writer.add_metadata(logformat.OUTCOME_METADATA, outcome.record())
-            self._out.finish()
+            writer.finish()  # type: ignore[no-untyped-call]  # mcap: finish() has no hints
             assert self._stream is not None
             self._stream.close()
             self._stream = None
@@ -229,29 +287,6 @@ class LogWriter:
     def __exit__(self, *exc: object) -> None:
         if self._stream is not None:
             self.abort()
-
-
-class _Channels:
-    """Registers each schema once and each topic once on an MCAP writer."""
-
-    def __init__(self, writer: Writer) -> None:
-        self.writer = writer
-        self.schemas: dict[str, int] = {}
-
-    def add(
-        self, topic: str, message_type: type[Message], metadata: dict[str, str] | None = None
-    ) -> int:
-        name = message_type.DESCRIPTOR.full_name
-        if name not in self.schemas:
-            self.schemas[name] = self.writer.register_schema(
-                name=name, encoding="protobuf", data=_schema_data(message_type)
-            )
-        return self.writer.register_channel(
-            topic=topic,
-            message_encoding=logformat.ENCODING,
-            schema_id=self.schemas[name],
-            metadata=metadata or {},
-        )
 
 
 _SCHEMA_DATA: dict[str, bytes] = {}  # message type's full name -> its FileDescriptorSet

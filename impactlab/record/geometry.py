@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from impactlab.logs.content import SurfaceMeta
+from impactlab.logs.metadata import Surface
 
 SPREAD_DIRECTIONS = 2000
 """Directions spread over the sphere, besides each geom's own axes, for a body's rest height."""
@@ -286,11 +286,11 @@ def static_potential(model: mujoco.MjModel, data: mujoco.MjData) -> float:
     return float(sum(-model.body_mass[b] * g @ data.xipos[b] for b in static))
 
 
-def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> SurfaceMeta:
+def surface(model: mujoco.MjModel, data: mujoco.MjData, g: int) -> Surface:
     """A ground geom as the log describes it."""
     up = up_vector(model)
     level = float(support(model, data, g, up[None])[0])
-    return SurfaceMeta(
+    return Surface(
         name=model.geom(g).name,
         type=type_name(model, g),
         level_m=level,

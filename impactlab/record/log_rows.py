@@ -8,12 +8,13 @@ from typing import Any
 
 import mujoco
 import numpy as np
+from pydantic import ValidationError
 
 from impactlab.errors import SpecError
-from impactlab.logs.content import BodyMeta, LogHeader, LogRows, Outcome, RunMeta
-from impactlab.logs.contract import GeomContact, PairTarget
+from impactlab.logs.checks import check_metadata, construction_problem
 from impactlab.logs.format import OUTCOME_METADATA, RUN_METADATA
-from impactlab.logs.metadata import check_metadata
+from impactlab.logs.metadata import Body, GeomContact, Outcome, PairTarget, RunMeta
+from impactlab.logs.writer import LogHeader, LogRows
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import geometry
 from impactlab.record.contacts import StepContacts
@@ -47,7 +48,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
     """The log's run metadata, pairs, scene and model text for one run."""
     model = inst.model
     bodies = [
-        BodyMeta(
+        Body(
             name=b.name,
             mass=b.mass,
             inertia=b.inertia,
@@ -77,7 +78,7 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
         sweep_index=info.sweep_index,
         sweep_size=info.sweep_size,
         integrator=integrator_name(model),
-        surfaces=inst.surfaces,
+        ground=tuple(inst.surfaces),
         static_potential_J=inst.static_potential,
         contact_targets=info.contact_targets,
         geom_contact=shared_geom_contact(model),
@@ -104,8 +105,13 @@ def log_header(inst: InstrumentedModel, info: RunInfo) -> LogHeader:
 def refuse_unreadable(inst: InstrumentedModel, info: RunInfo) -> None:
     """Raise SpecError when the log of this run would hold metadata its own reader refuses
     (a mass, size or energy beyond the log's declared ranges, a NaN): one contract, the
-    log's (`impactlab.logs.metadata`), checked before anything runs."""
-    record = log_header(inst, info).run.record()
+    log's (`impactlab.logs.metadata`: its models, and what their keys say of each other),
+    checked before anything runs."""
+    try:
+        record = log_header(inst, info).run.record()
+    except ValidationError as exc:
+        problem = construction_problem(exc)
+        raise SpecError(info.source, "", f"the log could not hold this run: {problem}") from None
     outcome = Outcome("completed", "", 1).record()
     problems = check_metadata({RUN_METADATA: record, OUTCOME_METADATA: outcome}).problems
     if problems:

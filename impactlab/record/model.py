@@ -11,9 +11,8 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
-from impactlab.logs.content import SurfaceMeta
-from impactlab.logs.geoms import FlexShape
-from impactlab.logs.scene import GeomShape
+from impactlab.logs.geoms import FlexShape, GeomShape
+from impactlab.logs.metadata import Surface
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
@@ -78,7 +77,7 @@ class InstrumentedModel:
     geoms: list[GeomShape]
     energy_adr: int
     keyframe: int | None
-    surfaces: list[SurfaceMeta] = field(default_factory=list)
+    surfaces: list[Surface] = field(default_factory=list)
     clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J

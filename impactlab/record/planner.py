@@ -19,7 +19,7 @@ from typing import Any, TypeVar, overload
 
 from impactlab.errors import SpecError
 from impactlab.files import NOT_TEXT, is_text
-from impactlab.logs.contract import PairTarget
+from impactlab.logs.metadata import PairTarget
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.log_rows import RunInfo, refuse_unreadable
 from impactlab.record.mjcf_options import check_options, mjcf_options

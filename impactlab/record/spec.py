@@ -24,7 +24,7 @@ from pydantic_core import ErrorDetails
 
 from impactlab.errors import SpecError
 from impactlab.files import read_regular
-from impactlab.logs.scene import BODY_PALETTE
+from impactlab.logs.geoms import BODY_PALETTE
 from impactlab.record.schema import (
     SECTIONS,
     Body,

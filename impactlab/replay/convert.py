@@ -29,8 +29,7 @@ import numpy as np
 import polars as pl
 import rerun as rr
 
-from impactlab.logs.drawing import body_rgba
-from impactlab.logs.geoms import ModelScene
+from impactlab.logs.geoms import ModelScene, body_rgba
 from impactlab.logs.load import RunLog
 from impactlab.replay.events import Event, pairs
 from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene, rgba255
@@ -131,7 +130,7 @@ def _times(t_ns: np.ndarray) -> rr.TimeColumn:
 
 
 def body_colors(run: RunLog) -> dict[str, tuple[int, int, int]]:
-    """Each body's colour (0-255 RGB), as the log gives it (`impactlab.logs.drawing`)."""
+    """Each body's colour (0-255 RGB), as the log gives it (`impactlab.logs.geoms`)."""
     return {name: rgba255(rgba)[:3] for name, rgba in body_rgba(run).items()}  # type: ignore[misc]
 
 

@@ -24,11 +24,16 @@ from typing import Literal
 import numpy as np
 import rerun as rr
 
-from impactlab.logs.drawing import old_plane
-from impactlab.logs.geoms import GeomShape, ModelScene, read_scene
+from impactlab.logs.geoms import (
+    INFINITE_PLANE_HALF_M,
+    PLANE_THICKNESS_M,
+    GeomShape,
+    ModelScene,
+    old_plane,
+    read_scene,
+)
 from impactlab.logs.load import RunLog
 from impactlab.logs.reader import read_attachments
-from impactlab.logs.scene import INFINITE_PLANE_HALF_M, PLANE_THICKNESS_M
 
 MARKER_COLOR = (255, 255, 255)
 PLANE_MARGIN_M = 0.5
@@ -201,7 +206,7 @@ def _shape(
 def _log_old_plane(
     rec: rr.RecordingStream, run: RunLog, prefix: str, bounds: tuple[np.ndarray, np.ndarray]
 ) -> None:
-    """The plane of a log without a geom table (`impactlab.logs.drawing.old_plane`)."""
+    """The plane of a log without a geom table (`impactlab.logs.geoms.old_plane`)."""
     plane, z = old_plane(run), run.plane_z
     if plane is None or z is None:
         return

@@ -1,18 +1,7 @@
 """pytest plugin: golden regression tests of a spec's or model's physics (docs/golden-tests.md).
 
-Installed with impactlab (entry point `pytest11`), it adds the fixture `impactlab_golden` and
-the flag `--impactlab-update-golden`:
-
-    def test_drop(impactlab_golden):
-        impactlab_golden.check("experiments/drop.toml", "tests/golden/drop.mcap")
-
-`check` records the spec (one run) into the test's temporary folder, analyzes the recording
-and the golden log (tables only) and fails, in physical terms, when the physics differs
-beyond the tolerances (`golden_physics.PhysicsTolerance`). With the flag, it writes the new
-recording as the golden log instead (and the session's summary lists what it wrote).
-
-Importing this module imports only pytest: every pytest session of an environment with
-impactlab installed loads it.
+Loaded through the `pytest11` entry point, it imports only pytest at first: every pytest
+session of an environment with impactlab installed loads it.
 """
 
 from __future__ import annotations
@@ -73,25 +62,12 @@ class GoldenCheck:
         tolerance: PhysicsTolerance | None = None,
         **tolerances: float,
     ) -> PhysicsComparison:
-        """Record `spec` and compare its physics with the golden log `golden`.
-
-        Args:
-            spec: a spec file (.toml), an MJCF model (.xml, with `duration`) or a spec
-                document; a relative path is relative to pytest's rootdir.
-            golden: the golden log (.mcap), relative to the rootdir unless absolute.
-            overrides: `PATH=VALUE` settings, as `impactlab record --set`; the spec must
-                give one run (set a swept field to one value).
-            duration: time limit in s for an MJCF model.
-            tolerance, tolerances: a `PhysicsTolerance`, or some of its fields by name
-                (`e=0.01`, `speed_rel=0.02`); the others keep their defaults.
-
-        Returns:
-            The comparison (empty when the golden log was written).
-
-        Fails the test (pytest.fail) when the physics differs beyond the tolerances, the
-        golden log is missing (without `--impactlab-update-golden`), the spec gives more or
-        less than one run, or the run could not be recorded.
-        """
+        """Record `spec` (a .toml, an MJCF model with `duration` in s, or a spec document;
+        paths relative to pytest's rootdir; one run: `overrides` as `impactlab record --set`)
+        and compare its physics with the golden log `golden` (.mcap) within `tolerance` or
+        some of its fields by name (`e=0.01`). Fails the test when the physics differs, the
+        golden log is missing, the spec gives several runs or cannot be recorded; with
+        `--impactlab-update-golden`, writes the golden log instead. The comparison."""
         from dataclasses import replace
 
         from impactlab.errors import ImpactlabError

@@ -50,11 +50,10 @@ from impactlab.golden import (
     record_golden,
 )
 from impactlab.logs import format as logformat
-from impactlab.logs.diff import EXACT, diff_logs
-from impactlab.logs.diff_result import fmt_t
 from impactlab.logs.load import load_log
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS
 from impactlab.proto import impactlab_pb2 as pb
+from impactlab.tools.diff import EXACT, diff_logs, fmt_t
 
 IDS = [g.name for g in GOLDENS]
 # every golden log; drop_bounces, the largest (1 to 2.5 s a test), in the slow tier only

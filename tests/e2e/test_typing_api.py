@@ -27,8 +27,9 @@ from typing import assert_type
 import impactlab
 import impactlab.analyze
 from impactlab.analyze import AnalysisResult
-from impactlab.logs import LogDiff, RunLog
+from impactlab.logs import RunLog
 from impactlab.record import PlannedRun, RecordResult
+from impactlab.tools.diff import LogDiff
 
 
 def use(spec: Path, out: Path) -> float:

@@ -1,37 +1,36 @@
-"""The chunk writer's fast path writes exactly the bytes of its general path."""
+"""The chunk writer: its dense path writes exactly the bytes of its general path, and what it
+writes through mcap's Writer is in the file and in the summary (the official reader)."""
 
 from __future__ import annotations
 
+import io
+from importlib.metadata import version
+
 import numpy as np
 import pytest
+from mcap.reader import make_reader
 
 from impactlab.logs import messages
-from impactlab.logs.chunks import Block, _records, _records_dense
+from impactlab.logs.chunks import MCAP_VERSION, PRIVATE, Block, ChunkWriter, _dense, _loose
 
 
 def _blocks(rng: np.random.Generator, n: int, subset_times: bool) -> list[Block]:
     t = np.cumsum(rng.integers(1, 5, n)).astype(np.int64) * 500_000
-    body = messages.body_state()
-    clearance = messages.clearance(2)
-    in_contact = rng.random(n) < 0.4
-    two = in_contact & (rng.random(n) < 0.3)
-    one = in_contact & ~two
+    tf = messages.stamped_transforms(("A", "B"), t, rng.normal(size=(n, 14)))
     blocks = [
         Block(1, t[:1], rng.integers(0, 256, (1, 37), dtype=np.uint8)),  # a scene, raw bytes
-        Block(2, t, rng.normal(size=(n, 13)), body),
-        Block(3, t, rng.normal(size=(n, 2)), clearance),
+        Block(2, t, messages.body_state().encode(rng.normal(size=(n, 13)))),
+        Block(3, t, messages.clearance(2).encode(rng.normal(size=(n, 2)))),
+        Block(5, t, messages.energy().encode(rng.normal(size=(n, 3)))),
+        *(Block(6, t[rows], payloads) for rows, payloads in tf),  # stamps of several lengths
     ]
-    for k, mine in ((1, one), (2, two)):
-        layout = messages.clearance(13 * k)  # a multi-slot layout, as a step's contacts were
-        values = rng.normal(size=(int(mine.sum()), 13 * k))
-        blocks.append(Block(4, t[mine], values, layout))
-    blocks.append(Block(5, t, rng.normal(size=(n, 3)), messages.energy()))
-    blocks.append(Block(6, t, rng.normal(size=(n, 14)), messages.transforms(("A", "B"))))
+    some = rng.random(n) < 0.4  # a block at some rows only, as contacts were
+    values = rng.normal(size=(int(some.sum()), 13))
+    blocks.insert(3, Block(4, t[some], messages.clearance(13).encode(values)))
     if not subset_times:  # times no other block has: the union has to be sorted
         extra = np.sort(rng.choice(np.arange(1, 10 * n), n // 3, replace=False)) * 100_001
-        blocks.append(
-            Block(7, extra.astype(np.int64), rng.normal(size=(extra.size, 3)), messages.energy())
-        )
+        payloads = messages.energy().encode(rng.normal(size=(extra.size, 3)))
+        blocks.append(Block(7, extra.astype(np.int64), payloads))
     return blocks
 
 
@@ -40,9 +39,44 @@ def _blocks(rng: np.random.Generator, n: int, subset_times: bool) -> list[Block]
 def test_dense_records_equal_the_general_path(n, subset_times):
     rng = np.random.default_rng(n)
     blocks = [b for b in _blocks(rng, n, subset_times) if len(b.log_time)]
-    fast, fast_index = _records_dense(blocks)
-    slow, slow_index = _records(blocks)
-    assert fast.tobytes() == slow.tobytes()
+    fast, fast_index = _dense(blocks)
+    slow, slow_index = _loose(blocks)
+    assert bytes(fast) == bytes(slow)
     assert fast_index.keys() == slow_index.keys()
     for channel, pairs in slow_index.items():
         assert (fast_index[channel] == pairs).all(), channel
+
+
+def test_mcap_is_the_version_the_adapter_was_written_for():
+    """A new mcap: check impactlab/logs/chunks.py against it, then bump MCAP_VERSION."""
+    assert version("mcap") == MCAP_VERSION, (
+        f"mcap {version('mcap')} installed, impactlab/logs/chunks.py written for {MCAP_VERSION}: "
+        f"check the private attributes it uses ({', '.join(PRIVATE)})"
+    )
+
+
+def test_chunks_written_through_the_adapter_are_in_the_file_and_its_summary():
+    stream = io.BytesIO()
+    out = ChunkWriter(stream, library="test")
+    a = out.channel("/a", "impactlab.Energy", b"", {"k": "v"})
+    b = out.channel("/b", "impactlab.Energy", b"", {})
+    out.writer.add_metadata("m", {"k": "v"})  # writes the channels out before the chunks
+    t = np.arange(5, dtype=np.int64) * 10
+    payloads = messages.energy().encode(np.arange(15.0).reshape(5, 3))
+    out.write_chunk([Block(a, t, payloads), Block(b, t[1:3], [b"x", b"yz"])])
+    out.write_chunk([Block(b, t + 100, payloads)])
+    with pytest.raises(RuntimeError, match="before the first chunk"):
+        out.channel("/late", "impactlab.Energy", b"", {})
+    out.writer.finish()
+    reader = make_reader(io.BytesIO(stream.getvalue()))
+    summary = reader.get_summary()
+    assert summary.statistics.message_count == 12 and summary.statistics.chunk_count == 2
+    assert dict(summary.statistics.channel_message_counts) == {a: 5, b: 7}
+    assert len(summary.chunk_indexes) == 2
+    got = [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)]
+    assert got[:3] == [
+        ("/a", 0, payloads[0].tobytes()),
+        ("/a", 10, payloads[1].tobytes()),
+        ("/b", 10, b"x"),
+    ]
+    assert [m.log_time for _, _, m in reader.iter_messages()] == sorted(x[1] for x in got)

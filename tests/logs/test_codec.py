@@ -13,9 +13,8 @@ from mcap_protobuf.writer import Writer as ProtobufWriter
 from paths import EXPERIMENTS
 
 from impactlab.logs import messages
-from impactlab.logs.codec import Template
 from impactlab.logs.load import load_log
-from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS
+from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS, Template
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.record import plan, record_runs
 
@@ -45,7 +44,7 @@ def test_template_needs_a_fixed_layout():
         msg.geom1 = "a" * int(values[0])
 
     with pytest.raises((ValueError, TypeError)):
-        Template.learn(pb.Contact, setter, 1)
+        Template.learn(pb.Contact(), setter, 1)
 
 
 @pytest.fixture(scope="module")

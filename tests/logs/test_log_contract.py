@@ -1,4 +1,4 @@
-"""The keys of format 2 (`impactlab.logs.contract`): what the analysis reads instead of the spec.
+"""The keys of format 2 (`impactlab.logs.metadata`): what the analysis reads instead of the spec.
 
 The recorder writes them from what it planned; a log of format 1 (the golden logs as they
 were before format 2: `tests/golden/format1/`) gets them derived from its spec, integrator and
@@ -12,8 +12,8 @@ from paths import GOLDEN
 
 from impactlab.analyze.measure.analysis import expects_collision
 from impactlab.logs import format as logformat
-from impactlab.logs.contract import GeomContact
 from impactlab.logs.load import load_log
+from impactlab.logs.metadata import GeomContact
 from impactlab.physics import INTEGRATORS, half_step_s
 
 DEFAULT_CONTACT = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001, 0.5, 2.0))  # the spec's

@@ -29,8 +29,8 @@ from specs import drop, toml
 
 from impactlab.cli import main
 from impactlab.errors import LogError
-from impactlab.logs.info import describe
 from impactlab.logs.load import load_log
+from impactlab.tools.info import describe
 
 MAX_LOG_BYTES_ENV = "IMPACTLAB_MAX_LOG_BYTES"  # documented in docs/log-format.md
 MAX_CHUNK_MIB = 256
@@ -69,7 +69,7 @@ GUARD = """
 import contextlib, io, json, resource, signal, sys
 resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))  # a read that never ends fails here
 from impactlab.cli import main
-import impactlab.analyze.job, impactlab.logs.diff, impactlab.replay.recordings
+import impactlab.analyze.job, impactlab.tools.diff, impactlab.replay.recordings
 def alarm(signum, frame):
     raise TimeoutError("did not end within 60 s")
 signal.signal(signal.SIGALRM, alarm)

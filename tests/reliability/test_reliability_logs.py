@@ -28,10 +28,10 @@ from specs import drop, toml
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.errors import LogError
-from impactlab.logs.info import describe
 from impactlab.logs.load import RunLog, load_log
 from impactlab.logs.reader import MAGIC
 from impactlab.proto import impactlab_pb2 as pb
+from impactlab.tools.info import describe
 
 SPEC = toml(drop("fragile", z=0.3, max_time=0.6))
 CHUNK_BYTES = 1 << 15  # about 70 logged steps per chunk: the 0.6 s run spans ~9 chunks

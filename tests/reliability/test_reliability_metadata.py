@@ -29,11 +29,11 @@ from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.errors import LogError
 from impactlab.logs import format as logformat
-from impactlab.logs.diff import diff_logs
-from impactlab.logs.diff_result import DEFAULT_IGNORED_META
-from impactlab.logs.info import describe
 from impactlab.logs.load import load_log
 from impactlab.replay.recordings import write_recording
+from impactlab.tools import DEFAULT_IGNORED_META
+from impactlab.tools.diff import diff_logs
+from impactlab.tools.info import describe
 
 SPEC = toml(drop("odd", z=0.2, max_time=0.3))
 RUN, OUTCOME = logformat.RUN_METADATA, logformat.OUTCOME_METADATA

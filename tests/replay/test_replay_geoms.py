@@ -641,9 +641,9 @@ def test_a_damaged_geom_table_loses_only_the_bad_rows():
 
 
 def test_diff_compares_meshes_within_float32_precision():
-    from impactlab.logs.diff_meta import compare_attachments
-    from impactlab.logs.diff_result import EXACT
     from impactlab.logs.geoms import encode_stl
+    from impactlab.tools.compare import EXACT
+    from impactlab.tools.diff import compare_attachments
 
     tri = np.random.default_rng(1).normal(size=(20, 3, 3))
     a = {"meshes/m.stl": encode_stl(tri)}
@@ -689,7 +689,7 @@ def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):
     sphere = static[f"{prefix}/bodies/{ball}/sphere"]
     radius = run.body_info[ball].radius
     np.testing.assert_allclose(sphere["Ellipsoids3D:half_sizes"], [[radius] * 3], rtol=1e-6)
-    from impactlab.logs.scene import BODY_PALETTE
+    from impactlab.logs.geoms import BODY_PALETTE
 
     rgba = run.spec["bodies"][ball].get("rgba") or BODY_PALETTE[0]  # the spec's default
     (color,) = sphere["Ellipsoids3D:colors"]

@@ -11,8 +11,8 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.logs.contract import GeomContact, PairTarget
 from impactlab.logs.labels import sweep_words
+from impactlab.logs.metadata import GeomContact, PairTarget
 from impactlab.text import file_part
 
 

@@ -20,8 +20,8 @@ from impactlab.analyze.report import questions
 from impactlab.analyze.report.context import Tables, labelled
 from impactlab.cli import main
 from impactlab.errors import LogError
-from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import load_log
+from impactlab.logs.reader import read_attachments
 
 PAIRS_DT = 0.000004  # the largest timestep the designer accepts for e = 0.42 over 0.5..3.1 m/s
 PAIRS = toml(

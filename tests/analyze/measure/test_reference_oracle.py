@@ -14,8 +14,8 @@ from specs import DIRECT, drop, toml
 
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
-from impactlab.logs.diff import read_attachments
 from impactlab.logs.load import RunLog, load_log
+from impactlab.logs.reader import read_attachments
 
 
 def recorded(tmp_path: Path, integrator: str, every: int) -> RunLog:

@@ -17,18 +17,18 @@ from specs import DIRECT, drop, toml
 
 from impactlab.cli import main
 from impactlab.logs import format as logformat
-from impactlab.logs.diff import (
+from impactlab.logs.load import load_log
+from impactlab.proto import impactlab_pb2 as pb
+from impactlab.record import plan, record_runs
+from impactlab.tools.diff import (
     EXACT,
     Tolerance,
     compare_attachments,
     compare_channel,
     compare_meta,
     diff_logs,
+    fmt_t,
 )
-from impactlab.logs.diff_result import fmt_t
-from impactlab.logs.load import load_log
-from impactlab.proto import impactlab_pb2 as pb
-from impactlab.record import plan, record_runs
 
 SPEC = toml(
     drop("difftest", z=0.3, timestep=0.0001, contact=DIRECT, max_time=0.5, bounces=1, every=5)
@@ -331,7 +331,7 @@ def test_numbers_nan_and_infinities():
 def test_missing_rows_and_point_counts():
     a = pl.DataFrame({"t_ns": [0, 0, 10, 20], "point": [0, 1, 0, 0], "f": [1.0, 2.0, 3.0, 4.0]})
     b = pl.DataFrame({"t_ns": [0, 10, 30], "point": [0, 0, 0], "f": [1.0, 3.0, 5.0]})
-    ch = compare_channel("/contacts/a/b", a, b, ("t_ns", "point"), ("f",), EXACT)
+    ch = compare_channel("/contacts", a, b, ("t_ns", "point"), ("f",), EXACT)
     assert (ch.only_a.count, ch.only_a.first_t_ns, ch.only_b.count, ch.only_b.first_t_ns) == (
         1,
         20,

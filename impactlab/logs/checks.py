@@ -1,0 +1,250 @@
+"""A log's metadata checked against its declared models (`metadata`) and against its channels."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import itertools
+import json
+import math
+from collections.abc import Mapping
+from typing import Annotated, Any
+
+import numpy as np
+from pydantic import TypeAdapter, ValidationError
+
+from impactlab.logs import format as logformat
+from impactlab.logs.metadata import (
+    ANALYSIS_KEYS,
+    KEYS,
+    RECORDS,
+    TEXT,
+    GeomContact,
+    PairTarget,
+    Positive,
+    adapter,
+)
+from impactlab.physics import INTEGRATORS, half_step_s
+
+MAX_STEP_NS = 1 << 62  # timestep x log_every must stay far from int64 overflow
+PLANE_GEOM = "plane"  # the plane of a spec's model (format-1 logs name their pairs with it)
+SPEC_CONTACT = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}  # a spec's
+
+
+@functools.cache
+def _validators(model: type) -> dict[str, TypeAdapter[Any]]:
+    """Each field's validator, with its constraints: a key is checked on its own."""
+    fields = model.__pydantic_fields__  # type: ignore[attr-defined]
+    annotated: Any = Annotated  # a type built at run time: its field's type and constraints
+    return {
+        n: TypeAdapter(annotated[(f.annotation, *f.metadata)] if f.metadata else f.annotation)
+        for n, f in fields.items()
+    }
+
+
+@dataclasses.dataclass(frozen=True)
+class MetadataCheck:
+    """What the metadata says: typed values of the keys that hold, and per key the problem."""
+
+    values: dict[str, Any]
+    problems: dict[str, str]
+
+    def lines(self) -> list[str]:
+        """One sentence per problem: `metadata <key>: <problem>`."""
+        return [f"metadata {key}: {problem}" for key, problem in self.problems.items()]
+
+    def blocking(self) -> dict[str, str]:
+        """The problems on keys the analysis cannot do without (`ANALYSIS_KEYS`)."""
+        return {k: p for k, p in self.problems.items() if k in ANALYSIS_KEYS}
+
+
+def optional_keys(version: str | None) -> tuple[str, ...]:
+    """The run record's keys a log of this format version may lack."""
+    return logformat.RUN_KEYS_ADDED + (logformat.RUN_KEYS_FORMAT_2 if version == "1" else ())
+
+
+def check_metadata(records: Mapping[str, Mapping[str, str]]) -> MetadataCheck:
+    """Check the run and outcome records (`{record name: {key: stored value}}`) against their
+    models, key by key: the typed values that hold, one problem per key that does not. A key
+    missing from a record that is there is a problem, unless older logs lack it."""
+    values: dict[str, Any] = {}
+    problems: dict[str, str] = {}
+    optional = optional_keys(records.get(logformat.RUN_METADATA, {}).get("log_format_version"))
+    for name, model in RECORDS.items():
+        stored = records.get(name, {})
+        for key, validator in _validators(model).items() if name in records else ():
+            if key not in stored:
+                if key not in optional:
+                    problems[key] = f"missing from the {name} record"
+                continue
+            text = stored[key]
+            try:
+                values[key] = validator.validate_python(_parse(key, text))
+            except ValidationError as exc:
+                problems[key] = _problem(key, text, exc.errors()[0])
+    _relate(values, problems)
+    return MetadataCheck(values, problems)
+
+
+def _parse(key: str, text: str) -> Any:
+    """A stored value as its model takes it: text as is, "" as None, the rest as JSON."""
+    if key in TEXT:
+        return text
+    if text == "":
+        return None
+    try:
+        return json.loads(text)
+    except (ValueError, RecursionError):
+        error = {"type": "json_invalid", "loc": (), "input": text, "ctx": {"error": ""}}
+        raise ValidationError.from_exception_data(key, [error]) from None  # type: ignore[list-item]
+
+
+def _problem(key: str, text: str, error: Any) -> str:
+    """`'<stored value>' <what is wrong> (expected: <what it holds>)`."""
+    holds = KEYS[key].holds
+    if not error["loc"] and error["type"] in ("json_invalid", "float_type", "int_type"):
+        words = "is not a " + ("whole number" if holds.startswith("whole") else "number")
+        words = "is not valid JSON" if holds.startswith("JSON") else words
+    elif error["type"] in (
+        "finite_number",
+        *(f"{c}_than{e}" for c in ("greater", "less") for e in ("", "_equal")),
+    ):
+        words = "is out of range"
+    else:
+        words = error["msg"].removeprefix("Value error, ").replace("Input should be ", "is not ", 1)
+    where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in error["loc"]).lstrip(".")
+    return f"{_shown(text)}{f' at {where}' if where else ''} {words} (expected: {holds})"
+
+
+def construction_problem(exc: ValidationError) -> str:
+    """The first error of building a record's model: `<field>: <what is wrong>`."""
+    error = exc.errors()[0]
+    key, *rest = error["loc"] or ("?",)
+    where = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in rest)
+    problem = error["msg"].removeprefix("Value error, ") + (f" at {where}" if where else "")
+    return f"{key}: {problem} (got {_shown(error['input'])})"
+
+
+def _shown(value: Any) -> str:
+    """A value as a problem quotes it, cut to 40 characters."""
+    text = value if isinstance(value, str) else repr(value)
+    return repr(text if len(text) <= 40 else text[:37] + "...")
+
+
+def step_ns(timestep_s: float) -> int:
+    """The timestep in integer ns, as the recorder stamps the rows (step index times this)."""
+    return max(1, round(timestep_s * 1e9))
+
+
+def _relate(values: dict[str, Any], problems: dict[str, str]) -> None:
+    """What the keys say of each other: the sweep point, the stride, the half step; a
+    format-1 log gets the keys of format 2 derived."""
+    index, size = values.get("sweep_index"), values.get("sweep_size")
+    if index is not None and size is not None and index >= size:
+        problems["sweep_index"] = f"{index} is not below sweep_size {size}"
+        del values["sweep_index"], values["sweep_size"]
+    dt, every, integrator = (
+        values.get("timestep_s"),
+        values.get("log_every"),
+        values.get("integrator"),
+    )
+    if dt is not None and every is not None and step_ns(dt) * every > MAX_STEP_NS:
+        problems["log_every"] = f"{every} steps of {dt:g} s between logged rows is out of range"
+        del values["log_every"]
+    if values.get("log_format_version") == "1":
+        spec = values.get("spec", {})
+        if integrator is None and "integrator" not in problems:
+            options = spec.get("options") or {}
+            if (integrator := options.get("integrator", "Euler")) in INTEGRATORS:
+                values["integrator"] = integrator
+        values |= _from_spec(spec)
+        if dt is not None and integrator in INTEGRATORS:
+            values["half_step_s"] = half_step_s(integrator, dt)
+    elif (half := values.get("half_step_s")) is not None and dt is not None and integrator:
+        expected = half_step_s(integrator, dt)
+        if not math.isclose(half, expected, rel_tol=1e-9, abs_tol=1e-18):
+            problems["half_step_s"] = (
+                f"{half:g} s, but {integrator} at dt = {dt:g} s gives {expected:g} s"
+            )
+            del values["half_step_s"]
+
+
+def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
+    """`contact_targets`, `geom_contact` and `separation_m` as a format-1 log's spec gives them
+    (its `contact`, `plane`, `bodies` and `stop` tables; a user's model has none but `stop`),
+    paired as the recorder of format 1 paired them."""
+
+    def valid(model: Any, *args: Any) -> Any:
+        try:
+            return model(*args)
+        except (ValidationError, TypeError):
+            return None
+
+    separation = (spec.get("stop") or {}).get("separation")
+    out: dict[str, Any] = {"contact_targets": (), "geom_contact": None}
+    out["separation_m"] = valid(adapter(Positive).validate_python, separation)
+    bodies, contact = spec.get("bodies"), spec.get("contact") or {}
+    if not isinstance(bodies, dict):
+        return out  # a user's model: its geoms' contact is in model.xml only
+    shared = {k: contact.get(k, v) for k, v in SPEC_CONTACT.items()}
+    out["geom_contact"] = valid(GeomContact, shared["solref"], shared["solimp"])
+    pairs = contact.get("pairs") if isinstance(contact.get("pairs"), dict) else {}
+    assert isinstance(pairs, dict)
+    plane = (
+        [(PLANE_GEOM, b) for b in bodies] if (spec.get("plane") or {}).get("enabled", True) else []
+    )
+    targets = []
+    for geom1, geom2 in plane + list(itertools.combinations(bodies, 2)):
+        own = pairs.get("/".join(sorted((geom1, geom2))))
+        own = own if isinstance(own, dict) else {}
+        e, speeds = (own.get(k, contact.get(k)) for k in ("restitution", "speed_range"))
+        target = valid(PairTarget, geom1, geom2, e, speeds) or valid(
+            PairTarget, geom1, geom2, e, None
+        )
+        targets += [target] if target is not None else []
+    out["contact_targets"] = tuple(targets)
+    return out
+
+
+def check_channels(
+    check: MetadataCheck, body_times: Mapping[str, np.ndarray], *, complete: bool = True
+) -> None:
+    """Add to `check` what the channels contradict: `body_times`, each body channel's logged
+    times (ns, sorted); `complete`: the file is intact (in a cut one a body may lack one)."""
+    values, problems = check.values, check.problems
+    if "bodies" in values:
+        named = [b.name for b in values["bodies"]]
+        parts = [f"no entry for the logged body {n!r}" for n in body_times if n not in named]
+        if complete:
+            parts += [
+                f"{n!r} has no state channel in the log" for n in named if n not in body_times
+            ]
+        if parts:
+            problems["bodies"] = "; ".join(parts)
+            del values["bodies"]
+    times = next((t for t in body_times.values() if t.size), None)
+    if times is None:
+        return
+    if "timestep_s" in values and (off := times[times % step_ns(values["timestep_s"]) != 0]).size:
+        problems["timestep_s"] = (
+            f"{values['timestep_s']:g} s does not fit the logged times "
+            f"(t = {off[0] / 1e9:.9g} s is not a whole number of steps)"
+        )
+        del values["timestep_s"]
+        values.pop("log_every", None)
+    if "timestep_s" in values and "log_every" in values and times.size >= 3:
+        gaps, counts = np.unique(np.diff(times), return_counts=True)
+        usual, dt = int(gaps[np.argmax(counts)]), step_ns(values["timestep_s"])
+        if usual != dt * values["log_every"]:
+            problems["log_every"] = (
+                f"{values['log_every']}, but the logged rows are mostly {usual / dt:g} steps apart"
+            )
+            del values["log_every"]
+    if "steps" in values and "timestep_s" in values:
+        end_ns = values["steps"] * step_ns(values["timestep_s"])
+        if int(times[-1]) > end_ns:
+            problems["steps"] = (
+                f"{values['steps']} steps end at t = {end_ns / 1e9:.9g} s, but the log has "
+                f"rows up to t = {times[-1] / 1e9:.9g} s"
+            )
+            del values["steps"]
