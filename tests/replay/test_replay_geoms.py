@@ -19,7 +19,7 @@ import rerun as rr
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from paths import GOLDEN
-from specs import drop, toml
+from specs import collision, drop, toml
 from waiting import wait_until
 
 from impactlab.logs.geoms import SCENE_METADATA, decode_stl, read_scene
@@ -558,31 +558,33 @@ def test_the_viewer_draws_the_articulated_model(models, tmp_path):
     assert counts and min(counts.values()) >= 150, counts
 
 
-DROP = toml(drop("layout_drop", z=0.5, timestep=0.0005, max_time=0.6))
+HANDOUT_RUNS = {  # the handout's drop and collision (their body names), short
+    "drop": toml(drop("layout_drop", z=0.5, timestep=0.0005, max_time=0.6)),
+    "collision": toml(collision("layout_collision", names=("ball1", "ball2"), timestep=0.0005)),
+}
 
 
-def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
-    """Every plot path of the shipped layout names a channel of a handout drop and a field
-    its messages have, with values that change (a drop that bounces)."""
+@pytest.mark.parametrize("kind", sorted(HANDOUT_RUNS))
+def test_foxglove_layout_plots_what_a_handout_log_holds(kind, tmp_path):
+    """Every plot path of the shipped layout for drops (collisions) names a channel of a
+    handout drop (collision) and a field its messages have, with values that change; every
+    plot's legend sits above it (off the data) and its time axis is synced with the others'."""
     import json
     from importlib.resources import files
 
-    layout = json.loads((files("impactlab.replay") / "foxglove-layout.json").read_text())
-    spec = tmp_path / "drop.toml"
-    spec.write_text(DROP)
+    layout = json.loads((files("impactlab.replay") / f"foxglove-{kind}.json").read_text())
+    spec = tmp_path / f"{kind}.toml"
+    spec.write_text(HANDOUT_RUNS[kind])
     (result,) = record_runs(plan([spec]), tmp_path / "logs")
     with open(result.path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         messages = defaultdict(list)
         for _, channel, _, decoded in reader.iter_decoded_messages():
             messages[channel.topic].append(decoded)
-    paths = [
-        p["value"]
-        for key, c in layout["configById"].items()
-        if key.startswith("Plot!")
-        for p in c["paths"]
-    ]
-    assert {p.split(".")[0] for p in paths} >= {"/energy", "/bodies/ball/state"}
+    plots = [c for key, c in layout["configById"].items() if key.startswith("Plot!")]
+    assert all(c["legendDisplay"] == "top" and c["isSynced"] for c in plots)
+    paths = [p["value"] for c in plots for p in c["paths"]]
+    assert {p.split(".")[0] for p in paths} >= {"/energy", "/contacts"}
     for path in paths:
         topic, *fields = path.split(".")
         assert topic in messages, path
@@ -596,8 +598,12 @@ def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
                     value = value[int(index.rstrip("]"))]
             values.append(float(value))
         assert np.ptp(values) > 0, path
-    assert layout["configById"]["RosOut!events"]["topicToRender"] in messages
-    assert "/scene" in layout["configById"]["3D!impactlab"]["topics"]
+    panels = layout["configById"]
+    assert panels["RosOut!events"]["topicToRender"] in messages
+    assert panels["RawMessages!impacts"]["topicPath"] in messages
+    assert "/scene" in panels["3D!impactlab"]["topics"]
+    shown = json.dumps(layout["layout"])  # every panel configured is placed in the layout
+    assert all(f'"{key}"' in shown for key in panels)
 
 
 def test_a_damaged_geom_table_loses_only_the_bad_rows():
