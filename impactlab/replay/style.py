@@ -14,17 +14,17 @@ RELEASE: Rgb = (60, 220, 120)
 ENERGY: dict[str, Rgb] = {
     "kinetic": (86, 180, 233),
     "potential": (230, 159, 0),
-    "total": (240, 240, 240),
+    "total": (240, 110, 200),
 }
 AXES: dict[str, Rgb] = {"x": (240, 90, 90), "y": (90, 210, 90), "z": (110, 150, 255)}
-PALETTE: tuple[Rgb, ...] = (  # runs, and pairs after the first: none an event marker's colour
+PALETTE: tuple[Rgb, ...] = (  # runs, and pairs after the first: none grey (as the grid is)
     (230, 159, 0),
     (86, 180, 233),
     (240, 228, 66),
-    (214, 130, 180),
+    (240, 110, 200),
     (170, 140, 255),
     (0, 210, 210),
-    (240, 240, 240),
+    (150, 230, 80),
 )
 
 

@@ -10,6 +10,7 @@ compiled model, not from the code under test.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -396,10 +397,12 @@ def _free_display() -> int:
     raise RuntimeError("no free X display number")
 
 
-def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str, int]:
-    """Pixels of each model colour's hue (within 12 degrees, saturated, not dark) in the
-    region (x0, y0, x1, y1 as fractions of the screen) of a screenshot."""
-    import matplotlib.colors
+MODEL_VIEW = (0.0, 0.05, 0.4, 0.65)  # the 3D view in the replay's layout (x0, y0, x1, y1)
+PLOTS = (0.41, 0.05, 1.0, 0.97)  # its plots
+
+
+def _screen(png: Path, region: tuple[float, float, float, float]) -> np.ndarray:
+    """The region (x0, y0, x1, y1 as fractions of the screen) of a screenshot, RGB in 0..1."""
     import matplotlib.image
 
     image = matplotlib.image.imread(png)
@@ -410,13 +413,40 @@ def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str
     image = image[..., :3]
     h, w = image.shape[:2]
     x0, y0, x1, y1 = region
-    crop = image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
-    hsv = matplotlib.colors.rgb_to_hsv(crop)
+    return image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
+
+
+def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str, int]:
+    """Pixels of each model colour's hue (within 12 degrees, saturated, not dark) in the
+    region of a screenshot."""
+    import matplotlib.colors
+
+    hsv = matplotlib.colors.rgb_to_hsv(_screen(png, region))
     vivid = (hsv[..., 1] > 0.45) & (hsv[..., 2] > 0.25)
     out = {}
     for name, hue in MODEL_HUES.items():
         d = np.abs((hsv[..., 0] * 360 - hue + 180) % 360 - 180)
         out[name] = int(np.count_nonzero(vivid & (d < 12)))
+    return out
+
+
+def line_pixels(png: Path, colors: dict[str, tuple[int, int, int]]) -> dict[str, int]:
+    """Pixels of each colour (within 20 of 255 per channel) drawn as a thin line on the plots'
+    background: with background within 3 pixels on both sides, across or along (legend
+    swatches and the interface around the plots have none)."""
+    from impactlab.replay.style import PLOT_BACKGROUND
+
+    image = np.round(_screen(png, PLOTS) * 255)
+    dark = np.abs(image - PLOT_BACKGROUND).max(axis=-1) <= 10
+
+    def near(axis: int, sign: int) -> np.ndarray:
+        return np.any([np.roll(dark, sign * k, axis=axis) for k in (1, 2, 3)], axis=0)
+
+    thin = (near(0, 1) & near(0, -1)) | (near(1, 1) & near(1, -1))
+    out = {}
+    for name, rgb in colors.items():
+        close = np.linalg.norm(image - np.asarray(rgb), axis=-1) < 20
+        out[name] = int(np.count_nonzero(close & thin))
     return out
 
 
@@ -455,14 +485,14 @@ def serves(url: str) -> bool:
 def screenshot_replay(
     rrd: Path,
     png: Path,
+    count: Callable[[Path], dict[str, int]],
     *,
-    region: tuple[float, float, float, float] = (0.0, 0.05, 0.6, 0.55),
     wait_s: float = 240.0,
     enough: int = 150,
 ) -> dict[str, int]:
     """Open `rrd` in the Rerun viewer (web build, Chromium on Xvfb) and screenshot the screen
-    until each model colour covers `enough` pixels of `region` (the 3D view of the replay's
-    layout) or `wait_s` passes; returns the last counts."""
+    until `count` of the screenshot is `enough` for each of its keys or `wait_s` passes;
+    returns the last counts."""
     import os
     import shutil
     import signal
@@ -512,11 +542,11 @@ def screenshot_replay(
             shot = ["import", "-window", "root", str(png)]
             if subprocess.run(shot, env=env, capture_output=True).returncode != 0:
                 continue
-            counts = hue_pixels(png, region)
+            counts = count(png)
             if min(counts.values()) >= enough:
                 time.sleep(5)  # let it settle, then the picture kept
                 subprocess.run(shot, env=env, capture_output=True)
-                counts = hue_pixels(png, region)
+                counts = count(png)
                 break
     finally:
         files.shutdown()
@@ -541,7 +571,7 @@ def test_hue_pixels_reads_grey_screenshots_as_well_as_colour_ones(mode, tmp_path
     rgb = np.full((40, 60, 3), 255, np.uint8)
     rgb[5:15, 5:15] = (0, 200, 200)  # cyan: the torso's hue, 100 pixels
     Image.fromarray(rgb).convert(mode).save(png)
-    counts = hue_pixels(png, (0.0, 0.05, 0.6, 0.55))  # the region `screenshot_replay` reads
+    counts = hue_pixels(png, (0.0, 0.05, 0.6, 0.55))
     torso = 100 if mode.startswith("RGB") else 0
     assert counts == {"torso (cyan)": torso, "legs (orange)": 0, "foot (magenta)": 0}
 
@@ -554,7 +584,7 @@ def test_the_viewer_draws_the_articulated_model(models, tmp_path):
     rrd = tmp_path / "walker.rrd"
     replay_logs([log], out=rrd, analysis_dir=None)
     png = tmp_path / "walker.png"
-    counts = screenshot_replay(rrd, png)
+    counts = screenshot_replay(rrd, png, lambda shot: hue_pixels(shot, MODEL_VIEW))
     assert counts and min(counts.values()) >= 150, counts
 
 
@@ -604,6 +634,30 @@ def test_foxglove_layout_plots_what_a_handout_log_holds(kind, tmp_path):
     assert "/scene" in panels["3D!impactlab"]["topics"]
     shown = json.dumps(layout["layout"])  # every panel configured is placed in the layout
     assert all(f'"{key}"' in shown for key in panels)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(HANDOUT_RUNS))
+def test_the_viewer_shows_every_plotted_series_in_its_colour(kind, tmp_path):
+    """A handout drop (collision) replayed and opened in the viewer: every line of the
+    recording (its colour read back from the file) shows on the plots as a thin line of that
+    colour on their background, at least 100 pixels of it. The screenshot stays in
+    `tmp_path` for a person to look at."""
+    spec = tmp_path / f"{kind}.toml"
+    spec.write_text(HANDOUT_RUNS[kind])
+    (result,) = record_runs(plan([spec]), tmp_path / "logs")
+    rrd = tmp_path / f"{kind}.rrd"
+    replay_logs([result.path], out=rrd, analysis_dir=None)
+    lines = {
+        path: _unpack(row["SeriesLines:colors"][0])[:3]
+        for path, row in _static_chunks(rrd).items()
+        if "SeriesLines:colors" in row
+    }
+    assert len(lines) >= 4
+    counts = screenshot_replay(
+        rrd, tmp_path / f"{kind}.png", lambda shot: line_pixels(shot, lines), enough=100
+    )
+    assert counts and min(counts.values()) >= 100, counts
 
 
 def test_a_damaged_geom_table_loses_only_the_bad_rows():
