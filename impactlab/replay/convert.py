@@ -53,12 +53,6 @@ def run_prefix(run_id: str) -> str:
     return f"/runs/{rr.escape_entity_path_part(run_id)}"
 
 
-def time_base(run: RunLog) -> np.ndarray:
-    """The logged steps' times, ns, (nstep,): the body frames' (or the energy's) t_ns."""
-    frame = next(iter(run.bodies.values()), run.energy)
-    return frame["t_ns"].to_numpy().astype(np.int64)
-
-
 def log_run(
     rec: rr.RecordingStream,
     run: RunLog,
@@ -74,7 +68,7 @@ def log_run(
     quantity and body, as its bodies are drawn.
     """
     prefix = run_prefix(run.run_id)
-    t_ns = time_base(run)
+    t_ns = next(iter(run.bodies.values()), run.energy)["t_ns"].to_numpy()  # the logged steps'
     scene = model_scene(run)
     logged = LoggedRun(run.run_id, prefix, list(run.bodies), label, bounds=scene_bounds(run, scene))
     rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
@@ -127,26 +121,16 @@ def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndar
         state = frame.select("x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz").to_numpy()
         pos, quat_xyzw, vel = state[:, :3], state[:, 3:7], state[:, 7:]
         radius = (info[name].radius if name in info else None) or 0.05
-        body = body_path(prefix, name)
-        rec.send_columns(
-            body,
-            indexes=[times],
-            columns=rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw),
-        )
+        pose = rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw)
+        rec.send_columns(body_path(prefix, name), indexes=[times], columns=pose)
         part = rr.escape_entity_path_part(name)
         trail = f"{prefix}/world/trails/{part}"
         rec.send_columns(trail, indexes=[times], columns=rr.Points3D.columns(positions=pos))
-        rec.log(
-            trail,
-            rr.Points3D.from_fields(radii=[radius * 0.05], colors=[colors[name]]),
-            static=True,
-        )
+        dots = rr.Points3D.from_fields(radii=[radius * 0.05], colors=[colors[name]])
+        rec.log(trail, dots, static=True)
         arrows = f"{prefix}/world/velocity/{part}"
-        rec.send_columns(
-            arrows,
-            indexes=[times],
-            columns=rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S),
-        )
+        moving = rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S)
+        rec.send_columns(arrows, indexes=[times], columns=moving)
         rec.log(arrows, rr.Arrows3D.from_fields(colors=[colors[name]]), static=True)
 
 
@@ -198,26 +182,13 @@ def _log_contacts(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.nd
     radii = [b.radius for b in run.body_info.values() if b.radius]
     scale = (2 * max(radii, default=0.1)) / largest if largest > 0 else 0.0
     times = _times(t_ns[rows])
-    rec.send_columns(
-        f"{prefix}/world/contacts/points",
-        indexes=[times],
-        columns=rr.Points3D.columns(positions=data[:, :3]).partition(lengths),
-    )
-    rec.log(
-        f"{prefix}/world/contacts/points",
-        rr.Points3D.from_fields(radii=[0.01], colors=[style.CONTACT]),
-        static=True,
-    )
-    rec.send_columns(
-        f"{prefix}/world/contacts/force",
-        indexes=[times],
-        columns=rr.Arrows3D.columns(origins=data[:, :3], vectors=force * scale).partition(lengths),
-    )
-    rec.log(
-        f"{prefix}/world/contacts/force",
-        rr.Arrows3D.from_fields(colors=[style.CONTACT]),
-        static=True,
-    )
+    points, arrows = f"{prefix}/world/contacts/points", f"{prefix}/world/contacts/force"
+    at_points = rr.Points3D.columns(positions=data[:, :3]).partition(lengths)
+    rec.send_columns(points, indexes=[times], columns=at_points)
+    rec.log(points, rr.Points3D.from_fields(radii=[0.01], colors=[style.CONTACT]), static=True)
+    forces = rr.Arrows3D.columns(origins=data[:, :3], vectors=force * scale).partition(lengths)
+    rec.send_columns(arrows, indexes=[times], columns=forces)
+    rec.log(arrows, rr.Arrows3D.from_fields(colors=[style.CONTACT]), static=True)
 
 
 def _log_series(

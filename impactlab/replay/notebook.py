@@ -1,11 +1,4 @@
-"""Replays in a notebook: the recordings written (`Recordings`), or one shown inline.
-
-`impactlab.replay(logs, notebook=True)` returns a `NotebookReplay`: the recording of the
-runs held in memory (an .rrd stream, with the replay blueprint), shown in the cell by the
-Rerun viewer widget of `rerun-notebook` (`pip install 'impactlab[notebook]'`). The widget
-loads the viewer's code from Rerun's site unless `RERUN_NOTEBOOK_ASSET=inline` is set
-(then from the installed package, no network).
-"""
+"""Replays in a notebook: the recordings written (`Recordings`), or one shown inline."""
 
 from __future__ import annotations
 

@@ -1,8 +1,4 @@
-"""Logs (and their analysis) -> Rerun recordings (.rrd), written or streamed to a viewer.
-
-Each recording is written under a temporary name and renamed when complete, so an
-interrupted replay never leaves a file that looks finished.
-"""
+"""Logs (and their analysis) -> Rerun recordings, written atomically or streamed to a viewer."""
 
 from __future__ import annotations
 
