@@ -241,7 +241,7 @@ def _log_series(
             ("release", style.RELEASE, rr.components.MarkerShape.Up),
         ):
             at = np.array([e.t_ns for e in events if e.kind == kind and e.pair == pair], np.int64)
-            if at.size:
+            if at.size and t_ns.size:
                 on_line = np.interp(at, t_ns, values)
                 plot("contact_force", [pair.name, f"{kind}s"], kind, at, on_line, mark, shape)
     if run.clearance.height:
