@@ -519,8 +519,10 @@ def screenshot_replay(
 
     try:
         start(["Xvfb", f":{display}", "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24"])
-        start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web)])
-        wait_until(lambda: serves(f"http://127.0.0.1:{web}/"), what="the web viewer", poll_s=0.5)
+        grpc = _free_port()  # not the default 9876, which another test may hold
+        start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web), "--port", str(grpc)])
+        up = lambda: serves(f"http://127.0.0.1:{web}/")  # noqa: E731
+        wait_until(up, procs[-1], what="the web viewer", poll_s=0.5)  # fails if rerun ends
         source = f"http://127.0.0.1:{files.server_address[1]}/{rrd.name}"
         url = f"http://127.0.0.1:{web}/?url={urllib.parse.quote(source, safe='')}"
         browser = [
