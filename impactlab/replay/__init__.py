@@ -1,16 +1,4 @@
-"""Replay: logs (and their analysis) -> Rerun recordings (.rrd) to watch and scrub.
-
-Owns: the conversion of a decoded log into Rerun entities (`convert`), the model drawn from
-the log's geom table (`geoms`), the event texts (`events`, from the analysis tables when
-given), the layout (`blueprint`), the recordings written or streamed (`recordings`), and the
-Foxglove layout shipped as package data (`foxglove-layout.json`).
-
-May import: `impactlab.logs` (to read logs), rerun, polars. Must not import: MuJoCo,
-`impactlab.record`, `impactlab.analyze` (it reads the analysis' tables from their files),
-`impactlab.calibrate`.
-
-This package is also the function `impactlab.replay(...)` (see `replay` below).
-"""
+"""Replay: logs (and their analysis) -> Rerun recordings; also the function `replay`."""
 
 from __future__ import annotations
 

@@ -1,24 +1,4 @@
-"""Log one decoded run into a Rerun recording, column by column, under ``/runs/<run_id>``.
-
-Entities of a run (P = ``/runs/<run_id>``), all on the duration timeline ``sim_time``:
-
-| entity                                 | what                                            |
-|----------------------------------------|-------------------------------------------------|
-| P/world/static/<geom>                  | static geoms, the ground (`replay.geoms`)       |
-| P/world/bodies/<body>                  | pose (Transform3D); children: its geoms, a      |
-|                                        | ball's spin marker (`replay.geoms`)             |
-| P/world/trails/<body>                  | centre positions (Points3D; the view shows the  |
-|                                        | last `TRAIL_S` seconds)                         |
-| P/world/velocity/<body>                | velocity arrow, length = v * `VELOCITY_ARROW_S` |
-| P/world/contacts/points, .../force     | contact points and force on geom2 (scaled)      |
-| P/series/height/<body>                 | height of its lowest point above the ground, m  |
-| P/series/velocity/<body>/<vx..vz>      | velocity components that are not all zero, m/s  |
-| P/series/energy/<kinetic..total>       | MuJoCo's energy, J                              |
-| P/series/momentum/<px..pz>             | sum of m v (runs with several bodies), kg m/s   |
-| P/series/contact_force/<pair>[/impacts, /releases] | a touching pair's summed normal     |
-|                                        | force, N (zero without contact); event markers  |
-| P/events/contacts, P/events/log        | impact / release texts; the log's own events    |
-"""
+"""Log one decoded run into a Rerun recording, column by column, under ``/runs/<run_id>``."""
 
 from __future__ import annotations
 
@@ -31,18 +11,28 @@ import rerun as rr
 
 from impactlab.logs.geoms import ModelScene, body_rgba
 from impactlab.logs.load import RunLog
+from impactlab.replay import style
 from impactlab.replay.events import Event, pairs
 from impactlab.replay.geoms import body_path, geom_extents, log_model, model_scene, rgba255
 
 TIMELINE = "sim_time"
 TRAIL_S = 0.25
 VELOCITY_ARROW_S = 0.1
-CONTACT_COLOR = (255, 200, 0)
-IMPACT_COLOR = (230, 30, 30)
-RELEASE_COLOR = (30, 160, 30)
-ENERGY_COLORS = {"kinetic": (60, 140, 255), "potential": (240, 160, 30), "total": (230, 230, 230)}
-PAIR_COLOR = (220, 220, 220)
 LOG_LEVELS = {"WARNING": "WARN", "FATAL": "CRITICAL", "UNKNOWN": "INFO"}
+
+
+@dataclass(frozen=True)
+class Series:
+    """A time series a run logged under P/series/<family>: its legend name, colour (0-255
+    RGB), times (ns) and values, both (n,); `scale`: the size its values are read against
+    (the bodies' momenta for their sum: its plot spans +-scale)."""
+
+    family: str
+    name: str
+    color: style.Rgb
+    t_ns: np.ndarray
+    values: np.ndarray
+    scale: float = 0.0
 
 
 @dataclass
@@ -52,9 +42,9 @@ class LoggedRun:
     run_id: str
     prefix: str
     bodies: list[str]
-    families: list[str] = field(default_factory=list)  # series families under P/series
+    label: str = ""  # the run among others (its sweep point); "" alone
+    series: list[Series] = field(default_factory=list)
     bounds: tuple[np.ndarray, np.ndarray] = (np.full(3, -0.5), np.full(3, 0.5))  # m, (3,) each
-    momentum_scale: float = 0.0  # kg m/s: the largest |m v| component of one body
 
 
 def run_prefix(run_id: str) -> str:
@@ -62,32 +52,31 @@ def run_prefix(run_id: str) -> str:
     return f"/runs/{rr.escape_entity_path_part(run_id)}"
 
 
-def time_base(run: RunLog) -> np.ndarray:
-    """The logged steps' times, ns, (nstep,): the body frames' (or the energy's) t_ns."""
-    frame = next(iter(run.bodies.values()), run.energy)
-    return frame["t_ns"].to_numpy().astype(np.int64)
-
-
 def log_run(
-    rec: rr.RecordingStream, run: RunLog, events: Sequence[Event], *, label: str = ""
+    rec: rr.RecordingStream,
+    run: RunLog,
+    events: Sequence[Event],
+    *,
+    label: str = "",
+    color: style.Rgb | None = None,
 ) -> LoggedRun:
     """Log everything of one run.
 
-    `label` prefixes series names to tell runs apart in one recording; series then get the
-    viewer's automatic colours instead of the bodies' (which every run shares).
+    Among several runs in one recording, `label` names the run (its series are prefixed
+    ``label: ``) and `color` is its colour in every plot; a run alone colours its series by
+    quantity and body, as its bodies are drawn.
     """
     prefix = run_prefix(run.run_id)
-    t_ns = time_base(run)
+    t_ns = next(iter(run.bodies.values()), run.energy)["t_ns"].to_numpy()  # the logged steps'
     scene = model_scene(run)
-    logged = LoggedRun(run.run_id, prefix, list(run.bodies), bounds=scene_bounds(run, scene))
+    logged = LoggedRun(run.run_id, prefix, list(run.bodies), label, bounds=scene_bounds(run, scene))
     rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     log_model(rec, run, scene, prefix, logged.bounds, body_colors(run))
     _log_bodies(rec, run, prefix, t_ns)
     _log_flexes(rec, run, scene, prefix, t_ns)
     _log_contacts(rec, run, prefix, t_ns)
-    logged.families = _log_series(rec, run, prefix, t_ns, events, label)
-    logged.momentum_scale = momentum_scale(run)
-    _log_events(rec, run, prefix, events)
+    logged.series = _log_series(rec, run, prefix, t_ns, events, label, color)
+    _log_events(rec, run, prefix, events, label)
     return logged
 
 
@@ -113,18 +102,6 @@ def scene_bounds(run: RunLog, scene: ModelScene | None = None) -> tuple[np.ndarr
     return lo, hi
 
 
-def momentum_scale(run: RunLog) -> float:
-    """The largest |m v| component of any one body over the run (kg m/s; 0 when none)."""
-    info = run.body_info
-    scales = [
-        float(np.max(np.abs(frame.select("vx", "vy", "vz").to_numpy()))) * info[name].mass
-        for name, frame in run.bodies.items()
-        if name in info and frame.height
-    ]
-    finite = [x for x in scales if np.isfinite(x)]
-    return max(finite, default=0.0)
-
-
 def _times(t_ns: np.ndarray) -> rr.TimeColumn:
     return rr.TimeColumn(TIMELINE, duration=np.asarray(t_ns, np.int64).astype("timedelta64[ns]"))
 
@@ -143,26 +120,16 @@ def _log_bodies(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.ndar
         state = frame.select("x", "y", "z", "qx", "qy", "qz", "qw", "vx", "vy", "vz").to_numpy()
         pos, quat_xyzw, vel = state[:, :3], state[:, 3:7], state[:, 7:]
         radius = (info[name].radius if name in info else None) or 0.05
-        body = body_path(prefix, name)
-        rec.send_columns(
-            body,
-            indexes=[times],
-            columns=rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw),
-        )
+        pose = rr.Transform3D.columns(translation=pos, quaternion=quat_xyzw)
+        rec.send_columns(body_path(prefix, name), indexes=[times], columns=pose)
         part = rr.escape_entity_path_part(name)
         trail = f"{prefix}/world/trails/{part}"
         rec.send_columns(trail, indexes=[times], columns=rr.Points3D.columns(positions=pos))
-        rec.log(
-            trail,
-            rr.Points3D.from_fields(radii=[radius * 0.05], colors=[colors[name]]),
-            static=True,
-        )
+        dots = rr.Points3D.from_fields(radii=[radius * 0.05], colors=[colors[name]])
+        rec.log(trail, dots, static=True)
         arrows = f"{prefix}/world/velocity/{part}"
-        rec.send_columns(
-            arrows,
-            indexes=[times],
-            columns=rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S),
-        )
+        moving = rr.Arrows3D.columns(origins=pos, vectors=vel * VELOCITY_ARROW_S)
+        rec.send_columns(arrows, indexes=[times], columns=moving)
         rec.log(arrows, rr.Arrows3D.from_fields(colors=[colors[name]]), static=True)
 
 
@@ -214,59 +181,13 @@ def _log_contacts(rec: rr.RecordingStream, run: RunLog, prefix: str, t_ns: np.nd
     radii = [b.radius for b in run.body_info.values() if b.radius]
     scale = (2 * max(radii, default=0.1)) / largest if largest > 0 else 0.0
     times = _times(t_ns[rows])
-    rec.send_columns(
-        f"{prefix}/world/contacts/points",
-        indexes=[times],
-        columns=rr.Points3D.columns(positions=data[:, :3]).partition(lengths),
-    )
-    rec.log(
-        f"{prefix}/world/contacts/points",
-        rr.Points3D.from_fields(radii=[0.01], colors=[CONTACT_COLOR]),
-        static=True,
-    )
-    rec.send_columns(
-        f"{prefix}/world/contacts/force",
-        indexes=[times],
-        columns=rr.Arrows3D.columns(origins=data[:, :3], vectors=force * scale).partition(lengths),
-    )
-    rec.log(
-        f"{prefix}/world/contacts/force",
-        rr.Arrows3D.from_fields(colors=[CONTACT_COLOR]),
-        static=True,
-    )
-
-
-def _series(
-    rec: rr.RecordingStream,
-    path: str,
-    t_ns: np.ndarray,
-    values: np.ndarray,
-    name: str,
-    color: Sequence[int] | None = None,
-) -> None:
-    rec.send_columns(
-        path,
-        indexes=[_times(t_ns)],
-        columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)),
-    )
-    style = rr.SeriesLines(names=name, colors=[color] if color is not None else None)
-    rec.log(path, style, static=True)
-
-
-def _markers(
-    rec: rr.RecordingStream,
-    path: str,
-    t_ns: np.ndarray,
-    values: np.ndarray,
-    name: str,
-    color: Sequence[int],
-) -> None:
-    if t_ns.size == 0:
-        return
-    rec.send_columns(
-        path, indexes=[_times(t_ns)], columns=rr.Scalars.columns(scalars=values.astype(float))
-    )
-    rec.log(path, rr.SeriesPoints(names=name, colors=[color], marker_sizes=[5.0]), static=True)
+    points, arrows = f"{prefix}/world/contacts/points", f"{prefix}/world/contacts/force"
+    at_points = rr.Points3D.columns(positions=data[:, :3]).partition(lengths)
+    rec.send_columns(points, indexes=[times], columns=at_points)
+    rec.log(points, rr.Points3D.from_fields(radii=[0.01], colors=[style.CONTACT]), static=True)
+    forces = rr.Arrows3D.columns(origins=data[:, :3], vectors=force * scale).partition(lengths)
+    rec.send_columns(arrows, indexes=[times], columns=forces)
+    rec.log(arrows, rr.Arrows3D.from_fields(colors=[style.CONTACT]), static=True)
 
 
 def _log_series(
@@ -276,63 +197,92 @@ def _log_series(
     t_ns: np.ndarray,
     events: Sequence[Event],
     label: str,
-) -> list[str]:
-    """The time series; returns the families logged (gap, normal_velocity, ...)."""
-    families: set[str] = set()
-    series = f"{prefix}/series"
-    colors = {} if label else body_colors(run)
+    run_color: style.Rgb | None,
+) -> list[Series]:
+    """The time series under P/series, each only when the run has it (no series that is zero
+    throughout); returns what was logged."""
+    logged: list[Series] = []
+    bodies = body_colors(run)
+
+    def plot(
+        family: str,
+        parts: Sequence[str],
+        name: str,
+        t: np.ndarray,
+        values: np.ndarray,
+        color: style.Rgb,
+        marker: rr.components.MarkerShape | None = None,
+        scale: float = 0.0,
+    ) -> None:
+        path = "/".join([f"{prefix}/series/{family}", *map(rr.escape_entity_path_part, parts)])
+        values = np.asarray(values, dtype=np.float64)
+        rec.send_columns(path, indexes=[_times(t)], columns=rr.Scalars.columns(scalars=values))
+        if marker is not None:  # an event marker on its pair's line, one legend entry for all
+            rec.log(
+                path,
+                rr.SeriesPoints(names=name, colors=[color], markers=[marker], marker_sizes=[6.0]),
+                static=True,
+            )
+        else:
+            name = f"{label}: {name}" if label else name
+            color = style.readable(run_color or color)
+            lines = rr.SeriesLines(names=name, colors=[color], aggregation_policy="MinMax")
+            rec.log(path, lines, static=True)  # MinMax: a zoomed-out spike keeps its peak
+        logged.append(Series(family, name, color, t, values, scale))
+
     force = _normal_force(run, t_ns)
-    for pair in pairs(run):
-        part = rr.escape_entity_path_part(pair.name)
-        pair_force = force.get((pair.first, pair.second), np.zeros(t_ns.size))
-        path = f"{series}/contact_force/{part}"
-        color = colors.get(pair.second) if pair.first not in run.bodies else None
-        _series(rec, path, t_ns, pair_force, f"{label}F_n {pair.name}", color)
-        for kind, mark_color in (("impact", IMPACT_COLOR), ("release", RELEASE_COLOR)):
-            steps = np.array([e.step for e in events if e.kind == kind and e.pair == pair], int)
-            values = pair_force[steps]
-            _markers(rec, f"{path}/{kind}s", t_ns[steps], values, f"{label}{kind}", mark_color)
-        families.add("contact_force")
+    for i, pair in enumerate(pairs(run)):
+        values = force.get((pair.first, pair.second), np.zeros(t_ns.size))
+        color = style.CONTACT if i == 0 else style.PALETTE[i % len(style.PALETTE)]
+        plot("contact_force", [pair.name], f"F_n {pair.name}", t_ns, values, color)
+        for kind, mark, shape in (
+            ("impact", style.IMPACT, rr.components.MarkerShape.Down),
+            ("release", style.RELEASE, rr.components.MarkerShape.Up),
+        ):
+            at = np.array([e.t_ns for e in events if e.kind == kind and e.pair == pair], np.int64)
+            if at.size and t_ns.size:
+                on_line = np.interp(at, t_ns, values)
+                plot("contact_force", [pair.name, f"{kind}s"], kind, at, on_line, mark, shape)
     if run.clearance.height:
         lowest = run.clearance.group_by("body", "t_ns").agg(pl.col("clearance_m").min())
         for (name,), frame in lowest.sort("t_ns").group_by(["body"], maintain_order=True):
-            body = rr.escape_entity_path_part(str(name))
+            color = bodies.get(str(name), style.PALETTE[0])
             values = frame["clearance_m"].to_numpy()
-            path = f"{series}/height/{body}"
-            _series(
-                rec,
-                path,
-                frame["t_ns"].to_numpy(),
-                values,
-                f"{label}height {name}",
-                colors.get(str(name)),
-            )
-            families.add("height")
-    masses = run.body_info
-    momentum = np.zeros((t_ns.size, 3))
-    for name, frame in run.bodies.items():
-        vel = frame.select("vx", "vy", "vz").to_numpy()
-        momentum += vel * (masses[name].mass if name in masses else 0.0)
-        body = rr.escape_entity_path_part(name)
-        for i, comp in enumerate(("vx", "vy", "vz")):
-            if np.any(vel[:, i] != 0):
-                path = f"{series}/velocity/{body}/{comp}"
-                _series(rec, path, t_ns, vel[:, i], f"{label}{comp} {name}", colors.get(name))
-                families.add("velocity")
-    if len(run.bodies) > 1:
-        for i, comp in enumerate(("px", "py", "pz")):
-            if np.any(momentum[:, i] != 0) or i == 0:
-                _series(rec, f"{series}/momentum/{comp}", t_ns, momentum[:, i], f"{label}{comp}")
-        families.add("momentum")
+            plot("height", [str(name)], str(name), frame["t_ns"].to_numpy(), values, color)
+    vel = {name: frame.select("vx", "vy", "vz").to_numpy() for name, frame in run.bodies.items()}
+    moving = {name: [i for i in range(3) if np.any(v[:, i] != 0)] for name, v in vel.items()}
+    by_axis = any(len(axes) > 1 for axes in moving.values())  # else by body
+    for name, axes in moving.items():
+        for i in axes:
+            axis = "xyz"[i]
+            color = style.AXES[axis] if by_axis else bodies[name]
+            plot("velocity", [name, f"v{axis}"], f"v{axis} {name}", t_ns, vel[name][:, i], color)
+    if len(run.bodies) > 1:  # each body's m v (a run alone) and their sum
+        info = run.body_info
+        mv = {name: v * (info[name].mass if name in info else 0.0) for name, v in vel.items()}
+        total = np.sum(list(mv.values()), axis=0)
+        for i in range(3):
+            if not any(np.any(m[:, i] != 0) for m in mv.values()):
+                continue
+            axis = "xyz"[i]
+            for name, m in mv.items() if not label else ():
+                plot("momentum", [name, f"p{axis}"], f"p{axis} {name}", t_ns, m[:, i], bodies[name])
+            scale = max(float(np.max(np.abs(m[:, i]), initial=0.0)) for m in mv.values())
+            color = style.ENERGY["total"]
+            plot("momentum", [f"p{axis}"], f"p{axis} sum", t_ns, total[:, i], color, scale=scale)
     if not run.energy.is_empty():
         t_energy = run.energy["t_ns"].to_numpy()
-        for comp, color in ENERGY_COLORS.items():
-            values = run.energy[comp].to_numpy()
-            path = f"{series}/energy/{comp}"
-            _series(rec, path, t_energy, values, f"{label}{comp}", None if label else color)
-        families.add("energy")
-    order = ("height", "velocity", "energy", "momentum", "contact_force")
-    return [f for f in order if f in families]
+        energy = {c: run.energy[c].to_numpy() for c in ("kinetic", "potential", "total")}
+        alive = [c for c in ("kinetic", "potential") if np.any(energy[c] != 0)]
+        if label:  # among runs: the total, one line per run
+            shown = {"total": "total"} if np.any(energy["total"] != 0) else {}
+        elif len(alive) == 2:
+            shown = {c: c for c in energy}
+        else:  # the one that is not zero throughout is the total
+            shown = {c: f"{c} = total" for c in alive}
+        for c, name in shown.items():
+            plot("energy", [c], name, t_energy, energy[c], style.ENERGY[c])
+    return logged
 
 
 def _normal_force(run: RunLog, t_ns: np.ndarray) -> dict[tuple[str, str], np.ndarray]:
@@ -353,15 +303,26 @@ def _normal_force(run: RunLog, t_ns: np.ndarray) -> dict[tuple[str, str], np.nda
     return out
 
 
-def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Sequence[Event]) -> None:
-    """Impact / release texts at P/events/contacts, the log's own events at P/events/log."""
+def _log_events(
+    rec: rr.RecordingStream, run: RunLog, prefix: str, events: Sequence[Event], label: str
+) -> None:
+    """Impact / release texts at P/events/contacts, the log's own events at P/events/log
+    (each after the run's label among several runs)."""
+    said = (lambda text: f"{label}: {text}") if label else (lambda text: text)
     if events:
         rec.send_columns(
             f"{prefix}/events/contacts",
             indexes=[_times(np.array([e.t_ns for e in events], np.int64))],
             columns=[
-                *rr.TextLog.columns(text=[e.text for e in events], level=["INFO"] * len(events)),
-                *rr.AnyValues.columns(details=[e.details for e in events]),
+                *rr.TextLog.columns(
+                    text=[said(e.text) for e in events], level=["INFO"] * len(events)
+                ),
+                *rr.AnyValues.columns(
+                    details=[e.details for e in events],
+                    e_velocity=pl.Series(
+                        [e.e_velocity for e in events], dtype=pl.Float64
+                    ).to_arrow(),
+                ),
             ],
         )
     if not run.events.is_empty():
@@ -369,5 +330,7 @@ def _log_events(rec: rr.RecordingStream, run: RunLog, prefix: str, events: Seque
         rec.send_columns(
             f"{prefix}/events/log",
             indexes=[_times(run.events["t_ns"].to_numpy())],
-            columns=rr.TextLog.columns(text=run.events["message"].to_list(), level=levels),
+            columns=rr.TextLog.columns(
+                text=[said(m) for m in run.events["message"].to_list()], level=levels
+            ),
         )

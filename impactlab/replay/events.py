@@ -31,24 +31,24 @@ class Pair:
 
 @dataclass(frozen=True)
 class Event:
-    """One impact or release at a logged step.
+    """One impact or release, at the time the analysis (or the recorder) gives it.
 
     Attributes:
-        step: index of the logged step (row of the body frames).
-        t_ns: its simulation time, ns.
+        t_ns: its simulation time, ns (the table's `impact_t_s` / `release_t_s`).
         kind: ``impact`` or ``release``.
         pair: the bodies, when known.
         text: what the event log shows: one short line.
         details: every number behind it (the analysis row's, the log's velocities), shown
             one click away (the event's `details` in the viewer's selection panel).
+        e_velocity: the restitution the text shows (`physics.e_velocity`), when measured.
     """
 
-    step: int
     t_ns: int
     kind: str
     pair: Pair | None
     text: str
     details: str = ""
+    e_velocity: float | None = None
 
 
 def pairs(run: RunLog) -> list[Pair]:
@@ -66,10 +66,10 @@ def _pair(ep: Mapping[str, object]) -> Pair:
     return Pair(str(ep["side1"]), str(ep["side2"]))
 
 
-def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
-    """Impact and release events of the log's contact episodes, at the logged steps nearest
-    the recorder's onset and release: v_in at the impact, e = -v_out / v_in (the analysis'
-    e_velocity, the same numbers) at the release, every number of the episode one click away."""
+def log_events(run: RunLog) -> list[Event]:
+    """Impact and release events of the log's contact episodes, at the recorder's onset and
+    release: v_in at the impact, e = -v_out / v_in (the analysis' e_velocity, the same
+    numbers) at the release, every number of the episode one click away."""
     events = []
     w_c, w_r = pl.col("work_compression_J"), pl.col("work_restitution_J")
     episodes = run.impacts.with_columns(
@@ -85,14 +85,13 @@ def log_events(run: RunLog, t_ns: np.ndarray) -> list[Event]:
                 f", e_energy = {ep['e_energy']:.4g} (work {ep['work_compression_J']:.4g} J in, "
                 f"{ep['work_restitution_J']:.4g} J out)"
             )
-        impact = _nearest_step(t_ns, ep["onset_ns"] / 1e9)
         text = f"impact {pair.name}: v_in = {v_in:.3g} m/s"
-        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, details))
+        events.append(Event(int(ep["onset_ns"]), "impact", pair, text, details))
         if not ep["open"] and v_in < 0:
-            release = _nearest_step(t_ns, ep["release_ns"] / 1e9)
-            text = f"release {pair.name}: e_velocity = {ep['e_velocity']:.3g}"
-            events.append(Event(release, int(t_ns[release]), "release", pair, text, details))
-    return sorted(events, key=lambda e: e.step)
+            e = float(ep["e_velocity"])
+            text = f"release {pair.name}: e_velocity = {e:.3g}"
+            events.append(Event(int(ep["release_ns"]), "release", pair, text, details, e))
+    return sorted(events, key=lambda e: e.t_ns)
 
 
 def load_analysis(folder: Path) -> dict[str, pl.DataFrame]:
@@ -120,14 +119,11 @@ def load_analysis(folder: Path) -> dict[str, pl.DataFrame]:
     return tables
 
 
-def analysis_events(
-    run: RunLog, t_ns: np.ndarray, tables: Mapping[str, pl.DataFrame]
-) -> list[Event] | None:
+def analysis_events(run: RunLog, tables: Mapping[str, pl.DataFrame]) -> list[Event] | None:
     """Events from the analysis rows of this run (None when no table has a row for it).
 
-    Each row gives an impact at `impact_t_s` and, when not null, a release at `release_t_s`,
-    snapped to the nearest logged step. The texts carry the row's numbers; the pair is the
-    log's episode that starts then.
+    Each row gives an impact at `impact_t_s` and, when not null, a release at `release_t_s`.
+    The texts carry the row's numbers; the pair is the log's episode that starts then.
     """
     rows = [
         (name, row)
@@ -143,41 +139,21 @@ def analysis_events(
     for table, row in rows:
         if row.get("impact_t_s") is None:  # a row saying why nothing happened (no impact)
             continue
-        impact = _nearest_step(t_ns, row["impact_t_s"])
         near = np.flatnonzero(np.abs(onsets - float(row["impact_t_s"]) * 1e9) < 1e3)  # 1 us
         pair = found[int(near[0])] if near.size else only
         kind = table.removesuffix("s")
         number = row.get(kind)
         who = f"{kind}{f' {number}' if isinstance(number, int) else ''}"
         who = f"{who} {pair.name if pair else ''}".rstrip()
-        numbers = _numbers(row)
-        headline = _headline(row)
-        text = f"impact {who}" + (f": {headline}" if headline else "")
-        events.append(Event(impact, int(t_ns[impact]), "impact", pair, text, numbers))
-        if row.get("release_t_s") is not None:
-            release = _nearest_step(t_ns, row["release_t_s"])
-            text = f"release {who}" + (f": {headline}" if headline else "")
-            events.append(Event(release, int(t_ns[release]), "release", pair, text, numbers))
-    return sorted(events, key=lambda e: e.step)
-
-
-HEADLINE_COLUMNS = ("e_velocity", "e")
-"""The analysis column an event's short text shows (the first present), its restitution."""
-
-
-def _headline(row: Mapping[str, object]) -> str:
-    for key in HEADLINE_COLUMNS:
-        value = row.get(key)
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            return f"{key} = {value:.3g}"
-    return ""
-
-
-def _nearest_step(t_ns: np.ndarray, t_s: float) -> int:
-    target = round(float(t_s) * 1e9)
-    i = int(np.searchsorted(t_ns, target))
-    candidates = [j for j in (i - 1, i) if 0 <= j < t_ns.size]
-    return min(candidates, key=lambda j: abs(int(t_ns[j]) - target))
+        numbers, e = _numbers(row), row.get("e_velocity")
+        e = float(e) if isinstance(e, int | float) and not isinstance(e, bool) else None
+        tail = "" if e is None else f": e_velocity = {e:.3g}"
+        times = {"impact": row["impact_t_s"], "release": row.get("release_t_s")}
+        for what, t_s in times.items():
+            if t_s is not None:
+                t_ns = round(float(t_s) * 1e9)
+                events.append(Event(t_ns, what, pair, f"{what} {who}{tail}", numbers, e))
+    return sorted(events, key=lambda e: e.t_ns)
 
 
 def _numbers(row: Mapping[str, object]) -> str:
@@ -193,9 +169,7 @@ def _numbers(row: Mapping[str, object]) -> str:
     return ", ".join(parts)
 
 
-def events_for(
-    run: RunLog, t_ns: np.ndarray, tables: Mapping[str, pl.DataFrame] | None
-) -> list[Event]:
+def events_for(run: RunLog, tables: Mapping[str, pl.DataFrame] | None) -> list[Event]:
     """The analysis events of the run when `tables` has rows for it, else the log's."""
-    found = analysis_events(run, t_ns, tables) if tables else None
-    return found if found is not None else log_events(run, t_ns)
+    found = analysis_events(run, tables) if tables else None
+    return found if found is not None else log_events(run)

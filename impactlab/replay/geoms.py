@@ -1,25 +1,9 @@
-"""Draw the model in a Rerun recording from the log alone: every geom at its size and colour.
-
-The log's geom table (`impactlab.logs.geoms`) places each geom on the body it is drawn on.
-Each visible geom (MuJoCo's default groups 0-2) is one static entity: its pose relative to
-that body (a static `Transform3D`) and its shape (`Boxes3D`, `Ellipsoids3D`, `Capsules3D`,
-`Cylinders3D`, `Mesh3D`), under the body's entity, whose pose changes over time:
-
-| entity                                  | what                                          |
-|-----------------------------------------|-----------------------------------------------|
-| P/world/bodies/<body>/geoms/<geom>      | a geom of a body whose pose is logged         |
-| P/world/static/<geom>                   | a static geom (the world's, or welded to it)  |
-| P/world/bodies/<body>/marker, .../spoke | a ball's spin marker (bodies with a radius)   |
-
-A ball's sphere is drawn as a dense wireframe (its spin shows through), every other geom
-solid; a plane is a thin box cut to 0.5 m around where the bodies go. Logs written before the
-table was recorded get the former drawing: a sphere per ball and the plane its spec gave it.
-"""
+"""The model drawn from the log alone: every visible geom at its size, pose and colour."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import rerun as rr
@@ -144,52 +128,27 @@ def _shape(
 ) -> rr.AsComponents | None:
     """The Rerun archetype of one geom in its own frame; None for a type it cannot draw."""
     a, b, c = geom.size
-    color = [rgba255(geom.rgba)]
-    labels = [geom.name]
     fill: Literal["densewireframe", "solid"] = "densewireframe" if wireframe else "solid"
+    color = rgba255(geom.rgba)
+    drawn: dict[str, Any] = {"colors": [color], "labels": [geom.name], "show_labels": False}
     if geom.type == "box":
-        return rr.Boxes3D(
-            half_sizes=[[a, b, c]],
-            fill_mode=fill,
-            colors=color,
-            labels=labels,
-            show_labels=False,
-        )
+        return rr.Boxes3D(half_sizes=[[a, b, c]], fill_mode=fill, **drawn)
     if geom.type == "plane":
         reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]]))) + PLANE_MARGIN_M
         half = [min(s if s > 0 else INFINITE_PLANE_HALF_M, reach) for s in (a, b)]
+        thick = PLANE_THICKNESS_M / 2
         return rr.Boxes3D(
-            half_sizes=[[*half, PLANE_THICKNESS_M / 2]],
-            centers=[[0.0, 0.0, -PLANE_THICKNESS_M / 2]],
-            fill_mode="solid",
-            colors=color,
-            labels=labels,
-            show_labels=False,
+            half_sizes=[[*half, thick]], centers=[[0, 0, -thick]], fill_mode="solid", **drawn
         )
     if geom.type in ("sphere", "ellipsoid"):
         radii = [a, a, a] if geom.type == "sphere" else [a, b, c]
-        return rr.Ellipsoids3D(
-            half_sizes=[radii], fill_mode=fill, colors=color, labels=labels, show_labels=False
-        )
+        return rr.Ellipsoids3D(half_sizes=[radii], fill_mode=fill, **drawn)
     if geom.type == "capsule":
         return rr.Capsules3D(
-            lengths=[2 * b],
-            radii=[a],
-            translations=[[0.0, 0.0, -b]],
-            fill_mode=fill,
-            colors=color,
-            labels=labels,
-            show_labels=False,
+            lengths=[2 * b], radii=[a], translations=[[0, 0, -b]], fill_mode=fill, **drawn
         )
     if geom.type == "cylinder":
-        return rr.Cylinders3D(
-            lengths=[2 * b],
-            radii=[a],
-            fill_mode=fill,
-            colors=color,
-            labels=labels,
-            show_labels=False,
-        )
+        return rr.Cylinders3D(lengths=[2 * b], radii=[a], fill_mode=fill, **drawn)
     if geom.mesh is not None and geom.mesh in scene.meshes:  # mesh, hfield
         tri = scene.meshes[geom.mesh]
         normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -198,7 +157,7 @@ def _shape(
         return rr.Mesh3D(
             vertex_positions=tri.reshape(-1, 3),
             vertex_normals=np.repeat(normal, 3, axis=0),
-            albedo_factor=color[0],
+            albedo_factor=color,
         )
     return None
 

@@ -1,11 +1,4 @@
-"""Replays in a notebook: the recordings written (`Recordings`), or one shown inline.
-
-`impactlab.replay(logs, notebook=True)` returns a `NotebookReplay`: the recording of the
-runs held in memory (an .rrd stream, with the replay blueprint), shown in the cell by the
-Rerun viewer widget of `rerun-notebook` (`pip install 'impactlab[notebook]'`). The widget
-loads the viewer's code from Rerun's site unless `RERUN_NOTEBOOK_ASSET=inline` is set
-(then from the installed package, no network).
-"""
+"""Replays in a notebook: the recordings written (`Recordings`), or one shown inline."""
 
 from __future__ import annotations
 
@@ -20,7 +13,7 @@ from impactlab.files import write_bytes
 from impactlab.logs.load import load_log
 from impactlab.progress import Progress, Tracker
 from impactlab.replay.events import load_analysis
-from impactlab.replay.recordings import _log_all, _recording
+from impactlab.replay.recordings import log_runs, recording_of
 from impactlab.show import count, html_table, plain, where
 
 NOTEBOOK_EXTRA = "pip install 'impactlab[notebook]'"
@@ -125,10 +118,10 @@ def notebook_replay(
         tracker.add("finished")
     if not runs:
         raise LogError(" ".join(map(str, logs)), "no readable log to replay")
-    rec = _recording(runs)
+    rec = recording_of(runs)
     try:
         memory = rec.memory_recording()
-        _log_all(rec, runs, tables)
+        log_runs(rec, runs, tables)
         data = memory.drain_as_bytes()
     finally:
         rec.disconnect()

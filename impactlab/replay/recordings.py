@@ -1,8 +1,4 @@
-"""Logs (and their analysis) -> Rerun recordings (.rrd), written or streamed to a viewer.
-
-Each recording is written under a temporary name and renamed when complete, so an
-interrupted replay never leaves a file that looks finished.
-"""
+"""Logs (and their analysis) -> Rerun recordings, written atomically or streamed to a viewer."""
 
 from __future__ import annotations
 
@@ -13,14 +9,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import rerun as rr
+import rerun.blueprint as rrb
 
 from impactlab.errors import ImpactlabError, LogError
 from impactlab.files import FULL, OutputError, check_writable, write_bytes
 from impactlab.logs.labels import sweep_words
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
+from impactlab.replay import style
 from impactlab.replay.blueprint import replay_blueprint
-from impactlab.replay.convert import log_run, time_base
+from impactlab.replay.convert import log_run
 from impactlab.replay.events import events_for, load_analysis
 
 if TYPE_CHECKING:
@@ -119,10 +117,10 @@ def write_recording(
     Raises:
         OSError: the file cannot be written.
     """
-    rec = _recording(runs)
+    rec = recording_of(runs)
     stream = rr.binary_stream(recording=rec)
     try:
-        _log_all(rec, runs, tables, active=True)
+        log_runs(rec, runs, tables, active=True)
         data = stream.read(flush=True)
     finally:
         rec.disconnect()
@@ -140,53 +138,61 @@ def stream_recording(
     Raises:
         RuntimeError: the viewer cannot be reached.
     """
-    rec = _recording(runs)
+    rec = recording_of(runs)
     try:
         rec.set_sinks(sink)
-        _log_all(rec, runs, tables)
+        log_runs(rec, runs, tables)
     finally:
         rec.disconnect()
 
 
-def _recording(runs: Sequence[RunLog]) -> rr.RecordingStream:
+def recording_of(runs: Sequence[RunLog]) -> rr.RecordingStream:
+    """A new recording stream for `runs` (its id: the run's, or a digest of theirs)."""
     ids = [run.run_id for run in runs]
     recording_id = ids[0] if len(ids) == 1 else "replay-" + _digest(ids)
     return rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
 
 
-def _log_all(
+def log_runs(
     rec: rr.RecordingStream,
     runs: Sequence[RunLog],
     tables: Mapping[str, pl.DataFrame] | None,
     *,
     active: bool = False,
-) -> None:
-    """Every run, the recording's name and the blueprint; flushed.
+) -> rrb.Blueprint:
+    """Every run, the recording's name and the blueprint (returned); flushed.
 
     The blueprint is the default, and with `active` (files) also the active one: the web
     viewer shows only an active blueprint; a viewer streamed to keeps the layout it has.
     """
     ids = [run.run_id for run in runs]
     rec.send_recording_name(ids[0] if len(ids) == 1 else f"{len(ids)} runs")
+    labels = run_labels(runs)
+    colors = style.PALETTE if len(runs) > 1 else [None]
     logged = [
-        log_run(rec, run, events_for(run, time_base(run), tables), label=label)
-        for run, label in zip(runs, run_labels(runs), strict=True)
+        log_run(rec, run, events_for(run, tables), label=label, color=colors[i % len(colors)])
+        for i, (run, label) in enumerate(zip(runs, labels, strict=True))
     ]
-    rec.send_blueprint(replay_blueprint(logged), make_active=active, make_default=True)
+    blueprint = replay_blueprint(logged)
+    rec.send_blueprint(blueprint, make_active=active, make_default=True)
     rec.flush()
+    return blueprint
 
 
 def run_labels(runs: Sequence[RunLog]) -> list[str]:
-    """Series name prefixes: none for one run; the sweep point in words for runs of one
-    experiment (`ball released at z = 3 m: `, as the report labels them); the run id
-    otherwise."""
+    """What tells runs apart in one recording (their series' names begin with it): none for
+    one run; the sweep point in words for runs of one experiment ("ball released at z = 3 m",
+    as the report says it); else the experiment and its sweep point; the run id when two
+    would read the same."""
     if len(runs) < 2:
         return [""]
-    if len({run.experiment for run in runs}) == 1 and all(run.sweep for run in runs):
-        labels = [sweep_words(run.sweep) for run in runs]
-        if len(set(labels)) == len(labels):
-            return [f"{label}: " for label in labels]
-    return [f"{run.run_id}: " for run in runs]
+    one = len({run.experiment for run in runs}) == 1
+    words = [sweep_words(run.sweep) for run in runs]
+    labels = [
+        w if one else f"{r.experiment}: {w}" if w else r.experiment
+        for r, w in zip(runs, words, strict=True)
+    ]
+    return labels if len(set(labels)) == len(labels) and all(labels) else [r.run_id for r in runs]
 
 
 def _digest(ids: Sequence[str]) -> str:

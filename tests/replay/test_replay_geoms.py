@@ -10,6 +10,7 @@ compiled model, not from the code under test.
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
@@ -19,7 +20,7 @@ import rerun as rr
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 from paths import GOLDEN
-from specs import drop, toml
+from specs import collision, drop, toml
 from waiting import wait_until
 
 from impactlab.logs.geoms import SCENE_METADATA, decode_stl, read_scene
@@ -396,10 +397,12 @@ def _free_display() -> int:
     raise RuntimeError("no free X display number")
 
 
-def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str, int]:
-    """Pixels of each model colour's hue (within 12 degrees, saturated, not dark) in the
-    region (x0, y0, x1, y1 as fractions of the screen) of a screenshot."""
-    import matplotlib.colors
+MODEL_VIEW = (0.0, 0.05, 0.4, 0.65)  # the 3D view in the replay's layout (x0, y0, x1, y1)
+PLOTS = (0.41, 0.05, 1.0, 0.97)  # its plots
+
+
+def _screen(png: Path, region: tuple[float, float, float, float]) -> np.ndarray:
+    """The region (x0, y0, x1, y1 as fractions of the screen) of a screenshot, RGB in 0..1."""
     import matplotlib.image
 
     image = matplotlib.image.imread(png)
@@ -410,13 +413,40 @@ def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str
     image = image[..., :3]
     h, w = image.shape[:2]
     x0, y0, x1, y1 = region
-    crop = image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
-    hsv = matplotlib.colors.rgb_to_hsv(crop)
+    return image[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
+
+
+def hue_pixels(png: Path, region: tuple[float, float, float, float]) -> dict[str, int]:
+    """Pixels of each model colour's hue (within 12 degrees, saturated, not dark) in the
+    region of a screenshot."""
+    import matplotlib.colors
+
+    hsv = matplotlib.colors.rgb_to_hsv(_screen(png, region))
     vivid = (hsv[..., 1] > 0.45) & (hsv[..., 2] > 0.25)
     out = {}
     for name, hue in MODEL_HUES.items():
         d = np.abs((hsv[..., 0] * 360 - hue + 180) % 360 - 180)
         out[name] = int(np.count_nonzero(vivid & (d < 12)))
+    return out
+
+
+def line_pixels(png: Path, colors: dict[str, tuple[int, int, int]]) -> dict[str, int]:
+    """Pixels of each colour (within 20 of 255 per channel) drawn as a thin line on the plots'
+    background: with background within 3 pixels on both sides, across or along (legend
+    swatches and the interface around the plots have none)."""
+    from impactlab.replay.style import PLOT_BACKGROUND
+
+    image = np.round(_screen(png, PLOTS) * 255)
+    dark = np.abs(image - PLOT_BACKGROUND).max(axis=-1) <= 10
+
+    def near(axis: int, sign: int) -> np.ndarray:
+        return np.any([np.roll(dark, sign * k, axis=axis) for k in (1, 2, 3)], axis=0)
+
+    thin = (near(0, 1) & near(0, -1)) | (near(1, 1) & near(1, -1))
+    out = {}
+    for name, rgb in colors.items():
+        close = np.linalg.norm(image - np.asarray(rgb), axis=-1) < 20
+        out[name] = int(np.count_nonzero(close & thin))
     return out
 
 
@@ -455,14 +485,14 @@ def serves(url: str) -> bool:
 def screenshot_replay(
     rrd: Path,
     png: Path,
+    count: Callable[[Path], dict[str, int]],
     *,
-    region: tuple[float, float, float, float] = (0.0, 0.05, 0.6, 0.55),
     wait_s: float = 240.0,
     enough: int = 150,
 ) -> dict[str, int]:
     """Open `rrd` in the Rerun viewer (web build, Chromium on Xvfb) and screenshot the screen
-    until each model colour covers `enough` pixels of `region` (the 3D view of the replay's
-    layout) or `wait_s` passes; returns the last counts."""
+    until `count` of the screenshot is `enough` for each of its keys or `wait_s` passes;
+    returns the last counts."""
     import os
     import shutil
     import signal
@@ -489,8 +519,10 @@ def screenshot_replay(
 
     try:
         start(["Xvfb", f":{display}", "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24"])
-        start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web)])
-        wait_until(lambda: serves(f"http://127.0.0.1:{web}/"), what="the web viewer", poll_s=0.5)
+        grpc = _free_port()  # not the default 9876, which another test may hold
+        start([str(rerun_exe), "--serve-web", "--web-viewer-port", str(web), "--port", str(grpc)])
+        up = lambda: serves(f"http://127.0.0.1:{web}/")  # noqa: E731
+        wait_until(up, procs[-1], what="the web viewer", poll_s=0.5)  # fails if rerun ends
         source = f"http://127.0.0.1:{files.server_address[1]}/{rrd.name}"
         url = f"http://127.0.0.1:{web}/?url={urllib.parse.quote(source, safe='')}"
         browser = [
@@ -512,11 +544,11 @@ def screenshot_replay(
             shot = ["import", "-window", "root", str(png)]
             if subprocess.run(shot, env=env, capture_output=True).returncode != 0:
                 continue
-            counts = hue_pixels(png, region)
+            counts = count(png)
             if min(counts.values()) >= enough:
                 time.sleep(5)  # let it settle, then the picture kept
                 subprocess.run(shot, env=env, capture_output=True)
-                counts = hue_pixels(png, region)
+                counts = count(png)
                 break
     finally:
         files.shutdown()
@@ -541,7 +573,7 @@ def test_hue_pixels_reads_grey_screenshots_as_well_as_colour_ones(mode, tmp_path
     rgb = np.full((40, 60, 3), 255, np.uint8)
     rgb[5:15, 5:15] = (0, 200, 200)  # cyan: the torso's hue, 100 pixels
     Image.fromarray(rgb).convert(mode).save(png)
-    counts = hue_pixels(png, (0.0, 0.05, 0.6, 0.55))  # the region `screenshot_replay` reads
+    counts = hue_pixels(png, (0.0, 0.05, 0.6, 0.55))
     torso = 100 if mode.startswith("RGB") else 0
     assert counts == {"torso (cyan)": torso, "legs (orange)": 0, "foot (magenta)": 0}
 
@@ -554,35 +586,37 @@ def test_the_viewer_draws_the_articulated_model(models, tmp_path):
     rrd = tmp_path / "walker.rrd"
     replay_logs([log], out=rrd, analysis_dir=None)
     png = tmp_path / "walker.png"
-    counts = screenshot_replay(rrd, png)
+    counts = screenshot_replay(rrd, png, lambda shot: hue_pixels(shot, MODEL_VIEW))
     assert counts and min(counts.values()) >= 150, counts
 
 
-DROP = toml(drop("layout_drop", z=0.5, timestep=0.0005, max_time=0.6))
+HANDOUT_RUNS = {  # the handout's drop and collision (their body names), short
+    "drop": toml(drop("layout_drop", z=0.5, timestep=0.0005, max_time=0.6)),
+    "collision": toml(collision("layout_collision", names=("ball1", "ball2"), timestep=0.0005)),
+}
 
 
-def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
-    """Every plot path of the shipped layout names a channel of a handout drop and a field
-    its messages have, with values that change (a drop that bounces)."""
+@pytest.mark.parametrize("kind", sorted(HANDOUT_RUNS))
+def test_foxglove_layout_plots_what_a_handout_log_holds(kind, tmp_path):
+    """Every plot path of the shipped layout for drops (collisions) names a channel of a
+    handout drop (collision) and a field its messages have, with values that change; every
+    plot's legend sits above it (off the data) and its time axis is synced with the others'."""
     import json
     from importlib.resources import files
 
-    layout = json.loads((files("impactlab.replay") / "foxglove-layout.json").read_text())
-    spec = tmp_path / "drop.toml"
-    spec.write_text(DROP)
+    layout = json.loads((files("impactlab.replay") / f"foxglove-{kind}.json").read_text())
+    spec = tmp_path / f"{kind}.toml"
+    spec.write_text(HANDOUT_RUNS[kind])
     (result,) = record_runs(plan([spec]), tmp_path / "logs")
     with open(result.path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         messages = defaultdict(list)
         for _, channel, _, decoded in reader.iter_decoded_messages():
             messages[channel.topic].append(decoded)
-    paths = [
-        p["value"]
-        for key, c in layout["configById"].items()
-        if key.startswith("Plot!")
-        for p in c["paths"]
-    ]
-    assert {p.split(".")[0] for p in paths} >= {"/energy", "/bodies/ball/state"}
+    plots = [c for key, c in layout["configById"].items() if key.startswith("Plot!")]
+    assert all(c["legendDisplay"] == "top" and c["isSynced"] for c in plots)
+    paths = [p["value"] for c in plots for p in c["paths"]]
+    assert {p.split(".")[0] for p in paths} >= {"/energy", "/contacts"}
     for path in paths:
         topic, *fields = path.split(".")
         assert topic in messages, path
@@ -596,8 +630,36 @@ def test_foxglove_layout_plots_what_a_handout_log_holds(tmp_path):
                     value = value[int(index.rstrip("]"))]
             values.append(float(value))
         assert np.ptp(values) > 0, path
-    assert layout["configById"]["RosOut!events"]["topicToRender"] in messages
-    assert "/scene" in layout["configById"]["3D!impactlab"]["topics"]
+    panels = layout["configById"]
+    assert panels["RosOut!events"]["topicToRender"] in messages
+    assert panels["RawMessages!impacts"]["topicPath"] in messages
+    assert "/scene" in panels["3D!impactlab"]["topics"]
+    shown = json.dumps(layout["layout"])  # every panel configured is placed in the layout
+    assert all(f'"{key}"' in shown for key in panels)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(HANDOUT_RUNS))
+def test_the_viewer_shows_every_plotted_series_in_its_colour(kind, tmp_path):
+    """A handout drop (collision) replayed and opened in the viewer: every line of the
+    recording (its colour read back from the file) shows on the plots as a thin line of that
+    colour on their background, at least 100 pixels of it. The screenshot stays in
+    `tmp_path` for a person to look at."""
+    spec = tmp_path / f"{kind}.toml"
+    spec.write_text(HANDOUT_RUNS[kind])
+    (result,) = record_runs(plan([spec]), tmp_path / "logs")
+    rrd = tmp_path / f"{kind}.rrd"
+    replay_logs([result.path], out=rrd, analysis_dir=None)
+    lines = {
+        path: _unpack(row["SeriesLines:colors"][0])[:3]
+        for path, row in _static_chunks(rrd).items()
+        if "SeriesLines:colors" in row
+    }
+    assert len(lines) >= 4
+    counts = screenshot_replay(
+        rrd, tmp_path / f"{kind}.png", lambda shot: line_pixels(shot, lines), enough=100
+    )
+    assert counts and min(counts.values()) >= 100, counts
 
 
 def test_a_damaged_geom_table_loses_only_the_bad_rows():
