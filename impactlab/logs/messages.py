@@ -21,6 +21,11 @@ POINT_FIELDS = tuple(f.name for f in pb.ContactPoint.DESCRIPTOR.fields if f.type
 WORK_FIELDS = tuple(f.name for f in pb.Work.DESCRIPTOR.fields)
 
 
+MAX_RUNS = 16
+"""A layout with more runs of evenly spaced doubles (a transform per body) is encoded by one
+gather of every value's bytes instead of a copy per run."""
+
+
 @dataclass(frozen=True)
 class Template:
     """A message whose only varying fields are doubles, all written: its bytes `template`
@@ -45,14 +50,20 @@ class Template:
         sentinels = [1.0 + (i + 1) * 2.0**-20 + 2.0**-40 for i in range(k)]
         setter(msg, sentinels)
         raw = msg.SerializeToString()
-        slots = [raw.find(struct.pack("<d", v)) for v in sentinels]
-        if min(slots, default=0) < 0 or any(raw.count(struct.pack("<d", v)) > 1 for v in sentinels):
-            raise ValueError("message layout is not fixed: a double is missing or repeated")
+        slots = []
+        for v in sentinels:  # in value order, wherever the protobuf library put it
+            at = raw.find(struct.pack("<d", v))
+            if at < 0:
+                raise ValueError("message layout is not fixed: a double is missing")
+            slots.append(at)
         template = np.frombuffer(raw, np.uint8).copy()
         fixed = np.ones(template.size, bool)
         for at in slots:
             template[at : at + 8], fixed[at : at + 8] = 0, False
-        return cls(template, np.array(slots, np.int64), fixed)
+        layout = cls(template, np.array(slots, np.int64), fixed)
+        if layout.encode(np.array([sentinels])).tobytes() != raw:
+            raise ValueError("message layout is not fixed: a double is repeated")
+        return layout
 
     @cached_property
     def _runs(self) -> list[tuple[int, int, int, int]]:
@@ -60,6 +71,7 @@ class Template:
         runs, slots, j = [], self.slots.tolist(), 0
         while j < len(slots):
             step = slots[j + 1] - slots[j] if j + 1 < len(slots) else 8
+            step = step if step > 0 else 8  # a run goes forward in the payload
             n = 1
             while j + n < len(slots) and slots[j + n] - slots[j + n - 1] == step:
                 n += 1
@@ -75,9 +87,18 @@ class Template:
             for j, n, at, step in self._runs
         ]
 
+    @cached_property
+    def _bytes(self) -> np.ndarray:
+        """Every double's bytes' offsets, (k * 8,): for layouts of many runs."""
+        return (self.slots[:, None] + np.arange(8)).ravel()
+
     def encode(self, values: np.ndarray) -> np.ndarray:
         """Payloads of rows of doubles: (n, k) float64 -> (n, size) uint8."""
         out = np.tile(self.template, (len(values), 1))
+        if len(self._runs) > MAX_RUNS:  # one copy of every value's bytes
+            doubles = np.ascontiguousarray(values, "<f8")
+            out[:, self._bytes] = doubles.view(np.uint8).reshape(len(values), -1)
+            return out
         for j, view in self._numbers(out):
             view[:] = values[:, j : j + view.shape[1]]
         return out

@@ -36,6 +36,7 @@ from impactlab.version import __version__
 
 PARTIAL_SUFFIX = ".partial"
 CHUNK_BYTES = 1 << 20  # uncompressed bytes per chunk, as the official writer
+MIN_CHUNK_ROWS = 16  # a model of thousands of bodies: chunks of 16 steps, not of one
 
 
 @dataclass(frozen=True)
@@ -188,7 +189,7 @@ class LogWriter:
             + messages.transforms(bodies, (1 << 27, 1 << 27)).size  # its largest stamp
             + 200
         )
-        self.rows_per_chunk = max(1, CHUNK_BYTES // row_bytes)
+        self.rows_per_chunk = max(MIN_CHUNK_ROWS, CHUNK_BYTES // row_bytes)
         scene = scene_update(header.geoms, header.meshes).SerializeToString()
         self._scene_payload: np.ndarray | None = np.frombuffer(scene, np.uint8)[None]
         self._buffer: list[LogRows] = []
@@ -222,8 +223,11 @@ class LogWriter:
         if self._scene_payload is not None:  # the scene once, with the first row
             blocks.append(Block(self._scene, t[:1], self._scene_payload))
             self._scene_payload = None
-        for i, channel_id in enumerate(self._bodies):
-            blocks.append(Block(channel_id, t, messages.body_state().encode(rows.bodies[:, i])))
+        if self._bodies:  # one block for every body: its cost does not grow with them
+            states = messages.body_state().encode(rows.bodies.reshape(-1, rows.bodies.shape[2]))
+            blocks.append(
+                Block(np.array(self._bodies), t, states.reshape(len(t), len(self._bodies), -1))
+            )
         for channel_id, values in zip(self._clearance, rows.clearance, strict=True):
             blocks.append(Block(channel_id, t, messages.clearance(values.shape[1]).encode(values)))
         blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
