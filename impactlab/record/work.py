@@ -14,9 +14,10 @@ MAX_RUN_STEPS = 100_000_000  # steps of one run (about 10 minutes of simulation)
 MAX_JOB_STEPS = 1_000_000_000  # steps of the whole job (about 2 hours on two cores)
 MAX_LOG_BYTES = 20 * 10**9  # logs written by the job
 US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (README)
-LOG_BYTES_PER_LOG = 37_000  # whatever its length: schemas, metadata, the model, the index
-# (measured: a log of 3 rows takes 34,837 bytes with one body, 36,076 with two, 37,302 with
-# three: `impactlab record` of a spec with max_time = 2 timesteps; impactlab 0.1.0, MuJoCo 4.0.0)
+LOG_BYTES_PER_LOG = 40_000  # whatever its length: schemas, metadata, the model, the index
+LOG_BYTES_PER_BODY = 2_000  # whatever its length, per body: its channels and metadata
+# (measured: a log of 3 rows takes 38,139 bytes with one body, 39,378 with two: `impactlab
+# record` of a spec with max_time = 2 timesteps, log format 3, MuJoCo 4.0.0)
 LOG_BYTES_PER_ROW = 80  # per logged row: energy, work and the row's share of the chunk overhead
 LOG_BYTES_PER_BODY_ROW = 130  # per logged row and body: its state, transform, clearance (zstd)
 ALLOW_FLAG = "--allow-large"
@@ -49,7 +50,8 @@ class Work:
         """`runs` runs of `steps` steps each, logging every `every`-th step of `bodies` bodies."""
         rows = math.ceil(steps / every)
         per_row = LOG_BYTES_PER_ROW + LOG_BYTES_PER_BODY_ROW * bodies
-        return cls(runs, runs * steps, steps, runs * (LOG_BYTES_PER_LOG + rows * per_row))
+        fixed = LOG_BYTES_PER_LOG + LOG_BYTES_PER_BODY * bodies
+        return cls(runs, runs * steps, steps, runs * (fixed + rows * per_row))
 
     def describe(self) -> str:
         """One phrase for people: runs, steps, log size and simulation time (estimates)."""
