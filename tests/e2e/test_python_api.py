@@ -6,6 +6,7 @@ import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from paths import ROOT
@@ -19,26 +20,47 @@ def _examples() -> list[str]:
     return re.findall(r"```python\n(.*?)```", DOC.read_text(), flags=re.S)
 
 
+NEEDS_NOTEBOOK = "notebook=True"  # the `notebook` extra's examples: test_the_notebook_example_runs
+
+
+def _run(example: str, script: Path) -> subprocess.CompletedProcess[str]:
+    script.write_text(example)
+    return subprocess.run(
+        [sys.executable, str(script)],
+        cwd=script.parent,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+
+
 @pytest.mark.slow
 def test_the_documented_example_runs(tmp_path):
     example, *others = _examples()
     shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
-    script = tmp_path / "example.py"
-    script.write_text(example)
-    out = subprocess.run(
-        [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600
-    )
+    out = _run(example, tmp_path / "example.py")
     assert out.returncode == 0, out.stderr
     assert "analyzed, 0 failed; report: results/report.md" in out.stdout
     assert (tmp_path / "results" / "report.md").is_file()
     assert len(list((tmp_path / "replays").glob("*.rrd"))) == 2
-    for i, other in enumerate(others):  # the shorter examples further down run as well
-        script = tmp_path / f"example{i + 1}.py"
-        script.write_text(other)
-        out = subprocess.run(
-            [sys.executable, str(script)], cwd=tmp_path, capture_output=True, text=True, timeout=600
-        )
+    shorter = [other for other in others if NEEDS_NOTEBOOK not in other]
+    assert shorter, "docs/python-api.md has no example beside the first and the notebook's"
+    for i, other in enumerate(shorter):  # the shorter examples further down run as well
+        out = _run(other, tmp_path / f"example{i + 1}.py")
         assert out.returncode == 0, out.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.extras
+def test_the_notebook_example_runs(tmp_path):
+    """The examples that need the `notebook` extra run as written once it is installed."""
+    examples = [example for example in _examples() if NEEDS_NOTEBOOK in example]
+    assert examples, f"docs/python-api.md has no example with {NEEDS_NOTEBOOK}"
+    shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
+    for i, example in enumerate(examples):
+        out = _run(example, tmp_path / f"notebook{i}.py")
+        assert out.returncode == 0, out.stderr
+        assert (tmp_path / "free_fall.rrd").stat().st_size > 0
 
 
 @pytest.mark.slow
