@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import copy
+import dataclasses
 import itertools
 from dataclasses import dataclass, field
 
@@ -75,6 +75,19 @@ class _PairSteps:
     geoms: np.ndarray  # (k, 2) the first contact's geoms at each step
 
 
+def _copy(episode: Episode) -> Episode:
+    """A copy of `episode` that shares no array with it."""
+    return dataclasses.replace(
+        episode,
+        point_in=episode.point_in.copy(),
+        normal_in=episode.normal_in.copy(),
+        point_out=episode.point_out.copy(),
+        normal_out=episode.normal_out.copy(),
+        state_in=episode.state_in.copy(),
+        state_out=episode.state_out.copy(),
+    )
+
+
 class Episodes:
     """A run's contact episodes, chunk by chunk; contacts fewer than `MIN_FLIGHT_STEPS` steps
     apart are one episode (a resting, sliding or rolling contact flickers in MuJoCo)."""
@@ -90,10 +103,10 @@ class Episodes:
 
     def snapshot(self) -> tuple[dict[int, Episode], int]:
         """What `restore` needs to undo the next updates."""
-        return copy.deepcopy(self.open), len(self.closed)
+        return {key: _copy(e) for key, e in self.open.items()}, len(self.closed)
 
     def restore(self, saved: tuple[dict[int, Episode], int]) -> None:
-        self.open = copy.deepcopy(saved[0])
+        self.open = {key: _copy(e) for key, e in saved[0].items()}
         del self.closed[saved[1] :]
 
     def sides(self, contacts: StepContacts) -> tuple[np.ndarray, np.ndarray]:

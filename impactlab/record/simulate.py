@@ -21,7 +21,8 @@ from impactlab.record.stop import StopMonitor, Verdict
 from impactlab.record.work import run_steps
 
 CHUNK_SECONDS = 1.0
-MIN_CHUNK_STEPS = 1000
+CHUNK_VALUES = 200_000  # per-step values a chunk holds (its buffers stay in the caches)
+MIN_CHUNK_STEPS = 50
 MAX_CHUNK_STEPS = 5_000
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
 
@@ -31,9 +32,11 @@ def timestep_ns(timestep_s: float) -> int:
     return max(1, round(timestep_s * 1e9))
 
 
-def chunk_steps(timestep_s: float) -> int:
-    """Steps per chunk: about CHUNK_SECONDS of simulated time, within bounds."""
-    return int(np.clip(round(CHUNK_SECONDS / timestep_s), MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
+def chunk_steps(timestep_s: float, values_per_step: int) -> int:
+    """Steps per chunk: about CHUNK_SECONDS of simulated time, fewer for a large model (at
+    most CHUNK_VALUES values of its state and forces), within bounds."""
+    steps = min(round(CHUNK_SECONDS / timestep_s), CHUNK_VALUES // max(1, values_per_step))
+    return int(np.clip(steps, MIN_CHUNK_STEPS, MAX_CHUNK_STEPS))
 
 
 @dataclass(eq=False)  # hashable by identity: a key for the run's log while it is written
@@ -104,10 +107,11 @@ class _Run:
         self.dt = float(model.opt.timestep)
         self.dt_ns = timestep_ns(self.dt)
         self.total = run_steps(request.max_time, self.dt)
-        self.chunk = chunk_steps(self.dt)
+        self.forces = budget.generalised_forces(model)
+        values = model.nsensordata + model.nq + model.nv * (2 + len(self.forces))
+        self.chunk = chunk_steps(self.dt, values)
         self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
         self.pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
-        self.forces = budget.generalised_forces(model)
         self.tape = ContactTape(model, self.data, types=budget.other_constraints(model))
         self.episodes = Episodes(inst, self.dt)
         self.monitor = StopMonitor(inst, request.stop, timestep=self.dt)

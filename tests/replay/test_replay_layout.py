@@ -17,7 +17,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from paths import GOLDEN
 
-from impactlab.logs.drawing import body_rgba
+from impactlab.logs.geoms import body_rgba
 from impactlab.logs.load import load_log
 from impactlab.replay import blueprint as layout
 from impactlab.replay import style
