@@ -63,10 +63,14 @@ def optional_keys(version: str | None) -> tuple[str, ...]:
     return logformat.RUN_KEYS_ADDED + (logformat.RUN_KEYS_FORMAT_2 if version == "1" else ())
 
 
-def check_metadata(records: Mapping[str, Mapping[str, str]]) -> MetadataCheck:
+def check_metadata(
+    records: Mapping[str, Mapping[str, str]],
+    conflicts: Mapping[str, Mapping[str, str]] | None = None,
+) -> MetadataCheck:
     """Check the run and outcome records (`{record name: {key: stored value}}`) against their
     models, key by key: the typed values that hold, one problem per key that does not. A key
-    missing from a record that is there is a problem, unless older logs lack it."""
+    missing from a record that is there is a problem, unless older logs lack it; so is a key
+    that two records of one name give differently (`conflicts`, from the reader)."""
     values: dict[str, Any] = {}
     problems: dict[str, str] = {}
     optional = optional_keys(records.get(logformat.RUN_METADATA, {}).get("log_format_version"))
@@ -82,6 +86,10 @@ def check_metadata(records: Mapping[str, Mapping[str, str]]) -> MetadataCheck:
                 values[key] = validator.validate_python(_parse(key, text))
             except ValidationError as exc:
                 problems[key] = _problem(key, text, exc.errors()[0])
+    for name in RECORDS:
+        for key, problem in (conflicts or {}).get(name, {}).items():
+            values.pop(key, None)
+            problems[key] = problem
     _relate(values, problems)
     return MetadataCheck(values, problems)
 

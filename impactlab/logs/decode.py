@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -59,6 +60,25 @@ def frame(run_id: str, t_ns: np.ndarray, columns: dict[str, Any]) -> pl.DataFram
             *(pl.Series(name, values) for name, values in columns.items()),
         ]
     )
+
+
+def drop_repeated_times(channel: ChannelData) -> int:
+    """Keep a channel's first message at each time (in file order), for channels with one
+    message per step; the number of messages dropped."""
+    t = np.concatenate([np.empty(0, np.int64), *(t for t, _ in channel.pieces)])
+    order = np.argsort(t, kind="stable")
+    repeat = np.zeros(t.size, bool)
+    repeat[order[1:]] = t[order[1:]] == t[order[:-1]]
+    if not repeat.any():
+        return 0
+    pieces, at = [], 0
+    for times, data in channel.pieces:
+        keep = ~repeat[at : at + len(times)]
+        at += len(times)
+        kept = data[keep] if isinstance(data, np.ndarray) else list(itertools.compress(data, keep))
+        pieces.append((times[keep], kept))
+    channel.pieces = pieces
+    return int(repeat.sum())
 
 
 def payloads(channel: ChannelData) -> tuple[np.ndarray, list[bytes]]:

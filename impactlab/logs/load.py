@@ -219,6 +219,16 @@ class RunLog:
         return table
 
 
+ONE_PER_STEP = (  # schemas of channels with at most one message per logged step
+    logformat.BODY_STATE_SCHEMA,
+    logformat.CLEARANCE_SCHEMA,
+    logformat.CONTACTS_SCHEMA,
+    logformat.CONTACT_SCHEMA,
+    logformat.ENERGY_SCHEMA,
+    logformat.WORK_SCHEMA,
+)
+
+
 def load_log(path: str | Path) -> RunLog:
     """Decode one log into frames: whatever is readable, marked partial with one problem per
     damage and bad metadata key. LogError when the file does not exist, is not a regular
@@ -244,7 +254,7 @@ def load_log(path: str | Path) -> RunLog:
         meta.update(raw.metadata[logformat.OUTCOME_METADATA])
     else:
         problems.append("no outcome record: the log is incomplete")
-    checked = check_metadata(raw.metadata)
+    checked = check_metadata(raw.metadata, raw.conflicts)
     run_id = checked.values.get("run_id", path.stem)
     bodies: dict[str, pl.DataFrame] = {}
     contacts: list[pl.DataFrame] = []
@@ -252,6 +262,11 @@ def load_log(path: str | Path) -> RunLog:
     frames: dict[str, pl.DataFrame] = {}  # energy, joint_energy, work, impacts, events
     for channel in raw.channels.values():
         schema, topic = channel.schema, channel.topic
+        if schema in ONE_PER_STEP and (repeated := decode.drop_repeated_times(channel)):
+            problems.append(
+                f"damaged: {topic}: {repeated:,} messages at a time the channel already has "
+                "a message at (the first kept)"
+            )
         try:
             if schema == logformat.BODY_STATE_SCHEMA:
                 name = channel.metadata.get("body") or topic.removeprefix("/bodies/").split("/")[0]

@@ -78,6 +78,8 @@ class McapContent:
     metadata: dict[str, dict[str, str]]
     problems: list[str]
     attachments: dict[str, memoryview] = field(default_factory=dict)  # views of the file
+    conflicts: dict[str, dict[str, str]] = field(default_factory=dict)  # per record, per key:
+    # the problem of a key that records of one name hold with different values (the first kept)
     summary: bool = False  # the footer points at a summary section
     library: str = ""  # the writer, as its header says
 
@@ -146,7 +148,7 @@ def read_mcap(
                 walk.record(op, body)
             elif op == Opcode.METADATA:
                 m = Metadata.read(ReadDataStream(io.BytesIO(body)))
-                content.metadata[m.name] = dict(m.metadata)
+                add_metadata(content.metadata, content.conflicts, m.name, dict(m.metadata))
             elif op == Opcode.HEADER:
                 content.library = Header.read(ReadDataStream(io.BytesIO(body))).library
             elif op == Opcode.ATTACHMENT:
@@ -184,6 +186,24 @@ def read_mcap(
         walk.salvage(pending)
     walk.finish()
     return content
+
+
+def add_metadata(
+    metadata: dict[str, dict[str, str]],
+    conflicts: dict[str, dict[str, str]],
+    name: str,
+    record: dict[str, str],
+) -> None:
+    """Keep a metadata record; of a second record of the same name, each key it gives
+    differently from the first (or that one of them lacks) is a conflict, the first kept."""
+    first = metadata.setdefault(name, record)
+    if first is record:
+        return
+    for key in sorted(first.keys() | record.keys()):
+        if first.get(key) != record.get(key):
+            conflicts.setdefault(name, {})[key] = (
+                f"two {name} records disagree ({first.get(key)!r}, then {record.get(key)!r})"
+            )
 
 
 def read_attachments(path: Path) -> dict[str, bytes]:

@@ -15,7 +15,7 @@ from impactlab.errors import LogError
 from impactlab.files import UnreadableInput, open_regular
 from impactlab.logs import format as logformat
 from impactlab.logs.checks import check_channels, check_metadata
-from impactlab.logs.reader import MAGIC, read_mcap
+from impactlab.logs.reader import MAGIC, add_metadata, read_mcap
 from impactlab.text import one_line
 
 
@@ -27,6 +27,7 @@ class Overview:
 
     library: str
     metadata: dict[str, dict[str, str]]
+    conflicts: dict[str, dict[str, str]]  # keys two records of one name give differently
     attachments: list[str]
     channels: list[tuple[str, int, str, dict[str, str]]]
     messages: int
@@ -84,7 +85,10 @@ def from_summary(path: Path) -> Overview | None:
                 )
             ):
                 return None
-            metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
+            metadata: dict[str, dict[str, str]] = {}
+            conflicts: dict[str, dict[str, str]] = {}
+            for m in reader.iter_metadata():
+                add_metadata(metadata, conflicts, m.name, dict(m.metadata))
             library = reader.get_header().library
     except Exception:  # the mcap reader raises many kinds on damaged bytes: read it instead
         return None
@@ -101,6 +105,7 @@ def from_summary(path: Path) -> Overview | None:
     return Overview(
         library,
         metadata,
+        conflicts,
         [a.name for a in summary.attachment_indexes],
         channels,
         stats.message_count,
@@ -130,6 +135,7 @@ def from_reading(path: Path) -> Overview:
     return Overview(
         content.library,
         content.metadata,
+        content.conflicts,
         list(content.attachments),
         channels,
         sum(c[1] for c in channels),
@@ -145,7 +151,7 @@ def render(path: Path, o: Overview) -> str:
     run = o.metadata.get(logformat.RUN_METADATA, {})
     lines = [f"file:       {path}"]
     if run:
-        checked = check_metadata(o.metadata)
+        checked = check_metadata(o.metadata, o.conflicts)
         last = [o.end_ns] if o.end_ns is not None and o.end_ns < 2**63 else []
         bodies = {  # the last message's time stands for every channel's (no rows are read)
             meta.get("body") or topic.removeprefix("/bodies/").split("/")[0]: np.array(

@@ -147,10 +147,21 @@ def record_of(key: str) -> str:
 
 
 def rewrite(
-    records, path: Path, *, meta=None, drop=None, topics=None, time=None, body_meta=None
+    records,
+    path: Path,
+    *,
+    meta=None,
+    drop=None,
+    topics=None,
+    time=None,
+    body_meta=None,
+    again=None,
+    twice=(),
 ) -> Path:
     """Copy the log with the official writer, changing metadata values (`meta`: {key: value}),
-    dropping keys (`drop`), renaming topics (`topics`) or mapping message times (`time`)."""
+    dropping keys (`drop`), renaming topics (`topics`) or mapping message times (`time`);
+    `again`: {key: value} written in a second record of the key's name after the first;
+    `twice`: topics whose every message is written twice."""
     summary, metadata, attachments, messages = records
     with open(path, "wb") as stream:
         writer = Writer(stream)
@@ -171,9 +182,14 @@ def rewrite(
                     values.pop(key)
             values |= {k: v for k, v in (meta or {}).items() if record_of(k) == name}
             writer.add_metadata(name, values)
+            if again is not None:
+                writer.add_metadata(
+                    name, values | {k: v for k, v in again.items() if record_of(k) == name}
+                )
         for channel, m in messages:
             t = time(m.log_time) if time else m.log_time
-            writer.add_message(channels[channel.id], log_time=t, publish_time=t, data=m.data)
+            for _ in range(2 if channel.topic in twice else 1):
+                writer.add_message(channels[channel.id], log_time=t, publish_time=t, data=m.data)
         for a in attachments:
             writer.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
         writer.finish()
@@ -289,6 +305,51 @@ def test_metadata_contradicted_by_the_channels(tmp_path, records, intact, case):
     assert write_recording([run], tmp_path / "odd.rrd").stat().st_size > 0
     if key != "log_every":  # info reads no rows: it sees the last time, not the stride
         assert f"damaged:    metadata {key}: " in describe(path)
+
+
+CONFLICTS = {  # a key, the value a second record of its name gives it
+    "bodies": '[{"name": "ball", "mass": 5.0, "inertia": [0.02, 0.02, 0.02], "radius": 0.1}]',
+    "gravity": "[0, 0, -1.62]",
+    "timestep_s": "0.002",
+    "outcome": "unstable",
+    "experiment": "another",
+    "description": "said twice",
+}
+
+
+@pytest.mark.parametrize("key", list(CONFLICTS))
+def test_two_records_that_disagree(tmp_path, records, intact, key):
+    """A second metadata record of one name that gives a key another value: the key is a
+    problem naming both values (neither wins), blocking where the analysis needs it; a second
+    record that agrees is harmless."""
+    path = rewrite(records, tmp_path / "twice.mcap", again={key: CONFLICTS[key]})
+    run = load_log(path)
+    problem = run.checked.problems.get(key, "")
+    assert problem.startswith("two impactlab.") and CONFLICTS[key] in problem, problem
+    assert key not in run.checked.values
+    if key in ANALYSIS_KEYS:
+        with pytest.raises(LogError, match=f"damaged metadata: .*{key}: two impactlab"):
+            analyze_run(run)
+    else:
+        assert analyze_run(run).summary["partial"]
+    assert f"damaged:    metadata {key}: two impactlab." in describe(path)
+    same = load_log(rewrite(records, tmp_path / "same.mcap", again={}))
+    assert not same.partial and not same.checked.problems
+
+
+@pytest.mark.parametrize("topic", ["/bodies/ball/state", "/bodies/ball/clearance", "/energy"])
+def test_every_message_of_a_channel_twice(tmp_path, records, intact, topic):
+    """A log whose messages on a per-step channel are each written twice is not read as the
+    intact one: the channel is named, the first message at each time is kept, the analysis is
+    partial and diff tells the two logs apart."""
+    path = rewrite(records, tmp_path / "twice.mcap", twice={topic})
+    run, whole = load_log(path), load_log(intact)
+    (problem,) = [p for p in run.problems if "already has a message at" in p]
+    count = sum(1 for c, _ in records[3] if c.topic == topic)
+    assert problem.startswith(f"damaged: {topic}: {count:,} messages"), problem
+    assert run.bodies["ball"].equals(whole.bodies["ball"]) and run.energy.equals(whole.energy)
+    assert analyze_run(run).summary["partial"]
+    assert not diff_logs(whole, run).equal
 
 
 @pytest.mark.slow
