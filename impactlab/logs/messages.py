@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import itertools
-import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache, cached_property
@@ -47,20 +46,26 @@ class Template:
     ) -> Template:
         """The layout of `msg` with its k doubles set by `setter(msg, values)`, learnt from
         the protobuf library with distinct sentinels; ValueError when one is missing."""
+        if k >= 2**20:
+            raise ValueError(f"{k:,} doubles in one message: more than a layout can learn")
         sentinels = [1.0 + (i + 1) * 2.0**-20 + 2.0**-40 for i in range(k)]
         setter(msg, sentinels)
         raw = msg.SerializeToString()
-        slots = []
-        for v in sentinels:  # in value order, wherever the protobuf library put it
-            at = raw.find(struct.pack("<d", v))
-            if at < 0:
-                raise ValueError("message layout is not fixed: a double is missing")
-            slots.append(at)
-        template = np.frombuffer(raw, np.uint8).copy()
-        fixed = np.ones(template.size, bool)
-        for at in slots:
-            template[at : at + 8], fixed[at : at + 8] = 0, False
-        layout = cls(template, np.array(slots, np.int64), fixed)
+        data = np.frombuffer(raw, np.uint8)
+        # every 8 bytes that may hold a sentinel (a double in [1, 2): its top bytes 0x3FFx)
+        starts = np.flatnonzero((data[7:] == 0x3F) & (data[6:-1] >= 0xF0))
+        found = np.lib.stride_tricks.sliding_window_view(data, 8)[starts].copy().view("<f8")[:, 0]
+        index = np.rint((found - 1.0 - 2.0**-40) * 2.0**20).astype(np.int64) - 1
+        hit = (index >= 0) & (index < k)
+        hit[hit] = found[hit] == np.asarray(sentinels)[index[hit]]
+        slots = np.full(k, -1, np.int64)
+        slots[index[hit]] = starts[hit]  # in value order, wherever the protobuf library put it
+        if (slots < 0).any():
+            raise ValueError("message layout is not fixed: a double is missing")
+        template, fixed = data.copy(), np.ones(data.size, bool)
+        varying = (slots[:, None] + np.arange(8)).ravel()
+        template[varying], fixed[varying] = 0, False
+        layout = cls(template, slots, fixed)
         if layout.encode(np.array([sentinels])).tobytes() != raw:
             raise ValueError("message layout is not fixed: a double is repeated")
         return layout

@@ -228,8 +228,14 @@ class LogWriter:
             blocks.append(
                 Block(np.array(self._bodies), t, states.reshape(len(t), len(self._bodies), -1))
             )
+        widths: dict[int, list[tuple[int, np.ndarray]]] = {}  # a block per clearance layout
         for channel_id, values in zip(self._clearance, rows.clearance, strict=True):
-            blocks.append(Block(channel_id, t, messages.clearance(values.shape[1]).encode(values)))
+            widths.setdefault(values.shape[1], []).append((channel_id, values))
+        for width, group in widths.items():
+            values = np.stack([v for _, v in group], axis=1)  # (n, channels, width)
+            payloads = messages.clearance(width).encode(values.reshape(-1, width))
+            ids = np.array([c for c, _ in group])
+            blocks.append(Block(ids, t, payloads.reshape(len(t), len(group), -1)))
         blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
         blocks.append(Block(self._work, t, messages.work().encode(rows.work)))
         if self._joints is not None and rows.joint_energy is not None:

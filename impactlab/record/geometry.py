@@ -101,10 +101,8 @@ def rigid_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> list[RigidBody]:
 
 def rigid_geoms(model: mujoco.MjModel, body: RigidBody) -> list[int]:
     """The collision geoms of a rigid body's members."""
-    own = set(body.members)
-    return [
-        g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in own and collides(model, g)
-    ]
+    own = np.flatnonzero(np.isin(model.geom_bodyid, body.members))
+    return [int(g) for g in own if collides(model, int(g))]
 
 
 def motion(model: mujoco.MjModel, body: RigidBody) -> str:
