@@ -1,5 +1,4 @@
-"""Regenerate the golden logs of the regression tests on purpose: `python -m impactlab.golden`
-(`--check` only reports, exit 1 when anything changed; docs/log-format.md, "Golden logs")."""
+"""Regenerate the golden logs of the tests: `python -m impactlab.golden` (docs/log-format.md)."""
 
 from __future__ import annotations
 

@@ -1,15 +1,4 @@
-"""The contact model: a target coefficient of restitution -> MuJoCo contact parameters.
-
-Owns: the linear spring-dashpot's closed form (`closed_form`), emulations of MuJoCo's step for
-one impact per integrator (`emulation`, and `fast` without stepping the contact), the
-discretisation tables built from them (`table`, `restitution_table*.json`), gravity's effect
-on e (`gravity`), the designer that turns a target over a range of impact speeds into
-parameters (`design`, returning `params.ContactParams`; `advice` adds predictions and what to
-do when the timestep is too coarse), and a user's model's pairs (`pairs`, `tune`).
-
-May import: numpy, `impactlab.mjcf` (MuJoCo in `pairs` only). Must not import: any stage
-(record, analyze, replay, calibrate) or the log format; record and calibrate build on it.
-"""
+"""The contact model: a target coefficient of restitution -> MuJoCo contact parameters."""
 
 from impactlab.contact.advice import ContactDesign, Prediction, design_contact, predict
 from impactlab.contact.closed_form import (

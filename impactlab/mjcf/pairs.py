@@ -1,8 +1,4 @@
-"""An MJCF model's text with ``<pair>`` elements written in, every other byte kept.
-
-Works on the file's bytes (expat's byte offsets): the new elements are written in the file's
-encoding and with its line ends. No MuJoCo here.
-"""
+"""An MJCF model's bytes with ``<pair>`` elements written in, every other byte kept."""
 
 from __future__ import annotations
 

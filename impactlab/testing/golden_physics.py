@@ -1,10 +1,4 @@
-"""The physics of a recording against its golden log's, from the analysis' own tables.
-
-What the analysis measures is compared, each difference said in physical terms: how the run
-ended, the energy budget, the bounces of each body on each surface (how many, then each one's
-e, velocities, apex and impact time) and the collisions of each pair of bodies (how many,
-then each one's e, normal velocities and kinetic energy taken), within `PhysicsTolerance`.
-"""
+"""The physics of a recording against its golden log's, from the analysis' own tables."""
 
 from __future__ import annotations
 
