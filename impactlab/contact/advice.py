@@ -14,7 +14,7 @@ from impactlab.contact.design import design, params_from
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, table
+from impactlab.contact.table import table
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -108,11 +108,6 @@ def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> P
     )
 
 
-def _ok(ev: Evaluation, integrator: str) -> bool:
-    cap = table(scheme_of(integrator)).w0dt_max
-    return ev.w0dt <= cap and ev.error <= PHASE_BUDGET
-
-
 def _try(
     e: float, w0: float, dt: float, speeds: np.ndarray, g: float, integrator: str
 ) -> Evaluation | None:
@@ -167,7 +162,7 @@ def _stiffest_ok(
     for _ in range(30):
         mid = math.sqrt(lo * hi)
         ev = _try(e, mid, dt, speeds, g, integrator)
-        if ev is not None and _ok(ev, integrator):
+        if ev is not None and ev.resolved:
             lo, best = mid, ev
         else:
             hi = mid
@@ -226,12 +221,12 @@ def design_contact(
     best = softer = None
     if best_ev is not None:
         best = params_from(best_ev, e, (lo, hi), dt, g, integrator)
-        if _ok(best_ev, integrator) and best_ev.w0 < ev.w0:
+        if best_ev.resolved and best_ev.w0 < ev.w0:
             soft_ev = _stiffest_ok(e, dt, speeds, g, integrator, best_ev, ev.w0)
             # a little softer than the edge: the designer asked for that penetration makes
             # the contact 0.5 % stiffer than the bound needs
             eased = _try(e, max(best_ev.w0, 0.97 * soft_ev.w0), dt, speeds, g, integrator)
-            soft_ev = eased if eased is not None and _ok(eased, integrator) else soft_ev
+            soft_ev = eased if eased is not None and eased.resolved else soft_ev
             softer = params_from(soft_ev, e, (lo, hi), dt, g, integrator)
     notes: tuple[str, ...] = ()
     if dt_max is not None and dt_max < 1e-7:

@@ -221,9 +221,8 @@ def design(
         e, bound_m=bound, duration_s=duration, dt=dt, speeds=speeds, g=g, integrator=integrator
     )
     params = params_from(ev, e, (lo, hi), dt, g, integrator)
-    found = Design(params, ev, speeds, bound, duration)
-    if timestep_problem(params) is None:
-        return found
+    if ev.resolved:
+        return Design(params, ev, speeds, bound, duration)
     dt_max = None
     if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
         dt_max = accepted_largest_timestep(params, bound, duration)
@@ -320,7 +319,7 @@ def accepted_largest_timestep(
             )
         except ContactModelError:
             return False
-        return timestep_problem(params_from(ev, e, (lo, hi), dt, g, integrator)) is None
+        return ev.resolved
 
     return accepted_timestep(largest_timestep(params), passes)
 
