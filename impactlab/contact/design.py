@@ -49,13 +49,25 @@ LIMITS = {
 """What the designer handles; outside, one clear error instead of overflowing arithmetic."""
 
 
-def _within(name: str, value: float, key: str | None = None) -> float:
+def _checked(name: str, value: object, key: str | None = None) -> float:
+    """`value` as a positive number (>= 0 where LIMITS allows 0) within LIMITS[key or name].
+
+    Raises:
+        ContactModelError: not a number, not positive, or outside LIMITS.
+    """
     lo, hi, unit = LIMITS[key or name]
-    if not lo <= value <= hi:
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x) or x < 0.0 or (x == 0.0 and lo > 0.0):
+        kind = "a positive number" if lo > 0.0 else "a number >= 0"
+        raise ContactModelError(f"{name} must be {kind}, got {value!r}")
+    if not lo <= x <= hi:
         raise ContactModelError(
-            f"{name} = {value:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
+            f"{name} = {x:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
         )
-    return value
+    return x
 
 
 def speed_range(
@@ -69,7 +81,7 @@ def speed_range(
     if (speed_range_mps is None) == (impact_speed_mps is None):
         raise ContactModelError("give speed_range_mps = (v_lo, v_hi) or impact_speed_mps")
     if impact_speed_mps is not None:
-        v = _within("impact_speed_mps", positive("impact_speed_mps", impact_speed_mps), "speed")
+        v = _checked("impact_speed_mps", impact_speed_mps, "speed")
         return v, v
     try:
         lo, hi = speed_range_mps  # type: ignore[misc]
@@ -77,10 +89,10 @@ def speed_range(
         raise ContactModelError(
             f"speed_range_mps must be two speeds (v_lo, v_hi), got {speed_range_mps!r}"
         ) from None
-    lo, hi = positive("speed_range_mps[0]", lo), positive("speed_range_mps[1]", hi)
+    lo, hi = _checked("v_lo", lo, "speed"), _checked("v_hi", hi, "speed")
     if lo > hi:
         raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
-    return _within("v_lo", lo, "speed"), _within("v_hi", hi, "speed")
+    return lo, hi
 
 
 def design_inputs(
@@ -104,33 +116,22 @@ def design_inputs(
     """
     e = check_restitution(restitution)
     speeds = speed_range(speed_range_mps, impact_speed_mps)
-    dt = _within("timestep_s", positive("timestep_s", timestep_s))
+    dt = _checked("timestep_s", timestep_s)
     scheme_of(integrator)
-    try:
-        g = float(gravity_mps2)
-    except (TypeError, ValueError):
-        g = math.nan
-    if not math.isfinite(g) or g < 0.0:
-        raise ContactModelError(f"gravity_mps2 must be a number >= 0, got {gravity_mps2!r}")
-    _within("gravity_mps2", g)
+    g = _checked("gravity_mps2", gravity_mps2)
+    bound = duration = None
     if duration_s is not None and max_penetration_m is not None:
         raise ContactModelError("give duration_s or max_penetration_m, not both")
     if duration_s is not None:
-        return e, speeds, dt, g, None, _within("duration_s", positive("duration_s", duration_s))
-    if max_penetration_m is not None:
-        bound = positive("max_penetration_m", max_penetration_m)
-        return e, speeds, dt, g, _within("max_penetration_m", bound), None
-    if radius_m is None:
+        duration = _checked("duration_s", duration_s)
+    elif max_penetration_m is not None:
+        bound = _checked("max_penetration_m", max_penetration_m)
+    elif radius_m is None:
         raise ContactModelError("give a radius, a max penetration or a contact duration")
-    radius = _within("radius_m", positive("radius_m", radius_m))
-    return (
-        e,
-        speeds,
-        dt,
-        g,
-        positive("max_penetration_fraction", max_penetration_fraction) * radius,
-        None,
-    )
+    else:
+        fraction = positive("max_penetration_fraction", max_penetration_fraction)
+        bound = fraction * _checked("radius_m", radius_m)
+    return e, speeds, dt, g, bound, duration
 
 
 def design_stiffness(
