@@ -1,6 +1,6 @@
 """The contact model: a target coefficient of restitution -> MuJoCo contact parameters."""
 
-from impactlab.contact.advice import ContactDesign, Prediction, design_contact, predict
+from impactlab.contact.advice import ContactDesign, Prediction, predict
 from impactlab.contact.closed_form import (
     RESTITUTION_FLOOR,
     ContactModelError,
@@ -9,7 +9,12 @@ from impactlab.contact.closed_form import (
     restitution_closed_form,
     zeta_for_restitution,
 )
-from impactlab.contact.design import SPEED_FLOOR_MPS, SPREAD_BUDGET, contact_params
+from impactlab.contact.design import (
+    SPEED_FLOOR_MPS,
+    SPREAD_BUDGET,
+    contact_params,
+    design_contact,
+)
 from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams

@@ -7,9 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError
-from impactlab.contact.emulation import scheme_of
+from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError, contact_time_factor
+from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.gravity import gravity_shift
+from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, table
 
 
@@ -101,3 +102,32 @@ def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
             "contact"
         )
     return target
+
+
+def params_from(
+    ev: Evaluation,
+    e: float,
+    speeds: tuple[float, float],
+    dt: float,
+    g: float,
+    integrator: str,
+) -> ContactParams:
+    """The ContactParams of an evaluated stiffness."""
+    k = ev.w0 * ev.w0
+    return ContactParams(
+        solref=(-k, -2.0 * ev.zeta * ev.w0),
+        solimp=SOLIMP,
+        stiffness=k,
+        damping=2.0 * ev.zeta * ev.w0,
+        zeta=ev.zeta,
+        duration_s=contact_time_factor(ev.zeta) / ev.w0,
+        max_penetration_m=speeds[1] * ev.pen / ev.w0,
+        restitution=e,
+        speed_range_mps=speeds,
+        timestep_s=dt,
+        integrator=integrator,
+        gravity_mps2=g,
+        gravity_shift=ev.shift,
+        gravity_spread=ev.spread,
+        phase_error=ev.phase,
+    )

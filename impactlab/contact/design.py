@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
+from impactlab.contact.advice import ContactDesign
+from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
 from impactlab.contact.closed_form import (
     ContactModelError,
     check_restitution,
@@ -18,7 +18,7 @@ from impactlab.contact.closed_form import (
     positive,
     zeta_for_restitution,
 )
-from impactlab.contact.emulation import SOLIMP, scheme_of
+from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET
 from impactlab.contact.timestep import accepted_timestep, largest_timestep, timestep_problem
@@ -172,22 +172,7 @@ def design_stiffness(
     return evaluate(e, w0, dt, speeds, g, integrator)
 
 
-@dataclass(frozen=True)
-class Design:
-    """A designed contact: its parameters, evaluation, the speeds gravity's shift was evaluated
-    at, the penetration bound or duration asked for, and why the timestep does not resolve it
-    with the largest timestep that does (None when it does, or no timestep helps)."""
-
-    params: ContactParams
-    evaluation: Evaluation
-    speeds: np.ndarray
-    bound_m: float | None
-    duration_s: float | None
-    problem: str | None = None
-    timestep_max_s: float | None = None
-
-
-def design(
+def design_contact(
     restitution: float,
     *,
     radius_m: float | None,
@@ -199,11 +184,18 @@ def design(
     max_penetration_m: float | None = None,
     max_penetration_fraction: float = 0.02,
     gravity_mps2: float = 9.81,
-) -> Design:
-    """The contact `contact_params` returns, and whether the timestep resolves it.
+) -> ContactDesign:
+    """Design a contact like :func:`contact_params` and say how well it meets its target.
+
+    Args: as :func:`contact_params`; ``radius_m`` may be None when ``max_penetration_m`` or
+    ``duration_s`` is given.
+
+    Returns:
+        The :class:`ContactDesign`; ``ok`` is False (with the advice filled in when asked)
+        when the timestep cannot resolve the contact.
 
     Raises:
-        ContactModelError: unreachable restitution or invalid input.
+        ContactModelError: invalid input or an unreachable target.
     """
     e, (lo, hi), dt, g, bound, duration = design_inputs(
         restitution,
@@ -223,12 +215,11 @@ def design(
     )
     params = params_from(ev, e, (lo, hi), dt, g, integrator)
     if ev.resolved:
-        return Design(params, ev, speeds, bound, duration)
+        return ContactDesign(params, ev, speeds)
     dt_max = None
     if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
         dt_max = accepted_largest_timestep(params, bound, duration)
-    problem = timestep_problem(params, dt_max)
-    return Design(params, ev, speeds, bound, duration, problem, dt_max)
+    return ContactDesign(params, ev, speeds, timestep_problem(params, dt_max), dt_max)
 
 
 def contact_params(
@@ -274,7 +265,7 @@ def contact_params(
             max_penetration_m given, or a timestep too coarse for the contact (the message
             names the steps per contact and the largest timestep that works).
     """
-    found = design(
+    found = design_contact(
         restitution,
         radius_m=radius_m,
         timestep_s=timestep_s,
@@ -323,32 +314,3 @@ def accepted_largest_timestep(
         return ev.resolved
 
     return accepted_timestep(largest_timestep(params), passes)
-
-
-def params_from(
-    ev: Evaluation,
-    e: float,
-    speeds: tuple[float, float],
-    dt: float,
-    g: float,
-    integrator: str,
-) -> ContactParams:
-    """The ContactParams of an evaluated stiffness."""
-    k = ev.w0 * ev.w0
-    return ContactParams(
-        solref=(-k, -2.0 * ev.zeta * ev.w0),
-        solimp=SOLIMP,
-        stiffness=k,
-        damping=2.0 * ev.zeta * ev.w0,
-        zeta=ev.zeta,
-        duration_s=contact_time_factor(ev.zeta) / ev.w0,
-        max_penetration_m=speeds[1] * ev.pen / ev.w0,
-        restitution=e,
-        speed_range_mps=speeds,
-        timestep_s=dt,
-        integrator=integrator,
-        gravity_mps2=g,
-        gravity_shift=ev.shift,
-        gravity_spread=ev.spread,
-        phase_error=ev.phase,
-    )
