@@ -11,10 +11,8 @@ import numpy as np
 
 from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
 from impactlab.contact.closed_form import ContactModelError
-from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import table
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -84,7 +82,7 @@ class ContactDesign:
 
     @functools.cached_property
     def _best_evaluation(self) -> Evaluation | None:
-        return None if self.ok else _best(self.params, self.speeds, self.evaluation.w0)
+        return None if self.ok else _best(self.params, self.speeds, self.evaluation)
 
     @property
     def best(self) -> ContactParams | None:
@@ -160,11 +158,11 @@ def _try(p: ContactParams, speeds: np.ndarray, w0: float) -> Evaluation | None:
         return None
 
 
-def _best(asked: ContactParams, speeds: np.ndarray, w0_hi: float) -> Evaluation | None:
-    """The stiffness with the smallest predicted error at dt (golden section in log w0)."""
+def _best(asked: ContactParams, speeds: np.ndarray, designed: Evaluation) -> Evaluation | None:
+    """The stiffness with the smallest predicted error at dt (golden section in log w0, up to
+    four times the designed one)."""
     dt, g = asked.timestep_s, asked.gravity_mps2
-    cap = table(scheme_of(asked.integrator)).w0dt_max
-    w_hi = min(w0_hi * 4.0, cap / dt)
+    w_hi = min(designed.w0 * 4.0, designed.w0dt_max / dt)
     w_lo = w_hi * 1e-4 if g <= 0.0 else max(g / (0.3 * float(speeds.min())), w_hi * 1e-4)
     if w_lo >= w_hi:
         return None
