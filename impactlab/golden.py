@@ -1,5 +1,4 @@
-"""Regenerate the golden logs of the regression tests on purpose: `python -m impactlab.golden`
-(`--check` only reports, exit 1 when anything changed; docs/log-format.md, "Golden logs")."""
+"""Regenerate the golden logs of the tests: `python -m impactlab.golden` (docs/log-format.md)."""
 
 from __future__ import annotations
 
@@ -15,7 +14,6 @@ import polars as pl
 
 from impactlab.logs.load import RunLog, load_log
 from impactlab.record import plan, record_runs
-from impactlab.tools.compare import differences
 from impactlab.tools.diff import LogDiff, Tolerance, channel_tables, diff_logs
 
 GOLDEN_DIR = Path(__file__).resolve().parents[1] / "tests" / "golden"
@@ -140,15 +138,16 @@ def compare_golden(golden_log: Path, new_log: Path) -> LogDiff:
     )
 
 
-def tables_match(new: pl.DataFrame, golden: pl.DataFrame) -> bool:
-    """Same columns and rows, numbers within TABLE_RTOL / TABLE_ATOL (any CPU)."""
+def table_change(new: pl.DataFrame, golden: pl.DataFrame) -> str | None:
+    """How a new analysis table differs from the golden one (polars' first difference), or
+    None: same columns and rows, numbers within TABLE_RTOL / TABLE_ATOL (any CPU)."""
     from polars.testing import assert_frame_equal
 
     try:
         assert_frame_equal(new, golden, check_exact=False, rel_tol=TABLE_RTOL, abs_tol=TABLE_ATOL)
-    except AssertionError:
-        return False
-    return True
+    except AssertionError as exc:
+        return " ".join(str(exc).split())
+    return None
 
 
 def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
@@ -167,44 +166,6 @@ def analysis_tables(logs_dir: Path, work_dir: Path) -> dict[str, pl.DataFrame]:
             [c for c in ("run_id", "body", "bounce", "collision") if c in frame.columns]
         )
     return out
-
-
-def table_changes(old: pl.DataFrame, new: pl.DataFrame) -> list[str]:
-    """What changed between two versions of an analysis table, one line each: columns added
-    or removed, rows per run, and per column the values beyond tolerance (`differences`)."""
-    lines = [
-        f"columns {what}: {', '.join(cols)}"
-        for what, cols in (
-            ("added", [c for c in new.columns if c not in old.columns]),
-            ("removed", [c for c in old.columns if c not in new.columns]),
-        )
-        if cols
-    ]
-    counts = [dict(f.group_by("run_id").len().iter_rows()) for f in (old, new)]
-    for run_id in sorted(counts[0].keys() | counts[1].keys()):
-        a, b = counts[0].get(run_id, 0), counts[1].get(run_id, 0)
-        lines += [f"{run_id}: {a} -> {b} row(s)"] if a != b else []
-    keys = [c for c in ("run_id", "body", "surface", "bounce", "collision") if c in old.columns]
-    keys = [c for c in keys if c in new.columns]
-    common = [c for c in old.columns if c in new.columns and c not in keys]
-    bounds = {c: (TABLE_ATOL, TABLE_RTOL) for c in common}
-    both = differences(old.select(*keys, *common), new.select(*keys, *common), keys, bounds)
-    for c in common:
-        beyond = both.filter(pl.col(f"{c}_beyond"))
-        if not beyond.height:
-            continue
-        parts = [f"{beyond.height} row(s) differ"]
-        if f"{c}_d" in both.columns:
-            largest = beyond.select(pl.col(f"{c}_d").filter(pl.col(f"{c}_d").is_finite()).max())
-            now = [
-                beyond.select((pl.col(x).is_null() & pl.col(y).is_not_null()).sum()).item()
-                for x, y in ((c, f"{c}_b"), (f"{c}_b", c))
-            ]
-            parts += [f"max |change| {largest.item():.3g}"] if largest.item() else []
-            parts += [f"{now[0]} value(s) now measured"] if now[0] else []
-            parts += [f"{now[1]} value(s) now empty"] if now[1] else []
-        lines.append(f"{c}: {', '.join(parts)}")
-    return lines
 
 
 def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = print) -> int:
@@ -253,11 +214,9 @@ def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = pri
         tables = analysis_tables(new_dir, Path(tmp) / "results")
         for name, frame in tables.items():
             old = RESULTS_DIR / f"{name}.parquet"
-            if not old.exists() or not tables_match(frame, pl.read_parquet(old)):
-                echo(f"results/{name}.parquet: {'new' if not old.exists() else 'changed'}")
-                if old.exists():
-                    for line in table_changes(pl.read_parquet(old), frame):
-                        echo(f"  {line}")
+            change = table_change(frame, pl.read_parquet(old)) if old.exists() else "new"
+            if change is not None:
+                echo(f"results/{name}.parquet: {change}")
                 changed.append(f"results/{name}")
         if args.check:
             if changed or stale:

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
+from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
 from impactlab.contact.closed_form import ContactModelError
-from impactlab.contact.design import design, params_from
-from impactlab.contact.emulation import scheme_of
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, table
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -55,31 +53,69 @@ class Prediction:
 
 @dataclass(frozen=True)
 class ContactDesign:
-    """A designed contact and how well it meets its target (see the module docstring).
+    """A designed contact and how well it meets its target (`design_contact`).
 
     Attributes:
         params: the designed contact (for the given timestep, even when too coarse).
-        ok: the predicted worst case meets the tolerance at the given timestep.
-        problem: why not, or None.
-        prediction: e over (and below) the speed range at the given timestep.
+        evaluation: its stiffness evaluated (zeta, the predicted errors).
+        speeds: the speeds gravity's shift was evaluated at, m/s.
+        problem: why the timestep does not resolve it, or None.
         timestep_max_s: the largest timestep at which this contact meets the target (None
             when the timestep is fine or no timestep helps).
-        best: the most accurate contact at the given timestep (None when ok).
-        softer: the stiffest contact that meets the target at the given timestep (more
-            penetration than asked for), or None.
-        best_prediction: e of `best` over (and below) the speed range, or None.
-        notes: remarks for the user.
     """
 
     params: ContactParams
-    ok: bool
-    problem: str | None
-    prediction: Prediction
+    evaluation: Evaluation
+    speeds: np.ndarray
+    problem: str | None = None
     timestep_max_s: float | None = None
-    best: ContactParams | None = None
-    softer: ContactParams | None = None
-    best_prediction: Prediction | None = None
-    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def ok(self) -> bool:
+        """The predicted worst case meets the tolerance at the given timestep."""
+        return self.problem is None
+
+    @functools.cached_property
+    def prediction(self) -> Prediction:
+        """e over (and below) the speed range at the given timestep."""
+        return predict(self.params)
+
+    @functools.cached_property
+    def _best_evaluation(self) -> Evaluation | None:
+        return None if self.ok else _best(self.params, self.speeds, self.evaluation)
+
+    @property
+    def best(self) -> ContactParams | None:
+        """The most accurate contact at the given timestep (None when ok)."""
+        return (
+            None if self._best_evaluation is None else _params(self.params, self._best_evaluation)
+        )
+
+    @functools.cached_property
+    def best_prediction(self) -> Prediction | None:
+        """e of `best` over (and below) the speed range, or None."""
+        return None if self.best is None else predict(self.best)
+
+    @functools.cached_property
+    def softer(self) -> ContactParams | None:
+        """The stiffest contact that meets the target at the given timestep (more
+        penetration than asked for), or None."""
+        best = self._best_evaluation
+        if best is None or not best.resolved or best.w0 >= self.evaluation.w0:
+            return None
+        soft = _stiffest_ok(self.params, self.speeds, best, self.evaluation.w0)
+        # a little softer than the edge: the designer asked for that penetration makes the
+        # contact 0.5 % stiffer than the bound needs
+        eased = _try(self.params, self.speeds, max(best.w0, 0.97 * soft.w0))
+        return _params(self.params, eased if eased is not None and eased.resolved else soft)
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """Remarks for the user."""
+        dt_max = self.timestep_max_s
+        if dt_max is not None and dt_max < 1e-7:
+            return (f"the largest timestep that works, {dt_max:.3g} s, is impractically small",)
+        return ()
 
 
 def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> Prediction:
@@ -108,32 +144,31 @@ def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> P
     )
 
 
-def _ok(ev: Evaluation, integrator: str) -> bool:
-    cap = table(scheme_of(integrator)).w0dt_max
-    return ev.w0dt <= cap and ev.error <= PHASE_BUDGET
+def _params(p: ContactParams, ev: Evaluation) -> ContactParams:
+    """The contact of another stiffness for the same request as `p`."""
+    return params_from(
+        ev, p.restitution, p.speed_range_mps, p.timestep_s, p.gravity_mps2, p.integrator
+    )
 
 
-def _try(
-    e: float, w0: float, dt: float, speeds: np.ndarray, g: float, integrator: str
-) -> Evaluation | None:
+def _try(p: ContactParams, speeds: np.ndarray, w0: float) -> Evaluation | None:
     try:
-        return evaluate(e, w0, dt, speeds, g, integrator)
+        return evaluate(p.restitution, w0, p.timestep_s, speeds, p.gravity_mps2, p.integrator)
     except ContactModelError:
         return None
 
 
-def _best(
-    e: float, dt: float, speeds: np.ndarray, g: float, integrator: str, w0_hi: float
-) -> Evaluation | None:
-    """The stiffness with the smallest predicted error at dt (golden section in log w0)."""
-    cap = table(scheme_of(integrator)).w0dt_max
-    w_hi = min(w0_hi * 4.0, cap / dt)
+def _best(asked: ContactParams, speeds: np.ndarray, designed: Evaluation) -> Evaluation | None:
+    """The stiffness with the smallest predicted error at dt (golden section in log w0, up to
+    four times the designed one)."""
+    dt, g = asked.timestep_s, asked.gravity_mps2
+    w_hi = min(designed.w0 * 4.0, designed.w0dt_max / dt)
     w_lo = w_hi * 1e-4 if g <= 0.0 else max(g / (0.3 * float(speeds.min())), w_hi * 1e-4)
     if w_lo >= w_hi:
         return None
 
     def cost(lw: float) -> float:
-        ev = _try(e, math.exp(lw), dt, speeds, g, integrator)
+        ev = _try(asked, speeds, math.exp(lw))
         return math.inf if ev is None else ev.error
 
     a, b = math.log(w_lo), math.log(w_hi)
@@ -149,101 +184,22 @@ def _best(
             a, c, fc = c, d, fd
             d = a + r * (b - a)
             fd = cost(d)
-    return _try(e, math.exp(c if fc <= fd else d), dt, speeds, g, integrator)
+    return _try(asked, speeds, math.exp(c if fc <= fd else d))
 
 
 def _stiffest_ok(
-    e: float,
-    dt: float,
-    speeds: np.ndarray,
-    g: float,
-    integrator: str,
-    soft: Evaluation,
-    stiff_w0: float,
+    asked: ContactParams, speeds: np.ndarray, soft: Evaluation, stiff_w0: float
 ) -> Evaluation:
     """The stiffest w0 between soft.w0 (meets the target) and stiff_w0 (does not) that does."""
     lo, hi = soft.w0, stiff_w0
     best = soft
     for _ in range(30):
         mid = math.sqrt(lo * hi)
-        ev = _try(e, mid, dt, speeds, g, integrator)
-        if ev is not None and _ok(ev, integrator):
+        ev = _try(asked, speeds, mid)
+        if ev is not None and ev.resolved:
             lo, best = mid, ev
         else:
             hi = mid
         if hi / lo < 1.002:
             break
     return best
-
-
-def design_contact(
-    restitution: float,
-    *,
-    radius_m: float | None,
-    timestep_s: float,
-    speed_range_mps: Sequence[float] | None = None,
-    impact_speed_mps: float | None = None,
-    integrator: str = "Euler",
-    duration_s: float | None = None,
-    max_penetration_m: float | None = None,
-    max_penetration_fraction: float = 0.02,
-    gravity_mps2: float = 9.81,
-) -> ContactDesign:
-    """Design a contact like :func:`contact_params` and say how well it meets its target.
-
-    Args: as :func:`contact_params`; ``radius_m`` may be None when ``max_penetration_m`` or
-    ``duration_s`` is given.
-
-    Returns:
-        The :class:`ContactDesign`; ``ok`` is False (with the advice filled in) when the
-        timestep cannot resolve the contact.
-
-    Raises:
-        ContactModelError: invalid input or an unreachable target.
-    """
-    found = design(
-        restitution,
-        radius_m=radius_m,
-        timestep_s=timestep_s,
-        speed_range_mps=speed_range_mps,
-        impact_speed_mps=impact_speed_mps,
-        integrator=integrator,
-        duration_s=duration_s,
-        max_penetration_m=max_penetration_m,
-        max_penetration_fraction=max_penetration_fraction,
-        gravity_mps2=gravity_mps2,
-    )
-    params, ev, speeds, dt_max = found.params, found.evaluation, found.speeds, found.timestep_max_s
-    if found.problem is None:
-        return ContactDesign(params, True, None, predict(params))
-    e, (lo, hi), dt, g = (
-        params.restitution,
-        params.speed_range_mps,
-        params.timestep_s,
-        params.gravity_mps2,
-    )
-    best_ev = _best(e, dt, speeds, g, integrator, ev.w0)
-    best = softer = None
-    if best_ev is not None:
-        best = params_from(best_ev, e, (lo, hi), dt, g, integrator)
-        if _ok(best_ev, integrator) and best_ev.w0 < ev.w0:
-            soft_ev = _stiffest_ok(e, dt, speeds, g, integrator, best_ev, ev.w0)
-            # a little softer than the edge: the designer asked for that penetration makes
-            # the contact 0.5 % stiffer than the bound needs
-            eased = _try(e, max(best_ev.w0, 0.97 * soft_ev.w0), dt, speeds, g, integrator)
-            soft_ev = eased if eased is not None and _ok(eased, integrator) else soft_ev
-            softer = params_from(soft_ev, e, (lo, hi), dt, g, integrator)
-    notes: tuple[str, ...] = ()
-    if dt_max is not None and dt_max < 1e-7:
-        notes = (f"the largest timestep that works, {dt_max:.3g} s, is impractically small",)
-    return ContactDesign(
-        params,
-        False,
-        found.problem,
-        predict(params),
-        timestep_max_s=dt_max,
-        best=best,
-        softer=softer,
-        best_prediction=None if best is None else predict(best),
-        notes=notes,
-    )

@@ -7,10 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError
-from impactlab.contact.emulation import scheme_of
+from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError, contact_time_factor
+from impactlab.contact.emulation import SOLIMP, scheme_of
 from impactlab.contact.gravity import gravity_shift
-from impactlab.contact.table import calibrated_zeta, discrete, table
+from impactlab.contact.params import ContactParams
+from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, table
 
 
 @dataclass(frozen=True)
@@ -24,11 +25,18 @@ class Evaluation:
     phase: float  # worst-case phase error at this w0 * dt
     pen: float  # worst-case penetration factor w0 x_max / v_in
     w0dt: float
+    w0dt_max: float  # the table's coarsest step
 
     @property
     def error(self) -> float:
         """Predicted worst |e - target| over the range and over step phases."""
         return self.phase + self.spread
+
+    @property
+    def resolved(self) -> bool:
+        """The timestep resolves this contact: the predicted worst case within PHASE_BUDGET
+        (the tolerance minus 0.001 for the table's interpolation), inside the table."""
+        return self.w0dt <= self.w0dt_max * (1.0 + 1e-9) and self.error <= PHASE_BUDGET + 1e-6
 
 
 def shift_speeds(lo: float, hi: float) -> np.ndarray:
@@ -81,7 +89,7 @@ def evaluate(
         )
     zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
     _, phase, pen = discrete(zeta, h, scheme)
-    return Evaluation(w0, zeta, shift, spread, phase, pen, w0 * dt)
+    return Evaluation(w0, zeta, shift, spread, phase, pen, w0 * dt, cap)
 
 
 def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
@@ -94,3 +102,32 @@ def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
             "contact"
         )
     return target
+
+
+def params_from(
+    ev: Evaluation,
+    e: float,
+    speeds: tuple[float, float],
+    dt: float,
+    g: float,
+    integrator: str,
+) -> ContactParams:
+    """The ContactParams of an evaluated stiffness."""
+    k = ev.w0 * ev.w0
+    return ContactParams(
+        solref=(-k, -2.0 * ev.zeta * ev.w0),
+        solimp=SOLIMP,
+        stiffness=k,
+        damping=2.0 * ev.zeta * ev.w0,
+        zeta=ev.zeta,
+        duration_s=contact_time_factor(ev.zeta) / ev.w0,
+        max_penetration_m=speeds[1] * ev.pen / ev.w0,
+        restitution=e,
+        speed_range_mps=speeds,
+        timestep_s=dt,
+        integrator=integrator,
+        gravity_mps2=g,
+        gravity_shift=ev.shift,
+        gravity_spread=ev.spread,
+        phase_error=ev.phase,
+    )

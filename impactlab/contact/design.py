@@ -5,11 +5,11 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import Evaluation, evaluate, shift_speeds
+from impactlab.contact.advice import ContactDesign
+from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
 from impactlab.contact.closed_form import (
     ContactModelError,
     check_restitution,
@@ -18,7 +18,7 @@ from impactlab.contact.closed_form import (
     positive,
     zeta_for_restitution,
 )
-from impactlab.contact.emulation import SOLIMP, scheme_of
+from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET
 from impactlab.contact.timestep import accepted_timestep, largest_timestep, timestep_problem
@@ -49,13 +49,25 @@ LIMITS = {
 """What the designer handles; outside, one clear error instead of overflowing arithmetic."""
 
 
-def _within(name: str, value: float, key: str | None = None) -> float:
+def _checked(name: str, value: object, key: str | None = None) -> float:
+    """`value` as a positive number (>= 0 where LIMITS allows 0) within LIMITS[key or name].
+
+    Raises:
+        ContactModelError: not a number, not positive, or outside LIMITS.
+    """
     lo, hi, unit = LIMITS[key or name]
-    if not lo <= value <= hi:
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        x = math.nan
+    if not math.isfinite(x) or x < 0.0 or (x == 0.0 and lo > 0.0):
+        kind = "a positive number" if lo > 0.0 else "a number >= 0"
+        raise ContactModelError(f"{name} must be {kind}, got {value!r}")
+    if not lo <= x <= hi:
         raise ContactModelError(
-            f"{name} = {value:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
+            f"{name} = {x:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
         )
-    return value
+    return x
 
 
 def speed_range(
@@ -69,7 +81,7 @@ def speed_range(
     if (speed_range_mps is None) == (impact_speed_mps is None):
         raise ContactModelError("give speed_range_mps = (v_lo, v_hi) or impact_speed_mps")
     if impact_speed_mps is not None:
-        v = _within("impact_speed_mps", positive("impact_speed_mps", impact_speed_mps), "speed")
+        v = _checked("impact_speed_mps", impact_speed_mps, "speed")
         return v, v
     try:
         lo, hi = speed_range_mps  # type: ignore[misc]
@@ -77,10 +89,10 @@ def speed_range(
         raise ContactModelError(
             f"speed_range_mps must be two speeds (v_lo, v_hi), got {speed_range_mps!r}"
         ) from None
-    lo, hi = positive("speed_range_mps[0]", lo), positive("speed_range_mps[1]", hi)
+    lo, hi = _checked("v_lo", lo, "speed"), _checked("v_hi", hi, "speed")
     if lo > hi:
         raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
-    return _within("v_lo", lo, "speed"), _within("v_hi", hi, "speed")
+    return lo, hi
 
 
 def design_inputs(
@@ -104,33 +116,22 @@ def design_inputs(
     """
     e = check_restitution(restitution)
     speeds = speed_range(speed_range_mps, impact_speed_mps)
-    dt = _within("timestep_s", positive("timestep_s", timestep_s))
+    dt = _checked("timestep_s", timestep_s)
     scheme_of(integrator)
-    try:
-        g = float(gravity_mps2)
-    except (TypeError, ValueError):
-        g = math.nan
-    if not math.isfinite(g) or g < 0.0:
-        raise ContactModelError(f"gravity_mps2 must be a number >= 0, got {gravity_mps2!r}")
-    _within("gravity_mps2", g)
+    g = _checked("gravity_mps2", gravity_mps2)
+    bound = duration = None
     if duration_s is not None and max_penetration_m is not None:
         raise ContactModelError("give duration_s or max_penetration_m, not both")
     if duration_s is not None:
-        return e, speeds, dt, g, None, _within("duration_s", positive("duration_s", duration_s))
-    if max_penetration_m is not None:
-        bound = positive("max_penetration_m", max_penetration_m)
-        return e, speeds, dt, g, _within("max_penetration_m", bound), None
-    if radius_m is None:
+        duration = _checked("duration_s", duration_s)
+    elif max_penetration_m is not None:
+        bound = _checked("max_penetration_m", max_penetration_m)
+    elif radius_m is None:
         raise ContactModelError("give a radius, a max penetration or a contact duration")
-    radius = _within("radius_m", positive("radius_m", radius_m))
-    return (
-        e,
-        speeds,
-        dt,
-        g,
-        positive("max_penetration_fraction", max_penetration_fraction) * radius,
-        None,
-    )
+    else:
+        fraction = positive("max_penetration_fraction", max_penetration_fraction)
+        bound = fraction * _checked("radius_m", radius_m)
+    return e, speeds, dt, g, bound, duration
 
 
 def design_stiffness(
@@ -171,22 +172,7 @@ def design_stiffness(
     return evaluate(e, w0, dt, speeds, g, integrator)
 
 
-@dataclass(frozen=True)
-class Design:
-    """A designed contact: its parameters, evaluation, the speeds gravity's shift was evaluated
-    at, the penetration bound or duration asked for, and why the timestep does not resolve it
-    with the largest timestep that does (None when it does, or no timestep helps)."""
-
-    params: ContactParams
-    evaluation: Evaluation
-    speeds: np.ndarray
-    bound_m: float | None
-    duration_s: float | None
-    problem: str | None = None
-    timestep_max_s: float | None = None
-
-
-def design(
+def design_contact(
     restitution: float,
     *,
     radius_m: float | None,
@@ -198,11 +184,18 @@ def design(
     max_penetration_m: float | None = None,
     max_penetration_fraction: float = 0.02,
     gravity_mps2: float = 9.81,
-) -> Design:
-    """The contact `contact_params` returns, and whether the timestep resolves it.
+) -> ContactDesign:
+    """Design a contact like :func:`contact_params` and say how well it meets its target.
+
+    Args: as :func:`contact_params`; ``radius_m`` may be None when ``max_penetration_m`` or
+    ``duration_s`` is given.
+
+    Returns:
+        The :class:`ContactDesign`; ``ok`` is False (with the advice filled in when asked)
+        when the timestep cannot resolve the contact.
 
     Raises:
-        ContactModelError: unreachable restitution or invalid input.
+        ContactModelError: invalid input or an unreachable target.
     """
     e, (lo, hi), dt, g, bound, duration = design_inputs(
         restitution,
@@ -221,14 +214,12 @@ def design(
         e, bound_m=bound, duration_s=duration, dt=dt, speeds=speeds, g=g, integrator=integrator
     )
     params = params_from(ev, e, (lo, hi), dt, g, integrator)
-    found = Design(params, ev, speeds, bound, duration)
-    if timestep_problem(params) is None:
-        return found
+    if ev.resolved:
+        return ContactDesign(params, ev, speeds)
     dt_max = None
     if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
         dt_max = accepted_largest_timestep(params, bound, duration)
-    problem = timestep_problem(params, dt_max)
-    return Design(params, ev, speeds, bound, duration, problem, dt_max)
+    return ContactDesign(params, ev, speeds, timestep_problem(params, dt_max), dt_max)
 
 
 def contact_params(
@@ -274,7 +265,7 @@ def contact_params(
             max_penetration_m given, or a timestep too coarse for the contact (the message
             names the steps per contact and the largest timestep that works).
     """
-    found = design(
+    found = design_contact(
         restitution,
         radius_m=radius_m,
         timestep_s=timestep_s,
@@ -320,35 +311,6 @@ def accepted_largest_timestep(
             )
         except ContactModelError:
             return False
-        return timestep_problem(params_from(ev, e, (lo, hi), dt, g, integrator)) is None
+        return ev.resolved
 
     return accepted_timestep(largest_timestep(params), passes)
-
-
-def params_from(
-    ev: Evaluation,
-    e: float,
-    speeds: tuple[float, float],
-    dt: float,
-    g: float,
-    integrator: str,
-) -> ContactParams:
-    """The ContactParams of an evaluated stiffness."""
-    k = ev.w0 * ev.w0
-    return ContactParams(
-        solref=(-k, -2.0 * ev.zeta * ev.w0),
-        solimp=SOLIMP,
-        stiffness=k,
-        damping=2.0 * ev.zeta * ev.w0,
-        zeta=ev.zeta,
-        duration_s=contact_time_factor(ev.zeta) / ev.w0,
-        max_penetration_m=speeds[1] * ev.pen / ev.w0,
-        restitution=e,
-        speed_range_mps=speeds,
-        timestep_s=dt,
-        integrator=integrator,
-        gravity_mps2=g,
-        gravity_shift=ev.shift,
-        gravity_spread=ev.spread,
-        phase_error=ev.phase,
-    )

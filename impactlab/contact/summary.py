@@ -31,8 +31,8 @@ def _e_line(pred: Prediction, target: float) -> str:
 
 def round_up(x: float, digits: int = 3) -> float:
     """x rounded up to `digits` significant digits (a bound the user can type)."""
-    scale = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
-    return math.ceil(x / scale * (1.0 - 1e-12)) * scale
+    exponent = math.floor(math.log10(x)) - digits + 1
+    return float(f"{math.ceil(x / 10.0**exponent * (1.0 - 1e-12))}e{exponent}")
 
 
 def design_lines(

@@ -33,7 +33,6 @@ TABLE_PATHS = {
     "euler": Path(__file__).with_name("restitution_table.json"),
     "rk4": Path(__file__).with_name("restitution_table_rk4.json"),
 }
-TABLE_PATH = TABLE_PATHS["euler"]
 
 
 class TableDocument(TypedDict):

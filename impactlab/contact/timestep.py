@@ -9,70 +9,54 @@ from impactlab.contact.calibration import evaluate, shift_speeds
 from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE, discrete, table
+from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE, table
 
 
-def timestep_problem(params: ContactParams, timestep_max_s: float | None = None) -> str | None:
-    """Why the contact's timestep does not resolve it well enough for the tolerance, or None.
-
-    The worst case over the speed range and over where in a step the contact begins is
-    predicted from the calibration table: |midrange e(zeta, w0 dt) + gravity shift - target|
-    + half range + gravity's half spread. It must be within PHASE_BUDGET (the tolerance
-    minus 0.001 for the table's interpolation). The message names the steps per contact, the
-    steps needed and the largest timestep that works (`timestep_max_s`, else this
-    stiffness's `largest_timestep`).
-    """
+def timestep_problem(params: ContactParams, timestep_max_s: float | None) -> str:
+    """Why the contact's timestep does not resolve it: gravity's spread over the speed range
+    alone is beyond the budget, or the steps per contact and those needed, with the largest
+    timestep that works (`timestep_max_s`)."""
     dt, e, (lo, hi) = params.timestep_s, params.restitution, params.speed_range_mps
-    scheme = scheme_of(params.integrator)
-    w0dt = math.sqrt(params.stiffness) * dt
-    cap = table(scheme).w0dt_max
-    mid, half, _ = discrete(params.zeta, min(w0dt, cap), scheme)
-    err = abs(mid + params.gravity_shift - e) + half + params.gravity_spread
-    if err <= PHASE_BUDGET + 1e-6 and w0dt <= cap * (1.0 + 1e-9):
-        return None
     where = f"at {hi:g} m/s" if lo == hi else f"over {lo:g}..{hi:g} m/s"
-    if params.gravity_spread >= PHASE_BUDGET:
+    if params.gravity_spread >= PHASE_BUDGET or timestep_max_s is None:
         return (
             f"gravity changes e by +-{params.gravity_spread:.4f} {where} with this contact "
             f"(duration {params.duration_s:.3g} s): e = {e:.4g} within "
             f"{RESTITUTION_TOLERANCE} needs a shorter contact or a narrower speed range"
         )
-    dt_max = largest_timestep(params) if timestep_max_s is None else timestep_max_s
+    w0dt = math.sqrt(params.stiffness) * dt
     return (
         f"timestep {dt:.3g} s gives {int(params.duration_s / dt)} steps per contact (w0*dt = "
         f"{w0dt:.3g}); e = {e:.4g} within {RESTITUTION_TOLERANCE} {where} needs >= "
-        f"{math.ceil(params.duration_s / dt_max)} steps, i.e. timestep <= {dt_max:.3g} s for "
-        f"stiffness {params.stiffness:.4g} (or a softer contact: larger max penetration, "
-        "longer duration, or a narrower speed range)"
+        f"{math.ceil(params.duration_s / timestep_max_s)} steps, i.e. timestep <= "
+        f"{timestep_max_s:.3g} s for stiffness {params.stiffness:.4g} (or a softer contact: "
+        "larger max penetration, longer duration, or a narrower speed range)"
     )
 
 
 def largest_timestep(params: ContactParams) -> float:
-    """The largest timestep at which the contact's stiffness meets the tolerance (about 1 %)."""
+    """The largest timestep at which the contact's stiffness meets the tolerance (about 1 %):
+    halved from the table's coarsest step until it does, then bisected."""
     e, integrator, g = params.restitution, params.integrator, params.gravity_mps2
-    lo_v, hi_v = params.speed_range_mps
-    speeds = shift_speeds(lo_v, hi_v)
+    speeds = shift_speeds(*params.speed_range_mps)
     w0 = math.sqrt(params.stiffness)
-    cap = table(scheme_of(integrator)).w0dt_max
 
     def ok(dt: float) -> bool:
         try:
-            ev = evaluate(e, w0, dt, speeds, g, integrator)
+            return evaluate(e, w0, dt, speeds, g, integrator).resolved
         except ContactModelError:
             return False
-        return ev.w0dt <= cap and ev.error <= PHASE_BUDGET
 
-    lo = hi = cap / w0  # the table's coarsest step: halved until it resolves the contact
+    hi = table(scheme_of(integrator)).w0dt_max / w0
+    if ok(hi):
+        return hi
+    lo = hi / 2.0
     for _ in range(40):
         if ok(lo):
             break
         hi, lo = lo, lo / 2.0
     else:
         return lo
-    for _ in range(40):
-        if not ok(hi) or hi > 1.0:
-            break
-        lo, hi = hi, hi * 1.5
     for _ in range(12):
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)

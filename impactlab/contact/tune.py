@@ -6,9 +6,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from impactlab.contact.advice import ContactDesign, design_contact
+from impactlab.contact.advice import ContactDesign
 from impactlab.contact.closed_form import ContactModelError
-from impactlab.contact.design import SPEED_FLOOR_MPS
+from impactlab.contact.design import SPEED_FLOOR_MPS, design_contact
 from impactlab.contact.pairs import (
     ModelOptions,
     ModelPair,

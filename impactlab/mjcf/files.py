@@ -19,10 +19,16 @@ _DECLARED = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([A-Za-z0-9._-]+)[\
 
 
 @dataclass(frozen=True)
-class _Element:
-    start: int  # byte offsets in the file
+class Element:
+    """One XML element of a file: byte offsets of its start tag and of its end tag (of what
+    follows it when empty), where it stops, and its parent's name ("" for the root)."""
+
+    name: str
+    parent: str
+    start: int
+    close: int
     stop: int
-    inner: tuple[int, int] | None  # between the start tag and the end tag (None: empty)
+    empty: bool
     attrs: dict[str, str]
 
 
@@ -72,44 +78,53 @@ def _read(path: Path) -> bytes:
         raise SpecError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
 
 
-def _elements(
-    raw: bytes, path: Path, *, need_root: bool = False
-) -> tuple[_Element | None, list[_Element]]:
-    """The root element and every ``<include>`` element of a file's bytes."""
+def elements(raw: bytes, source: str) -> list[Element]:
+    """Every element of an XML document's bytes, in the order their end tags come (expat).
+
+    Raises:
+        SpecError: the bytes are not XML.
+    """
     parser = xml.parsers.expat.ParserCreate()
-    stack: list[tuple[int, dict[str, str]]] = []
-    found: list[_Element] = []
-    root: list[_Element] = []
+    stack: list[tuple[str, int, dict[str, str]]] = []
+    found: list[Element] = []
 
     def start(name: str, attrs: dict[str, str]) -> None:
-        stack.append((parser.CurrentByteIndex, attrs))
+        stack.append((name, parser.CurrentByteIndex, attrs))
 
     def end(name: str) -> None:
-        begin, attrs = stack.pop()
-        here = parser.CurrentByteIndex
+        _, begin, attrs = stack.pop()
+        here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
         head = tag_end(raw, begin)
         empty = raw[head - 2 : head] == b"/>"
         stop = head if empty else raw.index(b">", here) + 1
-        element = _Element(begin, stop, None if empty else (head, here), attrs)
-        if name == "include" or (name == "model" and "file" in attrs):
-            found.append(
-                _Element(element.start, element.stop, element.inner, {**attrs, "tag": name})
-            )
-        if not stack:
-            root.append(element)
+        parent = stack[-1][0] if stack else ""
+        found.append(Element(name, parent, begin, here, stop, empty, attrs))
 
     parser.StartElementHandler = start
     parser.EndElementHandler = end
-    if b"<include" not in raw and b"<model" not in raw and not need_root:
-        return None, []
     try:
         parser.Parse(raw, True)
     except xml.parsers.expat.ExpatError as exc:
+        raise SpecError(source, "", f"the XML cannot be parsed: {exc}") from None
+    return found
+
+
+def _includes(raw: bytes, path: Path) -> list[tuple[str, dict[str, str]]]:
+    """The ``<include>`` and ``<model file=...>`` elements of a file: (tag, attributes)."""
+    if b"<include" not in raw and b"<model" not in raw:
+        return []
+    try:
+        found = elements(raw, str(path))
+    except SpecError:
         lenient = _lenient(raw)
         if lenient is None:
-            raise SpecError(str(path), "", f"the XML cannot be parsed: {exc}") from None
+            raise
         return lenient
-    return (root[0] if root else None), found
+    return [
+        (e.name, e.attrs)
+        for e in found
+        if e.name == "include" or (e.name == "model" and "file" in e.attrs)
+    ]
 
 
 _COMMENT = re.compile(rb"<!--.*?-->", re.S)
@@ -117,18 +132,18 @@ _INCLUDE = re.compile(rb"<include\s+file\s*=\s*([\"'])(.*?)\1\s*/>")
 _ROOT = re.compile(rb"<mujoco\b[^>]*>")
 
 
-def _lenient(raw: bytes) -> tuple[_Element | None, list[_Element]] | None:
+def _lenient(raw: bytes) -> list[tuple[str, dict[str, str]]] | None:
     """What MuJoCo's more lenient parser reads where expat refuses (e.g. ``--`` inside a
-    comment): comments blanked, ``<include file="..."/>`` elements, the ``<mujoco>`` root."""
+    comment): comments blanked, ``<include file="..."/>`` elements; None without a
+    ``<mujoco>`` root."""
     text = _COMMENT.sub(lambda m: b" " * len(m.group()), raw)
-    found = [
-        _Element(m.start(), m.end(), None, {"file": m.group(2).decode("utf-8", "replace")})
-        for m in _INCLUDE.finditer(text)
-    ]
     head, end = _ROOT.search(text), text.rfind(b"</mujoco>")
     if head is None or end < head.end():
         return None
-    return _Element(head.start(), end + 9, (head.end(), end), {}), found
+    return [
+        ("include", {"file": m.group(2).decode("utf-8", "replace")})
+        for m in _INCLUDE.finditer(text)
+    ]
 
 
 def tag_end(raw: bytes, begin: int) -> int:
@@ -159,12 +174,11 @@ def included_files(path: Path) -> list[Path]:
 
 
 def _walk(main: Path, path: Path, chain: list[Path], out: list[Path]) -> None:
-    _, elements = _elements(_read(path), path)
-    for element in elements:
-        file = element.attrs.get("file")
+    for tag, attrs in _includes(_read(path), path):
+        file = attrs.get("file")
         if not file:
             raise SpecError(str(path), "", "an <include> without a file")
-        if element.attrs.get("tag") == "model":  # an attached model: a main model of its own
+        if tag == "model":  # an attached model: a main model of its own
             targets = [path.parent / file]
             inner_main = targets[0]
         else:

@@ -1,10 +1,4 @@
-"""An MJCF model parsed and compiled by MuJoCo, its warnings kept out of the working folder.
-
-By default MuJoCo prints a warning and appends it to `MUJOCO_LOG.TXT` in the working folder.
-`quiet_mujoco` installs a handler (`mujoco.set_mju_user_warning`, once per process) that
-keeps the last messages in `MESSAGES` instead; `parse_warnings` gives those a parse raised
-(MuJoCo's parser warns, e.g., of a NaN in the model).
-"""
+"""An MJCF model parsed and compiled by MuJoCo, its warnings kept out of the working folder."""
 
 from __future__ import annotations
 

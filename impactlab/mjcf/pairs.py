@@ -1,17 +1,12 @@
-"""An MJCF model's text with ``<pair>`` elements written in, every other byte kept.
-
-Works on the file's bytes (expat's byte offsets): the new elements are written in the file's
-encoding and with its line ends. No MuJoCo here.
-"""
+"""An MJCF model's bytes with ``<pair>`` elements written in, every other byte kept."""
 
 from __future__ import annotations
 
-import xml.parsers.expat
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from impactlab.errors import SpecError
-from impactlab.mjcf.files import encoding, tag_end
+from impactlab.mjcf.files import elements, encoding
 
 _ATTR_ESCAPES = {"&": "&amp;", "<": "&lt;", ">": "&gt;", "\n": "&#10;", "\r": "&#13;", "\t": "&#9;"}
 
@@ -29,42 +24,25 @@ def quoteattr(value: str) -> str:
 
 @dataclass
 class _Layout:
-    """Where things are in the model's bytes (from expat)."""
+    """Where things are in the model's bytes: the root's end tag (None when it has none), the
+    first top-level ``<contact>`` (start, end, empty), each ``<pair>`` in a ``<contact>``."""
 
     root_end: int | None = None
-    contact: tuple[int, int, bool] | None = None  # first top-level <contact>: start, end, empty
+    contact: tuple[int, int, bool] | None = None
     pairs: list[tuple[frozenset[str], int, int, dict[str, str]]] = field(default_factory=list)
-    """Each <pair> in the first <contact>: its geoms, span (start, end) and attributes."""
 
 
 def _layout(raw: bytes, source: str) -> _Layout:
-    parser = xml.parsers.expat.ParserCreate()
     layout = _Layout()
-    stack: list[tuple[str, int, dict[str, str]]] = []
-
-    def start(name: str, attrs: dict[str, str]) -> None:
-        stack.append((name, parser.CurrentByteIndex, attrs))
-
-    def end(name: str) -> None:
-        _, begin, attrs = stack.pop()
-        here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
-        head = tag_end(raw, begin)
-        empty = raw[head - 2 : head] == b"/>"
-        stop = head if empty else raw.index(b">", here) + 1
-        if name == "mujoco" and not stack:
-            layout.root_end = here if not empty else None
-        elif name == "contact" and len(stack) == 1 and layout.contact is None:
-            layout.contact = (begin, here if not empty else stop, empty)
-        elif name == "pair" and stack and stack[-1][0] == "contact":
-            geoms = frozenset((attrs.get("geom1", ""), attrs.get("geom2", "")))
-            layout.pairs.append((geoms, begin, stop, attrs))
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    try:
-        parser.Parse(raw, True)
-    except xml.parsers.expat.ExpatError as exc:
-        raise SpecError(source, "", f"the XML cannot be parsed: {exc}") from None
+    found = elements(raw, source)
+    for e in found:
+        if e.name == "mujoco" and not e.parent and not e.empty:
+            layout.root_end = e.close
+        elif e.name == "contact" and e.parent == "mujoco" and layout.contact is None:
+            layout.contact = (e.start, e.stop if e.empty else e.close, e.empty)
+        elif e.name == "pair" and e.parent == "contact":
+            geoms = frozenset((e.attrs.get("geom1", ""), e.attrs.get("geom2", "")))
+            layout.pairs.append((geoms, e.start, e.stop, e.attrs))
     return layout
 
 

@@ -1,10 +1,4 @@
-"""The physics of a recording against its golden log's, from the analysis' own tables.
-
-What the analysis measures is compared, each difference said in physical terms: how the run
-ended, the energy budget, the bounces of each body on each surface (how many, then each one's
-e, velocities, apex and impact time) and the collisions of each pair of bodies (how many,
-then each one's e, normal velocities and kinetic energy taken), within `PhysicsTolerance`.
-"""
+"""The physics of a recording against its golden log's, from the analysis' own tables."""
 
 from __future__ import annotations
 
@@ -15,7 +9,7 @@ from typing import Any
 import polars as pl
 
 from impactlab.show import plain
-from impactlab.tools.compare import differences
+from impactlab.tools.compare import differences, flatten
 
 
 @dataclass(frozen=True)
@@ -184,17 +178,7 @@ def _line(label: str, unit: str, a: Any, b: Any, allowed: float) -> str:
 
 def spec_changes(golden: dict[str, Any], new: dict[str, Any]) -> list[str]:
     """The fields of two spec documents that differ: `contact.restitution: 0.8 -> 0.81`."""
-
-    def flat(value: Any, prefix: str = "") -> dict[str, Any]:
-        if not isinstance(value, dict):
-            return {prefix: value}
-        return {
-            p: v
-            for k, x in value.items()
-            for p, v in flat(x, f"{prefix}.{k}" if prefix else str(k)).items()
-        }
-
-    fa, fb = flat(golden), flat(new)
+    fa, fb = flatten(golden), flatten(new)
     return [
         f"{plain(k)}: {plain(fa.get(k, '(none)'))} -> {plain(fb.get(k, '(none)'))}"
         for k in sorted(fa.keys() | fb.keys())

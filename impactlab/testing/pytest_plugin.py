@@ -1,8 +1,4 @@
-"""pytest plugin: golden regression tests of a spec's or model's physics (docs/golden-tests.md).
-
-Loaded through the `pytest11` entry point, it imports only pytest at first: every pytest
-session of an environment with impactlab installed loads it.
-"""
+"""pytest plugin: golden tests of a spec's or model's physics (docs/golden-tests.md)."""
 
 from __future__ import annotations
 

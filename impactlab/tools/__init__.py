@@ -1,5 +1,4 @@
-"""Tools over logs: `info`, `diff`, and the comparison within tolerances (`compare`) they share
-with the golden logs (`impactlab.golden`) and the pytest plugin (`impactlab.testing`)."""
+"""Tools over logs: `info`, `diff`, and the comparison within tolerances (`compare`)."""
 
 DEFAULT_ATOL = 1e-9
 DEFAULT_RTOL = 1e-9

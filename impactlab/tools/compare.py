@@ -80,6 +80,17 @@ def same_json(a: Any, b: Any, tolerance: Tolerance = EXACT) -> bool:
     return type(a) is type(b) and a == b
 
 
+def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
+    """Nested dicts and lists of containers as {dotted path: leaf}; scalar lists are leaves."""
+    if isinstance(value, dict) and value:
+        items = [(f"{prefix}.{k}" if prefix else str(k), v) for k, v in value.items()]
+    elif isinstance(value, list) and any(isinstance(v, dict | list) for v in value):
+        items = [(f"{prefix}[{i}]", v) for i, v in enumerate(value)]
+    else:
+        return {prefix: value}
+    return {path: leaf for k, v in items for path, leaf in flatten(v, k).items()}
+
+
 def same_text(a: str, b: str, tolerance: Tolerance = EXACT) -> bool:
     """Equal texts, the numbers in them within the tolerance and the rest exactly."""
     na, nb = NUMBER.findall(a), NUMBER.findall(b)

@@ -20,6 +20,7 @@ from impactlab.tools.compare import (
     EXACT,
     Tolerance,
     differences,
+    flatten,
     parse_json,
     same_json,
     same_text,
@@ -229,7 +230,7 @@ def _json_changes(a: Any, b: Any, tolerance: Tolerance) -> tuple[str, ...]:
     if not isinstance(a, dict | list) or not isinstance(b, dict | list):
         return ()
     try:
-        fa, fb = _flatten(a), _flatten(b)
+        fa, fb = flatten(a), flatten(b)
     except RecursionError:
         return ()
 
@@ -241,17 +242,6 @@ def _json_changes(a: Any, b: Any, tolerance: Tolerance) -> tuple[str, ...]:
         for path in dict.fromkeys([*fa, *fb])
         if path not in fa or path not in fb or not same_json(fa[path], fb[path], tolerance)
     )
-
-
-def _flatten(value: Any, prefix: str = "") -> dict[str, Any]:
-    """Nested dicts and lists of containers as {dotted path: leaf}; scalar lists are leaves."""
-    if isinstance(value, dict) and value:
-        items = [(f"{prefix}.{k}" if prefix else str(k), v) for k, v in value.items()]
-    elif isinstance(value, list) and any(isinstance(v, dict | list) for v in value):
-        items = [(f"{prefix}[{i}]", v) for i, v in enumerate(value)]
-    else:
-        return {prefix: value}
-    return {path: leaf for k, v in items for path, leaf in _flatten(v, k).items()}
 
 
 def compare_attachments(

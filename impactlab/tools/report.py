@@ -143,11 +143,8 @@ class LogDiff:
             ):
                 if missing is not None:
                     n = f"{missing.count} message" + ("" if missing.count == 1 else "s")
-                    span = f"at t = {fmt_t(missing.first_t_ns)} s"
-                    if missing.first_t_ns != missing.last_t_ns:
-                        span = f"t = {fmt_t(missing.first_t_ns)} .. {fmt_t(missing.last_t_ns)} s"
                     where = f"channel only in {side}: {n}" if other == 0 else f"{n} only in {side}"
-                    lines.append(f"{c.channel}: {where}, {span}")
+                    lines.append(f"{c.channel}: {where}, {missing.span()}")
         for m in self.meta:
             head = f"metadata {m.record} {m.key}"
             if m.a is None or m.b is None:
