@@ -77,12 +77,6 @@ def diff_logs(
         notes=tuple(
             f"{side} is incomplete: {p}" for side, log in (("A", a), ("B", b)) for p in log.problems
         ),
-        damage=tuple(
-            f"damage only in {side}: {p}"
-            for side, log, other in (("A", a, b), ("B", b, a))
-            for p in log.problems
-            if p not in other.problems
-        ),
     )
 
 

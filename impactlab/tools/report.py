@@ -114,17 +114,14 @@ class LogDiff:
     meta: tuple[MetaDiff, ...]
     attachments: tuple[AttachmentDiff, ...]
     notes: tuple[str, ...] = ()
-    damage: tuple[str, ...] = ()  # what the loader found wrong in one log and not the other
 
     @property
     def equal(self) -> bool:
-        """Equal within the tolerances: channels, metadata (but ignored keys), attachments,
-        and the damage found in each."""
+        """Equal within the tolerances: channels, metadata (but ignored keys), attachments."""
         return (
             all(c.equal for c in self.channels)
             and not self.meta
             and all(a.equal for a in self.attachments)
-            and not self.damage
         )
 
     @property
@@ -135,7 +132,7 @@ class LogDiff:
 
     def problems(self) -> list[str]:
         """One sentence per difference, earliest field divergence first."""
-        lines = [_field_line(f) for f in self.diverged_fields] + list(self.damage)
+        lines = [_field_line(f) for f in self.diverged_fields]
         for c in self.channels:
             for side, missing, other in (
                 ("A", c.only_a, c.messages_b),
@@ -223,7 +220,6 @@ class LogDiff:
             "metadata": [asdict(m) for m in self.meta],
             "attachments": [asdict(a) for a in self.attachments],
             "notes": list(self.notes),
-            "damage": list(self.damage),
         }
         return _json_safe(data)  # type: ignore[no-any-return]
 
