@@ -73,7 +73,9 @@ import impactlab.analyze.job, impactlab.tools.diff, impactlab.replay.recordings
 def alarm(signum, frame):
     raise TimeoutError("did not end within 60 s")
 signal.signal(signal.SIGALRM, alarm)
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+def peak_kb():  # VmHWM: unlike ru_maxrss, not inherited over exec from pytest's worker
+    return next(int(l.split()[1]) for l in open("/proc/self/status") if l.startswith("VmHWM:"))
+base = peak_kb()
 for line in sys.stdin:
     argv = json.loads(line)
     err = io.StringIO()
@@ -84,7 +86,7 @@ for line in sys.stdin:
     except BaseException as exc:
         code, err = -1, io.StringIO(f"{type(exc).__name__}: {exc}")
     signal.alarm(0)
-    grown = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - base) // 1024
+    grown = (peak_kb() - base) // 1024
     print(json.dumps([code, err.getvalue(), grown]), flush=True)
 """
 
