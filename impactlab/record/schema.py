@@ -367,34 +367,3 @@ def defaults(section: type[Section]) -> dict[str, Any]:
         value = info.get_default(call_default_factory=True)
         out[name] = list(value) if isinstance(value, tuple) else value
     return out
-
-
-def field_info(path: list[str]) -> tuple[str, Any] | None:
-    """What the dotted path (resolved, e.g. ["bodies", "ball", "mass"]) names in the schema:
-    ("table", section class) for a table, ("value", annotation) for a value, None if nothing."""
-    if not path:
-        return None
-    node: Any = SpecDocument
-    i = 0
-    while i < len(path):
-        key = path[i]
-        if node is SpecDocument and key == "bodies":
-            if i + 1 == len(path):
-                return ("table", None)
-            node, i = BodySpec, i + 2  # bodies.NAME
-            if i == len(path):
-                return ("table", BodySpec)
-            continue
-        fields = node.model_fields
-        if key not in fields:
-            return None
-        annotation = fields[key].annotation
-        if isinstance(annotation, type) and issubclass(annotation, Section):
-            node, i = annotation, i + 1
-            if i == len(path):
-                return ("table", node)
-            continue
-        if i + 1 != len(path):
-            return None
-        return ("value", annotation)
-    return None

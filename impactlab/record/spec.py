@@ -36,7 +36,6 @@ from impactlab.record.schema import (
     SpecDocument,
     Stop,
     defaults,
-    field_info,
     short,
 )
 
@@ -146,24 +145,26 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f", did you mean {close[0]!r}?" if close else ""
 
 
-def value_paths(doc: Mapping[str, Any]) -> list[str]:
-    """Every dotted path a `--set` or `[sweep]` key can name in `doc` (bodies by name)."""
+def value_fields(doc: Mapping[str, Any]) -> dict[str, Any]:
+    """Every value of `doc` a `--set` or `[sweep]` key can name: its resolved dotted path
+    (`bodies.ball.mass`) -> its type."""
 
-    def fields(section: type[Section], prefix: str) -> Iterable[str]:
+    def walk(section: type[Section], prefix: str) -> Iterable[tuple[str, Any]]:
         for name, info in section.model_fields.items():
             annotation = info.annotation
             if isinstance(annotation, type) and issubclass(annotation, Section):
-                yield from fields(annotation, f"{prefix}{name}.")
+                yield from walk(annotation, f"{prefix}{name}.")
             else:
-                yield f"{prefix}{name}"
+                yield f"{prefix}{name}", annotation
 
-    paths = [key for key in ("name", "description") if key in doc]
+    top = SpecDocument.model_fields
+    out = {key: top[key].annotation for key in ("name", "description") if key in doc}
     for section, schema in SECTIONS.items():
         if section in doc:
-            paths += fields(schema, f"{section}.")
+            out.update(walk(schema, f"{section}."))
     for body in doc.get("bodies", {}):
-        paths += fields(BodySpec, f"{body}.")
-    return paths
+        out.update(walk(BodySpec, f"bodies.{body}."))
+    return out
 
 
 def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
@@ -181,27 +182,27 @@ def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str
         SpecError: the path names nothing, or a table (set its fields instead).
     """
     keys = resolve_path(doc, path)
-    if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in doc.get("bodies", {}):
-        bodies = list(doc.get("bodies", {}))
+    bodies = list(doc.get("bodies", {}))
+    if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in bodies:
         hint = did_you_mean(keys[1], bodies)
         raise SpecError(
             source, path, f"unknown body {keys[1]!r}{hint} (known: {', '.join(bodies)})"
         )
-    found = field_info(keys)
-    if found is None:
-        hint = did_you_mean(path, value_paths(doc))
-        raise SpecError(source, path, f"unknown field {'.'.join(keys)!r}{hint}")
-    kind, what = found
-    if kind == "table":
-        fields = ", ".join(what.model_fields) if what is not None else "bodies.NAME.FIELD"
-        example = next(iter(what.model_fields)) if what is not None else "mass"
-        raise SpecError(
-            source,
-            path,
-            f"is a table; set its fields instead, e.g. {'.'.join(keys)}.{example}=... "
-            f"(fields: {fields})",
-        )
-    return keys, what
+    fields, full = value_fields(doc), ".".join(keys)
+    if full in fields:
+        return keys, fields[full]
+    inside = [p.removeprefix(f"{full}.").split(".")[0] for p in fields if p.startswith(f"{full}.")]
+    if not inside:
+        hint = did_you_mean(path, [p.removeprefix("bodies.") for p in fields])
+        raise SpecError(source, path, f"unknown field {full!r}{hint}")
+    names = ["bodies.NAME.FIELD"] if keys == ["bodies"] else list(dict.fromkeys(inside))
+    example = "mass" if keys == ["bodies"] else names[0]
+    raise SpecError(
+        source,
+        path,
+        f"is a table; set its fields instead, e.g. {full}.{example}=... "
+        f"(fields: {', '.join(names)})",
+    )
 
 
 def set_path(doc: dict[str, Any], path: str, value: Any, source: str) -> None:
