@@ -95,12 +95,6 @@ def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) ->
         )
     if stop.separation is not None and len(inst.bodies) < 2:
         raise SpecError(source, "stop.separation", "a collision needs at least two free bodies")
-    if stop.at_rest and stop.rest_time >= stop.max_time:
-        raise SpecError(
-            source,
-            "stop.rest_time",
-            f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
-        )
     if timestep >= stop.max_time:
         raise SpecError(
             source,

@@ -13,6 +13,7 @@ import numpy as np
 from impactlab.errors import SpecError
 from impactlab.logs.geoms import FlexShape, GeomShape
 from impactlab.logs.metadata import Surface
+from impactlab.mjcf.load import one_line, parse_mjcf
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
@@ -174,7 +175,6 @@ def model_from_mjcf(
     MuJoCo reads the model and every file it names; the log keeps its text and, when the text
     alone does not reproduce it, the compiled model (`impactlab.record.model_files`).
     """
-    from impactlab.mjcf.load import parse_mjcf
     from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files
 
     spec = parse_mjcf(path)
@@ -188,10 +188,6 @@ def model_from_mjcf(
     if files.needs_binary:
         inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
     return inst
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
 
 
 def instrument(
@@ -219,7 +215,7 @@ def instrument(
     try:
         plain = spec.compile()
     except Exception as exc:
-        raise SpecError(source, "", f"invalid MJCF: {_one_line(exc)}") from None
+        raise SpecError(source, "", f"invalid MJCF: {one_line(exc)}") from None
     data = mujoco.MjData(plain)
     mujoco.mj_kinematics(plain, data)
     rigid = geometry.rigid_bodies(plain, data)

@@ -160,13 +160,11 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
     options = mjcf_options(str(path), overrides, duration)
     gaps = options.stop.separation is not None
-    inst = model_from_mjcf(
-        path, keyframe=options.keyframe, gaps=gaps
-    )  # validate now; rebuilt when run
+    inst = model_from_mjcf(path, keyframe=options.keyframe, gaps=gaps)
     check_options(options, inst, str(path))
-    # the model by name and content, not by where it is: the same model gives the same run
-    # the model as MuJoCo compiled it (every file it read): a change in any is another run
-    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": inst_digest(inst)}
+    # the model by name and content as MuJoCo compiled it (every file it read), not by where
+    # it is: the same model gives the same run, a change in any of its files another
+    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": model_digest(inst.model)}
     document |= options.document
     digest = spec_hash(document)
     info = RunInfo(
@@ -185,11 +183,6 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     steps = run_steps(max_time, float(inst.model.opt.timestep))
     work = Work.of_runs(1, steps, options.log_every, len(inst.bodies))
     return PlannedRun(info, lambda: inst, None, max_time, options.stop, work)
-
-
-def inst_digest(inst: InstrumentedModel) -> str:
-    """SHA-256 of the model as MuJoCo compiled it (`model_files.model_digest`)."""
-    return model_digest(inst.model)
 
 
 def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -> str:

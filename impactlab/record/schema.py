@@ -284,6 +284,17 @@ class Stop(Section):
     max_energy_gain: Positive = 0.1
     max_penetration: Positive = 1.0
 
+    @model_validator(mode="after")
+    def _one_ending(self) -> Stop:
+        if self.bounces is not None and self.separation is not None:
+            raise problem("give either bounces (a drop) or separation (a collision)")
+        if self.at_rest and self.rest_time >= self.max_time:
+            raise problem(
+                f"{self.rest_time} s is not shorter than stop.max_time = {self.max_time} s",
+                "rest_time",
+            )
+        return self
+
 
 class Logging(Section):
     """What is logged: every N-th step."""
@@ -313,17 +324,10 @@ class SpecDocument(Section):
     @model_validator(mode="after")
     def _stop_fits_the_model(self) -> SpecDocument:
         stop, plane, opt = self.stop, self.plane, self.options
-        if stop.bounces is not None and stop.separation is not None:
-            raise problem("give either bounces (a drop) or separation (a collision)", "stop")
         if stop.bounces is not None and not plane.enabled:
             raise problem("counts bounces on the plane, but plane.enabled is false", "stop.bounces")
         if stop.separation is not None and len(self.bodies) < 2:
             raise problem("a collision needs at least two bodies", "stop.separation")
-        if stop.at_rest and stop.rest_time >= stop.max_time:
-            raise problem(
-                f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
-                "stop.rest_time",
-            )
         if opt.timestep >= stop.max_time:
             raise problem(
                 f"{opt.timestep} s is not shorter than stop.max_time = {stop.max_time} s",
