@@ -1,17 +1,4 @@
-"""Per-pair contacts of a spec whose contact asks for a coefficient of restitution.
-
-Each ball-plane and ball-ball pair with a target e gets calibrated MuJoCo parameters
-(`impactlab.contact`) for the pair's own range of impact speeds: the pair's
-`contact.pairs."a/b".speed_range`, else the global `contact.speed_range`, else the range the
-experiment gives (`default_speed_range`):
-
-- a ball on the plane under gravity: from its first impact speed (fall height and initial
-  vertical velocity) down to the impact speed of the last bounce that matters, the N-th for
-  `stop.bounces = N` and the last before `stop.max_time`, each bounce taken at
-  `(e - RESTITUTION_TOLERANCE)` times the speed of the one before (the slowest decay the
-  tolerance allows), floored at `SPEED_FLOOR_MPS`;
-- a ball on the plane without gravity, and two balls: their initial closing speed (one impact).
-"""
+"""Calibrated contacts of a spec's pairs with a target restitution (docs/contact-model.md)."""
 
 from __future__ import annotations
 

@@ -1,18 +1,4 @@
-"""The energy MuJoCo counts in joints rather than bodies: rotor inertia and springs.
-
-MuJoCo's kinetic energy is 1/2 qvel' M qvel, and M holds each dof's `armature` (the inertia
-of a motor's rotor) besides the bodies' inertia; its potential energy holds the joint and
-tendon springs besides gravity. The bodies' states in the log give the rest, so the recorder
-logs these two terms (`/energy/joints`), computed here from the state with their own
-formulas, not taken from MuJoCo's energy: the analysis' sum of the bodies and these terms is
-then checked against MuJoCo's total at every logged step.
-
-- rotor kinetic energy: sum over dofs of armature qvel^2 / 2;
-- spring potential energy: per hinge or slide joint k (q - q_spring)^2 / 2; per ball joint
-  k |rotation vector from q_spring to q|^2 / 2; a free joint both, for its position and its
-  orientation; per tendon k d^2 / 2, d the length's distance outside [lower, upper] of its
-  `springlength` (no springs when the model's flag disables them).
-"""
+"""The energy MuJoCo counts in joints rather than bodies: rotor inertia and springs."""
 
 from __future__ import annotations
 

@@ -1,10 +1,4 @@
-"""Run options of an MJCF model: a spec's `[stop]` and `[logging]` tables, and nothing else.
-
-A user's model brings its own bodies, contacts and simulation options (timestep, integrator,
-gravity); what impactlab adds is how the run stops and what it logs, set exactly as for a
-spec: `--set logging.every=10`, `--set stop.bounces=3`, `--set stop.max_time=2` (or
-`--duration 2`). The same defaults and checks apply (`impactlab.record.schema`).
-"""
+"""Run options of an MJCF model: a spec's `[stop]` and `[logging]`, a keyframe, nothing else."""
 
 from __future__ import annotations
 

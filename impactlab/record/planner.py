@@ -1,11 +1,4 @@
-"""Plan a record job: specs or MJCF files -> validated runs, each with its name and metadata.
-
-Everything is validated before the first simulation, so a wrong input writes nothing. The
-plan is a sequence built on demand (`PlannedRuns`): a 100,000-point sweep planned as a list
-holds 100,000 resolved specs (about 7 KB each) in the process that records them and in every
-worker forked from it, so a sweep is kept as its grid and a run is built again (about 0.1 ms,
-the spec validated again) when it is asked for; `Subset` is a view of some runs, by index.
-"""
+"""Plan a record job: specs or MJCF files -> validated runs, each built when it is read."""
 
 from __future__ import annotations
 

@@ -1,13 +1,4 @@
-"""The experiment spec's schema: every field with its type, range, unit and default, declared once.
-
-A spec document (a TOML file's content, with overrides and one sweep point applied) is
-validated as a whole against `SpecDocument`; the validated sections are what the recorder
-builds its models from. Adding a field is one declaration here: its type and range
-(`Number`, `Vector`, ...), its default, and its unit (`unit(...)`, shown in errors and docs).
-Checks that relate fields (a stop rule that needs the plane, a body that starts below it)
-are validators of the section that holds both. `impactlab.record.spec` turns validation
-errors into one `SpecError` naming the file and the field.
-"""
+"""The experiment spec's schema: each field's type, range, unit and default, declared once."""
 
 from __future__ import annotations
 

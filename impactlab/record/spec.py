@@ -1,10 +1,4 @@
-"""Experiment specs: TOML files that declare a model, its contact, options, stop rule and logging.
-
-A spec is read in three steps: the TOML document is merged over the schema's defaults
-(`impactlab.record.schema`), command-line overrides and one sweep point are applied by dotted
-path (`set_path`), and the result is validated as a whole against the schema into a frozen
-`RunSpec`. Every error names the file, the field and the problem (`SpecError`).
-"""
+"""Experiment specs: TOML over the schema's defaults, set by dotted path, validated (`RunSpec`)."""
 
 from __future__ import annotations
 

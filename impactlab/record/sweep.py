@@ -1,11 +1,4 @@
-"""Expand an experiment spec into runs: command-line overrides, then the `[sweep]` grid.
-
-`[sweep]` maps dotted field paths to lists of values; the runs are their Cartesian product,
-in the order the keys are written. `--set PATH=VALUE` overrides a field (VALUE is a TOML
-value: `2`, `[0, 0, 1]`, `"RK4"`); overriding a swept field replaces its list: with one value
-(`--set ball.pos=[0, 0, 1]`, one run) or a list of values (`--set 'ball.pos=[[0, 0, 1],
-[0, 0, 2]]'`). A path names a value, never a table (`contact`, `ball`): set its fields.
-"""
+"""Expand an experiment spec into runs: command-line overrides, then the `[sweep]` grid."""
 
 from __future__ import annotations
 
