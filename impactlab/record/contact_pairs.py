@@ -6,7 +6,6 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass
-from typing import TypeVar
 
 import numpy as np
 
@@ -62,7 +61,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     for geom1, body, other in candidates:
         key = "/".join(sorted((geom1, body.name)))
         own = per_pair.get(key, ContactTarget())
-        e = _pick(own.restitution, con.restitution)
+        e = con.restitution if own.restitution is None else own.restitution
         if e is None:
             if key in per_pair:
                 raise SpecError(
@@ -78,7 +77,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         else:
             radius = min(body.radius, other.radius)
             speed, g_normal = _closing_speed(other, body, g)
-        speeds = _pick(own.speed_range, con.speed_range)
+        speeds = con.speed_range if own.speed_range is None else own.speed_range
         if speeds is not None:
             field = f"{where}.speed_range" if own.speed_range is not None else "contact.speed_range"
         elif not speed > 0:
@@ -138,13 +137,6 @@ def _calibrated(
         gravity_mps2=g_normal,
         allow_coarse=allow_coarse,
     )
-
-
-T = TypeVar("T")
-
-
-def _pick(own: T | None, default: T | None) -> T | None:
-    return own if own is not None else default
 
 
 def default_speed_range(

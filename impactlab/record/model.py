@@ -335,10 +335,7 @@ def parties(model: mujoco.MjModel, roots: list[int]) -> tuple[np.ndarray, tuple[
     flex_party = [nb + ngeom + f for f in range(model.nflex)]
     names = [model.body(r).name for r in roots]
     names += [model.geom(g).name for g in range(ngeom)]
-    names += [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}"
-        for f in range(model.nflex)
-    ]
+    names += [geometry.flex_name(model, f) for f in range(model.nflex)]
     return np.array(geom_party + flex_party, np.int64), tuple(names)
 
 
