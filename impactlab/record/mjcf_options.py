@@ -6,16 +6,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import ValidationError
-
 from impactlab.errors import SpecError
 from impactlab.record.model import InstrumentedModel
-from impactlab.record.schema import MAX_TIME_S, SECTIONS, MjcfRunOptions, Stop, defaults
-from impactlab.record.spec import schema_error, set_path
+from impactlab.record.schema import MAX_TIME_S, Logging, MjcfRunOptions, Stop, defaults
+from impactlab.record.spec import checked, set_path
 from impactlab.record.sweep import parse_override
-
-MJCF_SECTIONS = ("stop", "logging")
-MJCF_KEYS = ("keyframe",)  # run options outside the sections
 
 
 @dataclass(frozen=True)
@@ -36,21 +31,20 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         SpecError: an override names anything but stop.* or logging.*, a value is wrong,
             or no time limit is given.
     """
-    doc: dict[str, Any] = {section: defaults(SECTIONS[section]) for section in MJCF_SECTIONS}
-    doc["stop"]["max_time"] = None
+    doc: dict[str, Any] = {
+        "stop": {**defaults(Stop), "max_time": None},
+        "logging": defaults(Logging),
+    }
     for text in overrides:
         key, value = parse_override(text)
-        if key.split(".")[0] not in MJCF_SECTIONS and key not in MJCF_KEYS:
+        if key.split(".")[0] not in MjcfRunOptions.model_fields:
             raise SpecError(
                 source,
                 f"--set {key}",
                 "an MJCF model takes run options only (stop.*, logging.*, keyframe); "
                 "change the model itself for anything else",
             )
-        if key in MJCF_KEYS:
-            doc[key] = value
-        else:
-            set_path(doc, key, value, source)
+        set_path(doc, key, value, source, MjcfRunOptions)
     if duration is not None:
         if not 0 < duration <= MAX_TIME_S:
             raise SpecError(
@@ -66,10 +60,7 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         raise SpecError(
             source, "--duration", "an MJCF model needs --duration SECONDS (or stop.max_time)"
         )
-    try:
-        options = MjcfRunOptions.model_validate(doc)
-    except ValidationError as exc:
-        raise schema_error(exc, source) from None
+    options = checked(MjcfRunOptions, doc, source)
     return MjcfOptions(options.stop, options.logging.every, doc, options.keyframe)
 
 

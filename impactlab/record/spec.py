@@ -11,7 +11,7 @@ import typing
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from pydantic import ValidationError
 from pydantic_core import ErrorDetails
@@ -139,26 +139,22 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f", did you mean {close[0]!r}?" if close else ""
 
 
-def value_fields(doc: Mapping[str, Any]) -> dict[str, Any]:
-    """Every value of `doc` a `--set` or `[sweep]` key can name: its resolved dotted path
-    (`bodies.ball.mass`) -> its type."""
+def value_fields(doc: Mapping[str, Any], schema: type[Section] = SpecDocument) -> dict[str, Any]:
+    """Every value of `doc` (a document of `schema`) a `--set` or `[sweep]` key can name: its
+    resolved dotted path (`bodies.ball.mass`) -> its type."""
 
     def walk(section: type[Section], prefix: str) -> Iterable[tuple[str, Any]]:
         for name, info in section.model_fields.items():
             annotation = info.annotation
-            if isinstance(annotation, type) and issubclass(annotation, Section):
+            if section is SpecDocument and name == "bodies":
+                for body in doc.get("bodies", {}):
+                    yield from walk(BodySpec, f"bodies.{body}.")
+            elif isinstance(annotation, type) and issubclass(annotation, Section):
                 yield from walk(annotation, f"{prefix}{name}.")
             else:
                 yield f"{prefix}{name}", annotation
 
-    top = SpecDocument.model_fields
-    out = {key: top[key].annotation for key in ("name", "description") if key in doc}
-    for section, schema in SECTIONS.items():
-        if section in doc:
-            out.update(walk(schema, f"{section}."))
-    for body in doc.get("bodies", {}):
-        out.update(walk(BodySpec, f"bodies.{body}."))
-    return out
+    return dict(walk(schema, ""))
 
 
 def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
@@ -169,8 +165,11 @@ def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
     return keys
 
 
-def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str], Any]:
-    """The resolved keys of a dotted path that names a value of the spec, and its type.
+def check_path(
+    doc: Mapping[str, Any], path: str, source: str, schema: type[Section] = SpecDocument
+) -> tuple[list[str], Any]:
+    """The resolved keys of a dotted path that names a value of `doc` (of `schema`), and its
+    type.
 
     Raises:
         SpecError: the path names nothing, or a table (set its fields instead).
@@ -182,7 +181,7 @@ def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str
         raise SpecError(
             source, path, f"unknown body {keys[1]!r}{hint} (known: {', '.join(bodies)})"
         )
-    fields, full = value_fields(doc), ".".join(keys)
+    fields, full = value_fields(doc, schema), ".".join(keys)
     if full in fields:
         return keys, fields[full]
     inside = [p.removeprefix(f"{full}.").split(".")[0] for p in fields if p.startswith(f"{full}.")]
@@ -199,9 +198,11 @@ def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str
     )
 
 
-def set_path(doc: dict[str, Any], path: str, value: Any, source: str) -> None:
+def set_path(
+    doc: dict[str, Any], path: str, value: Any, source: str, schema: type[Section] = SpecDocument
+) -> None:
     """Set a value of a resolved document by dotted path (see `check_path`)."""
-    keys, _ = check_path(doc, path, source)
+    keys, _ = check_path(doc, path, source, schema)
     node = doc
     for key in keys[:-1]:
         node = node[key]
@@ -235,12 +236,7 @@ def validate(
     Raises:
         SpecError: the first problem, naming the file and the field.
     """
-    try:
-        spec = SpecDocument.model_validate(doc)
-    except ValidationError as exc:
-        raise schema_error(exc, source) from None
-    except RecursionError:
-        raise SpecError(source, "", "a value is nested too deeply") from None
+    spec = checked(SpecDocument, doc, source)
     bodies = tuple(
         Body.model_construct(
             **{
@@ -266,6 +262,23 @@ def validate(
         sweep_size=sweep_point[1],
         document=doc,
     )
+
+
+S = TypeVar("S", bound=Section)
+
+
+def checked(schema: type[S], doc: Mapping[str, Any], source: str) -> S:
+    """`doc` validated against `schema`.
+
+    Raises:
+        SpecError: the first problem, naming the file and the field.
+    """
+    try:
+        return schema.model_validate(doc)
+    except ValidationError as exc:
+        raise schema_error(exc, source) from None
+    except RecursionError:
+        raise SpecError(source, "", "a value is nested too deeply") from None
 
 
 def plain_copy(value: Any) -> Any:
