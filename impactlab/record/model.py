@@ -228,8 +228,9 @@ def instrument(
         raise SpecError(
             source, "keyframe", f"no keyframe named {keyframe!r} (the model has {known})"
         )
-    names = [plain.body(r.root).name for r in rigid]
-    for r, name in zip(rigid, names, strict=True):
+    names = {r.root: plain.body(r.root).name for r in rigid}
+    for r in rigid:
+        name = names[r.root]
         site = spec.body(name).add_site(name=f"{prefix}{name}", pos=r.pos, quat=r.quat)
         site.group = 5  # not drawn by MuJoCo's viewer
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
@@ -252,7 +253,8 @@ def instrument(
     ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
-    clearance_plan = _distance_sensors(spec, plain, own, measurable, prefix, between_bodies=False)
+    to_ground = [(b, plain.geom(g).name, [g]) for b in own for g in measurable]
+    clearance_plan = _distance_sensors(spec, plain, own, to_ground, prefix)
     gap_plan: list[tuple[str, str, list[str]]] = []
     if gaps:
         lone = {r.root: own[r.root] for r in rigid if geometry.motion(plain, r) == "free"}
@@ -264,7 +266,8 @@ def instrument(
                 f"the separation rule would watch {pairs:,} pairs of geoms "
                 f"(at most {MAX_GAP_PAIRS:,}): use a time limit instead",
             )
-        gap_plan = _distance_sensors(spec, plain, lone, [], prefix, between_bodies=True)
+        between = [(a, names[b], lone[b]) for a, b in itertools.combinations(lone, 2)]
+        gap_plan = _distance_sensors(spec, plain, own, between, prefix)
     model = spec.compile()
     # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
     # computes after the sensors: one step late. Off, they compute it themselves, at the
@@ -278,8 +281,8 @@ def instrument(
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
 
     bodies = []
-    for r, name in zip(rigid, names, strict=True):
-        mine = own[r.root]
+    for r in rigid:
+        name, mine = names[r.root], own[r.root]
         com = data.xpos[r.root] + data.xmat[r.root].reshape(3, 3) @ np.asarray(r.pos)
         bodies.append(
             BodyChannel(
@@ -296,10 +299,10 @@ def instrument(
             )
         )
     key = None if keyframe is None else int(model.key(keyframe).id)
-    sites = {r.root: int(model.site(f"{prefix}{n}").id) for r, n in zip(rigid, names, strict=True)}
+    sites = {root: int(model.site(f"{prefix}{n}").id) for root, n in names.items()}
     geoms, meshes = describe_geoms(model, sites)
-    flexes = describe_flexes(model, {r.root: n for r, n in zip(rigid, names, strict=True)})
-    party, party_names = parties(model, [r.root for r in rigid])
+    flexes = describe_flexes(model, names)
+    party, party_names = parties(model, list(names))
     return InstrumentedModel(
         model=model,
         xml=xml,
@@ -343,29 +346,22 @@ def _distance_sensors(
     spec: mujoco.MjSpec,
     model: mujoco.MjModel,
     own: dict[int, list[int]],
-    surfaces: list[int],
+    targets: list[tuple[int, str, list[int]]],
     prefix: str,
-    *,
-    between_bodies: bool,
 ) -> list[tuple[str, str, list[str]]]:
     """Add a `distance` sensor per pair of geoms that can collide; returns what each measures.
 
-    Each entry is (body, surface geom or other body, sensor names without the prefix): the
-    body's distance to that surface (or body) is the smallest of those sensors. Pairs of
-    geoms that cannot collide get no sensor; (body, other) pairs with none are left out.
+    `targets`: (root body, what it is measured to: a surface geom or another body, that
+    one's geoms); `own`: each root body's collision geoms. Each entry returned is (body, other,
+    sensor names without the prefix): the body's distance to the other is the smallest of
+    those sensors. Pairs of geoms that cannot collide get no sensor; (body, other) pairs
+    with none are left out.
     """
-    free = list(own)
-    others: list[tuple[int, str, list[int]]] = []
-    for i, b in enumerate(free):
-        if between_bodies:
-            others += [(b, model.body(o).name, own[o]) for o in free[i + 1 :]]
-        else:
-            others += [(b, model.geom(g).name, [g]) for g in surfaces]
     plan = []
-    for b, other, targets in others:
+    for b, other, geoms in targets:
         names = []
         for g1 in own[b]:
-            for g2 in targets:
+            for g2 in geoms:
                 if not geometry.can_collide(model, g1, g2):
                     continue
                 name = f"distance:{g1}:{g2}"
