@@ -17,10 +17,9 @@ from impactlab.contact import (
     contact_params,
 )
 from impactlab.errors import SpecError
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.record.schema import ContactTarget
 from impactlab.record.spec import Body, RunSpec, Stop
-
-PLANE_GEOM = "plane"
 
 
 @dataclass(frozen=True)

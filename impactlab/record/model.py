@@ -11,6 +11,7 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.logs.geoms import FlexShape, GeomShape
 from impactlab.logs.metadata import Surface
 from impactlab.mjcf.load import one_line, parse_mjcf
@@ -24,7 +25,6 @@ from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks
 from impactlab.record.spec import RunSpec
 
 BODY_STATE_SIZE = 13  # pos 3, quat 4, linvel 3, angvel 3
-PLANE_NAME = "plane"
 DISTANCE_CUTOFF_M = 1.0e4
 """Distances beyond this are reported as this (MuJoCo's distance sensors need a cutoff)."""
 MAX_GAP_PAIRS = 10_000
@@ -127,7 +127,7 @@ def mjcf_from_spec(run: RunSpec, pairs: Sequence[CalibratedPair] | None = None) 
     ]
     if run.plane.enabled:
         lines.append(
-            f'    <geom name="{PLANE_NAME}" type="plane" size="{_fmt(run.plane.size)}" '
+            f'    <geom name="{PLANE_GEOM}" type="plane" size="{_fmt(run.plane.size)}" '
             f'rgba="{_fmt(run.plane.rgba)}"/>'
         )
     for b in run.bodies:

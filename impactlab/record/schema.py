@@ -16,6 +16,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.physics import INTEGRATORS as INTEGRATORS  # MuJoCo's, as MJCF spells them
 from impactlab.physics import Integrator
 
@@ -27,7 +28,7 @@ MAX_NAME_LENGTH = 64
 MAX_BODIES = 64
 RESERVED_BODY_NAMES = {
     "world": "MuJoCo's world body",
-    "plane": 'the ground plane\'s name (contact pairs such as "ball/plane")',
+    PLANE_GEOM: 'the ground plane\'s name (contact pairs such as "ball/plane")',
 }
 MUJOCO_MINVAL = 1e-15  # mjMINVAL: MuJoCo refuses lighter moving bodies
 
