@@ -51,7 +51,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 f"contact.pairs.{key}",
                 f"no geom named {unknown[0]!r} ({sorted(geoms)})",
             )
-    g = np.asarray(run.options.gravity)
+    g_down = max(-float(run.options.gravity[2]), 0.0)  # the plane's normal is +z
     out = []
     candidates: list[tuple[str, Body, Body | None]] = []
     if run.plane.enabled:
@@ -72,10 +72,9 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         where = f"contact.pairs.{key}" if key in per_pair else "contact"
         field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
         if other is None:
-            radius, (speed, g_normal) = body.radius, _plane_impact(body, g)
-        else:
-            radius = min(body.radius, other.radius)
-            speed, g_normal = _closing_speed(other, body, g)
+            radius, g_normal, speed = body.radius, g_down, _plane_impact(body, g_down)
+        else:  # two free balls fall together: gravity does not press them into each other
+            radius, g_normal, speed = min(body.radius, other.radius), 0.0, _closing(other, body)
         speeds = con.speed_range if own.speed_range is None else own.speed_range
         if speeds is not None:
             field = f"{where}.speed_range" if own.speed_range is not None else "contact.speed_range"
@@ -87,7 +86,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 f'(or contact.pairs."{key}".speed_range)',
             )
         else:
-            speeds = default_speed_range(speed, e, g_normal, run.stop, body, other is None)
+            speeds = default_speed_range(speed, e, g_normal, run.stop, body)
         if own.duration is not None or own.max_penetration is not None:
             duration, max_pen = own.duration, own.max_penetration
         else:
@@ -139,14 +138,12 @@ def _calibrated(
 
 
 def default_speed_range(
-    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body, on_plane: bool
+    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body
 ) -> tuple[float, float]:
-    """The impact speeds (m/s) a pair's contact must hold e over, from the experiment.
-
-    See the module docstring. `first_mps` is the first impact speed, `g_normal` gravity along
-    the contact normal (0: one impact).
-    """
-    if not on_plane or g_normal <= 0.0:
+    """The impact speeds (m/s) a pair's contact must hold e over, from the experiment
+    (docs/contact-model.md): `first_mps` the first impact speed, `g_normal` gravity along
+    the contact normal (0: one impact)."""
+    if g_normal <= 0.0:
         return first_mps, first_mps
     decay = max(e - RESTITUTION_TOLERANCE, 0.0)
     height = max(body.pos[2] - body.radius, 0.0)
@@ -162,23 +159,16 @@ def default_speed_range(
     return min(max(v, SPEED_FLOOR_MPS), first_mps), first_mps
 
 
-def _plane_impact(body: Body, g: np.ndarray) -> tuple[float, float]:
-    """Impact speed (m/s) of a ball falling on the plane z = 0, and gravity along the normal."""
-    g_down = max(-float(g[2]), 0.0)
+def _plane_impact(body: Body, g_down: float) -> float:
+    """Impact speed (m/s) of a ball falling on the plane z = 0 (`g_down`: gravity along -z)."""
     height = max(body.pos[2] - body.radius, 0.0)
     vz = body.vel[2]
     if g_down == 0.0:
-        return max(-vz, 0.0), 0.0
-    return math.sqrt(vz * vz + 2.0 * g_down * height), g_down  # energy: up, then down
+        return max(-vz, 0.0)
+    return math.sqrt(vz * vz + 2.0 * g_down * height)  # energy: up, then down
 
 
-def _closing_speed(a: Body, b: Body, g: np.ndarray) -> tuple[float, float]:
-    """Closing speed (m/s) of two balls along their line of centres, and the relative gravity.
-
-    Two free balls fall together: gravity gives them no relative acceleration, so the
-    contact sees none (0).
-    """
+def _closing(a: Body, b: Body) -> float:
+    """Closing speed (m/s) of two balls along their line of centres."""
     d = np.subtract(b.pos, a.pos)
-    n = d / np.linalg.norm(d)
-    closing = float(np.dot(np.subtract(a.vel, b.vel), n))
-    return closing, 0.0
+    return float(np.dot(np.subtract(a.vel, b.vel), d / np.linalg.norm(d)))
