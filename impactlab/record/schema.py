@@ -345,12 +345,11 @@ class MjcfRunOptions(Section):
 
 
 SECTIONS: Mapping[str, type[Section]] = {
-    "options": Options,
-    "contact": Contact,
-    "plane": Plane,
-    "stop": Stop,
-    "logging": Logging,
+    name: field.annotation
+    for name, field in SpecDocument.model_fields.items()
+    if isinstance(field.annotation, type) and issubclass(field.annotation, Section)
 }
+"""The spec's tables of fields, by name (bodies are tables by name of `BodySpec`)."""
 
 
 def defaults(section: type[Section]) -> dict[str, Any]:

@@ -8,13 +8,12 @@ import json
 import tomllib
 import types
 import typing
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import ValidationError
-from pydantic_core import ErrorDetails
 
 from impactlab.errors import SpecError
 from impactlab.files import read_regular
@@ -35,7 +34,7 @@ from impactlab.record.schema import (
 
 __all__ = ["Body", "Contact", "Options", "Plane", "RunSpec", "Stop"]
 
-SPEC_TOP_KEYS = ("name", "description", *SECTIONS, "bodies", "sweep")
+SPEC_TOP_KEYS = (*SpecDocument.model_fields, "sweep")
 MAX_SPEC_BYTES = 10_000_000  # a spec file larger than this is not a spec
 
 
@@ -292,23 +291,23 @@ def plain_copy(value: Any) -> Any:
     return value
 
 
-_WORDS: dict[str, Callable[[ErrorDetails], str]] = {
-    "missing": lambda e: "is required",
-    "float_type": lambda e: f"must be a number, got {short(e['input'])}",
-    "int_type": lambda e: f"must be an integer, got {short(e['input'])}",
-    "bool_type": lambda e: f"must be true or false, got {short(e['input'])}",
-    "string_type": lambda e: f"must be a string, got {short(e['input'])}",
-    "finite_number": lambda e: f"must be finite, got {short(e['input'])}",
-    "greater_than": lambda e: f"must be > {e['ctx']['gt']:g}, got {short(e['input'])}",
-    "greater_than_equal": lambda e: f"must be >= {e['ctx']['ge']:g}, got {short(e['input'])}",
-    "less_than_equal": lambda e: f"must be <= {e['ctx']['le']:g}, got {short(e['input'])}",
-    "literal_error": lambda e: f"must be one of {e['ctx']['expected']}, got {short(e['input'])}",
-    "extra_forbidden": lambda e: "unknown key",
-    "model_type": lambda e: f"must be a table, got {short(e['input'])}",
-    "dict_type": lambda e: f"must be a table, got {short(e['input'])}",
-    "too_short": lambda e: f"must have at least {e['ctx']['min_length']} entries",
-    "too_long": lambda e: f"must have at most {e['ctx']['max_length']} entries",
-    "string_too_long": lambda e: f"must be at most {e['ctx']['max_length']} characters",
+_WORDS = {  # pydantic's error types in our words: {input} is the value, the rest its context
+    "missing": "is required",
+    "float_type": "must be a number, got {input}",
+    "int_type": "must be an integer, got {input}",
+    "bool_type": "must be true or false, got {input}",
+    "string_type": "must be a string, got {input}",
+    "finite_number": "must be finite, got {input}",
+    "greater_than": "must be > {gt:g}, got {input}",
+    "greater_than_equal": "must be >= {ge:g}, got {input}",
+    "less_than_equal": "must be <= {le:g}, got {input}",
+    "literal_error": "must be one of {expected}, got {input}",
+    "extra_forbidden": "unknown key",
+    "model_type": "must be a table, got {input}",
+    "dict_type": "must be a table, got {input}",
+    "too_short": "must have at least {min_length} entries",
+    "too_long": "must have at most {max_length} entries",
+    "string_too_long": "must be at most {max_length} characters",
 }
 
 
@@ -328,5 +327,5 @@ def schema_error(exc: ValidationError, source: str) -> SpecError:
         text = ctx["text"]
     else:
         words = _WORDS.get(err["type"])
-        text = words(err) if words else err["msg"]
+        text = words.format(input=short(err["input"]), **ctx) if words else err["msg"]
     return SpecError(source, ".".join(parts), text)
