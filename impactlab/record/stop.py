@@ -51,6 +51,13 @@ def _first(mask: np.ndarray) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
+def _touching(chunk: Chunk, contacts: np.ndarray) -> np.ndarray:
+    """Per step of the chunk, whether any of the chosen contacts (a mask) is at it."""
+    touching = np.zeros(chunk.rows.shape[0], bool)
+    touching[chunk.contacts.step[contacts]] = True
+    return touching
+
+
 @dataclass
 class _Finite(_Rule):
     def update(self, chunk: Chunk) -> Verdict | None:
@@ -98,8 +105,7 @@ class _Bounces(_Rule):
             mine = ((p1 == body) & np.isin(p2, list(self.surfaces))) | (
                 (p2 == body) & np.isin(p1, list(self.surfaces))
             )
-            touching = np.zeros(rows.shape[0], bool)
-            touching[chunk.contacts.step[mine]] = True
+            touching = _touching(chunk, mine)
             v_up = rows[:, adr : adr + 3] @ self.up
             later = np.arange(rows.shape[0]) + step0 >= self.since[body]
             apex = _first(later & ~touching & (v_up <= 0.0))
@@ -157,8 +163,7 @@ class _Separated(_Rule):
         rows, step0 = chunk.rows, chunk.step0
         p1, p2 = chunk.sides
         between = (p1 < self.nbody) & (p2 < self.nbody) & (p1 != p2)
-        touching = np.zeros(rows.shape[0], dtype=bool)
-        touching[chunk.contacts.step[between]] = True
+        touching = _touching(chunk, between)
         seen = self.touched | (np.cumsum(touching) > 0)
         self.touched = bool(seen[-1])
         gaps = np.stack([rows[:, cols].min(axis=1) for cols in self.gap_cols]).min(axis=0)
