@@ -17,7 +17,6 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from impactlab.logs.checks import PLANE_GEOM
-from impactlab.physics import INTEGRATORS as INTEGRATORS  # MuJoCo's, as MJCF spells them
 from impactlab.physics import Integrator
 
 CONDIMS = (1, 3, 4, 6)
