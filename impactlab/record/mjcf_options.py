@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 from impactlab.errors import SpecError
@@ -13,19 +12,11 @@ from impactlab.record.spec import checked, set_path
 from impactlab.record.sweep import parse_override
 
 
-@dataclass(frozen=True)
-class MjcfOptions:
-    """An MJCF run's stop rules, logging stride and the resolved tables (for its log)."""
-
-    stop: Stop
-    log_every: int
-    document: dict[str, Any]
-    keyframe: str | None = None
-
-
-def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) -> MjcfOptions:
-    """The run options of an MJCF model from `--set` overrides and `--duration`, validated
-    against the schema's `MjcfRunOptions`.
+def mjcf_options(
+    source: str, overrides: Sequence[str], duration: float | None
+) -> tuple[MjcfRunOptions, dict[str, Any]]:
+    """The run options of an MJCF model from `--set` overrides and `--duration`, validated,
+    and the document they were validated from (the run's log keeps it).
 
     Raises:
         SpecError: an override names anything but stop.* or logging.*, a value is wrong,
@@ -60,11 +51,10 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         raise SpecError(
             source, "--duration", "an MJCF model needs --duration SECONDS (or stop.max_time)"
         )
-    options = checked(MjcfRunOptions, doc, source)
-    return MjcfOptions(options.stop, options.logging.every, doc, options.keyframe)
+    return checked(MjcfRunOptions, doc, source), doc
 
 
-def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) -> None:
+def check_options(options: MjcfRunOptions, inst: InstrumentedModel, source: str) -> None:
     """Reject stop rules the model cannot meet (as `spec` does for a spec's own model).
 
     Raises:

@@ -155,14 +155,14 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
-    options = mjcf_options(str(path), overrides, duration)
+    options, settings = mjcf_options(str(path), overrides, duration)
     gaps = options.stop.separation is not None
     inst = model_from_mjcf(path, keyframe=options.keyframe, gaps=gaps)
     check_options(options, inst, str(path))
     # the model by name and content as MuJoCo compiled it (every file it read), not by where
     # it is: the same model gives the same run, a change in any of its files another
     document: dict[str, Any] = {"mjcf": path.name, "model_sha256": model_digest(inst.model)}
-    document |= options.document
+    document |= settings
     digest = spec_hash(document)
     info = RunInfo(
         run_id=run_name(path.stem, {}, digest),
@@ -172,12 +172,12 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         spec=document,
         sweep={},
         spec_hash=digest,
-        log_every=options.log_every,
+        log_every=options.logging.every,
         separation_m=options.stop.separation,
     )
     refuse_unreadable(inst, info)
     steps = run_steps(options.stop.max_time, float(inst.model.opt.timestep))
-    work = Work.of_runs(1, steps, options.log_every, len(inst.bodies))
+    work = Work.of_runs(1, steps, options.logging.every, len(inst.bodies))
     return PlannedRun(info, lambda: inst, None, options.stop, work)
 
 
