@@ -166,6 +166,8 @@ def _pair_key(key: str) -> str:
     names = key.split("/")
     if len(names) != 2 or not all(names):
         raise problem(f'pair keys are two geom names joined by /, e.g. "ball/plane", got {key!r}')
+    if names[0] == names[1]:
+        raise problem("a pair needs two geoms")
     return key
 
 
@@ -310,6 +312,16 @@ class SpecDocument(Section):
         for name, why in RESERVED_BODY_NAMES.items():
             if name in self.bodies:
                 raise problem(f"{name!r} is {why}: give the body another name", f"bodies.{name}")
+        return self
+
+    @model_validator(mode="after")
+    def _pairs_name_geoms(self) -> SpecDocument:
+        geoms = {*self.bodies, *([PLANE_GEOM] if self.plane.enabled else [])}
+        for key in self.contact.pairs:
+            unknown = [g for g in key.split("/") if g not in geoms]
+            if unknown:
+                text = f"no geom named {unknown[0]!r} ({sorted(geoms)})"
+                raise problem(text, f"contact.pairs.{key}")
         return self
 
     @model_validator(mode="after")
