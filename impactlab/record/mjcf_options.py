@@ -19,7 +19,7 @@ def mjcf_options(
     and the document they were validated from (the run's log keeps it).
 
     Raises:
-        SpecError: an override names anything but stop.* or logging.*, a value is wrong,
+        SpecError: an override names anything but a run option, a value is wrong,
             or no time limit is given.
     """
     doc: dict[str, Any] = {
