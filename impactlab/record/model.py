@@ -79,7 +79,7 @@ class InstrumentedModel:
     energy_adr: int
     keyframe: int | None
     surfaces: list[Surface] = field(default_factory=list)
-    clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
+    clearances: dict[str, list[DistanceChannel]] = field(default_factory=dict)  # by body
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
     joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
@@ -88,15 +88,10 @@ class InstrumentedModel:
     flexes: list[FlexShape] = field(default_factory=list)  # what draws the flexes
     party: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))  # see `parties`
     party_names: tuple[str, ...] = ()
-    _clearance_by_body: dict[str, list[DistanceChannel]] | None = field(default=None, repr=False)
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
-        if self._clearance_by_body is None:
-            self._clearance_by_body = {}
-            for c in self.clearances:
-                self._clearance_by_body.setdefault(c.body, []).append(c)
-        return self._clearance_by_body.get(body, [])
+        return self.clearances.get(body, [])
 
     def initial_state(self) -> np.ndarray:
         """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
@@ -280,6 +275,9 @@ def instrument(
     def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
 
+    clearances: dict[str, list[DistanceChannel]] = {}  # by body, in surface order
+    for c in channels(clearance_plan):
+        clearances.setdefault(c.body, []).append(c)
     bodies = []
     for r in rigid:
         name, mine = names[r.root], own[r.root]
@@ -311,7 +309,7 @@ def instrument(
         energy_adr=adr("e_potential"),
         keyframe=key,
         surfaces=surfaces,
-        clearances=channels(clearance_plan),
+        clearances=clearances,
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
         joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
