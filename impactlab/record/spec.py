@@ -101,30 +101,26 @@ def merge_defaults(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
     doc: dict[str, Any] = {"name": raw.get("name", Path(source).stem)}
     doc["description"] = raw.get("description", "")
     for section, schema in SECTIONS.items():
-        given = raw.get(section, {})
-        if not isinstance(given, Mapping):
-            raise SpecError(source, section, f"must be a table, got {short(given)}")
-        _reject_unknown(given, schema.model_fields, section, source)
-        doc[section] = {**defaults(schema), **plain_copy(given)}
+        doc[section] = _filled(raw.get(section, {}), schema, section, source)
     bodies = raw.get("bodies")
     if not isinstance(bodies, Mapping) or not bodies:
         raise SpecError(source, "bodies", "at least one body is required ([bodies.NAME] tables)")
-    doc["bodies"] = {}
-    for name, body in bodies.items():
-        field = f"bodies.{name}"
-        if not isinstance(body, Mapping):
-            raise SpecError(source, field, f"must be a table, got {short(body)}")
-        _reject_unknown(body, BodySpec.model_fields, field, source)
-        doc["bodies"][name] = {**defaults(BodySpec), **plain_copy(body)}
+    doc["bodies"] = {
+        name: _filled(body, BodySpec, f"bodies.{name}", source) for name, body in bodies.items()
+    }
     return doc
 
 
-def _reject_unknown(
-    given: Mapping[str, Any], known: Mapping[str, Any], section: str, src: str
-) -> None:
-    unknown = sorted(set(given) - set(known), key=str)
+def _filled(given: Any, schema: type[Section], field: str, source: str) -> dict[str, Any]:
+    """A table of the spec over its schema's defaults; not a table, or an unknown key, fails."""
+    if not isinstance(given, Mapping):
+        raise SpecError(source, field, f"must be a table, got {short(given)}")
+    unknown = sorted(set(given) - set(schema.model_fields), key=str)
     if unknown:
-        raise SpecError(src, f"{section}.{unknown[0]}", unknown_key(unknown[0], known))
+        raise SpecError(
+            source, f"{field}.{unknown[0]}", unknown_key(unknown[0], schema.model_fields)
+        )
+    return {**defaults(schema), **plain_copy(given)}
 
 
 def unknown_key(key: object, known: Iterable[str]) -> str:
