@@ -1,17 +1,4 @@
-"""Per-pair contacts of a spec whose contact asks for a coefficient of restitution.
-
-Each ball-plane and ball-ball pair with a target e gets calibrated MuJoCo parameters
-(`impactlab.contact`) for the pair's own range of impact speeds: the pair's
-`contact.pairs."a/b".speed_range`, else the global `contact.speed_range`, else the range the
-experiment gives (`default_speed_range`):
-
-- a ball on the plane under gravity: from its first impact speed (fall height and initial
-  vertical velocity) down to the impact speed of the last bounce that matters, the N-th for
-  `stop.bounces = N` and the last before `stop.max_time`, each bounce taken at
-  `(e - RESTITUTION_TOLERANCE)` times the speed of the one before (the slowest decay the
-  tolerance allows), floored at `SPEED_FLOOR_MPS`;
-- a ball on the plane without gravity, and two balls: their initial closing speed (one impact).
-"""
+"""Calibrated contacts of a spec's pairs with a target restitution (docs/contact-model.md)."""
 
 from __future__ import annotations
 
@@ -19,7 +6,6 @@ import functools
 import itertools
 import math
 from dataclasses import dataclass
-from typing import TypeVar
 
 import numpy as np
 
@@ -31,10 +17,9 @@ from impactlab.contact import (
     contact_params,
 )
 from impactlab.errors import SpecError
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.record.schema import ContactTarget
 from impactlab.record.spec import Body, RunSpec, Stop
-
-PLANE_GEOM = "plane"
 
 
 @dataclass(frozen=True)
@@ -50,23 +35,12 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     """Calibrated parameters for every pair with a target restitution (empty when none).
 
     Raises:
-        SpecError: a pair names an unknown geom, the target cannot be reached, the impact
-            speeds cannot be derived, or the timestep does not resolve the contact.
+        SpecError: the target cannot be reached, the impact speeds cannot be derived, or the
+            timestep does not resolve the contact.
     """
     con = run.contact
     per_pair = dict(con.pairs or {})
-    geoms = {b.name for b in run.bodies} | ({PLANE_GEOM} if run.plane.enabled else set())
-    for key in per_pair:
-        if len(set(key.split("/"))) < 2:
-            raise SpecError(run.source, f"contact.pairs.{key}", "a pair needs two geoms")
-        unknown = [g for g in key.split("/") if g not in geoms]
-        if unknown:
-            raise SpecError(
-                run.source,
-                f"contact.pairs.{key}",
-                f"no geom named {unknown[0]!r} ({sorted(geoms)})",
-            )
-    g = np.asarray(run.options.gravity)
+    g_down = max(-float(run.options.gravity[2]), 0.0)  # the plane's normal is +z
     out = []
     candidates: list[tuple[str, Body, Body | None]] = []
     if run.plane.enabled:
@@ -75,7 +49,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     for geom1, body, other in candidates:
         key = "/".join(sorted((geom1, body.name)))
         own = per_pair.get(key, ContactTarget())
-        e = _pick(own.restitution, con.restitution)
+        e = con.restitution if own.restitution is None else own.restitution
         if e is None:
             if key in per_pair:
                 raise SpecError(
@@ -87,11 +61,10 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         where = f"contact.pairs.{key}" if key in per_pair else "contact"
         field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
         if other is None:
-            radius, (speed, g_normal) = body.radius, _plane_impact(body, g)
-        else:
-            radius = min(body.radius, other.radius)
-            speed, g_normal = _closing_speed(other, body, g)
-        speeds = _pick(own.speed_range, con.speed_range)
+            radius, g_normal, speed = body.radius, g_down, _plane_impact(body, g_down)
+        else:  # two free balls fall together: gravity does not press them into each other
+            radius, g_normal, speed = min(body.radius, other.radius), 0.0, _closing(other, body)
+        speeds = con.speed_range if own.speed_range is None else own.speed_range
         if speeds is not None:
             field = f"{where}.speed_range" if own.speed_range is not None else "contact.speed_range"
         elif not speed > 0:
@@ -102,7 +75,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 f'(or contact.pairs."{key}".speed_range)',
             )
         else:
-            speeds = default_speed_range(speed, e, g_normal, run.stop, body, other is None)
+            speeds = default_speed_range(speed, e, g_normal, run.stop, body)
         if own.duration is not None or own.max_penetration is not None:
             duration, max_pen = own.duration, own.max_penetration
         else:
@@ -153,22 +126,13 @@ def _calibrated(
     )
 
 
-T = TypeVar("T")
-
-
-def _pick(own: T | None, default: T | None) -> T | None:
-    return own if own is not None else default
-
-
 def default_speed_range(
-    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body, on_plane: bool
+    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body
 ) -> tuple[float, float]:
-    """The impact speeds (m/s) a pair's contact must hold e over, from the experiment.
-
-    See the module docstring. `first_mps` is the first impact speed, `g_normal` gravity along
-    the contact normal (0: one impact).
-    """
-    if not on_plane or g_normal <= 0.0:
+    """The impact speeds (m/s) a pair's contact must hold e over, from the experiment
+    (docs/contact-model.md): `first_mps` the first impact speed, `g_normal` gravity along
+    the contact normal (0: one impact)."""
+    if g_normal <= 0.0:
         return first_mps, first_mps
     decay = max(e - RESTITUTION_TOLERANCE, 0.0)
     height = max(body.pos[2] - body.radius, 0.0)
@@ -184,23 +148,16 @@ def default_speed_range(
     return min(max(v, SPEED_FLOOR_MPS), first_mps), first_mps
 
 
-def _plane_impact(body: Body, g: np.ndarray) -> tuple[float, float]:
-    """Impact speed (m/s) of a ball falling on the plane z = 0, and gravity along the normal."""
-    g_down = max(-float(g[2]), 0.0)
+def _plane_impact(body: Body, g_down: float) -> float:
+    """Impact speed (m/s) of a ball falling on the plane z = 0 (`g_down`: gravity along -z)."""
     height = max(body.pos[2] - body.radius, 0.0)
     vz = body.vel[2]
     if g_down == 0.0:
-        return max(-vz, 0.0), 0.0
-    return math.sqrt(vz * vz + 2.0 * g_down * height), g_down  # energy: up, then down
+        return max(-vz, 0.0)
+    return math.sqrt(vz * vz + 2.0 * g_down * height)  # energy: up, then down
 
 
-def _closing_speed(a: Body, b: Body, g: np.ndarray) -> tuple[float, float]:
-    """Closing speed (m/s) of two balls along their line of centres, and the relative gravity.
-
-    Two free balls fall together: gravity gives them no relative acceleration, so the
-    contact sees none (0).
-    """
+def _closing(a: Body, b: Body) -> float:
+    """Closing speed (m/s) of two balls along their line of centres."""
     d = np.subtract(b.pos, a.pos)
-    n = d / np.linalg.norm(d)
-    closing = float(np.dot(np.subtract(a.vel, b.vel), n))
-    return closing, 0.0
+    return float(np.dot(np.subtract(a.vel, b.vel), d / np.linalg.norm(d)))

@@ -21,6 +21,11 @@ def type_name(model: mujoco.MjModel, g: int) -> str:
     return name.removeprefix("mjGEOM_").lower()
 
 
+def flex_name(model: mujoco.MjModel, f: int) -> str:
+    """The flex's name, or ``flex<f>`` when it has none."""
+    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}"
+
+
 def can_collide(model: mujoco.MjModel, g1: int, g2: int) -> bool:
     """Whether MuJoCo's contype/conaffinity filter lets the two geoms collide."""
     return bool(

@@ -6,6 +6,7 @@ import mujoco
 import numpy as np
 
 from impactlab.logs.geoms import FlexShape, GeomShape, mesh_attachment
+from impactlab.record.geometry import flex_name, type_name
 
 DEFAULT_RGBA = (0.5, 0.5, 0.5, 1.0)
 """MuJoCo's default geom colour: a geom with a material and this colour shows the material's."""
@@ -28,19 +29,15 @@ def describe(
         root = int(model.body_weldid[model.geom_bodyid[g]])
         site = frames.get(root)
         pos, quat = _relative_pose(data, g, site)
-        kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_").lower()
-        mesh = None
-        if kind in ("mesh", "sdf") and model.geom_dataid[g] >= 0:
-            m = int(model.geom_dataid[g])
-            mesh = mesh_attachment(model.mesh(m).name or f"mesh{m}")
-            meshes.setdefault(mesh, mesh_triangles(model, m))
-        elif kind == "hfield" and model.geom_dataid[g] >= 0:
-            h = int(model.geom_dataid[g])
-            mesh = mesh_attachment(model.hfield(h).name or f"hfield{h}", hfield=True)
-            meshes.setdefault(mesh, hfield_triangles(model, h))
-        size = model.geom_size[g]
-        if kind == "hfield" and model.geom_dataid[g] >= 0:
-            size = model.hfield_size[int(model.geom_dataid[g])][:3]
+        kind = type_name(model, g)
+        data_id, mesh, size = int(model.geom_dataid[g]), None, model.geom_size[g]
+        if kind in ("mesh", "sdf") and data_id >= 0:
+            mesh = mesh_attachment(model.mesh(data_id).name or f"mesh{data_id}")
+            meshes.setdefault(mesh, mesh_triangles(model, data_id))
+        elif kind == "hfield" and data_id >= 0:
+            mesh = mesh_attachment(model.hfield(data_id).name or f"hfield{data_id}", hfield=True)
+            meshes.setdefault(mesh, hfield_triangles(model, data_id))
+            size = model.hfield_size[data_id][:3]
         sx, sy, sz = (float(x) for x in size)
         shapes.append(
             GeomShape(
@@ -77,13 +74,12 @@ def describe_flexes(model: mujoco.MjModel, logged: dict[int, str]) -> list[FlexS
         else:
             adr, num = int(model.flex_elemdataadr[f]), int(model.flex_elemnum[f])
             cells = model.flex_elem[adr : adr + (dim + 1) * num].reshape(-1, dim + 1)
-        red, green, blue, alpha = (float(str(c)) for c in model.flex_rgba[f])
         out.append(
             FlexShape(
-                name=mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}",
+                name=flex_name(model, f),
                 bodies=tuple(logged[b] for b in bodies),
                 cells=tuple(tuple(int(v) for v in c) for c in cells),
-                rgba=(red, green, blue, alpha),
+                rgba=_decimals(model.flex_rgba[f]),
             )
         )
     return out
@@ -112,13 +108,13 @@ def geom_rgba(model: mujoco.MjModel, g: int) -> tuple[float, float, float, float
     mat = int(model.geom_matid[g])
     if mat >= 0 and np.allclose(_decimals(rgba), DEFAULT_RGBA):
         rgba = model.mat_rgba[mat]
-    red, green, blue, alpha = _decimals(rgba)
+    return _decimals(rgba)
+
+
+def _decimals(rgba: np.ndarray) -> tuple[float, float, float, float]:
+    """A float32 colour as floats of their shortest decimals."""
+    red, green, blue, alpha = (float(str(x)) for x in rgba)
     return red, green, blue, alpha
-
-
-def _decimals(values: np.ndarray) -> tuple[float, ...]:
-    """float32 values as floats of their shortest decimals."""
-    return tuple(float(str(x)) for x in values)
 
 
 def mesh_triangles(model: mujoco.MjModel, m: int) -> np.ndarray:

@@ -1,18 +1,4 @@
-"""The energy MuJoCo counts in joints rather than bodies: rotor inertia and springs.
-
-MuJoCo's kinetic energy is 1/2 qvel' M qvel, and M holds each dof's `armature` (the inertia
-of a motor's rotor) besides the bodies' inertia; its potential energy holds the joint and
-tendon springs besides gravity. The bodies' states in the log give the rest, so the recorder
-logs these two terms (`/energy/joints`), computed here from the state with their own
-formulas, not taken from MuJoCo's energy: the analysis' sum of the bodies and these terms is
-then checked against MuJoCo's total at every logged step.
-
-- rotor kinetic energy: sum over dofs of armature qvel^2 / 2;
-- spring potential energy: per hinge or slide joint k (q - q_spring)^2 / 2; per ball joint
-  k |rotation vector from q_spring to q|^2 / 2; a free joint both, for its position and its
-  orientation; per tendon k d^2 / 2, d the length's distance outside [lower, upper] of its
-  `springlength` (no springs when the model's flag disables them).
-"""
+"""The energy MuJoCo counts in joints rather than bodies: rotor inertia and springs."""
 
 from __future__ import annotations
 
@@ -34,12 +20,10 @@ class JointEnergy:
 
     nq: int
     armature: np.ndarray  # (nv,)
-    hinges: np.ndarray  # qpos addresses of sprung hinge and slide joints
+    hinges: np.ndarray  # qpos addresses of sprung hinge and slide joints (and free positions)
     hinge_k: np.ndarray
     balls: np.ndarray  # qpos addresses of sprung ball (or free-joint) orientations
     ball_k: np.ndarray
-    frees: np.ndarray  # qpos addresses of sprung free-joint positions
-    free_k: np.ndarray
     qpos_spring: np.ndarray  # (nq,)
     tendon_adrs: np.ndarray
     tendon_k: np.ndarray
@@ -55,9 +39,6 @@ class JointEnergy:
         if self.hinges.size:
             d = qpos[:, self.hinges] - self.qpos_spring[self.hinges]
             potential += 0.5 * (d**2) @ self.hinge_k
-        for adr, k in zip(self.frees, self.free_k, strict=True):
-            d = qpos[:, adr : adr + 3] - self.qpos_spring[adr : adr + 3]
-            potential += 0.5 * k * (d**2).sum(axis=1)
         for adr, k in zip(self.balls, self.ball_k, strict=True):
             angle = rotation_vector(qpos[:, adr : adr + 4], self.qpos_spring[adr : adr + 4])
             potential += 0.5 * k * (angle**2).sum(axis=1)
@@ -95,7 +76,7 @@ def sprung_tendons(model: mujoco.MjModel) -> list[int]:
 def joint_energy(model: mujoco.MjModel, tendon_adrs: list[int]) -> JointEnergy | None:
     """The model's rotor and spring terms, or None when it has neither (they are zero)."""
     springs = not _springs_disabled(model)
-    hinge, ball, free = [], [], []
+    hinge, ball = [], []
     for j in range(model.njnt):
         k = float(model.jnt_stiffness[j])
         if not springs or k <= 0:
@@ -105,8 +86,8 @@ def joint_energy(model: mujoco.MjModel, tendon_adrs: list[int]) -> JointEnergy |
             hinge.append((adr, k))
         elif kind == int(mujoco.mjtJoint.mjJNT_BALL):
             ball.append((adr, k))
-        else:
-            free.append((adr, k))
+        else:  # a free joint: its position's three coordinates, then its orientation
+            hinge += [(adr, k), (adr + 1, k), (adr + 2, k)]
             ball.append((adr + 3, k))
     tendons = sprung_tendons(model)
     armature = np.asarray(model.dof_armature, dtype=float).copy()
@@ -116,7 +97,7 @@ def joint_energy(model: mujoco.MjModel, tendon_adrs: list[int]) -> JointEnergy |
     def split(items: list[tuple[int, float]]) -> tuple[np.ndarray, np.ndarray]:
         return np.array([a for a, _ in items], np.int64), np.array([k for _, k in items])
 
-    (h, hk), (b, bk), (f, fk) = split(hinge), split(ball), split(free)
+    (h, hk), (b, bk) = split(hinge), split(ball)
     return JointEnergy(
         nq=model.nq,
         armature=armature,
@@ -124,8 +105,6 @@ def joint_energy(model: mujoco.MjModel, tendon_adrs: list[int]) -> JointEnergy |
         hinge_k=hk,
         balls=b,
         ball_k=bk,
-        frees=f,
-        free_k=fk,
         qpos_spring=np.asarray(model.qpos_spring, dtype=float).copy(),
         tendon_adrs=np.array(tendon_adrs, np.int64),
         tendon_k=np.array([model.tendon_stiffness[t] for t in tendons]),

@@ -1,62 +1,41 @@
-"""Run options of an MJCF model: a spec's `[stop]` and `[logging]` tables, and nothing else.
-
-A user's model brings its own bodies, contacts and simulation options (timestep, integrator,
-gravity); what impactlab adds is how the run stops and what it logs, set exactly as for a
-spec: `--set logging.every=10`, `--set stop.bounces=3`, `--set stop.max_time=2` (or
-`--duration 2`). The same defaults and checks apply (`impactlab.record.schema`).
-"""
+"""Run options of an MJCF model: a spec's `[stop]` and `[logging]`, a keyframe, nothing else."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
-
-from pydantic import ValidationError
 
 from impactlab.errors import SpecError
 from impactlab.record.model import InstrumentedModel
-from impactlab.record.schema import MAX_TIME_S, SECTIONS, MjcfRunOptions, Stop, defaults
-from impactlab.record.spec import schema_error, set_path
+from impactlab.record.schema import MAX_TIME_S, Logging, MjcfRunOptions, Stop, defaults
+from impactlab.record.spec import checked, set_path
 from impactlab.record.sweep import parse_override
 
-MJCF_SECTIONS = ("stop", "logging")
-MJCF_KEYS = ("keyframe",)  # run options outside the sections
 
-
-@dataclass(frozen=True)
-class MjcfOptions:
-    """An MJCF run's stop rules, logging stride and the resolved tables (for its log)."""
-
-    stop: Stop
-    log_every: int
-    document: dict[str, Any]
-    keyframe: str | None = None
-
-
-def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) -> MjcfOptions:
-    """The run options of an MJCF model from `--set` overrides and `--duration`, validated
-    against the schema's `MjcfRunOptions`.
+def mjcf_options(
+    source: str, overrides: Sequence[str], duration: float | None
+) -> tuple[MjcfRunOptions, dict[str, Any]]:
+    """The run options of an MJCF model from `--set` overrides and `--duration`, validated,
+    and the document they were validated from (the run's log keeps it).
 
     Raises:
-        SpecError: an override names anything but stop.* or logging.*, a value is wrong,
+        SpecError: an override names anything but a run option, a value is wrong,
             or no time limit is given.
     """
-    doc: dict[str, Any] = {section: defaults(SECTIONS[section]) for section in MJCF_SECTIONS}
-    doc["stop"]["max_time"] = None
+    doc: dict[str, Any] = {
+        "stop": {**defaults(Stop), "max_time": None},
+        "logging": defaults(Logging),
+    }
     for text in overrides:
         key, value = parse_override(text)
-        if key.split(".")[0] not in MJCF_SECTIONS and key not in MJCF_KEYS:
+        if key.split(".")[0] not in MjcfRunOptions.model_fields:
             raise SpecError(
                 source,
                 f"--set {key}",
                 "an MJCF model takes run options only (stop.*, logging.*, keyframe); "
                 "change the model itself for anything else",
             )
-        if key in MJCF_KEYS:
-            doc[key] = value
-        else:
-            set_path(doc, key, value, source)
+        set_path(doc, key, value, source, MjcfRunOptions)
     if duration is not None:
         if not 0 < duration <= MAX_TIME_S:
             raise SpecError(
@@ -72,14 +51,10 @@ def mjcf_options(source: str, overrides: Sequence[str], duration: float | None) 
         raise SpecError(
             source, "--duration", "an MJCF model needs --duration SECONDS (or stop.max_time)"
         )
-    try:
-        options = MjcfRunOptions.model_validate(doc)
-    except ValidationError as exc:
-        raise schema_error(exc, source) from None
-    return MjcfOptions(options.stop, options.logging.every, doc, options.keyframe)
+    return checked(MjcfRunOptions, doc, source), doc
 
 
-def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) -> None:
+def check_options(options: MjcfRunOptions, inst: InstrumentedModel, source: str) -> None:
     """Reject stop rules the model cannot meet (as `spec` does for a spec's own model).
 
     Raises:
@@ -95,12 +70,6 @@ def check_options(options: MjcfOptions, inst: InstrumentedModel, source: str) ->
         )
     if stop.separation is not None and len(inst.bodies) < 2:
         raise SpecError(source, "stop.separation", "a collision needs at least two free bodies")
-    if stop.at_rest and stop.rest_time >= stop.max_time:
-        raise SpecError(
-            source,
-            "stop.rest_time",
-            f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
-        )
     if timestep >= stop.max_time:
         raise SpecError(
             source,

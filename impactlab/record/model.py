@@ -11,8 +11,10 @@ import mujoco
 import numpy as np
 
 from impactlab.errors import SpecError
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.logs.geoms import FlexShape, GeomShape
 from impactlab.logs.metadata import Surface
+from impactlab.mjcf.load import one_line, parse_mjcf
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
@@ -23,7 +25,6 @@ from impactlab.record.mujoco_version import require_mujoco  # noqa: F401 (checks
 from impactlab.record.spec import RunSpec
 
 BODY_STATE_SIZE = 13  # pos 3, quat 4, linvel 3, angvel 3
-PLANE_NAME = "plane"
 DISTANCE_CUTOFF_M = 1.0e4
 """Distances beyond this are reported as this (MuJoCo's distance sensors need a cutoff)."""
 MAX_GAP_PAIRS = 10_000
@@ -78,7 +79,7 @@ class InstrumentedModel:
     energy_adr: int
     keyframe: int | None
     surfaces: list[Surface] = field(default_factory=list)
-    clearances: list[DistanceChannel] = field(default_factory=list)  # body to surface
+    clearances: dict[str, list[DistanceChannel]] = field(default_factory=dict)  # by body
     gaps: list[DistanceChannel] = field(default_factory=list)  # body to body
     static_potential: float = 0.0  # MuJoCo's potential energy of the static bodies, J
     joints: JointEnergy | None = None  # rotor inertia and springs, if the model has any
@@ -87,15 +88,10 @@ class InstrumentedModel:
     flexes: list[FlexShape] = field(default_factory=list)  # what draws the flexes
     party: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))  # see `parties`
     party_names: tuple[str, ...] = ()
-    _clearance_by_body: dict[str, list[DistanceChannel]] | None = field(default=None, repr=False)
 
     def clearance_of(self, body: str) -> list[DistanceChannel]:
         """The body's distance channels to the ground surfaces, in surface order."""
-        if self._clearance_by_body is None:
-            self._clearance_by_body = {}
-            for c in self.clearances:
-                self._clearance_by_body.setdefault(c.body, []).append(c)
-        return self._clearance_by_body.get(body, [])
+        return self.clearances.get(body, [])
 
     def initial_state(self) -> np.ndarray:
         """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
@@ -126,7 +122,7 @@ def mjcf_from_spec(run: RunSpec, pairs: Sequence[CalibratedPair] | None = None) 
     ]
     if run.plane.enabled:
         lines.append(
-            f'    <geom name="{PLANE_NAME}" type="plane" size="{_fmt(run.plane.size)}" '
+            f'    <geom name="{PLANE_GEOM}" type="plane" size="{_fmt(run.plane.size)}" '
             f'rgba="{_fmt(run.plane.rgba)}"/>'
         )
     for b in run.bodies:
@@ -174,7 +170,6 @@ def model_from_mjcf(
     MuJoCo reads the model and every file it names; the log keeps its text and, when the text
     alone does not reproduce it, the compiled model (`impactlab.record.model_files`).
     """
-    from impactlab.mjcf.load import parse_mjcf
     from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files
 
     spec = parse_mjcf(path)
@@ -188,10 +183,6 @@ def model_from_mjcf(
     if files.needs_binary:
         inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
     return inst
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
 
 
 def instrument(
@@ -219,7 +210,7 @@ def instrument(
     try:
         plain = spec.compile()
     except Exception as exc:
-        raise SpecError(source, "", f"invalid MJCF: {_one_line(exc)}") from None
+        raise SpecError(source, "", f"invalid MJCF: {one_line(exc)}") from None
     data = mujoco.MjData(plain)
     mujoco.mj_kinematics(plain, data)
     rigid = geometry.rigid_bodies(plain, data)
@@ -232,8 +223,9 @@ def instrument(
         raise SpecError(
             source, "keyframe", f"no keyframe named {keyframe!r} (the model has {known})"
         )
-    names = [plain.body(r.root).name for r in rigid]
-    for r, name in zip(rigid, names, strict=True):
+    names = {r.root: plain.body(r.root).name for r in rigid}
+    for r in rigid:
+        name = names[r.root]
         site = spec.body(name).add_site(name=f"{prefix}{name}", pos=r.pos, quat=r.quat)
         site.group = 5  # not drawn by MuJoCo's viewer
         for kind in ("FRAMEPOS", "FRAMEQUAT", "FRAMELINVEL", "FRAMEANGVEL"):
@@ -256,7 +248,8 @@ def instrument(
     ground = geometry.ground_geoms(plain, [g for gs in own.values() for g in gs])
     surfaces = [geometry.surface(plain, data, g) for g in ground]
     measurable = [g for g, s in zip(ground, surfaces, strict=True) if s.distance]
-    clearance_plan = _distance_sensors(spec, plain, own, measurable, prefix, between_bodies=False)
+    to_ground = [(b, plain.geom(g).name, [g]) for b in own for g in measurable]
+    clearance_plan = _distance_sensors(spec, plain, own, to_ground, prefix)
     gap_plan: list[tuple[str, str, list[str]]] = []
     if gaps:
         lone = {r.root: own[r.root] for r in rigid if geometry.motion(plain, r) == "free"}
@@ -268,7 +261,8 @@ def instrument(
                 f"the separation rule would watch {pairs:,} pairs of geoms "
                 f"(at most {MAX_GAP_PAIRS:,}): use a time limit instead",
             )
-        gap_plan = _distance_sensors(spec, plain, lone, [], prefix, between_bodies=True)
+        between = [(a, names[b], lone[b]) for a, b in itertools.combinations(lone, 2)]
+        gap_plan = _distance_sensors(spec, plain, own, between, prefix)
     model = spec.compile()
     # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
     # computes after the sensors: one step late. Off, they compute it themselves, at the
@@ -281,9 +275,12 @@ def instrument(
     def channels(plan: list[tuple[str, str, list[str]]]) -> list[DistanceChannel]:
         return [DistanceChannel(a, b, tuple(adr(n) for n in names)) for a, b, names in plan]
 
+    clearances: dict[str, list[DistanceChannel]] = {}  # by body, in surface order
+    for c in channels(clearance_plan):
+        clearances.setdefault(c.body, []).append(c)
     bodies = []
-    for r, name in zip(rigid, names, strict=True):
-        mine = own[r.root]
+    for r in rigid:
+        name, mine = names[r.root], own[r.root]
         com = data.xpos[r.root] + data.xmat[r.root].reshape(3, 3) @ np.asarray(r.pos)
         bodies.append(
             BodyChannel(
@@ -300,10 +297,10 @@ def instrument(
             )
         )
     key = None if keyframe is None else int(model.key(keyframe).id)
-    sites = {r.root: int(model.site(f"{prefix}{n}").id) for r, n in zip(rigid, names, strict=True)}
+    sites = {root: int(model.site(f"{prefix}{n}").id) for root, n in names.items()}
     geoms, meshes = describe_geoms(model, sites)
-    flexes = describe_flexes(model, {r.root: n for r, n in zip(rigid, names, strict=True)})
-    party, party_names = parties(model, [r.root for r in rigid])
+    flexes = describe_flexes(model, names)
+    party, party_names = parties(model, list(names))
     return InstrumentedModel(
         model=model,
         xml=xml,
@@ -312,7 +309,7 @@ def instrument(
         energy_adr=adr("e_potential"),
         keyframe=key,
         surfaces=surfaces,
-        clearances=channels(clearance_plan),
+        clearances=clearances,
         gaps=channels(gap_plan),
         static_potential=geometry.static_potential(plain, data),
         joints=joint_energy(model, [adr(f"{TENDON_SENSOR}{t}") for t in sprung_tendons(model)]),
@@ -339,10 +336,7 @@ def parties(model: mujoco.MjModel, roots: list[int]) -> tuple[np.ndarray, tuple[
     flex_party = [nb + ngeom + f for f in range(model.nflex)]
     names = [model.body(r).name for r in roots]
     names += [model.geom(g).name for g in range(ngeom)]
-    names += [
-        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_FLEX, f) or f"flex{f}"
-        for f in range(model.nflex)
-    ]
+    names += [geometry.flex_name(model, f) for f in range(model.nflex)]
     return np.array(geom_party + flex_party, np.int64), tuple(names)
 
 
@@ -350,29 +344,22 @@ def _distance_sensors(
     spec: mujoco.MjSpec,
     model: mujoco.MjModel,
     own: dict[int, list[int]],
-    surfaces: list[int],
+    targets: list[tuple[int, str, list[int]]],
     prefix: str,
-    *,
-    between_bodies: bool,
 ) -> list[tuple[str, str, list[str]]]:
     """Add a `distance` sensor per pair of geoms that can collide; returns what each measures.
 
-    Each entry is (body, surface geom or other body, sensor names without the prefix): the
-    body's distance to that surface (or body) is the smallest of those sensors. Pairs of
-    geoms that cannot collide get no sensor; (body, other) pairs with none are left out.
+    `targets`: (root body, what it is measured to: a surface geom or another body, that
+    one's geoms); `own`: each root body's collision geoms. Each entry returned is (body, other,
+    sensor names without the prefix): the body's distance to the other is the smallest of
+    those sensors. Pairs of geoms that cannot collide get no sensor; (body, other) pairs
+    with none are left out.
     """
-    free = list(own)
-    others: list[tuple[int, str, list[int]]] = []
-    for i, b in enumerate(free):
-        if between_bodies:
-            others += [(b, model.body(o).name, own[o]) for o in free[i + 1 :]]
-        else:
-            others += [(b, model.geom(g).name, [g]) for g in surfaces]
     plan = []
-    for b, other, targets in others:
+    for b, other, geoms in targets:
         names = []
         for g1 in own[b]:
-            for g2 in targets:
+            for g2 in geoms:
                 if not geometry.can_collide(model, g1, g2):
                     continue
                 name = f"distance:{g1}:{g2}"

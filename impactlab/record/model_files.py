@@ -10,11 +10,11 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from impactlab.errors import SpecError
-from impactlab.mjcf.files import asset_files, encoding, included_files, read_text
+from impactlab.mjcf.files import asset_files, included_files, read_text
 
 BINARY_ATTACHMENT = "model.mjb"
-_DECLARATION = re.compile(r"^(\ufeff?\s*<\?xml[^>]*encoding\s*=\s*)([\"'])[^\"']*\2")
+_DECLARATION = re.compile(r"^(\s*<\?xml[^>]*encoding\s*=\s*)([\"'])(?!utf-?8\2)[^\"']*\2", re.I)
+"""An XML declaration that names an encoding other than UTF-8."""
 
 
 @dataclass(frozen=True)
@@ -39,7 +39,7 @@ def model_files(spec: mujoco.MjSpec, path: Path) -> ModelFiles:
         SpecError: the model's file cannot be read or decoded.
     """
     whole = not included_files(path) and not [p for p in asset_files(spec, path) if p.exists()]
-    xml = _as_utf8(read_text(path), path) if whole else spec.to_xml()
+    xml = _as_utf8(read_text(path)) if whole else spec.to_xml()
     return ModelFiles(xml, needs_binary=not whole)
 
 
@@ -57,12 +57,6 @@ def model_digest(model: mujoco.MjModel) -> str:
     return hashlib.sha256(binary(model)).hexdigest()
 
 
-def _as_utf8(text: str, path: Path) -> str:
+def _as_utf8(text: str) -> str:
     """The text with its XML declaration saying UTF-8 (the log stores it as UTF-8)."""
-    try:
-        charset = encoding(path.read_bytes()[:200], str(path))
-    except SpecError:
-        charset = "utf-8"
-    if charset in ("utf-8", "utf-8-sig"):
-        return text.removeprefix("\ufeff")
     return _DECLARATION.sub(r"\1\2UTF-8\2", text.removeprefix("\ufeff"), count=1)

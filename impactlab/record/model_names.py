@@ -1,8 +1,4 @@
-"""Names impactlab gives in a user's model: they never clash with the model's own names.
-
-Unnamed bodies and geoms get ``body<i>`` and ``geom<i>`` (with ``_`` added while the model
-has that name); the recorder's sensors get a prefix no sensor of the model starts with.
-"""
+"""Names impactlab gives in a user's model: they never clash with the model's own names."""
 
 from __future__ import annotations
 

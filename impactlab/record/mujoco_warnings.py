@@ -1,11 +1,4 @@
-"""MuJoCo's warnings: kept out of the working folder, and named for the run that raised them.
-
-By default MuJoCo prints a warning and appends it to `MUJOCO_LOG.TXT` in the working folder.
-`quiet_mujoco` (`impactlab.mjcf.load`, shared with the contact designer) installs a
-handler (`mujoco.set_mju_user_warning`) that keeps the last messages in memory instead; the
-recorder puts the warning of each run into the run's outcome, which the log and the console
-show. `first_warning` steps a run alone to find which warning it raised.
-"""
+"""MuJoCo's warnings: which step of a run raised the first one, and what it says."""
 
 from __future__ import annotations
 

@@ -1,11 +1,4 @@
-"""Plan a record job: specs or MJCF files -> validated runs, each with its name and metadata.
-
-Everything is validated before the first simulation, so a wrong input writes nothing. The
-plan is a sequence built on demand (`PlannedRuns`): a 100,000-point sweep planned as a list
-holds 100,000 resolved specs (about 7 KB each) in the process that records them and in every
-worker forked from it, so a sweep is kept as its grid and a run is built again (about 0.1 ms,
-the spec validated again) when it is asked for; `Subset` is a view of some runs, by index.
-"""
+"""Plan a record job: specs or MJCF files -> validated runs, each built when it is read."""
 
 from __future__ import annotations
 
@@ -46,10 +39,14 @@ class PlannedRun:
     info: RunInfo
     build: Callable[[], InstrumentedModel] = field(compare=False)
     spec: RunSpec | None
-    max_time: float
-    stop: Stop | None = None
+    stop: Stop
     work: Work = field(default_factory=Work)  # at most (`impactlab.record.work`)
     pairs: tuple[CalibratedPair, ...] = ()
+
+    @property
+    def max_time(self) -> float:
+        """The run's time limit, s."""
+        return self.stop.max_time
 
 
 def plan(
@@ -58,7 +55,7 @@ def plan(
     overrides: Sequence[str] = (),
     duration: float | None = None,
     allow_large: bool = False,
-) -> PlannedRuns[PlannedRun]:
+) -> PlannedRuns:
     """Validate every input and return the runs to record, in order.
 
     The job's work is estimated first, from the specs' sweeps without expanding them
@@ -103,7 +100,7 @@ def plan(
     work = sum((_work(part) for part in parts), Work())
     sources = [p.source if isinstance(p, SpecSweep) else p.info.source for p in parts]
     check_work(work, source=", ".join(dict.fromkeys(sources)), allow_large=allow_large)
-    runs = PlannedRuns(parts, _plan_spec)
+    runs = PlannedRuns(parts)
     first: dict[str, int] = {}  # every run is validated now, then dropped: built again when run
     for index, run in enumerate(runs):
         if run.spec is not None and run.info.sweep_index == 0:
@@ -154,20 +151,18 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
     steps = run_steps(run.stop.max_time, run.options.timestep)
     work = Work.of_runs(1, steps, run.log_every, len(run.bodies))
     build = functools.partial(model_from_spec, run, pairs)
-    return PlannedRun(info, build, run, run.stop.max_time, run.stop, work, pairs)
+    return PlannedRun(info, build, run, run.stop, work, pairs)
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:
-    options = mjcf_options(str(path), overrides, duration)
+    options, settings = mjcf_options(str(path), overrides, duration)
     gaps = options.stop.separation is not None
-    inst = model_from_mjcf(
-        path, keyframe=options.keyframe, gaps=gaps
-    )  # validate now; rebuilt when run
+    inst = model_from_mjcf(path, keyframe=options.keyframe, gaps=gaps)
     check_options(options, inst, str(path))
-    # the model by name and content, not by where it is: the same model gives the same run
-    # the model as MuJoCo compiled it (every file it read): a change in any is another run
-    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": inst_digest(inst)}
-    document |= options.document
+    # the model by name and content as MuJoCo compiled it (every file it read), not by where
+    # it is: the same model gives the same run, a change in any of its files another
+    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": model_digest(inst.model)}
+    document |= settings
     digest = spec_hash(document)
     info = RunInfo(
         run_id=run_name(path.stem, {}, digest),
@@ -177,19 +172,13 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
         spec=document,
         sweep={},
         spec_hash=digest,
-        log_every=options.log_every,
+        log_every=options.logging.every,
         separation_m=options.stop.separation,
     )
     refuse_unreadable(inst, info)
-    max_time = options.stop.max_time
-    steps = run_steps(max_time, float(inst.model.opt.timestep))
-    work = Work.of_runs(1, steps, options.log_every, len(inst.bodies))
-    return PlannedRun(info, lambda: inst, None, max_time, options.stop, work)
-
-
-def inst_digest(inst: InstrumentedModel) -> str:
-    """SHA-256 of the model as MuJoCo compiled it (`model_files.model_digest`)."""
-    return model_digest(inst.model)
+    steps = run_steps(options.stop.max_time, float(inst.model.opt.timestep))
+    work = Work.of_runs(1, steps, options.logging.every, len(inst.bodies))
+    return PlannedRun(info, lambda: inst, None, options.stop, work)
 
 
 def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -> str:
@@ -205,20 +194,12 @@ def run_name(experiment: str, sweep_values: dict[str, Any] | Any, digest: str) -
     return f"{readable}-{digest[:8]}"
 
 
-T = TypeVar("T")  # a planned run (`PlannedRun`)
+class PlannedRuns(Sequence[PlannedRun]):
+    """The runs of a job's inputs, in plan order, each built when it is read (`parts`: per
+    input, its sweep, checked already, or its one planned run)."""
 
-
-class PlannedRuns(Sequence[T]):
-    """The runs of a job's inputs, in plan order, each built when it is read.
-
-    Args:
-        parts: per input, its sweep (checked already) or its one planned run.
-        build: a sweep's run -> its planned run (names it, estimates its work).
-    """
-
-    def __init__(self, parts: Sequence[SpecSweep | T], build: Callable[[RunSpec], T]) -> None:
+    def __init__(self, parts: Sequence[SpecSweep | PlannedRun]) -> None:
         self._parts = list(parts)
-        self._build = build
         self._starts: list[int] = []
         total = 0
         for part in self._parts:
@@ -230,10 +211,10 @@ class PlannedRuns(Sequence[T]):
         return self._len
 
     @overload
-    def __getitem__(self, index: int) -> T: ...
+    def __getitem__(self, index: int) -> PlannedRun: ...
     @overload
-    def __getitem__(self, index: slice) -> list[T]: ...
-    def __getitem__(self, index: int | slice) -> T | list[T]:
+    def __getitem__(self, index: slice) -> list[PlannedRun]: ...
+    def __getitem__(self, index: int | slice) -> PlannedRun | list[PlannedRun]:
         if isinstance(index, slice):
             return [self[i] for i in range(*index.indices(self._len))]
         if index < 0:
@@ -243,18 +224,21 @@ class PlannedRuns(Sequence[T]):
         at = bisect.bisect_right(self._starts, index) - 1
         part = self._parts[at]
         if isinstance(part, SpecSweep):
-            return self._build(part.run(index - self._starts[at]))
+            return _plan_spec(part.run(index - self._starts[at]))
         return part
 
-    def __iter__(self) -> Iterator[T]:
+    def __iter__(self) -> Iterator[PlannedRun]:
         for part in self._parts:
             if isinstance(part, SpecSweep):
-                yield from map(self._build, part.iter_runs())
+                yield from map(_plan_spec, part.iter_runs())
             else:
                 yield part
 
     def __repr__(self) -> str:
         return f"PlannedRuns({self._len} runs)"
+
+
+T = TypeVar("T")  # a planned run (`PlannedRun`)
 
 
 class Subset(Sequence[T]):

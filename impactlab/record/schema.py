@@ -1,13 +1,4 @@
-"""The experiment spec's schema: every field with its type, range, unit and default, declared once.
-
-A spec document (a TOML file's content, with overrides and one sweep point applied) is
-validated as a whole against `SpecDocument`; the validated sections are what the recorder
-builds its models from. Adding a field is one declaration here: its type and range
-(`Number`, `Vector`, ...), its default, and its unit (`unit(...)`, shown in errors and docs).
-Checks that relate fields (a stop rule that needs the plane, a body that starts below it)
-are validators of the section that holds both. `impactlab.record.spec` turns validation
-errors into one `SpecError` naming the file and the field.
-"""
+"""The experiment spec's schema: each field's type, range, unit and default, declared once."""
 
 from __future__ import annotations
 
@@ -25,7 +16,7 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from impactlab.physics import INTEGRATORS as INTEGRATORS  # MuJoCo's, as MJCF spells them
+from impactlab.logs.checks import PLANE_GEOM
 from impactlab.physics import Integrator
 
 CONDIMS = (1, 3, 4, 6)
@@ -36,7 +27,7 @@ MAX_NAME_LENGTH = 64
 MAX_BODIES = 64
 RESERVED_BODY_NAMES = {
     "world": "MuJoCo's world body",
-    "plane": 'the ground plane\'s name (contact pairs such as "ball/plane")',
+    PLANE_GEOM: 'the ground plane\'s name (contact pairs such as "ball/plane")',
 }
 MUJOCO_MINVAL = 1e-15  # mjMINVAL: MuJoCo refuses lighter moving bodies
 
@@ -175,6 +166,8 @@ def _pair_key(key: str) -> str:
     names = key.split("/")
     if len(names) != 2 or not all(names):
         raise problem(f'pair keys are two geom names joined by /, e.g. "ball/plane", got {key!r}')
+    if names[0] == names[1]:
+        raise problem("a pair needs two geoms")
     return key
 
 
@@ -284,6 +277,17 @@ class Stop(Section):
     max_energy_gain: Positive = 0.1
     max_penetration: Positive = 1.0
 
+    @model_validator(mode="after")
+    def _one_ending(self) -> Stop:
+        if self.bounces is not None and self.separation is not None:
+            raise problem("give either bounces (a drop) or separation (a collision)")
+        if self.at_rest and self.rest_time >= self.max_time:
+            raise problem(
+                f"{self.rest_time} s is not shorter than stop.max_time = {self.max_time} s",
+                "rest_time",
+            )
+        return self
+
 
 class Logging(Section):
     """What is logged: every N-th step."""
@@ -311,19 +315,22 @@ class SpecDocument(Section):
         return self
 
     @model_validator(mode="after")
+    def _pairs_name_geoms(self) -> SpecDocument:
+        geoms = {*self.bodies, *([PLANE_GEOM] if self.plane.enabled else [])}
+        for key in self.contact.pairs:
+            unknown = [g for g in key.split("/") if g not in geoms]
+            if unknown:
+                text = f"no geom named {unknown[0]!r} ({sorted(geoms)})"
+                raise problem(text, f"contact.pairs.{key}")
+        return self
+
+    @model_validator(mode="after")
     def _stop_fits_the_model(self) -> SpecDocument:
         stop, plane, opt = self.stop, self.plane, self.options
-        if stop.bounces is not None and stop.separation is not None:
-            raise problem("give either bounces (a drop) or separation (a collision)", "stop")
         if stop.bounces is not None and not plane.enabled:
             raise problem("counts bounces on the plane, but plane.enabled is false", "stop.bounces")
         if stop.separation is not None and len(self.bodies) < 2:
             raise problem("a collision needs at least two bodies", "stop.separation")
-        if stop.at_rest and stop.rest_time >= stop.max_time:
-            raise problem(
-                f"{stop.rest_time} s is not shorter than stop.max_time = {stop.max_time} s",
-                "stop.rest_time",
-            )
         if opt.timestep >= stop.max_time:
             raise problem(
                 f"{opt.timestep} s is not shorter than stop.max_time = {stop.max_time} s",
@@ -349,12 +356,11 @@ class MjcfRunOptions(Section):
 
 
 SECTIONS: Mapping[str, type[Section]] = {
-    "options": Options,
-    "contact": Contact,
-    "plane": Plane,
-    "stop": Stop,
-    "logging": Logging,
+    name: field.annotation
+    for name, field in SpecDocument.model_fields.items()
+    if isinstance(field.annotation, type) and issubclass(field.annotation, Section)
 }
+"""The spec's tables of fields, by name (bodies are tables by name of `BodySpec`)."""
 
 
 def defaults(section: type[Section]) -> dict[str, Any]:
@@ -367,34 +373,3 @@ def defaults(section: type[Section]) -> dict[str, Any]:
         value = info.get_default(call_default_factory=True)
         out[name] = list(value) if isinstance(value, tuple) else value
     return out
-
-
-def field_info(path: list[str]) -> tuple[str, Any] | None:
-    """What the dotted path (resolved, e.g. ["bodies", "ball", "mass"]) names in the schema:
-    ("table", section class) for a table, ("value", annotation) for a value, None if nothing."""
-    if not path:
-        return None
-    node: Any = SpecDocument
-    i = 0
-    while i < len(path):
-        key = path[i]
-        if node is SpecDocument and key == "bodies":
-            if i + 1 == len(path):
-                return ("table", None)
-            node, i = BodySpec, i + 2  # bodies.NAME
-            if i == len(path):
-                return ("table", BodySpec)
-            continue
-        fields = node.model_fields
-        if key not in fields:
-            return None
-        annotation = fields[key].annotation
-        if isinstance(annotation, type) and issubclass(annotation, Section):
-            node, i = annotation, i + 1
-            if i == len(path):
-                return ("table", node)
-            continue
-        if i + 1 != len(path):
-            return None
-        return ("value", annotation)
-    return None

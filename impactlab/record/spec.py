@@ -1,10 +1,4 @@
-"""Experiment specs: TOML files that declare a model, its contact, options, stop rule and logging.
-
-A spec is read in three steps: the TOML document is merged over the schema's defaults
-(`impactlab.record.schema`), command-line overrides and one sweep point are applied by dotted
-path (`set_path`), and the result is validated as a whole against the schema into a frozen
-`RunSpec`. Every error names the file, the field and the problem (`SpecError`).
-"""
+"""Experiment specs: TOML over the schema's defaults, set by dotted path, validated (`RunSpec`)."""
 
 from __future__ import annotations
 
@@ -14,13 +8,12 @@ import json
 import tomllib
 import types
 import typing
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from pydantic import ValidationError
-from pydantic_core import ErrorDetails
 
 from impactlab.errors import SpecError
 from impactlab.files import read_regular
@@ -36,13 +29,12 @@ from impactlab.record.schema import (
     SpecDocument,
     Stop,
     defaults,
-    field_info,
     short,
 )
 
 __all__ = ["Body", "Contact", "Options", "Plane", "RunSpec", "Stop"]
 
-SPEC_TOP_KEYS = ("name", "description", *SECTIONS, "bodies", "sweep")
+SPEC_TOP_KEYS = (*SpecDocument.model_fields, "sweep")
 MAX_SPEC_BYTES = 10_000_000  # a spec file larger than this is not a spec
 
 
@@ -109,30 +101,26 @@ def merge_defaults(raw: Mapping[str, Any], source: str) -> dict[str, Any]:
     doc: dict[str, Any] = {"name": raw.get("name", Path(source).stem)}
     doc["description"] = raw.get("description", "")
     for section, schema in SECTIONS.items():
-        given = raw.get(section, {})
-        if not isinstance(given, Mapping):
-            raise SpecError(source, section, f"must be a table, got {short(given)}")
-        _reject_unknown(given, schema.model_fields, section, source)
-        doc[section] = {**defaults(schema), **plain_copy(given)}
+        doc[section] = _filled(raw.get(section, {}), schema, section, source)
     bodies = raw.get("bodies")
     if not isinstance(bodies, Mapping) or not bodies:
         raise SpecError(source, "bodies", "at least one body is required ([bodies.NAME] tables)")
-    doc["bodies"] = {}
-    for name, body in bodies.items():
-        field = f"bodies.{name}"
-        if not isinstance(body, Mapping):
-            raise SpecError(source, field, f"must be a table, got {short(body)}")
-        _reject_unknown(body, BodySpec.model_fields, field, source)
-        doc["bodies"][name] = {**defaults(BodySpec), **plain_copy(body)}
+    doc["bodies"] = {
+        name: _filled(body, BodySpec, f"bodies.{name}", source) for name, body in bodies.items()
+    }
     return doc
 
 
-def _reject_unknown(
-    given: Mapping[str, Any], known: Mapping[str, Any], section: str, src: str
-) -> None:
-    unknown = sorted(set(given) - set(known), key=str)
+def _filled(given: Any, schema: type[Section], field: str, source: str) -> dict[str, Any]:
+    """A table of the spec over its schema's defaults; not a table, or an unknown key, fails."""
+    if not isinstance(given, Mapping):
+        raise SpecError(source, field, f"must be a table, got {short(given)}")
+    unknown = sorted(set(given) - set(schema.model_fields), key=str)
     if unknown:
-        raise SpecError(src, f"{section}.{unknown[0]}", unknown_key(unknown[0], known))
+        raise SpecError(
+            source, f"{field}.{unknown[0]}", unknown_key(unknown[0], schema.model_fields)
+        )
+    return {**defaults(schema), **plain_copy(given)}
 
 
 def unknown_key(key: object, known: Iterable[str]) -> str:
@@ -146,24 +134,22 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f", did you mean {close[0]!r}?" if close else ""
 
 
-def value_paths(doc: Mapping[str, Any]) -> list[str]:
-    """Every dotted path a `--set` or `[sweep]` key can name in `doc` (bodies by name)."""
+def value_fields(doc: Mapping[str, Any], schema: type[Section] = SpecDocument) -> dict[str, Any]:
+    """Every value of `doc` (a document of `schema`) a `--set` or `[sweep]` key can name: its
+    resolved dotted path (`bodies.ball.mass`) -> its type."""
 
-    def fields(section: type[Section], prefix: str) -> Iterable[str]:
+    def walk(section: type[Section], prefix: str) -> Iterable[tuple[str, Any]]:
         for name, info in section.model_fields.items():
             annotation = info.annotation
-            if isinstance(annotation, type) and issubclass(annotation, Section):
-                yield from fields(annotation, f"{prefix}{name}.")
+            if section is SpecDocument and name == "bodies":
+                for body in doc.get("bodies", {}):
+                    yield from walk(BodySpec, f"bodies.{body}.")
+            elif isinstance(annotation, type) and issubclass(annotation, Section):
+                yield from walk(annotation, f"{prefix}{name}.")
             else:
-                yield f"{prefix}{name}"
+                yield f"{prefix}{name}", annotation
 
-    paths = [key for key in ("name", "description") if key in doc]
-    for section, schema in SECTIONS.items():
-        if section in doc:
-            paths += fields(schema, f"{section}.")
-    for body in doc.get("bodies", {}):
-        paths += fields(BodySpec, f"{body}.")
-    return paths
+    return dict(walk(schema, ""))
 
 
 def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
@@ -174,39 +160,44 @@ def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
     return keys
 
 
-def check_path(doc: Mapping[str, Any], path: str, source: str) -> tuple[list[str], Any]:
-    """The resolved keys of a dotted path that names a value of the spec, and its type.
+def check_path(
+    doc: Mapping[str, Any], path: str, source: str, schema: type[Section] = SpecDocument
+) -> tuple[list[str], Any]:
+    """The resolved keys of a dotted path that names a value of `doc` (of `schema`), and its
+    type.
 
     Raises:
         SpecError: the path names nothing, or a table (set its fields instead).
     """
     keys = resolve_path(doc, path)
-    if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in doc.get("bodies", {}):
-        bodies = list(doc.get("bodies", {}))
+    bodies = list(doc.get("bodies", {}))
+    if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in bodies:
         hint = did_you_mean(keys[1], bodies)
         raise SpecError(
             source, path, f"unknown body {keys[1]!r}{hint} (known: {', '.join(bodies)})"
         )
-    found = field_info(keys)
-    if found is None:
-        hint = did_you_mean(path, value_paths(doc))
-        raise SpecError(source, path, f"unknown field {'.'.join(keys)!r}{hint}")
-    kind, what = found
-    if kind == "table":
-        fields = ", ".join(what.model_fields) if what is not None else "bodies.NAME.FIELD"
-        example = next(iter(what.model_fields)) if what is not None else "mass"
-        raise SpecError(
-            source,
-            path,
-            f"is a table; set its fields instead, e.g. {'.'.join(keys)}.{example}=... "
-            f"(fields: {fields})",
-        )
-    return keys, what
+    fields, full = value_fields(doc, schema), ".".join(keys)
+    if full in fields:
+        return keys, fields[full]
+    inside = [p.removeprefix(f"{full}.").split(".")[0] for p in fields if p.startswith(f"{full}.")]
+    if not inside:
+        hint = did_you_mean(path, [p.removeprefix("bodies.") for p in fields])
+        raise SpecError(source, path, f"unknown field {full!r}{hint}")
+    names = ["bodies.NAME.FIELD"] if keys == ["bodies"] else list(dict.fromkeys(inside))
+    example = "mass" if keys == ["bodies"] else names[0]
+    raise SpecError(
+        source,
+        path,
+        f"is a table; set its fields instead, e.g. {full}.{example}=... "
+        f"(fields: {', '.join(names)})",
+    )
 
 
-def set_path(doc: dict[str, Any], path: str, value: Any, source: str) -> None:
+def set_path(
+    doc: dict[str, Any], path: str, value: Any, source: str, schema: type[Section] = SpecDocument
+) -> None:
     """Set a value of a resolved document by dotted path (see `check_path`)."""
-    keys, _ = check_path(doc, path, source)
+    keys, _ = check_path(doc, path, source, schema)
     node = doc
     for key in keys[:-1]:
         node = node[key]
@@ -240,12 +231,7 @@ def validate(
     Raises:
         SpecError: the first problem, naming the file and the field.
     """
-    try:
-        spec = SpecDocument.model_validate(doc)
-    except ValidationError as exc:
-        raise schema_error(exc, source) from None
-    except RecursionError:
-        raise SpecError(source, "", "a value is nested too deeply") from None
+    spec = checked(SpecDocument, doc, source)
     bodies = tuple(
         Body.model_construct(
             **{
@@ -273,6 +259,23 @@ def validate(
     )
 
 
+S = TypeVar("S", bound=Section)
+
+
+def checked(schema: type[S], doc: Mapping[str, Any], source: str) -> S:
+    """`doc` validated against `schema`.
+
+    Raises:
+        SpecError: the first problem, naming the file and the field.
+    """
+    try:
+        return schema.model_validate(doc)
+    except ValidationError as exc:
+        raise schema_error(exc, source) from None
+    except RecursionError:
+        raise SpecError(source, "", "a value is nested too deeply") from None
+
+
 def plain_copy(value: Any) -> Any:
     """A copy of a document of tables, lists and scalars (much faster than `copy.deepcopy`)."""
     if isinstance(value, dict):
@@ -284,23 +287,23 @@ def plain_copy(value: Any) -> Any:
     return value
 
 
-_WORDS: dict[str, Callable[[ErrorDetails], str]] = {
-    "missing": lambda e: "is required",
-    "float_type": lambda e: f"must be a number, got {short(e['input'])}",
-    "int_type": lambda e: f"must be an integer, got {short(e['input'])}",
-    "bool_type": lambda e: f"must be true or false, got {short(e['input'])}",
-    "string_type": lambda e: f"must be a string, got {short(e['input'])}",
-    "finite_number": lambda e: f"must be finite, got {short(e['input'])}",
-    "greater_than": lambda e: f"must be > {e['ctx']['gt']:g}, got {short(e['input'])}",
-    "greater_than_equal": lambda e: f"must be >= {e['ctx']['ge']:g}, got {short(e['input'])}",
-    "less_than_equal": lambda e: f"must be <= {e['ctx']['le']:g}, got {short(e['input'])}",
-    "literal_error": lambda e: f"must be one of {e['ctx']['expected']}, got {short(e['input'])}",
-    "extra_forbidden": lambda e: "unknown key",
-    "model_type": lambda e: f"must be a table, got {short(e['input'])}",
-    "dict_type": lambda e: f"must be a table, got {short(e['input'])}",
-    "too_short": lambda e: f"must have at least {e['ctx']['min_length']} entries",
-    "too_long": lambda e: f"must have at most {e['ctx']['max_length']} entries",
-    "string_too_long": lambda e: f"must be at most {e['ctx']['max_length']} characters",
+_WORDS = {  # pydantic's error types in our words: {input} is the value, the rest its context
+    "missing": "is required",
+    "float_type": "must be a number, got {input}",
+    "int_type": "must be an integer, got {input}",
+    "bool_type": "must be true or false, got {input}",
+    "string_type": "must be a string, got {input}",
+    "finite_number": "must be finite, got {input}",
+    "greater_than": "must be > {gt:g}, got {input}",
+    "greater_than_equal": "must be >= {ge:g}, got {input}",
+    "less_than_equal": "must be <= {le:g}, got {input}",
+    "literal_error": "must be one of {expected}, got {input}",
+    "extra_forbidden": "unknown key",
+    "model_type": "must be a table, got {input}",
+    "dict_type": "must be a table, got {input}",
+    "too_short": "must have at least {min_length} entries",
+    "too_long": "must have at most {max_length} entries",
+    "string_too_long": "must be at most {max_length} characters",
 }
 
 
@@ -320,5 +323,5 @@ def schema_error(exc: ValidationError, source: str) -> SpecError:
         text = ctx["text"]
     else:
         words = _WORDS.get(err["type"])
-        text = words(err) if words else err["msg"]
+        text = words.format(input=short(err["input"]), **ctx) if words else err["msg"]
     return SpecError(source, ".".join(parts), text)

@@ -51,6 +51,13 @@ def _first(mask: np.ndarray) -> int | None:
     return int(idx[0]) if idx.size else None
 
 
+def _touching(chunk: Chunk, contacts: np.ndarray) -> np.ndarray:
+    """Per step of the chunk, whether any of the chosen contacts (a mask) is at it."""
+    touching = np.zeros(chunk.rows.shape[0], bool)
+    touching[chunk.contacts.step[contacts]] = True
+    return touching
+
+
 @dataclass
 class _Finite(_Rule):
     def update(self, chunk: Chunk) -> Verdict | None:
@@ -98,8 +105,7 @@ class _Bounces(_Rule):
             mine = ((p1 == body) & np.isin(p2, list(self.surfaces))) | (
                 (p2 == body) & np.isin(p1, list(self.surfaces))
             )
-            touching = np.zeros(rows.shape[0], bool)
-            touching[chunk.contacts.step[mine]] = True
+            touching = _touching(chunk, mine)
             v_up = rows[:, adr : adr + 3] @ self.up
             later = np.arange(rows.shape[0]) + step0 >= self.since[body]
             apex = _first(later & ~touching & (v_up <= 0.0))
@@ -157,8 +163,7 @@ class _Separated(_Rule):
         rows, step0 = chunk.rows, chunk.step0
         p1, p2 = chunk.sides
         between = (p1 < self.nbody) & (p2 < self.nbody) & (p1 != p2)
-        touching = np.zeros(rows.shape[0], dtype=bool)
-        touching[chunk.contacts.step[between]] = True
+        touching = _touching(chunk, between)
         seen = self.touched | (np.cumsum(touching) > 0)
         self.touched = bool(seen[-1])
         gaps = np.stack([rows[:, cols].min(axis=1) for cols in self.gap_cols]).min(axis=0)
@@ -234,34 +239,30 @@ class StopMonitor:
     """Evaluates a run's stop rules chunk by chunk; the earliest firing rule wins."""
 
     def __init__(self, inst: InstrumentedModel, stop: Stop | None, *, timestep: float) -> None:
+        stop = Stop.model_construct() if stop is None else stop  # none: the default bounds
         self.rules: list[_Rule] = [_Finite()]
         model = inst.model
         g = gravity(model)
-        gain = stop.max_energy_gain if stop else Stop.model_fields["max_energy_gain"].default
         mass = float(sum(b.mass for b in inst.bodies))
         self.rules.append(
             _Residual(
                 kinetic_adr=inst.energy_adr + 1,
                 pos_adr=[b.adr for b in inst.bodies],
                 weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
-                fraction=gain,
+                fraction=stop.max_energy_gain,
                 timestep=timestep,
                 floor_J=0.1 * mass * math.hypot(*g),  # no overflow
             )
         )
-        fraction = stop.max_penetration if stop else Stop.model_fields["max_penetration"].default
         bounds = np.full(len(inst.party_names), np.inf)
         for i, b in enumerate(inst.bodies):
             if b.radius:
-                bounds[i] = fraction * b.radius
+                bounds[i] = stop.max_penetration * b.radius
         if np.isfinite(bounds).any():
             self.rules.append(_Penetration(bounds, timestep))
-        if stop is None:
-            return
         nbody = len(inst.bodies)
-        surfaces = {int(inst.party[i]) for i in range(model.ngeom) if inst.party[i] >= nbody}
+        ground = [g for g in range(model.ngeom) if inst.party[g] >= nbody]  # static geoms
         if stop.bounces is not None:
-            ground = [g for g in range(model.ngeom) if inst.party[g] >= nbody]
             free = [
                 i
                 for i, b in enumerate(inst.bodies)
@@ -278,7 +279,7 @@ class StopMonitor:
                     n=stop.bounces,
                     bodies=free,
                     vel_adr=[inst.bodies[i].adr + 7 for i in free],
-                    surfaces=surfaces,
+                    surfaces={nbody + g for g in ground},  # their parties
                     up=up_vector(model),
                     v_min=min_impact_speed(float(np.linalg.norm(g)), timestep),
                 )

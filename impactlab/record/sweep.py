@@ -1,11 +1,4 @@
-"""Expand an experiment spec into runs: command-line overrides, then the `[sweep]` grid.
-
-`[sweep]` maps dotted field paths to lists of values; the runs are their Cartesian product,
-in the order the keys are written. `--set PATH=VALUE` overrides a field (VALUE is a TOML
-value: `2`, `[0, 0, 1]`, `"RK4"`); overriding a swept field replaces its list: with one value
-(`--set ball.pos=[0, 0, 1]`, one run) or a list of values (`--set 'ball.pos=[[0, 0, 1],
-[0, 0, 2]]'`). A path names a value, never a table (`contact`, `ball`): set its fields.
-"""
+"""Expand an experiment spec into runs: command-line overrides, then the `[sweep]` grid."""
 
 from __future__ import annotations
 
@@ -59,19 +52,12 @@ def load_runs(path: Path, overrides: Sequence[str] = ()) -> list[RunSpec]:
     return SpecSweep.read(path, overrides).runs()
 
 
-def document_runs(
-    raw: Mapping[str, Any], source: str, overrides: Sequence[str] = ()
-) -> list[RunSpec]:
-    """The runs of a spec document (a TOML file's content as a dict), validated.
+@dataclass(frozen=True)
+class SpecSweep:
+    """A spec document with its overrides applied and its sweep checked, not yet expanded.
 
     `source` names the document in errors and in the log (a file path, or e.g. "<python>").
     """
-    return SpecSweep.of(raw, source, overrides).runs()
-
-
-@dataclass(frozen=True)
-class SpecSweep:
-    """A spec document with its overrides applied and its sweep, not yet expanded."""
 
     doc: dict[str, Any]
     sweep: dict[str, list[Any]]
@@ -84,16 +70,17 @@ class SpecSweep:
 
     @classmethod
     def of(cls, raw: Mapping[str, Any], source: str, overrides: Sequence[str] = ()) -> SpecSweep:
-        """A spec document's sweep, overrides applied (see `document_runs`)."""
+        """A spec document's (a TOML file's content as a dict) sweep, overrides applied."""
         doc, sweep = _prepare(raw, source, overrides)
+        check_sweep(sweep, source)
         return cls(doc, sweep, source)
 
     def __len__(self) -> int:
-        return math.prod(len(v) if isinstance(v, list) else 1 for v in self.sweep.values())
+        return math.prod(len(v) for v in self.sweep.values())
 
     def work(self) -> Work:
         """The work its runs ask for at most, without expanding the sweep."""
-        varied = [k for k in WORK_FIELDS if k in self.sweep and isinstance(self.sweep[k], list)]
+        varied = [k for k in WORK_FIELDS if k in self.sweep]
         if len(self) > MAX_RUNS or math.prod(len(self.sweep[k]) for k in varied) > MAX_RUNS:
             return Work(runs=len(self))  # refused on its count alone
         others = len(self) // max(1, math.prod(len(self.sweep[k]) for k in varied))
@@ -114,29 +101,25 @@ class SpecSweep:
 
     def runs(self) -> list[RunSpec]:
         """Every run of the sweep, validated."""
-        return expand(self.doc, self.sweep, self.source)
+        return list(self.iter_runs())
 
     def iter_runs(self) -> Iterator[RunSpec]:
         """Every run of the sweep, validated one at a time (a large sweep is never held)."""
-        return iter_expand(self.doc, self.sweep, self.source)
+        return map(self.run, range(len(self)))
 
     def run(self, index: int) -> RunSpec:
-        """The sweep's point `index` (0 <= index < len(self)), validated.
-
-        The points are in `runs()` order: the last swept key varies fastest.
-        """
-        keys = list(self.sweep)
-        size = len(self)
-        point, rest = [], index
-        for key in reversed(keys):
+        """The sweep's point `index` (0 <= index < len(self)), validated; the points are in
+        the order of the grid's product, the last swept key varying fastest."""
+        point, rest = {}, index
+        for key in reversed(self.sweep):
             rest, i = divmod(rest, len(self.sweep[key]))
-            point.append(self.sweep[key][i])
-        values = dict(zip(keys, reversed(point), strict=True))
+            point[key] = self.sweep[key][i]
+        values = {key: point[key] for key in self.sweep}
         return validate(
             _with_values(self.doc, values),
             source=self.source,
             sweep_values=values,
-            sweep_point=(index, size),
+            sweep_point=(index, len(self)),
         )
 
 
@@ -188,22 +171,6 @@ def _prepare(
         else:
             set_path(doc, key, value, "--set")
     return doc, swept
-
-
-def expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> list[RunSpec]:
-    """One validated run per point of the sweep grid (one run when the sweep is empty)."""
-    return list(iter_expand(doc, sweep, source))
-
-
-def iter_expand(doc: Mapping[str, Any], sweep: Mapping[str, Any], source: str) -> Iterator[RunSpec]:
-    """`expand`, one run at a time; the sweep's lists are checked before the first run."""
-    check_sweep(sweep, source)
-    keys = list(sweep)
-    size = math.prod(len(sweep[k]) for k in keys)
-    for index, point in enumerate(itertools.product(*(sweep[k] for k in keys))):
-        values = dict(zip(keys, point, strict=True))
-        run_doc = _with_values(doc, values)
-        yield validate(run_doc, source=source, sweep_values=values, sweep_point=(index, size))
 
 
 def check_sweep(sweep: Mapping[str, Any], source: str) -> None:

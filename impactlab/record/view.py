@@ -1,13 +1,12 @@
-"""A record job's result as a notebook shows it: one line (`repr`) or a small HTML table.
-
-The `RecordResult` is typed `Any` here: its module imports this one (no import circle).
-"""
+"""A record job's result as a notebook shows it: one line (`repr`) or a small HTML table."""
 
 from __future__ import annotations
 
 from typing import Any
 
 from impactlab.show import count, html_table, where
+
+# a `RecordResult` is typed `Any` here: its module imports this one (no import circle)
 
 
 def record_repr(result: Any) -> str:

@@ -183,6 +183,18 @@ def assert_one_line_error(capsys, code: int, words: list[str], out: Path) -> Non
             ["--duration", "1", "--set", "stop.separation=0.1"],
             ["stop.separation", "two free bodies"],
         ),
+        (
+            "mjcf rest_time too long",
+            NO_GROUND,
+            ["--duration", "1", "--set", "stop.at_rest=true", "--set", "stop.rest_time=2"],
+            ["stop.rest_time", "not shorter than stop.max_time = 1"],
+        ),
+        (
+            "mjcf bounces and separation",
+            NO_GROUND,
+            ["--duration", "1", "--set", "stop.bounces=1", "--set", "stop.separation=0.1"],
+            ["stop: give either bounces"],
+        ),
     ],
 )
 def test_bad_mjcf(tmp_path, capsys, case, content, args, words):

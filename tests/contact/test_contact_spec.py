@@ -18,7 +18,7 @@ import impactlab
 from impactlab.contact import SPEED_FLOOR_MPS
 from impactlab.errors import SpecError
 from impactlab.record import calibrated_pairs
-from impactlab.record.sweep import document_runs
+from impactlab.record.sweep import SpecSweep
 
 G = 9.81
 DROP = {
@@ -54,7 +54,7 @@ def doc(base: dict, **changes) -> dict:
 
 
 def pairs(document: dict):
-    (run,) = document_runs(document, "<test>")
+    (run,) = SpecSweep.of(document, "<test>").runs()
     return {f"{p.geom1}/{p.geom2}": p.params for p in calibrated_pairs(run)}
 
 
