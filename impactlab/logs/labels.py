@@ -1,13 +1,9 @@
-"""A run's sweep point in words and units, one scheme for every stage that labels runs.
-
-The report's tables and figures (`impactlab.analyze.tables.labels`, `run_figures`) and the replay's
-series names (`impactlab.replay.recordings`) all read "ball released at z = 3 m", never a
-hash or the spec's dotted keys.
-"""
+"""Run labels: the experiment and its sweep point in words and units, one rule for every stage."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Collection, Iterable, Mapping
 
 _AXES = "xyz"
 _UNITS = {"pos": "m", "vel": "m/s", "mass": "kg", "radius": "m", "size": "m"}
@@ -31,16 +27,49 @@ def parameter_words(key: str, value: object) -> str:
     return f"{key} = {shown}"
 
 
-def sweep_words(sweep: dict[str, object]) -> str:
-    """A run's sweep point in words and units ("ball released at z = 3 m"); "" for none.
-
-    A swept vector shows its non-zero components (all of them when every one is zero).
-    """
+def sweep_words(
+    sweep: Mapping[str, object], varying: Mapping[str, Collection[int]] | None = None
+) -> str:
+    """A sweep point in words and units ("ball released at z = 3 m"); "" for none. A swept
+    vector shows its components in `varying` (key -> indices), else those not zero (all of
+    them when every one is zero)."""
     words = []
     for key, value in sweep.items():
         if isinstance(value, list | tuple):
-            shown = [i for i, x in enumerate(value) if x] or list(range(len(value)))
-            words += [parameter_words(f"{key}[{i}]", value[i]) for i in shown]
+            shown = [i for i in sorted((varying or {}).get(key, ())) if i < len(value)]
+            shown = shown or [i for i, x in enumerate(value) if x]
+            words += [parameter_words(f"{key}[{i}]", value[i]) for i in shown or range(len(value))]
         else:
             words.append(parameter_words(key, value))
     return ", ".join(words)
+
+
+def run_label(
+    experiment: str,
+    sweep: Mapping[str, object],
+    varying: Mapping[str, Collection[int]] | None = None,
+) -> str:
+    """A run's label: "experiment: its sweep point in words" (`sweep_words`), or the
+    experiment alone for a run not swept."""
+    words = sweep_words(sweep, varying)
+    return f"{experiment}: {words}" if words else experiment
+
+
+def run_labels(runs: Iterable[tuple[str, str, Mapping[str, object]]]) -> dict[str, str]:
+    """run id -> `run_label` of each of `runs` (run id, experiment, sweep point), a swept
+    vector showing the components that differ among its experiment's runs; two runs that
+    would read the same keep their run id's end ("drop: ball released at z = 1 m (c08c)")."""
+    runs = list({run_id: (run_id, e, s) for run_id, e, s in runs}.values())
+    first: dict[tuple[str, str], list[object]] = {}
+    varying: dict[str, dict[str, set[int]]] = {}
+    for _, experiment, sweep in runs:
+        for key, value in sweep.items():
+            if isinstance(value, list | tuple):
+                seen = first.setdefault((experiment, key), list(value))
+                differ = varying.setdefault(experiment, {}).setdefault(key, set())
+                differ.update(i for i, x in enumerate(value) if seen[i : i + 1] != [x])
+    labels = {r: run_label(e, s, varying.get(e, {})) for r, e, s in runs}
+    count: dict[str, int] = {}
+    for label in labels.values():
+        count[label] = count.get(label, 0) + 1
+    return {r: f"{x} ({r.split('-')[-1]})" if count[x] > 1 else x for r, x in labels.items()}

@@ -10,8 +10,9 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report.blocks import Column, number
-from impactlab.analyze.report.run_figures import contact_words, run_label
+from impactlab.analyze.report.run_figures import contact_words
 from impactlab.analyze.tables.labels import run_labels, with_labels
+from impactlab.logs.labels import run_label
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def brief(a: RunAnalysis) -> RunBrief:
     return RunBrief(
         run_id=a.run.run_id,
         experiment=a.run.experiment,
-        label=run_label(a),
+        label=run_label(a.run.experiment, a.run.sweep),
         grounded=a.ground is not None and bool(a.ground.surfaces),
         targets=tuple(sorted({t.restitution for t in a.run.contact_targets})),
         masses=tuple(b.mass for b in info),

@@ -11,7 +11,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.logs.labels import sweep_words
+from impactlab.logs.labels import run_label
 from impactlab.logs.metadata import GeomContact, PairTarget
 from impactlab.text import file_part
 
@@ -30,17 +30,10 @@ def contact_words(targets: Sequence[PairTarget], shared: GeomContact | None) -> 
 
 
 def run_title(a: RunAnalysis) -> str:
-    """A figure title: experiment and sweep point in words, the contact, the timestep."""
-    sweep = sweep_words(a.run.sweep)
-    first = a.run.experiment + (f": {sweep}" if sweep else "")
+    """A figure title: the run's label, the contact, the timestep."""
     contact = contact_words(a.run.contact_targets, a.run.geom_contact)
     second = ", ".join([*([contact] if contact else []), f"dt = {a.run.timestep_s:g} s"])
-    return f"{first}\n{second}"
-
-
-def run_label(a: RunAnalysis) -> str:
-    """A short legend label: the sweep point in words, else the experiment."""
-    return sweep_words(a.run.sweep) or a.run.experiment
+    return f"{run_label(a.run.experiment, a.run.sweep)}\n{second}"
 
 
 FIGURE_RUNS_PER_SWEEP = 6  # per-run figures for at most this many points of a sweep

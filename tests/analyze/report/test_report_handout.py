@@ -85,7 +85,8 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
 
 @pytest.mark.slow
 def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
-    from impactlab.analyze.report.run_figures import contact_words, sweep_words
+    from impactlab.analyze.report.run_figures import contact_words
+    from impactlab.logs.labels import sweep_words
     from impactlab.logs.metadata import GeomContact, PairTarget
 
     raw = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001))
