@@ -15,6 +15,7 @@ from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.analyze.tables.studies import studies, with_parameters
 from impactlab.files import atomic_path, write_parquet
+from impactlab.show import count, html_table, where
 
 T = TypeVar("T")
 
@@ -89,15 +90,46 @@ class AnalysisResult:
         return 1 if self.failed else 0
 
     def __repr__(self) -> str:
-        from impactlab.analyze.tables.view import analysis_repr
+        """`<Analysis 17 runs, 42 bounces, 3 collisions, results/>` (failed inputs counted;
+        the counts are the runs table's: a run without bounces has a row saying why)."""
 
-        return analysis_repr(self)
+        def total(column: str) -> int:
+            return int(self.runs[column].sum() or 0) if column in self.runs.columns else 0
+
+        parts = [
+            count(self.runs.height, "run"),
+            count(total("n_bounces"), "bounce"),
+            count(total("n_collisions"), "collision"),
+        ]
+        if self.failed:
+            parts.append(f"{len(self.failed):,} failed")
+        parts.append(where(self.out_dir) if self.out_dir is not None else "nothing written")
+        return f"<Analysis {', '.join(parts)}>"
 
     def _repr_html_(self) -> str:
-        """A small table for notebooks: one row per run (`impactlab.analyze.tables.view`)."""
-        from impactlab.analyze.tables.view import analysis_html
+        """A notebook's table: one row per run (its bounces, e, collisions, energy lost),
+        then the failed inputs."""
+        columns = [c for c in NOTEBOOK_COLUMNS if c in self.runs.columns]
+        rows = self.runs.head(30).select(columns).rows() if columns else []
+        headers = [NOTEBOOK_COLUMNS[c] for c in columns]
+        caption = repr(self).strip("<>")
+        table = html_table(headers, rows, caption=caption, total=self.runs.height, unit="runs")
+        if self.failed:
+            failed = [[path, why] for path, why in self.failed]
+            table += html_table(["failed input", "why"], failed, unit="inputs")
+        return table
 
-        return analysis_html(self)
+
+NOTEBOOK_COLUMNS = {  # column of the runs table: its header in a notebook's table
+    "run_id": "run",
+    "experiment": "experiment",
+    "outcome": "outcome",
+    "n_bounces": "bounces",
+    "e_velocity_mean": "e (mean)",
+    "n_collisions": "collisions",
+    "e_collision": "e (collision)",
+    "energy_loss_frac": "energy lost (fraction)",
+}
 
 
 REDUCE_EVERY = 64
