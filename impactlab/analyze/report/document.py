@@ -76,7 +76,7 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
     for (title, _), answer in zip(STEPS, replies, strict=True):
         doc.blocks += [Heading(title), *answer.blocks]
     doc.blocks += as_written(t)
-    doc.blocks += [Heading("Conclusion"), Bullets(tuple((a.verdict,) for a in replies))]
+    doc.blocks += [Heading("Conclusion"), Bullets(tuple((a.finding,) for a in replies))]
     return doc
 
 

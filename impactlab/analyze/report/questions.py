@@ -1,5 +1,5 @@
 """The handout's four questions, one function each: the answer's blocks (a first sentence that
-answers with its number, the evidence, one figure) and a short verdict for the conclusion."""
+answers with its number, the evidence, one figure); that sentence is also the conclusion's."""
 
 from __future__ import annotations
 
@@ -36,12 +36,16 @@ APPENDIX = "report-appendix.md"
 
 @dataclass
 class Answer:
-    """A question's answer: its lead (whose first sentence answers the question), the
-    evidence, and a short verdict for the conclusion."""
+    """A question's answer: its lead (whose first span, in bold, answers the question: the
+    conclusion says it again) and the evidence."""
 
     lead: list[Span]
     evidence: list[Block] = field(default_factory=list)
-    verdict: str = ""
+
+    @property
+    def finding(self) -> str:
+        first = self.lead[0]
+        return first if isinstance(first, str) else first.text
 
     @property
     def blocks(self) -> list[Block]:
@@ -49,7 +53,7 @@ class Answer:
 
 
 def not_answered(why: str) -> Answer:
-    return Answer([Strong(f"Not answered: {why}.")], verdict=f"Not answered: {why}.")
+    return Answer([Strong(f"Not answered: {why}.")])
 
 
 def _table(
@@ -133,7 +137,6 @@ def energy(t: Tables) -> Answer:
     also = f"; other forces work too ({', '.join(others)})" if others else ""
     if not flown:
         lead = f"Not answered for the flight: no run has one; {at_contacts}{also}."
-        verdict = "Energy: no flight to test conservation on."
     elif odd or forced:
         who = (odd or forced)[0]
         what = (
@@ -145,18 +148,12 @@ def energy(t: Tables) -> Answer:
             f"Not in every run: in {len(odd) or len(forced)} of {len(flown)} runs with a "
             f"flight the energy in flight {what} ({_who(who)}); {at_contacts}{also}."
         )
-        verdict = (
-            f"Energy: not conserved in flight in {len(odd) or len(forced)} of {len(flown)} runs."
-        )
     else:
         worst = max(flown, key=lambda r: abs(F.drift(r) / r["energy_initial_J"]))
         rel = percent(abs(F.drift(worst) / worst["energy_initial_J"]))
         lead = (
             f"Yes: in flight only the integrator changes the energy (at most {rel} of it), "
             f"and {at_contacts}{also}."
-        )
-        verdict = (
-            f"Energy is conserved in flight up to the integrator (at most {rel}); {at_contacts}."
         )
     notes = F.each(rows, lambda r: F.drift_finding(r) if F.drift_kind(r) == "unexplained" else "")
     table, footnotes = footnoted(
@@ -189,7 +186,7 @@ def energy(t: Tables) -> Answer:
     best = frame.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
     evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
-    return Answer([Strong(lead)], evidence, verdict)
+    return Answer([Strong(lead)], evidence)
 
 
 def restitution(t: Tables) -> Answer:
@@ -221,34 +218,26 @@ def restitution(t: Tables) -> Answer:
     limit = f"{F.E_CONSTANT_SPREAD:g}"
     if spread.is_empty():
         across = "Constancy across bounces is not tested (no run has two complete bounces)"
-        short = "not tested across bounces"
     else:
         worst = spread.sort("s", descending=True).row(0, named=True)
         most = number(worst["s"], 2)
         if worst["s"] < F.E_CONSTANT_SPREAD:
             across = f"Yes, e is constant across bounces (spread at most {most}, below {limit})"
-            short = f"constant across bounces (spread at most {most})"
         else:
             within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
             across = (
                 f"No, e is not constant across bounces in every drop (spread up to {most} in "
                 f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
             )
-            short = f"not constant across bounces (spread up to {most})"
         if outside.height and spread.height:
             speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
             es = span(outside["e_velocity"].to_list())
             across += f" in the calibrated speed range (outside it: e {es} at {speeds})"
-    heights = [(name, *_height_words(s)) for name, s in t.studies.items()]
+    heights = [(name, _height_words(s)) for name, s in t.studies.items()]
     heights = [h for h in heights if h[1]]
-    against = " and ".join(f"{long} for {n}" for n, long, _ in heights)
+    against = " and ".join(f"{words} for {n}" for n, words in heights)
     lead = across + (f"; against the drop height it {against}." if against else ".")
-    verdict = f"e is {short}"
-    if heights:
-        verdict += "; against the drop height it " + " and ".join(
-            f"{b} for {n}" for n, _, b in heights
-        )
-    studies = [t.studies[n].sort("first_impact_speed_mps") for n, _, _ in heights]
+    studies = [t.studies[n].sort("first_impact_speed_mps") for n, _ in heights]
     table = pl.concat(studies, how="diagonal_relaxed") if studies else pl.DataFrame()
     said = []
     if studies:
@@ -277,30 +266,25 @@ def restitution(t: Tables) -> Answer:
         evidence += _table(table, (*cols, Column("target", "Target e")))
     caption = "e against impact speed: every bounce and every collision, one colour per experiment."
     evidence += _figure(t, "restitution", "restitution-vs-speed.png", caption)
-    return Answer([Strong(lead)], evidence, verdict + ".")
+    return Answer([Strong(lead)], evidence)
 
 
-def _height_words(study: pl.DataFrame) -> tuple[str, str]:
-    """How e depends on the drop height in one drop study: (words with numbers, in brief);
-    ("", "") for a study that is not of drops."""
+def _height_words(study: pl.DataFrame) -> str:
+    """How e depends on the drop height in one drop study, with its numbers; "" for a study
+    that is not of drops."""
     if not {"e_velocity_first", "first_impact_speed_mps"} <= set(study.columns):
-        return "", ""
+        return ""
     study = study.sort("first_impact_speed_mps")
     es = study.filter(pl.col("e_velocity_first").is_not_null())["e_velocity_first"]
     speeds = span(study["first_impact_speed_mps"].to_list(), "m/s")
-    values = span(es.to_list())
     if es.len() >= 2:
         if es.max() - es.min() < F.E_CONSTANT_SPREAD:  # type: ignore[operator]
-            return f"does not depend on it ({values} at {speeds})", "does not depend on it"
+            return f"does not depend on it ({span(es.to_list())} at {speeds})"
         trend = "rises" if es[-1] > es[0] else "falls"
-        return (
-            f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})",
-            f"{trend} with it",
-        )
+        return f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})"
     if es.len() == 1:
-        words = f"depends on it (only one of {study.height} drops rebounds, e = {values})"
-        return words, "depends on it"
-    return f"cannot be measured (none of {study.height} drops rebounds)", "cannot be measured"
+        return f"depends on it (only one of {study.height} drops rebounds, e = {number(es[0])})"
+    return f"cannot be measured (none of {study.height} drops rebounds)"
 
 
 def collision(t: Tables) -> Answer:
@@ -321,10 +305,8 @@ def collision(t: Tables) -> Answer:
             f"Yes, momentum is conserved in all {len(rows)} collisions (relative change at most "
             f"{number(top, 2)}, below {number(F.MOMENTUM_CONSERVED_REL, None)})"
         )
-        verdict = f"Momentum is conserved in every collision (change at most {number(top, 2)})"
     else:
         momentum = f"Momentum is conserved in {n_kept} of {len(rows)} collisions"
-        verdict = momentum
     alone = done.join(t.runs.select("run_id", "experiment"), on="run_id")
     alone = alone.filter(pl.len().over("experiment") == 1)
     main = (alone if alone.height else done).row(0, named=True)
@@ -343,7 +325,6 @@ def collision(t: Tables) -> Answer:
             "momentum; the independent checks are the analytic outcomes below and, in Step 4, "
             "the target e.",
         ]
-        verdict += "; the energy lost follows from the measured e (a circular check)"
     odd = [
         F.momentum_finding(r, by_run.get(r["run_id"]))
         for r, k in zip(rows, kinds, strict=True)
@@ -353,7 +334,7 @@ def collision(t: Tables) -> Answer:
     evidence += _outcomes(main)
     caption = f"{_who(main)}: positions, velocities and momentum along the line of centres."
     evidence += _figure(t, "collision", f"collision-{file_part(main['run_id'])}.png", caption)
-    return Answer(lead, evidence, verdict + ".")
+    return Answer(lead, evidence)
 
 
 def _outcomes(c: dict[str, Any]) -> list[Block]:
@@ -424,11 +405,8 @@ def study(t: Tables) -> Answer:
     if near:
         lead = "Yes, with " + "; ".join(said(*s) for s in near)
         lead += ("; not with " + "; ".join(said(*s) for s in far)) if far else ""
-        verdict = f"The elastic answer is approached with {', '.join(s[0] for s in near)}"
-        verdict += f", not with {', '.join(s[0] for s in far)}." if far else "."
     else:
         lead = "No: " + "; ".join(said(*s) for s in sweeps)
-        verdict = "No sweep approaches the elastic answer."
     elastic = pl.col("v1n_after_elastic_mps")
     gap = (pl.col("v1n_after_mps") - elastic).abs() / elastic.abs() * 100
     table = pl.concat([s[1] for s in sweeps], how="diagonal_relaxed")
@@ -448,4 +426,4 @@ def study(t: Tables) -> Answer:
     pick = (near or sweeps)[0][0]
     caption = f"{pick}: velocities after against e, on the analytic curves; e against the sweep."
     evidence = [*_table(table, cols), *_figure(t, "study", f"study-{file_part(pick)}.png", caption)]
-    return Answer([Strong(lead + "."), more], evidence, verdict)
+    return Answer([Strong(lead + "."), more], evidence)
