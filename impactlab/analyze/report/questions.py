@@ -8,6 +8,7 @@ from typing import Any
 
 import polars as pl
 
+from impactlab.analyze.measure.phases import WORK_COLUMNS
 from impactlab.analyze.report import findings as F
 from impactlab.analyze.report.blocks import (
     Block,
@@ -25,7 +26,7 @@ from impactlab.analyze.report.blocks import (
     quantity,
     span,
 )
-from impactlab.analyze.report.context import Tables, columns
+from impactlab.analyze.report.context import COLUMNS, Tables, columns
 from impactlab.physics import collision_after
 from impactlab.text import file_part
 
@@ -82,17 +83,8 @@ def _targets(t: Tables) -> pl.Expr:
     return pl.col("run_id").replace_strict(words, default="", return_dtype=pl.String)
 
 
-FORCES = {  # the budget's works besides the contacts', as a sentence names them
-    "work_springs_J": "springs",
-    "work_damping_J": "joint damping",
-    "work_limits_J": "joint limits",
-    "work_equality_J": "equality constraints",
-    "work_friction_loss_J": "friction loss",
-    "work_actuators_J": "actuators",
-    "work_fluid_J": "fluid forces",
-    "work_gravity_compensation_J": "gravity compensation",
-    "work_solver_J": "the unconverged solver",
-}
+FORCES = [c for c in WORK_COLUMNS if not c.startswith("work_contact")]
+"""The budget's works besides the contacts' (a sentence names each by its column's header)."""
 
 
 def energy(t: Tables) -> Answer:
@@ -133,7 +125,10 @@ def energy(t: Tables) -> Answer:
         if lost
         else "no contact does work"
     )
-    others = [f"{FORCES[c]} {span([r[c] for r in rows if acting(r, c)], 'J')}" for c in forces]
+    others = [
+        f"{COLUMNS[c].header.lower()} {span([r[c] for r in rows if acting(r, c)], 'J')}"
+        for c in forces
+    ]
     also = f"; other forces work too ({', '.join(others)})" if others else ""
     if not flown:
         lead = f"Not answered for the flight: no run has one; {at_contacts}{also}."
