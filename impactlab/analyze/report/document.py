@@ -19,6 +19,7 @@ from impactlab.analyze.report.blocks import (
     Heading,
     Link,
     Paragraph,
+    Strong,
     Table,
     footnoted,
     number,
@@ -76,7 +77,11 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
     for (title, _), answer in zip(STEPS, replies, strict=True):
         doc.blocks += [Heading(title), *answer.blocks]
     doc.blocks += as_written(t)
-    doc.blocks += [Heading("Conclusion"), Bullets(tuple((a.finding,) for a in replies))]
+    steps = [
+        (Strong(title.split(":")[0] + ":"), " " + a.finding)
+        for (title, _), a in zip(STEPS, replies, strict=True)
+    ]
+    doc.blocks += [Heading("Conclusion"), Bullets(tuple(steps))]
     return doc
 
 
@@ -192,7 +197,8 @@ def write_reports(
     (`replies`: the answers, when made already)."""
     replies = answers(t) if replies is None else replies
     files = write_document(report(t, replies), folder / "report.md")
-    return files + write_document(appendix(t), folder / questions.APPENDIX)
+    budget = replies[0].whole
+    return files + write_document(appendix(t, budget), folder / questions.APPENDIX)
 
 
 def write_document(doc: Document, path: Path) -> list[Path]:

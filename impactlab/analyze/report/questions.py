@@ -42,6 +42,8 @@ class Answer:
 
     lead: list[Span]
     evidence: list[Block] = field(default_factory=list)
+    whole: Table | None = None
+    """The answer's table with every run and the checks beside it, for the appendix."""
 
     @property
     def finding(self) -> str:
@@ -177,11 +179,13 @@ def energy(t: Tables) -> Answer:
         )
     evidence: list[Block] = [Bullets(tuple((s,) for s in (*said, *F.at_rest(frame))))]
     evidence += _table(table, cols, footnotes)
+    checks = columns(table, "contact_loss_sum_J", "mujoco_diff_max_J")
+    whole = Table(table, (*cols[:-1], *checks, cols[-1]), footnotes, "runs.parquet")
     order = ["n_bounces_complete", "drop_height_m"]
     best = frame.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
     evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
-    return Answer([Strong(lead)], evidence)
+    return Answer([Strong(lead)], evidence, whole)
 
 
 def restitution(t: Tables) -> Answer:
