@@ -11,6 +11,7 @@ import polars as pl
 from impactlab.analyze.measure.summary import NEGLIGIBLE_ENERGY_J
 from impactlab.analyze.report.blocks import number, quantity
 from impactlab.physics import SEMI_IMPLICIT
+from impactlab.show import count
 
 MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which it is conserved."""
@@ -171,6 +172,28 @@ def momentum_finding(col: dict[str, Any], run: dict[str, Any] | None = None) -> 
         return f"Momentum changes by {rel} (relative), but this does not test conservation: {why}."
     why = "; ".join(others) or "no contact the log shows explains it (a constraint, a joint?)"
     return f"Momentum is not conserved: it changes by {rel} (relative): {why}."
+
+
+def momentum_words(done: pl.DataFrame, runs: pl.DataFrame) -> tuple[str, list[str]]:
+    """Whether the complete collisions `done` conserve momentum, in words ("momentum is
+    conserved in all 4 collisions (relative change at most ...)"), and why for each that
+    does not show it (`momentum_finding`)."""
+    by_run = run_rows(runs, done["run_id"])
+    rows = list(done.iter_rows(named=True))
+    kinds = each(rows, lambda c: momentum_kind(c, by_run.get(c["run_id"])))
+    top = done.select(pl.col("momentum_rel_change").max()).item()
+    n, kept = len(rows), kinds.count("conserved")
+    if kept == n:
+        most = f"at most {number(top, 2)}, below {number(MOMENTUM_CONSERVED_REL, None)}"
+        words = f"momentum is conserved in {'all ' if n > 1 else ''}{count(n, 'collision')}"
+        return f"{words} (relative change {most})", []
+    up_to = f" (relative change up to {number(top, 2)})" if defined(top) else ""
+    odd = [
+        momentum_finding(r, by_run.get(r["run_id"]))
+        for r, k in zip(rows, kinds, strict=True)
+        if k != "conserved"
+    ]
+    return f"momentum is conserved in {kept} of {n} collisions{up_to}", odd
 
 
 def run_rows(runs: pl.DataFrame, ids: pl.Series) -> dict[str, dict[str, Any]]:

@@ -294,18 +294,8 @@ def collision(t: Tables) -> Answer:
     if done.is_empty():
         why = t.collisions["note"][0] or "no complete collision"
         return not_answered(f"no collision separated ({why})")
-    by_run = F.run_rows(t.runs, done["run_id"])
-    rows = list(done.iter_rows(named=True))
-    kinds = F.each(rows, lambda c: F.momentum_kind(c, by_run.get(c["run_id"])))
-    n_kept = sum(k == "conserved" for k in kinds)
-    top = done.select(pl.col("momentum_rel_change").max()).item()
-    if n_kept == len(rows):
-        momentum = (
-            f"Yes, momentum is conserved in all {len(rows)} collisions (relative change at most "
-            f"{number(top, 2)}, below {number(F.MOMENTUM_CONSERVED_REL, None)})"
-        )
-    else:
-        momentum = f"Momentum is conserved in {n_kept} of {len(rows)} collisions"
+    momentum, odd = F.momentum_words(done, t.runs)
+    momentum = momentum[0].upper() + momentum[1:] if odd else f"Yes, {momentum}"
     alone = done.join(t.runs.select("run_id", "experiment"), on="run_id")
     alone = alone.filter(pl.len().over("experiment") == 1)
     main = (alone if alone.height else done).row(0, named=True)
@@ -324,11 +314,6 @@ def collision(t: Tables) -> Answer:
             "momentum; the independent checks are the analytic outcomes below and, in Step 4, "
             "the target e.",
         ]
-    odd = [
-        F.momentum_finding(r, by_run.get(r["run_id"]))
-        for r, k in zip(rows, kinds, strict=True)
-        if k != "conserved"
-    ]
     evidence: list[Block] = [Bullets(tuple((s,) for s in odd[:3]))] if odd else []
     evidence += _outcomes(main)
     caption = f"{_who(main)}: positions, velocities and momentum along the line of centres."
