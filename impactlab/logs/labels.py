@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import re
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Collection, Mapping
+
+import polars as pl
 
 _AXES = "xyz"
 _UNITS = {"pos": "m", "vel": "m/s", "mass": "kg", "radius": "m", "size": "m"}
@@ -55,21 +58,25 @@ def run_label(
     return f"{experiment}: {words}" if words else experiment
 
 
-def run_labels(runs: Iterable[tuple[str, str, Mapping[str, object]]]) -> dict[str, str]:
-    """run id -> `run_label` of each of `runs` (run id, experiment, sweep point), a swept
-    vector showing the components that differ among its experiment's runs; two runs that
-    would read the same keep their run id's end ("drop: ball released at z = 1 m (c08c)")."""
-    runs = list({run_id: (run_id, e, s) for run_id, e, s in runs}.values())
+def run_labels(runs: pl.DataFrame) -> pl.DataFrame:
+    """(run_id, run): `run_label` of each run of `runs` (run_id, experiment, sweep: the
+    sweep point as JSON), once per run id; a swept vector shows the components that differ
+    among its experiment's runs, and two runs that would read the same keep their run id's
+    end ("drop: ball released at z = 1 m (c08cac40)")."""
+    table = runs.select("run_id", "experiment", "sweep").unique("run_id", keep="last")
+    points = table.select("experiment", "sweep")
     first: dict[tuple[str, str], list[object]] = {}
     varying: dict[str, dict[str, set[int]]] = {}
-    for _, experiment, sweep in runs:
-        for key, value in sweep.items():
-            if isinstance(value, list | tuple):
-                seen = first.setdefault((experiment, key), list(value))
+    for experiment, text in points.iter_rows():  # parsed twice, never all held at once
+        for key, value in json.loads(text or "{}").items():
+            if isinstance(value, list):
+                seen = first.setdefault((experiment, key), value)
                 differ = varying.setdefault(experiment, {}).setdefault(key, set())
                 differ.update(i for i, x in enumerate(value) if seen[i : i + 1] != [x])
-    labels = {r: run_label(e, s, varying.get(e, {})) for r, e, s in runs}
-    count: dict[str, int] = {}
-    for label in labels.values():
-        count[label] = count.get(label, 0) + 1
-    return {r: f"{x} ({r.split('-')[-1]})" if count[x] > 1 else x for r, x in labels.items()}
+    words = [run_label(e, json.loads(s or "{}"), varying.get(e)) for e, s in points.iter_rows()]
+    labels = table.select("run_id", pl.Series("run", words, dtype=pl.String))
+    twice = pl.len().over("run") > 1
+    end = pl.col("run_id").str.split("-").list.last()
+    return labels.with_columns(
+        pl.when(twice).then(pl.col("run") + " (" + end + ")").otherwise(pl.col("run")).alias("run")
+    )

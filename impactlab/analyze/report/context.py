@@ -9,10 +9,10 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.analyze.report.blocks import Column, number
+from impactlab.analyze.report.blocks import Column
 from impactlab.analyze.report.run_figures import contact_words
-from impactlab.analyze.tables.labels import run_labels, with_labels
-from impactlab.logs.labels import run_label
+from impactlab.logs.labels import run_label, run_labels
+from impactlab.show import number
 
 
 @dataclass(frozen=True)
@@ -194,6 +194,16 @@ def once(frame: pl.DataFrame, same: dict[str, str]) -> pl.DataFrame:
     if not same or "run_id" not in frame.columns:
         return frame
     return frame.filter(~pl.col("run_id").is_in(list(same)))
+
+
+def with_labels(frame: pl.DataFrame, labels: pl.DataFrame) -> pl.DataFrame:
+    """The frame with a `run` column (the label of `run_labels`) first, when it has run ids."""
+    if "run_id" not in frame.columns or frame.is_empty():
+        return frame
+    run = pl.col("run_id").replace_strict(
+        labels["run_id"], labels["run"], default=pl.col("run_id"), return_dtype=pl.String
+    )
+    return frame.with_columns(run.alias("run")).select("run", pl.exclude("run"))
 
 
 def labelled(t: Tables) -> Tables:

@@ -22,13 +22,13 @@ from impactlab.analyze.report.blocks import (
     Strong,
     Table,
     footnoted,
-    number,
     span,
 )
 from impactlab.analyze.report.context import Tables
 from impactlab.analyze.report.handout import as_written
 from impactlab.files import write_text
 from impactlab.logs.labels import parameter_words
+from impactlab.show import number
 
 TITLE = "Impact lab: free fall and impact"
 STEPS: tuple[tuple[str, Callable[[Tables], questions.Answer]], ...] = (

@@ -9,9 +9,9 @@ from typing import Any, TypeGuard
 import polars as pl
 
 from impactlab.analyze.measure.summary import NEGLIGIBLE_ENERGY_J
-from impactlab.analyze.report.blocks import number, quantity
+from impactlab.analyze.report.blocks import quantity
 from impactlab.physics import SEMI_IMPLICIT
-from impactlab.show import count
+from impactlab.show import count, number
 
 MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which it is conserved."""

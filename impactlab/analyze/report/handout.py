@@ -5,8 +5,9 @@ from __future__ import annotations
 import polars as pl
 
 from impactlab.analyze.report import findings as F
-from impactlab.analyze.report.blocks import Block, Column, Heading, Paragraph, Table, number, span
+from impactlab.analyze.report.blocks import Block, Column, Heading, Paragraph, Table, span
 from impactlab.analyze.report.context import Tables
+from impactlab.show import number
 
 PAIRS = (
     (

@@ -21,13 +21,13 @@ from impactlab.analyze.report.blocks import (
     Strong,
     Table,
     footnoted,
-    number,
     percent,
     quantity,
     span,
 )
 from impactlab.analyze.report.context import COLUMNS, Tables, columns
 from impactlab.physics import collision_after
+from impactlab.show import number
 from impactlab.text import file_part
 
 MAIN_ROWS = 12
