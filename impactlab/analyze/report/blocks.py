@@ -73,13 +73,14 @@ class Column:
 
 @dataclass(frozen=True)
 class Table:
-    """A table of `frame`'s `columns`, at most `REPORT_ROWS` rows; `notes`: the footnotes its
-    cells point to (`footnoted`); `source`: the file holding every row."""
+    """A table of `frame`'s `columns`, at most `limit` rows (None: `REPORT_ROWS`); `notes`:
+    the footnotes its cells point to (`footnoted`); `source`: where every row is."""
 
     frame: pl.DataFrame
     columns: tuple[Column, ...]
     notes: tuple[str, ...] = ()
-    source: str = ""
+    source: Span = ""
+    limit: int | None = None
 
 
 @dataclass(frozen=True)
@@ -109,13 +110,14 @@ REPORT_ROWS = 500
 of a sweep of 100,000 runs stays one a person can read, in bounded memory."""
 
 
-def rows_shown(table: Table) -> tuple[pl.DataFrame, str]:
-    """The rows of `table` written, and the sentence on those left out ("" if none)."""
-    n = table.frame.height
-    if n <= REPORT_ROWS:
-        return table.frame, ""
-    where = f"; all of them are in {table.source}" if table.source else ""
-    return table.frame.head(REPORT_ROWS), f"The first {REPORT_ROWS:,} of {n:,} rows{where}."
+def rows_shown(table: Table) -> tuple[pl.DataFrame, tuple[Span, ...]]:
+    """The rows of `table` written, and the sentence on those left out (none: empty)."""
+    n, limit = table.frame.height, REPORT_ROWS if table.limit is None else table.limit
+    if n <= limit:
+        return table.frame, ()
+    more = f"The first {limit:,} of {n:,} rows"
+    where = ("; all of them are in ", table.source, ".") if table.source else (".",)
+    return table.frame.head(limit), (more, *where)
 
 
 def footnoted(frame: pl.DataFrame, column: str) -> tuple[pl.DataFrame, tuple[str, ...]]:

@@ -33,6 +33,7 @@ from impactlab.text import file_part
 MAIN_ROWS = 12
 """Rows a table of the answers shows; all of them are in the appendix."""
 APPENDIX = "report-appendix.md"
+IN_APPENDIX = Link("the appendix", APPENDIX)
 
 
 @dataclass
@@ -57,17 +58,6 @@ class Answer:
 
 def not_answered(why: str) -> Answer:
     return Answer([Strong(f"Not answered: {why}.")])
-
-
-def _table(
-    frame: pl.DataFrame, cols: tuple[Column, ...], notes: tuple[str, ...] = ()
-) -> list[Block]:
-    """A table of an answer: at most MAIN_ROWS rows, then where the others are."""
-    out: list[Block] = [Table(frame.head(MAIN_ROWS), cols, notes)]
-    if frame.height > MAIN_ROWS:
-        more = f"The first {MAIN_ROWS} of {frame.height} rows; all of them are in "
-        out.append(Paragraph((more, Link("the appendix", APPENDIX), ".")))
-    return out
 
 
 def _figure(t: Tables, kind: str, name: str, caption: str) -> list[Block]:
@@ -178,7 +168,7 @@ def energy(t: Tables) -> Answer:
             "free flight of T seconds: that is the drift predicted beside each run's below."
         )
     evidence: list[Block] = [Bullets(tuple((s,) for s in (*said, *F.at_rest(frame))))]
-    evidence += _table(table, cols, footnotes)
+    evidence.append(Table(table, cols, footnotes, IN_APPENDIX, MAIN_ROWS))
     checks = columns(table, "contact_loss_sum_J", "mujoco_diff_max_J")
     whole = Table(table, (*cols[:-1], *checks, cols[-1]), footnotes, "runs.parquet")
     order = ["n_bounces_complete", "drop_height_m"]
@@ -262,7 +252,8 @@ def restitution(t: Tables) -> Answer:
     if studies:
         cols = columns(table, "run", "drop_height_m", "first_impact_speed_mps")
         cols += columns(table, "e_velocity_first", "e_apex_mean")
-        evidence += _table(table, (*cols, Column("target", "Target e")))
+        cols += (Column("target", "Target e"),)
+        evidence.append(Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS))
     caption = "e against impact speed: every bounce and every collision, one colour per experiment."
     evidence += _figure(t, "restitution", "restitution-vs-speed.png", caption)
     return Answer([Strong(lead)], evidence)
@@ -409,5 +400,6 @@ def study(t: Tables) -> Answer:
     )
     pick = (near or sweeps)[0][0]
     caption = f"{pick}: velocities after against e, on the analytic curves; e against the sweep."
-    evidence = [*_table(table, cols), *_figure(t, "study", f"study-{file_part(pick)}.png", caption)]
+    evidence: list[Block] = [Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS)]
+    evidence += _figure(t, "study", f"study-{file_part(pick)}.png", caption)
     return Answer([Strong(lead + "."), more], evidence)
