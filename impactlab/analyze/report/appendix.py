@@ -19,7 +19,7 @@ from impactlab.analyze.report.blocks import (
     Table,
     footnoted,
 )
-from impactlab.analyze.report.context import Tables, columns
+from impactlab.analyze.report.context import Tables, columns, repeat_notes
 from impactlab.text import file_part
 
 METHOD = (
@@ -86,14 +86,8 @@ def _run_captions(t: Tables, kind: str) -> dict[str, str]:
 
 
 def _runs(t: Tables) -> list[Block]:
-    labels = dict(t.all_runs.select("run_id", "run").iter_rows())
     same = pl.col("run_id").replace_strict(
-        {
-            r: f"The same run as {labels.get(k, k)}: reported once, as that."
-            for r, k in t.same.items()
-        },
-        default=pl.col("note"),
-        return_dtype=pl.String,
+        repeat_notes(t), default=pl.col("note"), return_dtype=pl.String
     )
     frame, notes = footnoted(t.all_runs.with_columns(same.alias("note")), "note")
     cols = columns(

@@ -189,6 +189,12 @@ def repeated_runs(runs: pl.DataFrame, params: dict[str, list[str]]) -> dict[str,
     return out
 
 
+def repeat_notes(t: Tables) -> dict[str, str]:
+    """Each run left out as a repeat -> the note that says so, naming the run reported."""
+    labels = dict(t.all_runs.select("run_id", "run").iter_rows())
+    return {r: f"The same run as {labels[k]}: reported once, as that." for r, k in t.same.items()}
+
+
 def once(frame: pl.DataFrame, same: dict[str, str]) -> pl.DataFrame:
     """The frame without the rows of runs left out as repeats."""
     if not same or "run_id" not in frame.columns:
