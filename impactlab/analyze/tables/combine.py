@@ -13,7 +13,7 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.tables.decimate import with_decimated_energy
-from impactlab.analyze.tables.studies import studies, with_parameters
+from impactlab.analyze.tables.studies import parameters, studies
 from impactlab.files import atomic_path, write_parquet
 from impactlab.show import count, html_table, where
 
@@ -226,12 +226,12 @@ class TableReducer:
             self._runs = [_read(self._files["runs"], self._schemas["runs"])]
             self._files["runs"] = []
         runs = _cat(self._runs)
-        runs = with_parameters(runs) if runs.height else runs
+        params, runs = parameters(runs) if runs.height else ([], runs)
         self._runs = [runs]  # not the table without its parameters too: one copy is kept
         return AnalysisResult(
             out_dir=out_dir,
             runs=runs,
-            studies=studies(runs) if runs.height else {},
+            studies=studies(runs, params) if runs.height else {},
             failed=list(failed),
             energy_logged=(self._rows, self._longest),
             sources=sources,
