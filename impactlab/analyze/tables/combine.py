@@ -137,8 +137,7 @@ REDUCE_EVERY = 64
 as one part of each table's file)."""
 
 RUNS_PIECES = 16
-"""Pieces of the runs table kept before they are joined into one: a 64-row frame costs
-about 115 KB of memory besides its data (44 columns), 36 MB for 20,000 runs left apart."""
+"""Pieces of the runs table kept before they are joined into one (docs/performance.md)."""
 
 _TABLES = ("bounces", "collisions", "energy", "phases")
 
@@ -247,13 +246,8 @@ def _relaxed(a: pl.Schema, b: pl.Schema) -> pl.Schema:
 
 def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
     """The parts as one Parquet file at `path` (one part: renamed), in order, each read as
-    `schema` (`_scan`); the parts are removed. No parts: an empty table, as an empty frame
-    is written.
-
-    One streaming scan of every part, so memory holds a few row groups whatever the number
-    of parts (20,000 runs: +59 MB and 1.1 s, against +99 MB and 6 to 7 s for parts read
-    and written one at a time through pyarrow).
-    """
+    `schema` (`_scan`), in one streaming scan (docs/performance.md); the parts are removed.
+    No parts: an empty table, as an empty frame is written."""
     if not parts:
         return write_parquet(pl.DataFrame(), path)
     if len(parts) == 1:  # the part is the table: renamed, not written again
@@ -314,8 +308,7 @@ def _remove(parts: list[Path]) -> None:
 
 
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
-    """The frames as one, in contiguous memory: a table of thousands of runs' small chunks
-    would make every later operation work chunk by chunk (a mapping of run labels, for one,
-    was built again per chunk: 265 MB for the bounces of 2,000 runs)."""
+    """The frames as one, in contiguous memory (not thousands of runs' small chunks, which
+    every later operation would work through one by one: docs/performance.md)."""
     frames = [f for f in frames if f.width]
     return pl.concat(frames, how="diagonal_relaxed", rechunk=True) if frames else pl.DataFrame()
