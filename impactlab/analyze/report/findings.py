@@ -61,11 +61,6 @@ def share(change: Any, initial: Any) -> float | None:
     return frac if abs(frac) <= PERCENT_MAX else None
 
 
-def change(start: Any, end: Any) -> float | None:
-    """start - end, when both are defined."""
-    return start - end if defined(start) and defined(end) else None
-
-
 def drift(row: dict[str, Any]) -> Any:
     """A runs-table row's largest flight drift, J (signed when known)."""
     value = row.get("flight_drift_J")
