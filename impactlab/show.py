@@ -1,10 +1,4 @@
-"""How results show in a notebook or a console: one-line reprs and small HTML tables.
-
-Every text that comes from a log, a model or a spec (run ids, body names, paths) is
-untrusted: `plain` turns control characters into visible escapes (no terminal escape gets
-through a repr), and `html_table` escapes every cell and caption with `html.escape` (no
-markup gets through a notebook's HTML output).
-"""
+"""How results show to a person: numbers, one-line reprs and small escaped HTML tables."""
 
 from __future__ import annotations
 
@@ -35,16 +29,43 @@ def where(path: Path | str | None) -> str:
 
 
 def cell(value: Any) -> str:
-    """A table cell's text: numbers to 4 significant digits, nothing for None or NaN."""
-    if value is None:
-        return ""
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return "" if math.isnan(value) else f"{value:.4g}"
-    if isinstance(value, int):
-        return f"{value:,}"
-    return plain(value)
+    """A notebook table cell's text: `number` to 4 significant digits, one printable line."""
+    return plain(number(value, 4))
+
+
+NOTHING = "\u2013"  # an en dash: no value
+TIMES = "\u00d7"
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def number(x: Any, digits: int | None = 3) -> str:
+    """A number as a person reads it: `digits` significant digits without an exponent from
+    0.001 to 100,000 (0.0185, 28.4, 7.54), else as a power of ten (7.1 x 10^-15, with a times
+    sign and superscripts); `digits` None for a parameter as given (0.0005, 3); a dash for
+    nothing (None, NaN)."""
+    if x is None or isinstance(x, str):
+        return x or NOTHING
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int):
+        return f"{x:,}" if abs(x) >= 10_000 else str(x)
+    if not isinstance(x, float):
+        return str(x)
+    if not math.isfinite(x):
+        return NOTHING if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if x == 0:
+        return "0"
+    if digits is None:  # as given: every digit that is there
+        text = f"{x:.12g}"
+    elif 1e-3 <= abs(x) < 1e5:
+        decimals = max(digits - 1 - math.floor(math.log10(abs(x))), 0)
+        return f"{x:.{decimals}f}"
+    else:
+        text = f"{x:.{max(digits - 1, 0)}e}"
+    if "e" not in text:
+        return text
+    mantissa, exponent = text.split("e")
+    return f"{mantissa} {TIMES} 10{str(int(exponent)).translate(_SUPERSCRIPT)}"
 
 
 def html_table(

@@ -64,16 +64,6 @@ def md_text(text: object, *, line_start: bool = True) -> str:
     return out
 
 
-def md_code(text: object) -> str:
-    """Untrusted text as a Markdown code span (`name`), outside tables; text with a backtick,
-    or blank, as `md_text` instead (no fence of several backticks is ever written)."""
-    shown = visible(str(text))
-    if "`" in shown or not shown.strip():
-        return md_text(text)
-    pad = " " if shown.startswith(" ") and shown.endswith(" ") else ""
-    return f"`{pad}{shown}{pad}`"
-
-
 def md_link(path: str) -> str:
     """A relative path as a Markdown link or image destination: percent-encoded but for
     letters, digits and `/_.-~=+,:@`, so no character of it ends the link or becomes markup."""

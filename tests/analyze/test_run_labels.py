@@ -1,5 +1,6 @@
-"""Readable run labels, made in columns: the sweep point in words, the run id's end where two
-runs would read the same, one label per run id however often the run appears."""
+"""Readable run labels, one rule for the report's tables, its figures and the replay: the sweep
+point in words (of a swept vector, the components that vary), the run id's end where two runs
+would read the same, one label per run id however often the run appears."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import json
 
 import polars as pl
 
-from impactlab.analyze.tables.labels import run_labels, with_labels
+from impactlab.analyze.report.context import with_labels
+from impactlab.logs import labels as rule
+from impactlab.logs.labels import run_labels
 
 
 def _runs(*rows: tuple[str, str, dict]) -> pl.DataFrame:
@@ -54,3 +57,19 @@ def test_a_run_without_its_parameter_reads_as_its_experiment():
         "mix-c-3": "mix",
     }
     assert run_labels(runs.clear()).columns == ["run_id", "run"]
+
+
+def test_a_swept_vector_shows_the_components_that_vary_and_a_lone_run_those_not_zero():
+    runs = _runs(
+        ("s-1", "sweep", {"contact.solimp": [0.5, 0.95, 0.001]}),
+        ("s-2", "sweep", {"contact.solimp": [0.9, 0.95, 0.001]}),
+        ("one-3", "one", {"bodies.ball.pos": [0.5, 0.0, 3.0], "ball.mass": 2.0}),
+    )
+    assert dict(run_labels(runs).iter_rows()) == {
+        "s-1": "sweep: solimp[0] = 0.5",
+        "s-2": "sweep: solimp[0] = 0.9",
+        "one-3": "one: ball released at x = 0.5 m, ball released at z = 3 m, ball mass = 2 kg",
+    }
+    lone = rule.run_label("one", {"bodies.ball.pos": [0.5, 0.0, 3.0], "ball.mass": 2.0})
+    assert lone == dict(run_labels(runs.tail(1)).iter_rows())["one-3"]  # a figure's title
+    assert rule.run_label("free", {}) == "free"

@@ -1,5 +1,5 @@
-"""The sweep parameter columns are joined to a runs table once: a table that has them
-already (an analysis' runs table, as the report and summary read it) keeps them as they are."""
+"""The sweep parameter columns beside the runs table: a table that has them already (an
+analysis' runs table, as the report and summary read it) gets them anew, not twice."""
 
 from __future__ import annotations
 
@@ -8,10 +8,10 @@ import json
 import polars as pl
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze.tables.studies import study_parameters, with_parameters
+from impactlab.analyze.tables.studies import parameters, studies, study_parameters, with_parameters
 
 
-def test_parameters_are_joined_once():
+def test_parameters_are_set_once_and_the_studies_are_the_swept_experiments():
     runs = pl.DataFrame(
         {
             "run_id": ["d-1", "d-2", "c-1"],
@@ -26,7 +26,10 @@ def test_parameters_are_joined_once():
     )
     once = with_parameters(runs)
     assert once.columns == ["run_id", "experiment", "sweep", "note", "ball.mass", "ball.pos[2]"]
-    assert with_parameters(once) is once  # the table made is its own answer, not a copy
-    twice = with_parameters(once.clone())  # computed again: the same table
-    assert_frame_equal(twice, once)
+    assert_frame_equal(with_parameters(once), once)  # computed again: the same table
     assert study_parameters(once, "drop") == ["ball.pos[2]"]
+    params, joined = parameters(runs)
+    assert params == ["ball.mass", "ball.pos[2]"] and joined.equals(once)
+    found = studies(joined.with_columns(partial=pl.lit(False)), params)
+    assert list(found) == ["drop"]
+    assert found["drop"].columns == ["run_id", "ball.pos[2]", "partial", "note"]

@@ -19,7 +19,7 @@ from impactlab.analyze.report.blocks import (
     Table,
     footnoted,
 )
-from impactlab.analyze.report.context import Tables, columns
+from impactlab.analyze.report.context import Tables, columns, repeat_notes
 from impactlab.text import file_part
 
 METHOD = (
@@ -48,8 +48,8 @@ FILES = (
 )
 
 
-def appendix(t: Tables) -> Document:
-    """The appendix document."""
+def appendix(t: Tables, budget: Table | None = None) -> Document:
+    """The appendix document (`budget`: Step 1's table whole, `questions.Answer.whole`)."""
     doc = Document("Impact lab: appendix")
     doc.blocks += [
         Paragraph(
@@ -61,7 +61,7 @@ def appendix(t: Tables) -> Document:
         ),
         Contents(),
         *_runs(t),
-        *_energy(t),
+        *_energy(t, budget),
         *_bounces(t),
         *_collisions(t),
         *_studies(t),
@@ -86,14 +86,8 @@ def _run_captions(t: Tables, kind: str) -> dict[str, str]:
 
 
 def _runs(t: Tables) -> list[Block]:
-    labels = dict(t.all_runs.select("run_id", "run").iter_rows())
     same = pl.col("run_id").replace_strict(
-        {
-            r: f"The same run as {labels.get(k, k)}: reported once, as that."
-            for r, k in t.same.items()
-        },
-        default=pl.col("note"),
-        return_dtype=pl.String,
+        repeat_notes(t), default=pl.col("note"), return_dtype=pl.String
     )
     frame, notes = footnoted(t.all_runs.with_columns(same.alias("note")), "note")
     cols = columns(
@@ -110,34 +104,14 @@ def _runs(t: Tables) -> list[Block]:
     return [Heading("Runs"), Table(frame, cols, notes, "runs.parquet")]
 
 
-def _energy(t: Tables) -> list[Block]:
-    ground = t.runs.filter(pl.col("ground"))
-    if ground.is_empty():
-        return []
-    cols = columns(
-        ground,
-        "run",
-        "energy_initial_J",
-        "energy_final_J",
-        "contact_loss_sum_J",
-        "flight_drift_J",
-        "flight_drift_predicted_J",
-        "mujoco_diff_max_J",
-    )
-    out: list[Block] = [Heading("Energy"), Table(ground, cols, source="runs.parquet")]
+def _energy(t: Tables, budget: Table | None) -> list[Block]:
+    """Every run's energy budget (Step 1's table, whole) and each contact's."""
+    out: list[Block] = [Heading("Energy")]
+    if budget is not None:
+        out.append(budget)
     booked = [
         c for c in WORK_COLUMNS if c in t.runs.columns and (t.runs[c].fill_null(0) != 0).any()
     ]
-    if booked:
-        out += [
-            Paragraph(
-                (
-                    "Where the energy went: the work of each kind of force, and the residual",
-                    " the integrator leaves (the budget of every step):",
-                )
-            ),
-            Table(t.runs, columns(t.runs, "run", *booked, "residual_J"), source="runs.parquet"),
-        ]
     contacts = (
         t.phases.filter(pl.col("kind") == "contact")
         if "kind" in t.phases.columns
@@ -152,6 +126,8 @@ def _energy(t: Tables) -> list[Block]:
                 source="phases.parquet",
             ),
         ]
+    if len(out) == 1:
+        return []
     return out + _figures(t, "energy", _run_captions(t, "energy"))
 
 

@@ -1,4 +1,4 @@
-"""The report as a list of blocks, and the one formatter for the numbers in them."""
+"""The report as a list of blocks, and how their numbers read (`impactlab.show.number`)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Any
 
 import polars as pl
+
+from impactlab.show import NOTHING, number
 
 
 @dataclass(frozen=True)
@@ -71,13 +73,14 @@ class Column:
 
 @dataclass(frozen=True)
 class Table:
-    """A table of `frame`'s `columns`, at most `REPORT_ROWS` rows; `notes`: the footnotes its
-    cells point to (`footnoted`); `source`: the file holding every row."""
+    """A table of `frame`'s `columns`, at most `limit` rows (None: `REPORT_ROWS`); `notes`:
+    the footnotes its cells point to (`footnoted`); `source`: where every row is."""
 
     frame: pl.DataFrame
     columns: tuple[Column, ...]
     notes: tuple[str, ...] = ()
-    source: str = ""
+    source: Span = ""
+    limit: int | None = None
 
 
 @dataclass(frozen=True)
@@ -107,13 +110,14 @@ REPORT_ROWS = 500
 of a sweep of 100,000 runs stays one a person can read, in bounded memory."""
 
 
-def rows_shown(table: Table) -> tuple[pl.DataFrame, str]:
-    """The rows of `table` written, and the sentence on those left out ("" if none)."""
-    n = table.frame.height
-    if n <= REPORT_ROWS:
-        return table.frame, ""
-    where = f"; all of them are in {table.source}" if table.source else ""
-    return table.frame.head(REPORT_ROWS), f"The first {REPORT_ROWS:,} of {n:,} rows{where}."
+def rows_shown(table: Table) -> tuple[pl.DataFrame, tuple[Span, ...]]:
+    """The rows of `table` written, and the sentence on those left out (none: empty)."""
+    n, limit = table.frame.height, REPORT_ROWS if table.limit is None else table.limit
+    if n <= limit:
+        return table.frame, ()
+    more = f"The first {limit:,} of {n:,} rows"
+    where = ("; all of them are in ", table.source, ".") if table.source else (".",)
+    return table.frame.head(limit), (more, *where)
 
 
 def footnoted(frame: pl.DataFrame, column: str) -> tuple[pl.DataFrame, tuple[str, ...]]:
@@ -131,39 +135,6 @@ def footnoted(frame: pl.DataFrame, column: str) -> tuple[pl.DataFrame, tuple[str
 def slug(text: str) -> str:
     """A heading's anchor as GitHub makes it (lower case, punctuation dropped, spaces as -)."""
     return re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
-
-
-NOTHING = "\u2013"  # an en dash: no value
-TIMES = "\u00d7"
-_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
-
-
-def number(x: Any, digits: int | None = 3) -> str:
-    """A number as a person reads it: `digits` significant digits without an exponent from
-    0.001 to 100,000 (0.0185, 28.4, 7.54), else as a power of ten (7.1 x 10^-15, with a times
-    sign and superscripts); `digits` None for a parameter as given (0.0005, 3); a dash for
-    nothing (None, NaN)."""
-    if x is None or isinstance(x, str):
-        return x or NOTHING
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, int):
-        return f"{x:,}" if abs(x) >= 10_000 else str(x)
-    if not math.isfinite(x):
-        return NOTHING if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    if x == 0:
-        return "0"
-    if digits is None:  # as given: every digit that is there
-        text = f"{x:.12g}"
-    elif 1e-3 <= abs(x) < 1e5:
-        decimals = max(digits - 1 - math.floor(math.log10(abs(x))), 0)
-        return f"{x:.{decimals}f}"
-    else:
-        text = f"{x:.{max(digits - 1, 0)}e}"
-    if "e" not in text:
-        return text
-    mantissa, exponent = text.split("e")
-    return f"{mantissa} {TIMES} 10{str(int(exponent)).translate(_SUPERSCRIPT)}"
 
 
 def quantity(x: Any, unit: str, digits: int | None = 3) -> str:
@@ -188,6 +159,4 @@ def span(values: Sequence[Any], unit: str = "", digits: int | None = 3) -> str:
 
 def cell(value: Any, column: Column) -> str:
     """A table cell's text (escaped by the writer)."""
-    if isinstance(value, float | int) and not isinstance(value, bool):
-        return number(value, column.digits)
-    return number(value) if value is None or isinstance(value, bool) else str(value)
+    return value if isinstance(value, str) else number(value, column.digits)

@@ -9,9 +9,10 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.analyze.report.blocks import Column, number
-from impactlab.analyze.report.run_figures import contact_words, run_label
-from impactlab.analyze.tables.labels import run_labels, with_labels
+from impactlab.analyze.report.blocks import Column
+from impactlab.analyze.report.run_figures import contact_words
+from impactlab.logs.labels import run_label, run_labels
+from impactlab.show import number
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,7 @@ def brief(a: RunAnalysis) -> RunBrief:
     return RunBrief(
         run_id=a.run.run_id,
         experiment=a.run.experiment,
-        label=run_label(a),
+        label=run_label(a.run.experiment, a.run.sweep),
         grounded=a.ground is not None and bool(a.ground.surfaces),
         targets=tuple(sorted({t.restitution for t in a.run.contact_targets})),
         masses=tuple(b.mass for b in info),
@@ -96,17 +97,16 @@ COLUMNS = {
         ("work_contact_normal_J", "Contact normal force", "J"),
         ("work_contact_friction_J", "Friction", "J"),
         ("work_springs_J", "Springs", "J"),
-        ("work_damping_J", "Damping", "J"),
+        ("work_damping_J", "Joint damping", "J"),
         ("work_limits_J", "Joint limits", "J"),
         ("work_equality_J", "Equality constraints", "J"),
         ("work_friction_loss_J", "Friction loss", "J"),
         ("work_actuators_J", "Actuators", "J"),
-        ("work_fluid_J", "Fluid", "J"),
+        ("work_fluid_J", "Fluid forces", "J"),
         ("work_gravity_compensation_J", "Gravity compensation", "J"),
         ("work_solver_J", "Unconverged solver", "J"),
         ("residual_J", "Integrator's residual", "J"),
         ("bodies", "Bodies", ""),
-        ("e_velocity", "e", ""),
         ("e_collision", "e", ""),
         ("v1n_before_mps", "v1 before", "m/s"),
         ("v2n_before_mps", "v2 before", "m/s"),
@@ -117,7 +117,6 @@ COLUMNS = {
         ("momentum_rel_change", "Momentum change (relative)", ""),
         ("ke_before_J", "KE before", "J"),
         ("ke_after_J", "KE after", "J"),
-        ("ke_loss_frac", "KE lost", "fraction"),
         ("ke_loss_predicted_J", "KE loss, 1D formula", "J"),
         ("collision_ke_loss_frac", "KE lost", "fraction"),
         ("e_velocity_mean", "e, mean", ""),
@@ -190,11 +189,27 @@ def repeated_runs(runs: pl.DataFrame, params: dict[str, list[str]]) -> dict[str,
     return out
 
 
+def repeat_notes(t: Tables) -> dict[str, str]:
+    """Each run left out as a repeat -> the note that says so, naming the run reported."""
+    labels = dict(t.all_runs.select("run_id", "run").iter_rows())
+    return {r: f"The same run as {labels[k]}: reported once, as that." for r, k in t.same.items()}
+
+
 def once(frame: pl.DataFrame, same: dict[str, str]) -> pl.DataFrame:
     """The frame without the rows of runs left out as repeats."""
     if not same or "run_id" not in frame.columns:
         return frame
     return frame.filter(~pl.col("run_id").is_in(list(same)))
+
+
+def with_labels(frame: pl.DataFrame, labels: pl.DataFrame) -> pl.DataFrame:
+    """The frame with a `run` column (the label of `run_labels`) first, when it has run ids."""
+    if "run_id" not in frame.columns or frame.is_empty():
+        return frame
+    run = pl.col("run_id").replace_strict(
+        labels["run_id"], labels["run"], default=pl.col("run_id"), return_dtype=pl.String
+    )
+    return frame.with_columns(run.alias("run")).select("run", pl.exclude("run"))
 
 
 def labelled(t: Tables) -> Tables:

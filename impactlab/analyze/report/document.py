@@ -19,15 +19,16 @@ from impactlab.analyze.report.blocks import (
     Heading,
     Link,
     Paragraph,
+    Strong,
     Table,
     footnoted,
-    number,
     span,
 )
-from impactlab.analyze.report.context import Tables
+from impactlab.analyze.report.context import Tables, repeat_notes
 from impactlab.analyze.report.handout import as_written
 from impactlab.files import write_text
 from impactlab.logs.labels import parameter_words
+from impactlab.show import number
 
 TITLE = "Impact lab: free fall and impact"
 STEPS: tuple[tuple[str, Callable[[Tables], questions.Answer]], ...] = (
@@ -76,7 +77,11 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
     for (title, _), answer in zip(STEPS, replies, strict=True):
         doc.blocks += [Heading(title), *answer.blocks]
     doc.blocks += as_written(t)
-    doc.blocks += [Heading("Conclusion"), Bullets(tuple((a.verdict,) for a in replies))]
+    steps = [
+        (Strong(title.split(":")[0] + ":"), " " + a.finding)
+        for (title, _), a in zip(STEPS, replies, strict=True)
+    ]
+    doc.blocks += [Heading("Conclusion"), Bullets(tuple(steps))]
     return doc
 
 
@@ -90,30 +95,24 @@ def _problems(t: Tables) -> list[Block]:
     """The inputs not analyzed and the partial logs, if any."""
     out: list[Block] = []
     if t.failed:
-        items = [(f"{p}: {why}",) for p, why in t.failed[: questions.MAIN_ROWS]]
-        if len(t.failed) > questions.MAIN_ROWS:
-            items.append((f"... and {len(t.failed) - questions.MAIN_ROWS} more (summary.json)",))
-        out += [Paragraph(("Inputs not analyzed:",)), Bullets(tuple(items))]
+        failed = pl.DataFrame(t.failed, schema=["input", "why"], orient="row")
+        cols = (Column("input", "Input"), Column("why", "Why it was not analyzed"))
+        table = Table(failed, cols, source="summary.json", limit=questions.MAIN_ROWS)
+        out += [Paragraph(("Inputs not analyzed:",)), table]
     partial = t.runs.filter(pl.col("partial"))
     if partial.height:
-        items = [
-            (f"{r}: {why}",) for r, why in partial.select("run_id", "problems").head(12).iter_rows()
-        ]
-        if partial.height > 12:
-            items.append((f"... and {partial.height - 12} more (runs.parquet)",))
-        out += [
-            Paragraph(("Partial logs (damaged or incomplete; what could be read was analyzed):",)),
-            Bullets(tuple(items)),
-        ]
+        cols = (Column("run_id", "Run id (log)"), Column("problems", "Damaged or missing"))
+        table = Table(partial, cols, source="runs.parquet", limit=questions.MAIN_ROWS)
+        why = "Partial logs (damaged or incomplete; what could be read was analyzed):"
+        out += [Paragraph((why,)), table]
     return out
 
 
 def _experiments(t: Tables) -> list[Block]:
     """Every experiment's parameters, one row each."""
     rows = []
-    labels = dict(t.all_runs.select("run_id", "run").iter_rows())
+    repeats = repeat_notes(t)
     for (name,), runs in t.all_runs.group_by("experiment", maintain_order=True):
-        repeats = [labels[t.same[r]] for r in runs["run_id"] if r in t.same]
         briefs = [t.briefs[r] for r in runs["run_id"] if r in t.briefs]
         gravity = _one({number(b.gravity_mps2, None) for b in briefs})
         simulation = [
@@ -131,9 +130,7 @@ def _experiments(t: Tables) -> list[Block]:
                 "start": _start(runs),
                 "contact": _one({b.contact for b in briefs}),
                 "simulation": ", ".join(w for w in simulation if w),
-                "note": f"The same run as {', '.join(repeats)}: reported once, as that."
-                if repeats
-                else "",
+                "note": " ".join(dict.fromkeys(repeats[r] for r in runs["run_id"] if r in repeats)),
             }
         )
     frame, notes = footnoted(pl.DataFrame(rows, infer_schema_length=None), "note")
@@ -192,7 +189,8 @@ def write_reports(
     (`replies`: the answers, when made already)."""
     replies = answers(t) if replies is None else replies
     files = write_document(report(t, replies), folder / "report.md")
-    return files + write_document(appendix(t), folder / questions.APPENDIX)
+    budget = replies[0].whole
+    return files + write_document(appendix(t, budget), folder / questions.APPENDIX)
 
 
 def write_document(doc: Document, path: Path) -> list[Path]:

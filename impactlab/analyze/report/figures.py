@@ -12,6 +12,7 @@ import polars as pl
 
 from impactlab.analyze.measure.bounces import TURNING
 from impactlab.analyze.report.decimate_lines import thinned
+from impactlab.physics import collision_after
 from impactlab.plotting import plain, save_figure, styled, subplots
 
 if TYPE_CHECKING:
@@ -269,9 +270,9 @@ def collision_study_figure(
     rows = study.filter(pl.col("e_collision").is_not_null())
     v1, v2 = rows["v1n_before_mps"][0], rows["v2n_before_mps"][0]
     e = np.linspace(0, 1, 101)
-    pm = m1 * v1 + m2 * v2
-    ax.plot(e, (pm + m2 * e * (v2 - v1)) / (m1 + m2), color="tab:blue", label="analytic v1'(e)")
-    ax.plot(e, (pm + m1 * e * (v1 - v2)) / (m1 + m2), color="tab:orange", label="analytic v2'(e)")
+    v1e, v2e = collision_after(m1, m2, v1, v2, e)
+    ax.plot(e, v1e, color="tab:blue", label="analytic v1'(e)")
+    ax.plot(e, v2e, color="tab:orange", label="analytic v2'(e)")
     ax.plot(rows["e_collision"], rows["v1n_after_mps"], "o", color="tab:blue", label="measured v1'")
     ax.plot(
         rows["e_collision"], rows["v2n_after_mps"], "o", color="tab:orange", label="measured v2'"

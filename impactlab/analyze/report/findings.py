@@ -1,10 +1,4 @@
-"""The thresholds that choose the report's words, and the findings they choose.
-
-A sentence that states a finding (conserved, constant, a drift, a loss) is chosen here by a
-named threshold on the number it quotes and on the run's conditions (its integrator, what else
-touched the bodies); an undefined quantity (None, NaN) is left out with the reason, never
-formatted. docs/analysis.md lists every threshold and why.
-"""
+"""Thresholds that choose the report's words (docs/analysis.md), and the findings they choose."""
 
 from __future__ import annotations
 
@@ -15,43 +9,24 @@ from typing import Any, TypeGuard
 import polars as pl
 
 from impactlab.analyze.measure.summary import NEGLIGIBLE_ENERGY_J
-from impactlab.analyze.report.blocks import number, quantity
+from impactlab.analyze.report.blocks import quantity
 from impactlab.physics import SEMI_IMPLICIT
+from impactlab.show import count, number
 
 MOMENTUM_CONSERVED_REL = 1e-6
-"""Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which momentum is called
-conserved. MuJoCo's contact forces on two bodies are equal and opposite, so an isolated pair
-keeps its momentum to rounding (1e-16 .. 1e-14 in the collision experiments); a change above
-1e-6 is an impulse from something else (gravity, another contact, a constraint)."""
-
+"""Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which it is conserved."""
 E_CONSTANT_SPREAD = 0.02
-"""Spread (max - min) of e over a body's complete bounces on one surface, or over drop
-heights, below which e is called constant: twice the third decimal e is quoted with, well
-above the 1e-15 by which e depends on the logging rate."""
-
+"""Spread (max - min) of e over bounces or drop heights below which e is constant."""
 E_KNOB_SPREAD = 0.05
-"""Spread of the collision e over a parameter sweep below which e is called independent of
-the swept parameter."""
-
+"""Spread of the collision e over a sweep below which e does not depend on the knob."""
 APPROACH_FRACTION = 0.1
-"""A sweep approaches the elastic answer when its closest v1' is within this fraction of
-|v1'_elastic|."""
-
+"""A sweep approaches the elastic answer when its closest v1' is this close to it (relative)."""
 DRIFT_FACTOR = 2.0
-"""A flight's energy drift is explained by the integrator when it has the predicted sign and
-lies within this factor of the prediction m g^2 dt T / 2 (either way): the formula holds to
-rounding for bodies that do not turn; a body that tumbles, or a model with forces the
-analysis does not follow (fluid drag, joints, actuators), departs from it by more."""
-
+"""A flight drift is the integrator's within this factor of m g^2 dt T / 2, either way."""
 PERCENT_MAX = 1.05
-"""A change is written as a fraction of the initial energy only up to 105 % of it: a loss a
-little above 100 % is a body resting a fraction of a millimetre inside the soft contact,
-below its zero of potential energy; beyond that the initial energy is too small a reference."""
-
+"""A change is a percentage of the initial energy only up to this fraction of it."""
 HIDDEN_PARTS_J = 1e-6
-"""When MuJoCo's total energy differs from the analysis' by more than this, the model has
-parts the analysis does not follow (a hinged arm, a slider), which may touch or pull the
-bodies without a contact the analysis sees."""
+"""MuJoCo's energy above the bodies' by more than this: the model has parts not followed."""
 
 
 def method_sentence() -> str:
@@ -84,11 +59,6 @@ def share(change: Any, initial: Any) -> float | None:
         return None
     frac = change / initial
     return frac if abs(frac) <= PERCENT_MAX else None
-
-
-def change(start: Any, end: Any) -> float | None:
-    """start - end, when both are defined."""
-    return start - end if defined(start) and defined(end) else None
 
 
 def drift(row: dict[str, Any]) -> Any:
@@ -197,6 +167,28 @@ def momentum_finding(col: dict[str, Any], run: dict[str, Any] | None = None) -> 
         return f"Momentum changes by {rel} (relative), but this does not test conservation: {why}."
     why = "; ".join(others) or "no contact the log shows explains it (a constraint, a joint?)"
     return f"Momentum is not conserved: it changes by {rel} (relative): {why}."
+
+
+def momentum_words(done: pl.DataFrame, runs: pl.DataFrame) -> tuple[str, list[str]]:
+    """Whether the complete collisions `done` conserve momentum, in words ("momentum is
+    conserved in all 4 collisions (relative change at most ...)"), and why for each that
+    does not show it (`momentum_finding`)."""
+    by_run = run_rows(runs, done["run_id"])
+    rows = list(done.iter_rows(named=True))
+    kinds = each(rows, lambda c: momentum_kind(c, by_run.get(c["run_id"])))
+    top = done.select(pl.col("momentum_rel_change").max()).item()
+    n, kept = len(rows), kinds.count("conserved")
+    if kept == n:
+        most = f"at most {number(top, 2)}, below {number(MOMENTUM_CONSERVED_REL, None)}"
+        words = f"momentum is conserved in {'all ' if n > 1 else ''}{count(n, 'collision')}"
+        return f"{words} (relative change {most})", []
+    up_to = f" (relative change up to {number(top, 2)})" if defined(top) else ""
+    odd = [
+        momentum_finding(r, by_run.get(r["run_id"]))
+        for r, k in zip(rows, kinds, strict=True)
+        if k != "conserved"
+    ]
+    return f"momentum is conserved in {kept} of {n} collisions{up_to}", odd
 
 
 def run_rows(runs: pl.DataFrame, ids: pl.Series) -> dict[str, dict[str, Any]]:

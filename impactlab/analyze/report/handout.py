@@ -5,8 +5,9 @@ from __future__ import annotations
 import polars as pl
 
 from impactlab.analyze.report import findings as F
-from impactlab.analyze.report.blocks import Block, Column, Heading, Paragraph, Table, number, span
+from impactlab.analyze.report.blocks import Block, Column, Heading, Paragraph, Table, span
 from impactlab.analyze.report.context import Tables
+from impactlab.show import number
 
 PAIRS = (
     (
@@ -57,19 +58,8 @@ def measured(experiment: str, t: Tables) -> str | None:
                 if F.defined(row[c])
             ]
             return f"no collision: {row['note']}" + (f"; {', '.join(after)}" if after else "")
-        by_run = F.run_rows(t.runs, done["run_id"])
-        kinds = [F.momentum_kind(c, by_run.get(c["run_id"])) for c in done.iter_rows(named=True)]
-        top = done.select(pl.col("momentum_rel_change").max()).item()
-        momentum = (
-            f"momentum kept to {number(top, 1)} (relative)"
-            if all(k == "conserved" for k in kinds)
-            else f"momentum changes by up to {number(top, 2)} (relative)"
-            if top is not None
-            else "momentum change not measured"
-        )
-        words = (
-            f"e = {span(done['e_velocity'].to_list())} in {done.height} collision(s), {momentum}"
-        )
+        momentum, _ = F.momentum_words(done, t.runs)
+        words = f"e = {span(done['e_velocity'].to_list())}; {momentum}"
         gap = F.elastic_gap(done["v1n_after_mps"].to_list(), done["v1n_after_elastic_mps"][0])
         if done.height > 1 and gap is not None:
             words += f"; closest v1' {number(gap * 100, 2)} % from the elastic answer"

@@ -137,7 +137,7 @@ def table(t: Table) -> str:
         out.append("</tr>\n")
     out.append("</tbody>\n</table>\n")
     if more:
-        out.append(f'<p class="more">{escape(more)}</p>\n')
+        out.append(f'<p class="more">{spans(more)}</p>\n')
     if t.notes:
         notes = "".join(f"<li>{escape(n)}</li>" for n in t.notes)
         out.append(f'<ol class="notes">{notes}</ol>\n')

@@ -89,7 +89,7 @@ def table(t: Table) -> str:
         lines.append("| " + " | ".join(cells) + " |")
     out = "\n".join(lines) + "\n"
     if more:
-        out += f"\n*{md_text(more, line_start=False)}*\n"
+        out += f"\n*{spans(more, line_start=False)}*\n"
     if t.notes:
         out += "\n" + "".join(f"{i}. {md_text(n)}\n" for i, n in enumerate(t.notes, 1))
     return out

@@ -1,5 +1,5 @@
 """The handout's four questions, one function each: the answer's blocks (a first sentence that
-answers with its number, the evidence, one figure) and a short verdict for the conclusion."""
+answers with its number, the evidence, one figure); that sentence is also the conclusion's."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from typing import Any
 
 import polars as pl
 
+from impactlab.analyze.measure.phases import WORK_COLUMNS
 from impactlab.analyze.report import findings as F
 from impactlab.analyze.report.blocks import (
     Block,
@@ -20,28 +21,35 @@ from impactlab.analyze.report.blocks import (
     Strong,
     Table,
     footnoted,
-    number,
     percent,
     quantity,
     span,
 )
-from impactlab.analyze.report.context import Tables, columns
+from impactlab.analyze.report.context import COLUMNS, Tables, columns
 from impactlab.physics import collision_after
+from impactlab.show import number
 from impactlab.text import file_part
 
 MAIN_ROWS = 12
 """Rows a table of the answers shows; all of them are in the appendix."""
 APPENDIX = "report-appendix.md"
+IN_APPENDIX = Link("the appendix", APPENDIX)
 
 
 @dataclass
 class Answer:
-    """A question's answer: its lead (whose first sentence answers the question), the
-    evidence, and a short verdict for the conclusion."""
+    """A question's answer: its lead (whose first span, in bold, answers the question: the
+    conclusion says it again) and the evidence."""
 
     lead: list[Span]
     evidence: list[Block] = field(default_factory=list)
-    verdict: str = ""
+    whole: Table | None = None
+    """The answer's table with every run and the checks beside it, for the appendix."""
+
+    @property
+    def finding(self) -> str:
+        first = self.lead[0]
+        return first if isinstance(first, str) else first.text
 
     @property
     def blocks(self) -> list[Block]:
@@ -49,18 +57,7 @@ class Answer:
 
 
 def not_answered(why: str) -> Answer:
-    return Answer([Strong(f"Not answered: {why}.")], verdict=f"Not answered: {why}.")
-
-
-def _table(
-    frame: pl.DataFrame, cols: tuple[Column, ...], notes: tuple[str, ...] = ()
-) -> list[Block]:
-    """A table of an answer: at most MAIN_ROWS rows, then where the others are."""
-    out: list[Block] = [Table(frame.head(MAIN_ROWS), cols, notes)]
-    if frame.height > MAIN_ROWS:
-        more = f"The first {MAIN_ROWS} of {frame.height} rows; all of them are in "
-        out.append(Paragraph((more, Link("the appendix", APPENDIX), ".")))
-    return out
+    return Answer([Strong(f"Not answered: {why}.")])
 
 
 def _figure(t: Tables, kind: str, name: str, caption: str) -> list[Block]:
@@ -78,17 +75,8 @@ def _targets(t: Tables) -> pl.Expr:
     return pl.col("run_id").replace_strict(words, default="", return_dtype=pl.String)
 
 
-FORCES = {  # the budget's works besides the contacts', as a sentence names them
-    "work_springs_J": "springs",
-    "work_damping_J": "joint damping",
-    "work_limits_J": "joint limits",
-    "work_equality_J": "equality constraints",
-    "work_friction_loss_J": "friction loss",
-    "work_actuators_J": "actuators",
-    "work_fluid_J": "fluid forces",
-    "work_gravity_compensation_J": "gravity compensation",
-    "work_solver_J": "the unconverged solver",
-}
+FORCES = [c for c in WORK_COLUMNS if not c.startswith("work_contact")]
+"""The budget's works besides the contacts' (a sentence names each by its column's header)."""
 
 
 def energy(t: Tables) -> Answer:
@@ -129,11 +117,13 @@ def energy(t: Tables) -> Answer:
         if lost
         else "no contact does work"
     )
-    others = [f"{FORCES[c]} {span([r[c] for r in rows if acting(r, c)], 'J')}" for c in forces]
+    others = [
+        f"{COLUMNS[c].header.lower()} {span([r[c] for r in rows if acting(r, c)], 'J')}"
+        for c in forces
+    ]
     also = f"; other forces work too ({', '.join(others)})" if others else ""
     if not flown:
         lead = f"Not answered for the flight: no run has one; {at_contacts}{also}."
-        verdict = "Energy: no flight to test conservation on."
     elif odd or forced:
         who = (odd or forced)[0]
         what = (
@@ -145,18 +135,12 @@ def energy(t: Tables) -> Answer:
             f"Not in every run: in {len(odd) or len(forced)} of {len(flown)} runs with a "
             f"flight the energy in flight {what} ({_who(who)}); {at_contacts}{also}."
         )
-        verdict = (
-            f"Energy: not conserved in flight in {len(odd) or len(forced)} of {len(flown)} runs."
-        )
     else:
         worst = max(flown, key=lambda r: abs(F.drift(r) / r["energy_initial_J"]))
         rel = percent(abs(F.drift(worst) / worst["energy_initial_J"]))
         lead = (
             f"Yes: in flight only the integrator changes the energy (at most {rel} of it), "
             f"and {at_contacts}{also}."
-        )
-        verdict = (
-            f"Energy is conserved in flight up to the integrator (at most {rel}); {at_contacts}."
         )
     notes = F.each(rows, lambda r: F.drift_finding(r) if F.drift_kind(r) == "unexplained" else "")
     table, footnotes = footnoted(
@@ -184,12 +168,14 @@ def energy(t: Tables) -> Answer:
             "free flight of T seconds: that is the drift predicted beside each run's below."
         )
     evidence: list[Block] = [Bullets(tuple((s,) for s in (*said, *F.at_rest(frame))))]
-    evidence += _table(table, cols, footnotes)
+    evidence.append(Table(table, cols, footnotes, IN_APPENDIX, MAIN_ROWS))
+    checks = columns(table, "contact_loss_sum_J", "mujoco_diff_max_J")
+    whole = Table(table, (*cols[:-1], *checks, cols[-1]), footnotes, "runs.parquet")
     order = ["n_bounces_complete", "drop_height_m"]
     best = frame.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
     evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
-    return Answer([Strong(lead)], evidence, verdict)
+    return Answer([Strong(lead)], evidence, whole)
 
 
 def restitution(t: Tables) -> Answer:
@@ -221,34 +207,26 @@ def restitution(t: Tables) -> Answer:
     limit = f"{F.E_CONSTANT_SPREAD:g}"
     if spread.is_empty():
         across = "Constancy across bounces is not tested (no run has two complete bounces)"
-        short = "not tested across bounces"
     else:
         worst = spread.sort("s", descending=True).row(0, named=True)
         most = number(worst["s"], 2)
         if worst["s"] < F.E_CONSTANT_SPREAD:
             across = f"Yes, e is constant across bounces (spread at most {most}, below {limit})"
-            short = f"constant across bounces (spread at most {most})"
         else:
             within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
             across = (
                 f"No, e is not constant across bounces in every drop (spread up to {most} in "
                 f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
             )
-            short = f"not constant across bounces (spread up to {most})"
         if outside.height and spread.height:
             speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
             es = span(outside["e_velocity"].to_list())
             across += f" in the calibrated speed range (outside it: e {es} at {speeds})"
-    heights = [(name, *_height_words(s)) for name, s in t.studies.items()]
+    heights = [(name, _height_words(s)) for name, s in t.studies.items()]
     heights = [h for h in heights if h[1]]
-    against = " and ".join(f"{long} for {n}" for n, long, _ in heights)
+    against = " and ".join(f"{words} for {n}" for n, words in heights)
     lead = across + (f"; against the drop height it {against}." if against else ".")
-    verdict = f"e is {short}"
-    if heights:
-        verdict += "; against the drop height it " + " and ".join(
-            f"{b} for {n}" for n, _, b in heights
-        )
-    studies = [t.studies[n].sort("first_impact_speed_mps") for n, _, _ in heights]
+    studies = [t.studies[n].sort("first_impact_speed_mps") for n, _ in heights]
     table = pl.concat(studies, how="diagonal_relaxed") if studies else pl.DataFrame()
     said = []
     if studies:
@@ -274,33 +252,29 @@ def restitution(t: Tables) -> Answer:
     if studies:
         cols = columns(table, "run", "drop_height_m", "first_impact_speed_mps")
         cols += columns(table, "e_velocity_first", "e_apex_mean")
-        evidence += _table(table, (*cols, Column("target", "Target e")))
+        cols += (Column("target", "Target e"),)
+        evidence.append(Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS))
     caption = "e against impact speed: every bounce and every collision, one colour per experiment."
     evidence += _figure(t, "restitution", "restitution-vs-speed.png", caption)
-    return Answer([Strong(lead)], evidence, verdict + ".")
+    return Answer([Strong(lead)], evidence)
 
 
-def _height_words(study: pl.DataFrame) -> tuple[str, str]:
-    """How e depends on the drop height in one drop study: (words with numbers, in brief);
-    ("", "") for a study that is not of drops."""
+def _height_words(study: pl.DataFrame) -> str:
+    """How e depends on the drop height in one drop study, with its numbers; "" for a study
+    that is not of drops."""
     if not {"e_velocity_first", "first_impact_speed_mps"} <= set(study.columns):
-        return "", ""
+        return ""
     study = study.sort("first_impact_speed_mps")
     es = study.filter(pl.col("e_velocity_first").is_not_null())["e_velocity_first"]
     speeds = span(study["first_impact_speed_mps"].to_list(), "m/s")
-    values = span(es.to_list())
     if es.len() >= 2:
         if es.max() - es.min() < F.E_CONSTANT_SPREAD:  # type: ignore[operator]
-            return f"does not depend on it ({values} at {speeds})", "does not depend on it"
+            return f"does not depend on it ({span(es.to_list())} at {speeds})"
         trend = "rises" if es[-1] > es[0] else "falls"
-        return (
-            f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})",
-            f"{trend} with it",
-        )
+        return f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})"
     if es.len() == 1:
-        words = f"depends on it (only one of {study.height} drops rebounds, e = {values})"
-        return words, "depends on it"
-    return f"cannot be measured (none of {study.height} drops rebounds)", "cannot be measured"
+        return f"depends on it (only one of {study.height} drops rebounds, e = {number(es[0])})"
+    return f"cannot be measured (none of {study.height} drops rebounds)"
 
 
 def collision(t: Tables) -> Answer:
@@ -311,20 +285,8 @@ def collision(t: Tables) -> Answer:
     if done.is_empty():
         why = t.collisions["note"][0] or "no complete collision"
         return not_answered(f"no collision separated ({why})")
-    by_run = F.run_rows(t.runs, done["run_id"])
-    rows = list(done.iter_rows(named=True))
-    kinds = F.each(rows, lambda c: F.momentum_kind(c, by_run.get(c["run_id"])))
-    n_kept = sum(k == "conserved" for k in kinds)
-    top = done.select(pl.col("momentum_rel_change").max()).item()
-    if n_kept == len(rows):
-        momentum = (
-            f"Yes, momentum is conserved in all {len(rows)} collisions (relative change at most "
-            f"{number(top, 2)}, below {number(F.MOMENTUM_CONSERVED_REL, None)})"
-        )
-        verdict = f"Momentum is conserved in every collision (change at most {number(top, 2)})"
-    else:
-        momentum = f"Momentum is conserved in {n_kept} of {len(rows)} collisions"
-        verdict = momentum
+    momentum, odd = F.momentum_words(done, t.runs)
+    momentum = momentum[0].upper() + momentum[1:] if odd else f"Yes, {momentum}"
     alone = done.join(t.runs.select("run_id", "experiment"), on="run_id")
     alone = alone.filter(pl.len().over("experiment") == 1)
     main = (alone if alone.height else done).row(0, named=True)
@@ -343,17 +305,11 @@ def collision(t: Tables) -> Answer:
             "momentum; the independent checks are the analytic outcomes below and, in Step 4, "
             "the target e.",
         ]
-        verdict += "; the energy lost follows from the measured e (a circular check)"
-    odd = [
-        F.momentum_finding(r, by_run.get(r["run_id"]))
-        for r, k in zip(rows, kinds, strict=True)
-        if k != "conserved"
-    ]
     evidence: list[Block] = [Bullets(tuple((s,) for s in odd[:3]))] if odd else []
     evidence += _outcomes(main)
     caption = f"{_who(main)}: positions, velocities and momentum along the line of centres."
     evidence += _figure(t, "collision", f"collision-{file_part(main['run_id'])}.png", caption)
-    return Answer(lead, evidence, verdict + ".")
+    return Answer(lead, evidence)
 
 
 def _outcomes(c: dict[str, Any]) -> list[Block]:
@@ -424,11 +380,8 @@ def study(t: Tables) -> Answer:
     if near:
         lead = "Yes, with " + "; ".join(said(*s) for s in near)
         lead += ("; not with " + "; ".join(said(*s) for s in far)) if far else ""
-        verdict = f"The elastic answer is approached with {', '.join(s[0] for s in near)}"
-        verdict += f", not with {', '.join(s[0] for s in far)}." if far else "."
     else:
         lead = "No: " + "; ".join(said(*s) for s in sweeps)
-        verdict = "No sweep approaches the elastic answer."
     elastic = pl.col("v1n_after_elastic_mps")
     gap = (pl.col("v1n_after_mps") - elastic).abs() / elastic.abs() * 100
     table = pl.concat([s[1] for s in sweeps], how="diagonal_relaxed")
@@ -447,5 +400,6 @@ def study(t: Tables) -> Answer:
     )
     pick = (near or sweeps)[0][0]
     caption = f"{pick}: velocities after against e, on the analytic curves; e against the sweep."
-    evidence = [*_table(table, cols), *_figure(t, "study", f"study-{file_part(pick)}.png", caption)]
-    return Answer([Strong(lead + "."), more], evidence, verdict)
+    evidence: list[Block] = [Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS)]
+    evidence += _figure(t, "study", f"study-{file_part(pick)}.png", caption)
+    return Answer([Strong(lead + "."), more], evidence)

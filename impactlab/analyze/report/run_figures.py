@@ -11,7 +11,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.logs.labels import sweep_words
+from impactlab.logs.labels import run_label
 from impactlab.logs.metadata import GeomContact, PairTarget
 from impactlab.text import file_part
 
@@ -30,17 +30,10 @@ def contact_words(targets: Sequence[PairTarget], shared: GeomContact | None) -> 
 
 
 def run_title(a: RunAnalysis) -> str:
-    """A figure title: experiment and sweep point in words, the contact, the timestep."""
-    sweep = sweep_words(a.run.sweep)
-    first = a.run.experiment + (f": {sweep}" if sweep else "")
+    """A figure title: the run's label, the contact, the timestep."""
     contact = contact_words(a.run.contact_targets, a.run.geom_contact)
     second = ", ".join([*([contact] if contact else []), f"dt = {a.run.timestep_s:g} s"])
-    return f"{first}\n{second}"
-
-
-def run_label(a: RunAnalysis) -> str:
-    """A short legend label: the sweep point in words, else the experiment."""
-    return sweep_words(a.run.sweep) or a.run.experiment
+    return f"{run_label(a.run.experiment, a.run.sweep)}\n{second}"
 
 
 FIGURE_RUNS_PER_SWEEP = 6  # per-run figures for at most this many points of a sweep
@@ -64,52 +57,23 @@ def run_figures(
     the analysis that left its figures in `previous` is copied from there
     (`figure_cache.drawn`).
     """
-    made: list[tuple[str, Path]] = []
     if not draws_own_figures(*a.run.sweep_point):
-        return made
+        return []
     from impactlab.analyze.report.figure_cache import drawn, figure_key
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
     title = run_title(a)
+    jobs: list[tuple[str, str, tuple[Any, ...]]] = []  # kind, drawing function, its data
     if a.ground is not None and a.ground.surfaces and a.energy.height:
-        path = fig_dir / f"energy-{file_part(a.run.run_id)}.png"
-        key = figure_key("energy", a.energy, contacts, title)
-        made.append(
-            (
-                "energy",
-                drawn(
-                    path,
-                    key,
-                    previous,
-                    functools.partial(
-                        draw_named, "energy_figure", a.energy, contacts, title=title, path=path
-                    ),
-                ),
-            )
-        )
+        jobs.append(("energy", "energy_figure", (a.energy, contacts)))
     impacts = a.collisions.filter(pl.col("px_before_Ns").is_not_null())  # a state before
     for row in impacts.head(1).iter_rows(named=True):
-        path = fig_dir / f"collision-{file_part(a.run.run_id)}.png"
-        key = figure_key("collision", a.states, row, contacts, title)
-        made.append(
-            (
-                "collision",
-                drawn(
-                    path,
-                    key,
-                    previous,
-                    functools.partial(
-                        draw_named,
-                        "collision_figure",
-                        a.states,
-                        row,
-                        contacts,
-                        title=title,
-                        path=path,
-                    ),
-                ),
-            )
-        )
+        jobs.append(("collision", "collision_figure", (a.states, row, contacts)))
+    made = []
+    for kind, name, data in jobs:
+        path = fig_dir / f"{kind}-{file_part(a.run.run_id)}.png"
+        draw = functools.partial(draw_named, name, *data, title=title, path=path)
+        made.append((kind, drawn(path, figure_key(kind, *data, title), previous, draw)))
     return made
 
 

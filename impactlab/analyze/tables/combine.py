@@ -13,8 +13,9 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.tables.decimate import with_decimated_energy
-from impactlab.analyze.tables.studies import studies, with_parameters
+from impactlab.analyze.tables.studies import parameters, studies
 from impactlab.files import atomic_path, write_parquet
+from impactlab.show import count, html_table, where
 
 T = TypeVar("T")
 
@@ -89,15 +90,46 @@ class AnalysisResult:
         return 1 if self.failed else 0
 
     def __repr__(self) -> str:
-        from impactlab.analyze.tables.view import analysis_repr
+        """`<Analysis 17 runs, 42 bounces, 3 collisions, results/>` (failed inputs counted;
+        the counts are the runs table's: a run without bounces has a row saying why)."""
 
-        return analysis_repr(self)
+        def total(column: str) -> int:
+            return int(self.runs[column].sum() or 0) if column in self.runs.columns else 0
+
+        parts = [
+            count(self.runs.height, "run"),
+            count(total("n_bounces"), "bounce"),
+            count(total("n_collisions"), "collision"),
+        ]
+        if self.failed:
+            parts.append(f"{len(self.failed):,} failed")
+        parts.append(where(self.out_dir) if self.out_dir is not None else "nothing written")
+        return f"<Analysis {', '.join(parts)}>"
 
     def _repr_html_(self) -> str:
-        """A small table for notebooks: one row per run (`impactlab.analyze.tables.view`)."""
-        from impactlab.analyze.tables.view import analysis_html
+        """A notebook's table: one row per run (its bounces, e, collisions, energy lost),
+        then the failed inputs."""
+        columns = [c for c in NOTEBOOK_COLUMNS if c in self.runs.columns]
+        rows = self.runs.head(30).select(columns).rows() if columns else []
+        headers = [NOTEBOOK_COLUMNS[c] for c in columns]
+        caption = repr(self).strip("<>")
+        table = html_table(headers, rows, caption=caption, total=self.runs.height, unit="runs")
+        if self.failed:
+            failed = [[path, why] for path, why in self.failed]
+            table += html_table(["failed input", "why"], failed, unit="inputs")
+        return table
 
-        return analysis_html(self)
+
+NOTEBOOK_COLUMNS = {  # column of the runs table: its header in a notebook's table
+    "run_id": "run",
+    "experiment": "experiment",
+    "outcome": "outcome",
+    "n_bounces": "bounces",
+    "e_velocity_mean": "e (mean)",
+    "n_collisions": "collisions",
+    "e_collision": "e (collision)",
+    "energy_loss_frac": "energy lost (fraction)",
+}
 
 
 REDUCE_EVERY = 64
@@ -105,8 +137,7 @@ REDUCE_EVERY = 64
 as one part of each table's file)."""
 
 RUNS_PIECES = 16
-"""Pieces of the runs table kept before they are joined into one: a 64-row frame costs
-about 115 KB of memory besides its data (44 columns), 36 MB for 20,000 runs left apart."""
+"""Pieces of the runs table kept before they are joined into one (docs/performance.md)."""
 
 _TABLES = ("bounces", "collisions", "energy", "phases")
 
@@ -194,12 +225,12 @@ class TableReducer:
             self._runs = [_read(self._files["runs"], self._schemas["runs"])]
             self._files["runs"] = []
         runs = _cat(self._runs)
-        runs = with_parameters(runs) if runs.height else runs
+        params, runs = parameters(runs) if runs.height else ([], runs)
         self._runs = [runs]  # not the table without its parameters too: one copy is kept
         return AnalysisResult(
             out_dir=out_dir,
             runs=runs,
-            studies=studies(runs) if runs.height else {},
+            studies=studies(runs, params) if runs.height else {},
             failed=list(failed),
             energy_logged=(self._rows, self._longest),
             sources=sources,
@@ -215,13 +246,8 @@ def _relaxed(a: pl.Schema, b: pl.Schema) -> pl.Schema:
 
 def _join(parts: list[Path], path: Path, schema: pl.Schema) -> Path:
     """The parts as one Parquet file at `path` (one part: renamed), in order, each read as
-    `schema` (`_scan`); the parts are removed. No parts: an empty table, as an empty frame
-    is written.
-
-    One streaming scan of every part, so memory holds a few row groups whatever the number
-    of parts (20,000 runs: +59 MB and 1.1 s, against +99 MB and 6 to 7 s for parts read
-    and written one at a time through pyarrow).
-    """
+    `schema` (`_scan`), in one streaming scan (docs/performance.md); the parts are removed.
+    No parts: an empty table, as an empty frame is written."""
     if not parts:
         return write_parquet(pl.DataFrame(), path)
     if len(parts) == 1:  # the part is the table: renamed, not written again
@@ -282,8 +308,7 @@ def _remove(parts: list[Path]) -> None:
 
 
 def _cat(frames: list[pl.DataFrame]) -> pl.DataFrame:
-    """The frames as one, in contiguous memory: a table of thousands of runs' small chunks
-    would make every later operation work chunk by chunk (a mapping of run labels, for one,
-    was built again per chunk: 265 MB for the bounces of 2,000 runs)."""
+    """The frames as one, in contiguous memory (not thousands of runs' small chunks, which
+    every later operation would work through one by one: docs/performance.md)."""
     frames = [f for f in frames if f.width]
     return pl.concat(frames, how="diagonal_relaxed", rechunk=True) if frames else pl.DataFrame()

@@ -9,7 +9,6 @@ parameters, its results.
 from __future__ import annotations
 
 import json
-import weakref
 from typing import TYPE_CHECKING, Any
 
 import polars as pl
@@ -101,71 +100,48 @@ def _dtype(column: list[Any]) -> PolarsDataType:
 
 
 def with_parameters(runs: pl.DataFrame) -> pl.DataFrame:
-    """The runs table with its sweep parameter columns after `sweep`."""
-    return _parameters(runs)[1]
+    """The runs table with its sweep parameter columns (`parameters`)."""
+    return parameters(runs)[1]
 
 
-_LAST: list[tuple[weakref.ref[pl.DataFrame], list[str], pl.DataFrame | None]] = []
-"""The last tables `_parameters` saw: (the table, its parameter columns, the table with
-them joined; None when that is the table itself)."""
-
-
-def _parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
-    """The runs table's sweep parameter columns and `with_parameters`, computed once per
-    table object while it lives (the report, the studies and the labels each ask for them,
-    per experiment: the sweep JSON of every run was parsed again each time). The table
-    returned is its own answer when it is asked again (joining once more would give an
-    equal table: a copy of 20,000 rows for nothing)."""
-    for ref, cols, joined in _LAST:
-        if ref() is runs:
-            return cols, runs if joined is None else joined
+def parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
+    """The runs table's sweep parameter columns, and the table with them after its own (set
+    anew on a table that has them already), sorted by experiment and parameters."""
     params = sweep_parameters(runs)
     cols = [c for c in params.columns if c != "run_id"]
-    # a table that has them already (an analysis' runs table) gets them once, not twice
     base = runs.drop(cols, strict=False)
     if params.height == runs.height:  # a row per run, in the table's order: set side by side
         joined = base.hstack(params.drop("run_id").get_columns())
     else:  # a run id given twice
         joined = base.join(params, on="run_id", how="left")
-    joined = joined.sort(["experiment", *cols, "run_id"], nulls_last=True)
-    _LAST[:] = [
-        (weakref.ref(runs, _forget), cols, joined),
-        (weakref.ref(joined, _forget), cols, None),
-    ]
-    return cols, joined
-
-
-def _forget(ref: weakref.ref[pl.DataFrame]) -> None:
-    """Drop a cached table's entry when the table is gone."""
-    _LAST[:] = [entry for entry in _LAST if entry[0] is not ref]
+    return cols, joined.sort(["experiment", *cols, "run_id"], nulls_last=True)
 
 
 def study_parameters(runs: pl.DataFrame, experiment: str) -> list[str]:
     """Parameter columns of one experiment that vary across its runs."""
-    params, joined = _parameters(runs)
-    sub = joined.filter(pl.col("experiment") == experiment)
-    return [p for p in params if sub[p].drop_nulls().n_unique() > 1]
+    params, joined = parameters(runs)
+    return _varying(params, joined.filter(pl.col("experiment") == experiment))
 
 
-def study_table(runs: pl.DataFrame, experiment: str) -> pl.DataFrame:
-    """One row per run of a swept experiment: its varying parameters and its results."""
-    params = study_parameters(runs, experiment)
-    sub = with_parameters(runs).filter(pl.col("experiment") == experiment)
-    dropped = _defined(sub, "first_impact_speed_mps")  # bounce results for drops only
-    results = [
-        c for c in (*(BOUNCE_RESULTS if dropped else ()), *COLLISION_RESULTS) if _defined(sub, c)
-    ]
-    return sub.select("run_id", *params, *results, "partial", "note").sort(params or "run_id")
+def _varying(params: list[str], runs: pl.DataFrame) -> list[str]:
+    return [p for p in params if runs[p].drop_nulls().n_unique() > 1]
+
+
+def studies(runs: pl.DataFrame, params: list[str]) -> dict[str, pl.DataFrame]:
+    """Per experiment whose runs differ in a sweep parameter, its study table: one row per
+    run, its varying parameters and its results (`runs`, `params`: as `parameters` gives)."""
+    out = {}
+    for experiment in runs["experiment"].unique(maintain_order=True).to_list():
+        sub = runs.filter(pl.col("experiment") == experiment)
+        varying = _varying(params, sub)
+        if not varying:
+            continue
+        dropped = _defined(sub, "first_impact_speed_mps")  # bounce results for drops only
+        results = (*(BOUNCE_RESULTS if dropped else ()), *COLLISION_RESULTS)
+        shown = [c for c in results if _defined(sub, c)]
+        out[experiment] = sub.select("run_id", *varying, *shown, "partial", "note").sort(varying)
+    return out
 
 
 def _defined(frame: pl.DataFrame, column: str) -> bool:
     return column in frame.columns and frame[column].drop_nulls().len() > 0
-
-
-def studies(runs: pl.DataFrame) -> dict[str, pl.DataFrame]:
-    """Per experiment with at least two runs that differ in a sweep parameter, its study table."""
-    out = {}
-    for experiment in runs["experiment"].unique(maintain_order=True).to_list():
-        if study_parameters(runs, experiment):
-            out[experiment] = study_table(runs, experiment)
-    return out

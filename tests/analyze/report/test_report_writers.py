@@ -18,8 +18,6 @@ from matplotlib import image
 
 from impactlab.analyze.report import blocks, html, markdown
 from impactlab.analyze.report.blocks import (
-    NOTHING,
-    TIMES,
     Bullets,
     Column,
     Contents,
@@ -31,9 +29,9 @@ from impactlab.analyze.report.blocks import (
     Strong,
     Table,
     footnoted,
-    number,
 )
 from impactlab.analyze.report.document import append_report_sections, write_document
+from impactlab.show import NOTHING, TIMES, cell, number
 
 NAMES = [
     "a|b",
@@ -136,7 +134,7 @@ def test_no_name_becomes_markup_in_either_page(tmp_path):
     assert '<a href="#a-heading">' in page and 'href="other.md#b%20c"' in page
 
 
-def test_numbers_read_at_sensible_precision():
+def test_numbers_read_at_sensible_precision_in_the_report_and_in_a_notebook():
     assert number(7.105427357601002e-15) == f"7.11 {TIMES} 10⁻¹⁵"
     assert number(2.2092) == "2.21" and number(28.449) == "28.4" and number(0.0185) == "0.0185"
     assert number(0.99) == "0.990" and number(-0.0103) == "-0.0103" and number(0.0) == "0"
@@ -146,6 +144,8 @@ def test_numbers_read_at_sensible_precision():
     assert blocks.percent(0.8319) == "83.2 %" and blocks.span([0.801, 0.799]) == "0.799 to 0.801"
     for x in np.geomspace(1e-20, 1e20, 81):
         assert not re.search(r"\de[-+]?\d", number(float(x)))
+    assert cell(7.105427357601002e-15) == f"7.105 {TIMES} 10⁻¹⁵" and cell(None) == NOTHING
+    assert cell(0.123456) == "0.1235" and cell("\x1b[31m") == "\\x1b[31m"
 
 
 def test_a_long_table_is_cut_with_its_count_and_file(tmp_path, monkeypatch):
