@@ -1,5 +1,6 @@
 """The README's and docs' images and local links name files of the repository; the benchmark
-tables of docs/performance.md are the results files'; the README stays short."""
+tables of docs/performance.md are the results files'; the README stays short; the lock it
+installs from holds only pins."""
 
 from __future__ import annotations
 
@@ -41,3 +42,15 @@ def test_the_performance_page_results_are_those_of_the_results_files():
         shown = page.split(begin, 1)[1].split(end, 1)[0]
         assert shown == "\n".join(text.splitlines()[2:]).strip() + "\n", name
         assert "| verdict |" in shown, name
+
+
+def test_the_lock_holds_only_pins():
+    """The README's installs print no pip warning: every line of requirements.lock is a pin
+    `name==version` or a comment, so no index, find-links or local path of the machine that
+    wrote it (issue 37: 84 "Location ... is ignored" warnings) can come back."""
+    lines = (ROOT / "requirements.lock").read_text(encoding="utf-8").splitlines()
+    pin = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*==[A-Za-z0-9.+!-]+")
+    odd = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
+    odd = [line for line in odd if not pin.fullmatch(line)]
+    assert odd == []
+    assert sum(bool(pin.fullmatch(line)) for line in lines) > 50
