@@ -54,3 +54,13 @@ def test_the_lock_holds_only_pins():
     odd = [line for line in odd if not pin.fullmatch(line)]
     assert odd == []
     assert sum(bool(pin.fullmatch(line)) for line in lines) > 50
+
+
+def test_the_experiments_page_lists_every_spec():
+    """docs/experiments.md's table has a row for every spec that ships (a new one is never
+    missing from it)."""
+    text = (ROOT / "docs" / "experiments.md").read_text(encoding="utf-8")
+    folder = ROOT / "experiments"
+    specs = [p.relative_to(folder).as_posix() for p in sorted(folder.rglob("*.toml"))]
+    assert len(specs) > 5
+    assert [s for s in specs if f"\n| `{s}` |" not in text] == []
