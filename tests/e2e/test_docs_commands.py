@@ -4,8 +4,9 @@ reason it cannot run in a test; a block that is neither fails, so a new one is n
 Shell blocks (```sh, ```console: the `$ ` lines) run command by command with bash in a
 temporary folder holding a copy of `experiments/`, `impactlab` and `python` being this
 interpreter's; a page's blocks run in order in one folder (a replay follows its record). Each
-command exits 0 or the code the page documents (`EXIT`), and each output line a ```console
-block shows is printed (numbers and hashes aside: they vary with the machine). ```python
+command exits 0 or the code the page documents (`EXIT`), each output line a ```console
+block shows is printed (numbers and hashes aside: they vary with the machine), and no
+warning is printed that the page does not show. ```python
 blocks run as scripts, or under pytest when they define tests (a golden test writes its
 golden log: its check records one run; test_golden_plugin.py checks against one). ```xml blocks are files the
 commands read (written under the name their first line gives, `<!-- ball.xml -->`). ```toml
@@ -241,6 +242,8 @@ def _run_command(command: Command, block: Block, work: Path, env: dict[str, str]
     shown = [line for line in command.shown if line.strip() not in ("...", "")]
     missing = [line for line in shown if "..." not in line and _masked(line) not in printed]
     assert missing == [], f"{block}: `{command.text}` printed\n{done.stdout}\n{done.stderr}"
+    warned = [line for line in printed if "warning" in line.lower()]  # pip's, Python's, ours
+    assert [w for w in warned if w not in map(_masked, shown)] == [], f"{block}: {warned}"
 
 
 def _run_python(block: Block, work: Path, env: dict[str, str]) -> None:
@@ -255,6 +258,7 @@ def _run_python(block: Block, work: Path, env: dict[str, str]) -> None:
     done = subprocess.run(args, cwd=work, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, f"{block}: {args}\n{done.stdout}\n{done.stderr}"
     assert "passed" in done.stdout or script == "block.py", done.stdout
+    assert "warning" not in (done.stdout + done.stderr).lower(), f"{block}: {done.stdout}"
 
 
 RUN_PAGES = sorted(
