@@ -47,9 +47,10 @@ NOT_RUN = {
     "wheel into a fresh venv and runs the commands from an empty folder)",
     "rerun ": "opens Rerun's viewer, a window (the recording it names is checked to exist)",
     "git add": "commits into the reader's repository",
-    "pytest": "the golden-test walkthrough of the reader's project: "
-    "tests/e2e/test_golden_plugin.py runs the same steps with pytester (the same spec, "
-    "test_the_golden_walkthrough_is_the_plugin_tests)",
+    "pytest": "pytest in the reader's project (docs/golden-tests.md's update commands and "
+    "walkthrough): tests/e2e/test_golden_plugin.py runs the same steps with pytester, on the "
+    "same spec (test_the_golden_walkthrough_is_the_plugin_tests); the page's first test block "
+    "runs here under pytest --impactlab-update-golden",
     "sed -i": "a step of the same walkthrough (the spec edited to restitution 0.81)",
     "cat > big.toml": "docs/reliability.md's memory figure: a 400,001-step log, about 1 GB "
     "resident; tests/reliability/test_reliability_memory.py measures the same on 100,001 steps",
