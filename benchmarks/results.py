@@ -105,41 +105,41 @@ class Results:
         return "\n".join(lines) + "\n"
 
     def write(self, name: str) -> Path:
-        """Write (overwrite) `benchmarks/results/<name>` and its copy in the README
-        (`to_readme`); its path."""
+        """Write (overwrite) `benchmarks/results/<name>` and its copy in docs/performance.md
+        (`to_page`); its path."""
         FOLDER.mkdir(exist_ok=True)
         path = FOLDER / name
         text = self.markdown()
         path.write_text(text, encoding="utf-8")
-        to_readme(name, text)
+        to_page(name, text)
         return path
 
 
-README = FOLDER.parent.parent / "README.md"
+PAGE = FOLDER.parent.parent / "docs" / "performance.md"
 
 
-def readme_block(text: str) -> str:
-    """What the README shows of a results file: all of it but its title."""
+def page_block(text: str) -> str:
+    """What docs/performance.md shows of a results file: all of it but its title."""
     return "\n".join(text.splitlines()[2:]).strip() + "\n"
 
 
 def markers(name: str) -> tuple[str, str]:
-    """The comments around a results file's copy in the README."""
+    """The comments around a results file's copy in docs/performance.md."""
     return f"<!-- benchmarks/results/{name}: begin -->", f"<!-- benchmarks/results/{name}: end -->"
 
 
-def to_readme(name: str, text: str) -> None:
-    """Put the results `text` of `name` between its markers in the README (the README's
-    tables come from the same run as the file); nothing when the README has no markers."""
-    if not README.exists():
+def to_page(name: str, text: str) -> None:
+    """Put the results `text` of `name` between its markers in docs/performance.md (its
+    tables come from the same run as the file); nothing when the page has no markers."""
+    if not PAGE.exists():
         return
-    readme = README.read_text(encoding="utf-8")
+    page = PAGE.read_text(encoding="utf-8")
     begin, end = markers(name)
-    if begin not in readme or end not in readme:
+    if begin not in page or end not in page:
         return
-    head, rest = readme.split(begin, 1)
+    head, rest = page.split(begin, 1)
     _, tail = rest.split(end, 1)
-    README.write_text(f"{head}{begin}\n{readme_block(text)}{end}{tail}", encoding="utf-8")
+    PAGE.write_text(f"{head}{begin}\n{page_block(text)}{end}{tail}", encoding="utf-8")
 
 
 def _now() -> str:
