@@ -4,16 +4,18 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import polars as pl
 import rerun as rr
 import rerun.blueprint as rrb
 
 from impactlab.errors import ImpactlabError, LogError
 from impactlab.files import FULL, OutputError, check_writable, write_bytes
-from impactlab.logs.labels import sweep_words
+from impactlab.logs.labels import run_labels as labels_of
 from impactlab.logs.load import RunLog, load_log
 from impactlab.progress import Progress, Tracker
 from impactlab.replay import style
@@ -181,18 +183,18 @@ def log_runs(
 
 def run_labels(runs: Sequence[RunLog]) -> list[str]:
     """What tells runs apart in one recording (their series' names begin with it): none for
-    one run; the sweep point in words for runs of one experiment ("ball released at z = 3 m",
-    as the report says it); else the experiment and its sweep point; the run id when two
-    would read the same."""
+    one run, else the report's label of each run (`logs.labels.run_labels`)."""
     if len(runs) < 2:
         return [""]
-    one = len({run.experiment for run in runs}) == 1
-    words = [sweep_words(run.sweep) for run in runs]
-    labels = [
-        w if one else f"{r.experiment}: {w}" if w else r.experiment
-        for r, w in zip(runs, words, strict=True)
-    ]
-    return labels if len(set(labels)) == len(labels) and all(labels) else [r.run_id for r in runs]
+    frame = pl.DataFrame(
+        {
+            "run_id": [r.run_id for r in runs],
+            "experiment": [r.experiment for r in runs],
+            "sweep": [json.dumps(r.sweep) for r in runs],
+        }
+    )
+    labels = dict(labels_of(frame).iter_rows())
+    return [labels[r.run_id] for r in runs]
 
 
 def _digest(ids: Sequence[str]) -> str:

@@ -332,3 +332,17 @@ def test_replay_with_the_analysis_of_a_collision_that_never_happened(tmp_path: P
     _verify(rrd)
     texts = _texts(_read(rrd), f"{run_prefix(load_log(result.path).run_id)}/events/contacts")
     assert not any(t.startswith("impact") for t in texts)
+
+
+def test_series_are_named_by_the_reports_run_labels():
+    """Runs in one recording are told apart by the report's label of each (one rule:
+    `impactlab.logs.labels`): the experiment, and its sweep point in words and units."""
+    runs = [
+        load_log(GOLDEN / "logs" / f"{name}.mcap")
+        for name in ("drop_bounces", "collision_sweep_point")
+    ]
+    assert recordings.run_labels(runs) == [
+        "golden_drop_bounces",
+        "golden_collision_sweep: ball2 mass = 2 kg",
+    ]
+    assert recordings.run_labels(runs[:1]) == [""]  # one run: nothing to tell apart
