@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,10 +52,12 @@ def binary(model: mujoco.MjModel) -> bytes:
     return buffer.tobytes()
 
 
-def model_digest(model: mujoco.MjModel) -> str:
-    """SHA-256 of the compiled model: whatever MuJoCo read to build it (includes, attached
-    models, meshes, textures), a change in any is another digest."""
-    return hashlib.sha256(binary(model)).hexdigest()
+def model_digest(model: mujoco.MjModel, attachments: Sequence[tuple[str, str, bytes]]) -> str:
+    """SHA-256 of the compiled model (the log's copy among `attachments` if it has one):
+    whatever MuJoCo read to build it (includes, attached models, meshes, textures), a change
+    in any is another digest."""
+    compiled = next((data for name, _, data in attachments if name == BINARY_ATTACHMENT), None)
+    return hashlib.sha256(binary(model) if compiled is None else compiled).hexdigest()
 
 
 def _as_utf8(text: str) -> str:

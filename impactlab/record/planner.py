@@ -161,7 +161,10 @@ def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) 
     check_options(options, inst, str(path))
     # the model by name and content as MuJoCo compiled it (every file it read), not by where
     # it is: the same model gives the same run, a change in any of its files another
-    document: dict[str, Any] = {"mjcf": path.name, "model_sha256": model_digest(inst.model)}
+    document: dict[str, Any] = {
+        "mjcf": path.name,
+        "model_sha256": model_digest(inst.model, inst.attachments),
+    }
     document |= settings
     digest = spec_hash(document)
     info = RunInfo(
