@@ -136,3 +136,23 @@ def test_a_figure_failing_in_a_worker_fails_here_with_its_error(tmp_path):
     jobs = [(tmp_path / f"{i}.png", "key", broken) for i in range(2)]
     with pytest.raises(ValueError, match="cannot draw this"):
         figure_cache.draw_all(jobs, None, Failing())
+
+
+@pytest.mark.parametrize("keep", [0.5, 0.99])
+def test_a_damaged_figure_is_drawn_again(tmp_path, drawn, keep):
+    """A PNG of the last analysis cut short (a full disk, a copy interrupted) is never
+    published again: its key is not trusted, the figure is drawn anew and whole."""
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    shutil.copy(GOLDEN / "drop_bounces.mcap", logs)
+    out = tmp_path / "out"
+    assert run_analysis([logs], out).exit_code == 0
+    first = pngs(out)
+    energy = next(n for n in first if n.startswith("energy-"))
+    whole = first[energy]
+    (out / "figures" / energy).write_bytes(whole[: int(len(whole) * keep)])
+    drawn.clear()
+    assert run_analysis([logs], out).exit_code == 0
+    assert drawn == [energy]
+    assert pngs(out)[energy].endswith(figure_cache.PNG_END)
+    assert figure_cache.png_key(pngs(out)[energy]) == figure_cache.png_key(whole)
