@@ -17,11 +17,6 @@ from impactlab.logs.load import RunLog
 from impactlab.logs.messages import BODY_FIELDS
 
 
-def logged_interval_s(run: RunLog) -> float:
-    """Time between two logged rows, s (timestep x log_every, as the recorder logs)."""
-    return run.timestep_s * run.log_every
-
-
 def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr:
     """A per-run number as an expression over the `run_id` column (run ids distinct)."""
     mapping = {run.run_id: float(value(run)) for run in runs}
