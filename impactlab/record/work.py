@@ -13,7 +13,7 @@ MAX_RUNS = 100_000  # runs in one job
 MAX_RUN_STEPS = 100_000_000  # steps of one run (about 10 minutes of simulation)
 MAX_JOB_STEPS = 1_000_000_000  # steps of the whole job (about 2 hours on two cores)
 MAX_LOG_BYTES = 20 * 10**9  # logs written by the job
-US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (README)
+US_PER_STEP = 7.0  # wall time per step simulated and logged on two cores (docs/performance.md)
 LOG_BYTES_PER_LOG = 40_000  # whatever its length: schemas, metadata, the model, the index
 LOG_BYTES_PER_BODY = 2_000  # whatever its length, per body: its channels and metadata
 # (measured: a log of 3 rows takes 38,139 bytes with one body, 39,378 with two: `impactlab

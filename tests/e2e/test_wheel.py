@@ -6,7 +6,7 @@ checked); the wheel goes into a new venv outside the tree with the lock's pins (
 configured index, no other network), and the commands that read package data run from an
 empty folder with no PYTHONPATH: `impactlab contact` (the restitution tables), a model tuned
 with `impactlab contact MODEL.xml`, `impactlab calibrate --grid quick`, `impactlab lab` (the
-packaged experiments), `impactlab examples` and a README command on the copies. The checkout
+packaged experiments), `impactlab examples` and a command of docs/experiments.md on the copies. The checkout
 tools (`impactlab.golden`, `impactlab.proto.generate`) answer in one line there, and a type
 checker reads the installed package's types (`py.typed`).
 """
