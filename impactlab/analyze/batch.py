@@ -11,7 +11,6 @@ analyzed.
 from __future__ import annotations
 
 import dataclasses
-import errno
 import functools
 import os
 from collections.abc import Callable, Sequence
@@ -245,8 +244,9 @@ def analyze_logs(
                 )
                 done(i, dataclasses.replace(value, figures=figs))
         else:
-            if any(f"[Errno {code}]" in (outcome.error or "") for code in FULL):  # a full disk
-                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # in a worker: the job's
+            full = outcome.exception
+            if isinstance(full, OSError) and full.errno in FULL:  # in a worker: the job's
+                raise full
             for i in group:
                 done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
     return [r for r in out if r is not None and r is not _TAKEN]

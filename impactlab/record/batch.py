@@ -27,11 +27,14 @@ class LogWriteError(ImpactlabError):
     """A log cannot be written (a full disk): nothing more of the job can be."""
 
     def __init__(self, path: Path, problem: str, written: int) -> None:
-        self.path, self.problem = path, problem
+        self.path, self.problem, self.written = path, problem, written
         super().__init__(
             f"{path}: cannot write the log: {problem} "
             f"({written} log(s) of this job written before it are complete)"
         )
+
+    def __reduce__(self) -> tuple[type[LogWriteError], tuple[Path, str, int]]:
+        return LogWriteError, (self.path, self.problem, self.written)  # from a worker
 
 
 def batches(
