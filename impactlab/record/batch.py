@@ -20,7 +20,6 @@ from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
 
 Reuse = Callable[[PlannedRun], "RecordedRun | None"]
-Report = Callable[[RecordedRun], None]
 
 
 class LogWriteError(ImpactlabError):
@@ -42,7 +41,7 @@ def batches(
     size: int,
     *,
     reuse: Reuse | None = None,
-    report: Report = lambda _: None,
+    report: Callable[[RecordedRun], None] = lambda _: None,
     fail: Callable[[PlannedRun, str], None] = lambda run, reason: None,
 ) -> Iterator[list[RunRequest]]:
     """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built.
@@ -120,30 +119,18 @@ def record_batches(
     *,
     batch_size: int = BATCH_RUNS,
     threads: int | None = None,
-    stop_on_write_error: bool = True,
     reuse: Reuse | None = None,
-    on_run: Report = lambda _: None,
-    keep: bool = True,
 ) -> list[RecordedRun]:
-    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion
-    (none with `keep=False`: `on_run` has them all, and nothing grows with the runs here).
+    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
-    written fails its run, or, with `stop_on_write_error` (a full disk: nothing more can be
-    written), raises `LogWriteError` saying how many logs of the job are complete.
+    written for an `OSError` (a full disk: nothing more can be written) raises `LogWriteError`
+    saying how many logs of these runs are complete; for another error it fails its run.
     `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
-    it meanwhile). `on_run` is called with each run as soon as its log is written. On any
-    exit (an error, Ctrl-C) the logs being written are removed.
+    it meanwhile). On any exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
-    written = 0
-
-    def report(run: RecordedRun) -> None:
-        nonlocal written
-        written += run.status == "recorded"
-        if keep:
-            out.append(run)
-        on_run(run)
+    report = out.append
 
     logs: dict[RunRequest, _OpenLog] = {}
     dead: set[RunRequest] = set()  # runs whose log failed: their further rows are dropped
@@ -187,7 +174,8 @@ def record_batches(
                 except Exception as exc:
                     if request in logs:
                         logs.pop(request).abort()
-                    if stop_on_write_error and isinstance(exc, OSError):
+                    if isinstance(exc, OSError):
+                        written = sum(r.status == "recorded" for r in out)
                         raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)
                     fail(run, f"cannot write the log: {describe_error(exc)}")

@@ -6,16 +6,16 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from impactlab.executors.base import Executor
+from impactlab.executors.base import Executor, LocalExecutor
 from impactlab.executors.processes import ProcessExecutor, available_cpus, can_fork
 from impactlab.files import check_writable
 from impactlab.logs.writer import PARTIAL_SUFFIX, remove_stale_partials
 from impactlab.progress import Progress, Tracker
-from impactlab.record.batch import BATCH_RUNS, record_batches
+from impactlab.record.batch import BATCH_RUNS
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.planner import PlannedRun, Subset
 from impactlab.record.results import RecordedRun, RecordResult
-from impactlab.record.tasks import count_run, record_on
+from impactlab.record.tasks import record_on
 from impactlab.record.work import Work, check_space
 
 
@@ -82,28 +82,20 @@ def record_runs(
     if by_id:
         tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
     workers = min(threads or available_cpus(), len(todo))
-    if (executor is None or executor.name == "local") and workers > 1 and can_fork():
-        executor = ProcessExecutor(workers, min_items=2, start="fork")
-        threads = 1  # one rollout thread per worker
-    if executor is not None and executor.name != "local":
-        done = record_on(
-            executor,
-            pending,
-            out_dir,
-            tracker,
-            overwrite=overwrite,
-            threads=threads,
-            batch_size=batch_size,
+    if executor is None or executor.name == "local":
+        forked = workers > 1 and can_fork()
+        executor = (
+            ProcessExecutor(workers, min_items=2, start="fork") if forked else LocalExecutor()
         )
-    else:
-        done = record_batches(
-            pending,
-            out_dir,
-            batch_size=batch_size,
-            threads=threads,
-            reuse=None if overwrite else lambda run: reusable(out_dir, run),
-            on_run=lambda run: count_run(tracker, run),
-        )
+    done = record_on(
+        executor,
+        pending,
+        out_dir,
+        tracker,
+        overwrite=overwrite,
+        threads=threads,
+        batch_size=batch_size,
+    )
     by_id |= {r.run_id: r for r in done}
     del done
     return RecordResult([by_id[run_id] for run_id in order if run_id in by_id])

@@ -103,7 +103,7 @@ def record_on(
         groups = [Subset(runs, r) for r in ranges]  # read in the workers
     else:
         groups = [[portable(runs[i]) for i in r] for r in ranges]
-    if threads is None and executor.name != "local":
+    if executor.name != "local":
         threads = 1  # one rollout thread per task slot (a Ray task asks for one CPU)
     task = functools.partial(  # absolute: a worker's working folder is not the driver's
         record_group,
@@ -114,9 +114,10 @@ def record_on(
     )
     out: list[RecordedRun] = []
     for outcome in executor.map(task, groups) if groups else ():
-        if isinstance(outcome.exception, LogWriteError):
-            written = sum(r.status == "recorded" for r in out)
-            raise LogWriteError(outcome.exception.path, outcome.exception.problem, written)
+        full = outcome.exception
+        if isinstance(full, LogWriteError):  # with the logs its task wrote before
+            written = sum(r.status == "recorded" for r in out) + full.written
+            raise LogWriteError(full.path, full.problem, written)
         if outcome.ok:
             done = [dataclasses.replace(s, path=out_dir / s.path.name) for s in outcome.value or []]
         else:
