@@ -9,6 +9,7 @@ from pathlib import Path
 
 from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
+from impactlab.files import FULL
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
 from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
@@ -124,8 +125,9 @@ def record_batches(
     """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
-    written for an `OSError` (a full disk: nothing more can be written) raises `LogWriteError`
-    saying how many logs of these runs are complete; for another error it fails its run.
+    written for a full disk (`files.FULL`: nothing more can be written) raises `LogWriteError`
+    saying how many logs of these runs are complete; for another reason (a folder in its
+    place) it fails its run.
     `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
     it meanwhile). On any exit (an error, Ctrl-C) the logs being written are removed.
     """
@@ -174,7 +176,7 @@ def record_batches(
                 except Exception as exc:
                     if request in logs:
                         logs.pop(request).abort()
-                    if isinstance(exc, OSError):
+                    if isinstance(exc, OSError) and exc.errno in FULL:  # nothing more fits
                         written = sum(r.status == "recorded" for r in out)
                         raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)

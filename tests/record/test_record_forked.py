@@ -144,3 +144,19 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/stat").read_text().split()[2]
     except FileNotFoundError:
         return "gone"
+
+
+@pytest.mark.parametrize("threads", [1, 2])  # here, and over forked workers
+def test_a_run_that_cannot_be_written_fails_alone(tmp_path, threads):
+    """A folder where one log should go fails that run only (not a full disk: the others
+    are written); recorded again once the folder is gone."""
+    runs = plan([_spec(tmp_path, 3)])
+    out = tmp_path / "logs"
+    blocked = out / f"{runs[1].info.run_id}.mcap"
+    blocked.mkdir(parents=True)
+    result = record_runs(runs, out, threads=threads)
+    assert [r.status for r in result] == ["recorded", "failed", "recorded"]
+    assert result[1].reason.startswith("cannot write the log: IsADirectoryError")
+    blocked.rmdir()
+    again = record_runs(runs, out, threads=threads)
+    assert [r.status for r in again] == ["reused", "recorded", "reused"]
