@@ -9,8 +9,6 @@ Markdown and to self-contained HTML pages; tools add sections with `append_repor
 May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
 polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
 `impactlab.replay`, `impactlab.calibrate`: the analysis reads only the logs.
-
-This package is also the function `impactlab.analyze(...)` (see `analyze` below).
 """
 
 from __future__ import annotations
@@ -19,7 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from impactlab.packages import callable_package, lazy_exports
+from impactlab.packages import lazy_exports
 
 if TYPE_CHECKING:
     from impactlab.analyze.job import run_analysis as run_analysis
@@ -111,6 +109,3 @@ def analyze(
             executor=chosen,
             progress=shown,
         )
-
-
-callable_package(__name__, analyze)

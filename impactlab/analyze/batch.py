@@ -11,7 +11,6 @@ analyzed.
 from __future__ import annotations
 
 import dataclasses
-import errno
 import functools
 import os
 from collections.abc import Callable, Sequence
@@ -82,14 +81,12 @@ def batches(items: Sequence[tuple[str | Path, str | Path]], parts: int = 1) -> l
 def analyze_some(
     items: Sequence[tuple[str | Path, str | Path]],
     fig_dir: Path | None,
-    previous: Path | None = None,
 ) -> list[AnalyzedLog]:
     """Analyze some logs together and draw each run's own figures into `fig_dir` (None: no
     figures); one result per log, in order.
 
     Each item is the log's path to read and its path as the user gave it (what the tables
-    and messages show); `previous` holds the figures of the last analysis into the same
-    folder (unchanged ones are copied from there, not drawn again).
+    and messages show).
     """
     out: list[AnalyzedLog | None] = [None] * len(items)
     loaded: list[tuple[int, RunLog]] = []
@@ -111,7 +108,7 @@ def analyze_some(
             figures = []
             if fig_dir is not None:
                 fig_dir.mkdir(parents=True, exist_ok=True)
-                figures = run_figures(a, fig_dir, previous)
+                figures = run_figures(a, fig_dir)
             out[i] = AnalyzedLog(a, figures)
     return [r for r in out if r is not None]
 
@@ -153,11 +150,9 @@ def slim(a: RunAnalysis) -> RunAnalysis:
     )
 
 
-def _task(
-    items: list[tuple[str, str]], fig_dir: Path | None, previous: Path | None = None
-) -> list[AnalyzedLog]:
+def _task(items: list[tuple[str, str]], fig_dir: Path | None) -> list[AnalyzedLog]:
     """The body of one executor task: as `analyze_some`, returning small tables only."""
-    results = analyze_some(items, fig_dir, previous)
+    results = analyze_some(items, fig_dir)
     done = [r.analysis for r in results if r.analysis is not None]
     slimmed = iter([slim(a) for a in done])  # slim decimates each run's energy table
     return [
@@ -169,7 +164,6 @@ def analyze_logs(
     paths: Sequence[str | Path],
     *,
     fig_dir: Path | None,
-    previous: Path | None = None,
     executor: Executor | None = None,
     progress: Progress | None = None,
     reducer: TableReducer | None = None,
@@ -177,7 +171,6 @@ def analyze_logs(
 ) -> list[AnalyzedLog]:
     """Analyze each log (and draw its own figures when `fig_dir` is given), in order of `paths`.
 
-    `previous`: the figures of the last analysis into the same folder (see `analyze_one`).
     `reducer`: takes each run's tables, in order of `paths`, as soon as it can (the
     analyses returned then keep only the run's metadata). `collect`: then receives each
     result, in order of `paths`, and none is kept (the list returned is empty): with both,
@@ -206,18 +199,12 @@ def analyze_logs(
 
     if executor is None or executor.name == "local":
         for group in batches(items):
-            for i, result in zip(
-                group, _task([items[i] for i in group], fig_dir, previous), strict=True
-            ):
+            for i, result in zip(group, _task([items[i] for i in group], fig_dir), strict=True):
                 done(i, result)  # slim at once
         return [r for r in out if r is not None and r is not _TAKEN]
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
-    task = functools.partial(
-        _task,
-        fig_dir=None if fig_dir is None else fig_dir.absolute(),
-        previous=None if previous is None else previous.absolute(),
-    )
+    task = functools.partial(_task, fig_dir=None if fig_dir is None else fig_dir.absolute())
     parts = max(4 * executor.slots, PROCESS_MIN_ITEMS)
     if fig_dir is not None:  # a run's own figures cost more than its analysis: finer tasks
         parts = max(parts, 8 * executor.slots)
@@ -245,8 +232,9 @@ def analyze_logs(
                 )
                 done(i, dataclasses.replace(value, figures=figs))
         else:
-            if any(f"[Errno {code}]" in (outcome.error or "") for code in FULL):  # a full disk
-                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # in a worker: the job's
+            full = outcome.exception
+            if isinstance(full, OSError) and full.errno in FULL:  # in a worker: the job's
+                raise full
             for i in group:
                 done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
     return [r for r in out if r is not None and r is not _TAKEN]

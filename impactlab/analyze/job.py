@@ -71,8 +71,6 @@ def _analysis(
     """Analyze; with `out`, write every file into `stage` and then publish them into `out`."""
     draw = stage is not None and figures
     fig_dir = stage / "figures" if draw and stage is not None else None
-    # the figures the last analysis published there: unchanged ones are copied, not drawn
-    previous = out / "figures" if draw and out is not None else None
     # with a folder the tables are written as the batches finish (`TableReducer`): the
     # driver keeps each run's brief and figure paths only, never its frames or metadata
     reducer = TableReducer(folder=stage)
@@ -99,7 +97,6 @@ def _analysis(
     analyze_logs(
         paths,
         fig_dir=fig_dir,
-        previous=previous,
         executor=executor,
         progress=progress,
         reducer=reducer,
@@ -122,7 +119,6 @@ def _analysis(
         out=stage,
         figures=draw,
         report=report,
-        previous=previous,
         executor=executor,
     )
     result.files = publish(stage, out, written)

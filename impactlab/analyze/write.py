@@ -34,7 +34,6 @@ def write_all(
     out: Path,
     figures: bool = True,
     report: bool = True,
-    previous: Path | None = None,
     executor: Executor | None = None,
 ) -> list[Path]:
     """Write the tables, summary.json and (when asked) the summary figures and report.md.
@@ -50,8 +49,6 @@ def write_all(
         out: the output folder.
         figures: draw the summary figures (the runs' own are in `run_figs`).
         report: write report.md.
-        previous: the figures of the last analysis into the same folder: those whose inputs
-            did not change are copied from there, not drawn again (`figure_cache`).
         executor: where the summary figures are drawn when its workers are up (default:
             here).
 
@@ -106,7 +103,7 @@ def write_all(
     }
     # the summary figures are drawn (in the workers, when they are up) while summary.json is
     # written here; the report embeds them, so it waits
-    with _drawing([job[1:] for job in jobs], previous, executor) as drawn:
+    with _drawing([job[1:] for job in jobs], executor) as drawn:
         files.append(write_json_stream(out / "summary.json", summary))
         drawn()
     if report:
@@ -116,9 +113,7 @@ def write_all(
 
 @contextlib.contextmanager
 def _drawing(
-    jobs: Sequence[tuple[Path, str, Callable[[], Path]]],
-    previous: Path | None,
-    executor: Executor | None,
+    jobs: Sequence[tuple[Path, str, Callable[[], Path]]], executor: Executor | None
 ) -> Iterator[Callable[[], None]]:
     """Draw the figures `jobs` (`figure_cache.draw_all`): with workers, from a thread while
     the block runs, here before it without. Yields the wait for them (raising a drawing's
@@ -126,11 +121,11 @@ def _drawing(
     from impactlab.analyze.report.figure_cache import draw_all
 
     if not jobs or executor is None or executor.name == "local":
-        draw_all(jobs, previous, executor)
+        draw_all(jobs, executor)
         yield lambda: None
         return
     pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-figures")
-    future = pool.submit(draw_all, jobs, previous, executor)
+    future = pool.submit(draw_all, jobs, executor)
     pool.shutdown(wait=False)
 
     def drawn() -> None:

@@ -38,9 +38,9 @@ def run(args: argparse.Namespace) -> int:
     replacing its previous analysis as one set. Exit 2 and nothing written when no input
     names a readable log or the folder cannot be written; 1 when some inputs failed (one
     line each) and the others were analyzed."""
-    from impactlab.cli.inputs import check_log_inputs
     from impactlab.executors.choose import check_executor
     from impactlab.executors.processes import ProcessExecutor
+    from impactlab.logs.inputs import check_log_inputs
     from impactlab.progress import console_progress
 
     check_executor(args.executor, args.address)  # a wrong option first, as record does

@@ -17,9 +17,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Describe each log; one error line per log that cannot be read (exit 1); none that can:
     one line, exit 2."""
-    from impactlab.cli.inputs import check_log_inputs
     from impactlab.errors import ImpactlabError
-    from impactlab.logs.inputs import require_logs
+    from impactlab.logs.inputs import check_log_inputs, require_logs
     from impactlab.text import terminal_text
     from impactlab.tools.info import describe
 

@@ -53,7 +53,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the recordings (and stream or serve them); exit 1 when a log failed."""
-    from impactlab.cli.inputs import check_log_inputs
+    from impactlab.logs.inputs import check_log_inputs
 
     logs = list(args.logs)
     connect = args.connect

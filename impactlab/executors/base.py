@@ -34,12 +34,14 @@ class ExecutorError(ImpactlabError):
 
 @dataclass(frozen=True)
 class TaskOutcome(Generic[R]):
-    """What one item gave: its value, or `error` (the reason) when the task failed."""
+    """What one item gave: its value, or `error` (the reason) when the task failed, with the
+    exception raised (when it could be brought back: None for a lost worker)."""
 
     index: int
     value: R | None = None
     error: str | None = None
     wall_s: float = 0.0
+    exception: BaseException | None = None
 
     @property
     def ok(self) -> bool:
@@ -83,7 +85,8 @@ class LocalExecutor:
             try:
                 value = fn(item)
             except Exception as exc:  # one failed item never stops the others
-                yield TaskOutcome(i, error=describe_error(exc), wall_s=time.perf_counter() - start)
+                wall_s = time.perf_counter() - start
+                yield TaskOutcome(i, error=describe_error(exc), wall_s=wall_s, exception=exc)
             else:
                 yield TaskOutcome(i, value=value, wall_s=time.perf_counter() - start)
 

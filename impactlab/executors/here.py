@@ -4,6 +4,7 @@ workers while this process works."""
 
 from __future__ import annotations
 
+import dataclasses
 import multiprocessing
 import os
 import threading
@@ -72,4 +73,4 @@ class HereTasks(Generic[R]):
 def _one(fn: Callable[[Any], R], items: Sequence[Any], index: int) -> TaskOutcome[R]:
     """Task `index` run in this process."""
     outcome = next(iter(LocalExecutor().map(fn, [items[index]])))
-    return TaskOutcome(index, outcome.value, outcome.error, outcome.wall_s)
+    return dataclasses.replace(outcome, index=index)

@@ -1,13 +1,17 @@
 """The processes executor: items spread over worker processes on this machine.
 
-Workers are spawned (not forked: polars and MuJoCo run thread pools, which a fork would copy
-in whatever state they are), so each pays the import of what its function needs once (about
-half a second); a batch smaller than `min_items` therefore runs here, one item after the
-other, as the local executor would, unless the workers are up already. Functions and items
-must be picklable (module-level functions, plain data), as for Ray. Asked to (`map(...,
-here=True)`, the analysis), this process runs tasks too, whenever it is free: it works from
-the start while one worker fewer start, and a worker gets tasks once it has imported the
-function's module, so a batch is never slower than in one process because of their start.
+Workers are spawned by default (a fork would copy the thread pools of polars and MuJoCo in
+whatever state they are), so each pays the import of what its function needs once (about
+half a second) and lives until `close`; a batch smaller than `min_items` therefore runs here,
+one item after the other, as the local executor would, unless the workers are up already.
+Functions and items must be picklable (module-level functions, plain data), as for Ray.
+Asked to (`map(..., here=True)`, the analysis), this process runs tasks too, whenever it is
+free: it works from the start while one worker fewer start, and a worker gets tasks once it
+has imported the function's module, so a batch is never slower than in one process because
+of their start. With `start="fork"` (the record job, from a process without other threads:
+`can_fork`), each `map` forks its workers with the function and items in their memory
+(planned runs that build their model when read), sends each task as its index and stops
+them when it ends.
 
 Each worker holds one task at a time (`impactlab.executors.workers`). So a worker that dies
 (killed, out of memory) fails only the task it had started, with the reason ("worker process
@@ -21,9 +25,12 @@ is an `ExecutorError` saying so.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import multiprocessing
 import os
+import sys
+import threading
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -47,6 +54,7 @@ from impactlab.executors.workers import (
     PRELOADED,
     READY,
     STARTED,
+    Inherited,
     death,
     importing_main,
     serve,
@@ -66,6 +74,15 @@ def available_cpus() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+def can_fork() -> bool:
+    """Whether worker processes may be forked here: Linux, and no other Python thread."""
+    return (
+        sys.platform.startswith("linux")
+        and "fork" in multiprocessing.get_all_start_methods()
+        and threading.active_count() == 1
+    )
 
 
 def refuse_in_worker_start() -> None:
@@ -88,13 +105,22 @@ class _Worker:
 
 
 class ProcessExecutor:
-    """Items over `workers` spawned processes (default: one per available CPU)."""
+    """Items over `workers` processes (default: one per available CPU), spawned or forked
+    (`start`, see the module docstring)."""
 
     name = "processes"
 
-    def __init__(self, workers: int | None = None, min_items: int = PROCESS_MIN_ITEMS) -> None:
+    def __init__(
+        self,
+        workers: int | None = None,
+        min_items: int = PROCESS_MIN_ITEMS,
+        *,
+        start: str = "spawn",
+    ) -> None:
         self.workers = max(1, workers or available_cpus())
         self.min_items = min_items
+        self.start = start
+        self._inherited: Inherited | None = None  # what forked workers hold (this `map`'s)
         self._pool: list[_Worker] | None = None  # None: no worker started (or all stopped)
         self._failed_starts = 0
         self._no_workers = False  # no worker process could be started here
@@ -113,13 +139,17 @@ class ProcessExecutor:
         workers start, and whenever they are all busy), so the batch never waits for a
         worker's start; one worker fewer is started (this process is one of the `slots`),
         and each gets tasks only once it has imported `fn`'s module. Only for functions that
-        cannot bring the process down: a task run here that crashes ends the caller.
+        cannot bring the process down: a task run here that crashes ends the caller. Not with
+        forked workers (a thread of this process would be forked with them).
         """
         refuse_in_worker_start()
         small = len(items) < self.min_items and self._pool is None
         if not items or self.workers < 2 or small or self._no_workers:
             yield from LocalExecutor().map(fn, items)
             return
+        if self.start == "fork":
+            self.close()  # workers forked for another map hold its items
+            self._inherited, here = (fn, items), False
         pool = self._pool = self._pool or []
         todo = deque(range(len(items)))
         size = min(self.workers - 1 if here else self.workers, len(items))
@@ -160,13 +190,16 @@ class ProcessExecutor:
                 self._drop(worker)
             if mine is not None:
                 mine.close()
+            if self.start == "fork":
+                self.close()
+                self._inherited = None
 
     def prestart(self, modules: Sequence[str]) -> None:
         """Start the workers a `map(..., here=True)` will use now, each importing `modules`
         first, so that they start while this process does something else (its own imports);
         they are stopped at once by `close` if no task came."""
         refuse_in_worker_start()
-        if self.workers < 2 or self._no_workers or self._pool:
+        if self.workers < 2 or self._no_workers or self._pool or self.start == "fork":
             return
         self._pool = []
         self._grow(self.workers - 1, deque([0]), tuple(modules))
@@ -177,7 +210,7 @@ class ProcessExecutor:
         pool = self._pool if self._pool is not None else []
         while todo and len(pool) < size and self._failed_starts < MAX_FAILED_STARTS:
             try:
-                worker = _start()
+                worker = _start(self.start, self._inherited)
             except OSError as exc:  # no process, pipe or memory to be had
                 self._failed_start(describe_error(exc))
                 continue
@@ -213,10 +246,10 @@ class ProcessExecutor:
         self, worker: _Worker, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
     ) -> Iterator[TaskOutcome[R]]:
         index = todo.popleft()
-        try:
-            payload = bytes(ForkingPickler.dumps((fn, items[index])))
+        try:  # a forked worker has them already
+            payload = None if self._inherited else bytes(ForkingPickler.dumps((fn, items[index])))
         except Exception as exc:  # the function or the item cannot be pickled
-            yield TaskOutcome(index, error=describe_error(exc))
+            yield TaskOutcome(index, error=describe_error(exc), exception=exc)
             return
         try:
             worker.conn.send((index, payload))
@@ -234,7 +267,7 @@ class ProcessExecutor:
             message = None
         except Exception as exc:  # its value cannot be unpickled here
             if worker.task is not None:
-                yield TaskOutcome(worker.task, error=describe_error(exc))
+                yield TaskOutcome(worker.task, error=describe_error(exc), exception=exc)
                 worker.task = None
             return
         if message is None:  # the pipe closed or the process ended: it died
@@ -249,9 +282,8 @@ class ProcessExecutor:
         elif message[0] == STARTED:
             worker.started = True
         else:
-            index, value, error, wall = message
             worker.task = None
-            yield TaskOutcome(index, value=value, error=error, wall_s=wall)
+            yield TaskOutcome(*message)
 
     def _lost(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome[Any]]:
         """A worker died: its started task fails with the reason, one not started waits."""
@@ -296,12 +328,16 @@ class ProcessExecutor:
         self.close()
 
 
-def _start() -> _Worker:
-    """Spawn one worker process and connect to it."""
-    context = multiprocessing.get_context("spawn")
+def _start(method: str, inherited: Inherited | None) -> _Worker:
+    """Start one worker process (`method`: "spawn" or "fork", with `inherited` in its memory)
+    and connect to it."""
+    fork = method == "fork"
+    context = multiprocessing.get_context("fork") if fork else multiprocessing.get_context("spawn")
     here, there = context.Pipe()
+    sys.stdout.flush()  # a forked worker would write what is buffered here again
+    sys.stderr.flush()
     process = context.Process(
-        target=serve, args=(there, os.getpid()), name="impactlab-worker", daemon=True
+        target=serve, args=(there, os.getpid(), inherited), name="impactlab-worker", daemon=True
     )
     try:
         process.start()
@@ -330,7 +366,7 @@ def _here(
     left = list(todo)
     todo.clear()
     for outcome in LocalExecutor().map(fn, [items[i] for i in left]):
-        yield TaskOutcome(left[outcome.index], outcome.value, outcome.error, outcome.wall_s)
+        yield dataclasses.replace(outcome, index=left[outcome.index])
 
 
 def _modules(fn: Callable[..., Any]) -> tuple[str, ...]:

@@ -128,7 +128,9 @@ class RayExecutor:
             value, wall_s = ray.get(ref)
         except ray.exceptions.RayTaskError as exc:  # the function raised in the task
             cause = getattr(exc, "cause", None)
-            return TaskOutcome(index, error=describe_error(cause or exc), wall_s=elapsed)
+            return TaskOutcome(
+                index, error=describe_error(cause or exc), wall_s=elapsed, exception=cause
+            )
         except ray.exceptions.RayError as exc:  # worker or node lost beyond the retries
             return TaskOutcome(index, error=describe_error(exc), wall_s=elapsed)
         return TaskOutcome(index, value=value, wall_s=wall_s)

@@ -1,11 +1,12 @@
 """The worker processes of the processes executor: each is fed one task at a time on its own
 pipe, so the parent always knows which task a worker holds.
 
-A worker is spawned (a fresh interpreter, not a fork) and talks to its parent over one
-`multiprocessing.Pipe`: it says `READY` once up, `STARTED` when it takes a task, then sends
-the task's outcome; asked to (`PRELOAD`), it imports the modules its tasks will need and
-says `PRELOADED`, so a parent that works too can give it tasks only once it runs them at
-once. No queue, lock or semaphore is shared, so the workers need no POSIX
+A worker is spawned (a fresh interpreter), or forked with the function and the items of one
+`map` in its memory (then a task is only its index, nothing is pickled), and talks to its
+parent over one `multiprocessing.Pipe`: it says `READY` once up, `STARTED` when it takes a
+task, then sends the task's outcome; asked to (`PRELOAD`), it imports the modules its tasks
+will need and says `PRELOADED`, so a parent that works too can give it tasks only once it
+runs them at once. No queue, lock or semaphore is shared, so the workers need no POSIX
 semaphores (no `/dev/shm`), and a worker that dies takes only its own task with it.
 
 A worker never outlives its parent: on Linux the kernel sends it SIGTERM when the parent dies
@@ -26,11 +27,15 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from multiprocessing.reduction import ForkingPickler
 from typing import Any
 
 from impactlab.executors.base import describe_error
+
+Inherited = tuple[Callable[[Any], Any], Sequence[Any]]
+"""A forked worker's function and items (`map`'s), in its memory since the fork."""
 
 READY = "ready"
 STARTED = "started"
@@ -70,9 +75,10 @@ def _unwind(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
-def serve(conn: Connection, parent: int) -> None:
-    """A worker's life: take (index, pickled (fn, item)) from `conn`, say it started, run it,
-    send the outcome back; until the pipe closes or None arrives."""
+def serve(conn: Connection, parent: int, inherited: Inherited | None = None) -> None:
+    """A worker's life: take (index, pickled (fn, item), or None for `inherited`'s) from
+    `conn`, say it started, run it, send the outcome back; until the pipe closes or None
+    arrives."""
     try:
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops the workers
         signal.signal(signal.SIGTERM, _unwind)
@@ -87,7 +93,7 @@ def serve(conn: Connection, parent: int) -> None:
             conn.send((STARTED, index))
             if os.environ.get(TEST_SIGKILL_TASK) == str(index):
                 os.kill(os.getpid(), signal.SIGKILL)
-            conn.send_bytes(_run(index, payload))
+            conn.send_bytes(_run(index, payload, inherited))
     except (KeyboardInterrupt, ConnectionError):  # SIGTERM, or the parent is gone
         raise SystemExit(EXIT_TERMINATED) from None
     _leave()
@@ -120,16 +126,27 @@ def _receive(conn: Connection) -> tuple[Any, Any] | None:
         return None
 
 
-def _run(index: int, payload: bytes) -> memoryview:
-    """(index, value, error, wall time) of the task, pickled: a function or item that cannot
-    be unpickled here, or a value that cannot be pickled, is the task's failure."""
+def _run(index: int, payload: bytes | None, inherited: Inherited | None) -> memoryview:
+    """(index, value, error, wall time, exception) of the task, pickled: a function or item
+    that cannot be unpickled here, or a value that cannot be pickled, is the task's failure;
+    its exception goes along when it can be pickled (else None: the error says it)."""
     start = time.perf_counter()
     try:
-        fn, item = ForkingPickler.loads(payload)
+        if payload is not None:
+            fn, item = ForkingPickler.loads(payload)
+        else:
+            assert inherited is not None  # a task without its payload goes to forked workers
+            fn, item = inherited[0], inherited[1][index]
         value = fn(item)
-        return ForkingPickler.dumps((index, value, None, time.perf_counter() - start))
+        return ForkingPickler.dumps((index, value, None, time.perf_counter() - start, None))
     except Exception as exc:  # one failed item never stops the others
-        return ForkingPickler.dumps((index, None, describe_error(exc), time.perf_counter() - start))
+        failed = (index, None, describe_error(exc), time.perf_counter() - start)
+        try:
+            data = ForkingPickler.dumps((*failed, exc))
+            ForkingPickler.loads(data)  # the parent can read it back
+            return data
+        except Exception:  # an exception that does not pickle
+            return ForkingPickler.dumps((*failed, None))
 
 
 def death(exitcode: int | None) -> str:

@@ -7,7 +7,9 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from impactlab.errors import LogError
-from impactlab.files import NOT_TEXT, is_text
+from impactlab.files import NOT_TEXT, UnreadableInput, is_text, open_regular
+
+MAGIC = b"\x89MCAP0\r\n"  # every MCAP file starts with it (`impactlab.logs.reader.MAGIC`)
 
 
 class NoLogs(LogError):
@@ -90,8 +92,9 @@ def require_log_names(
     """`require_logs` as strings (`log_names`, `text` as there).
 
     Raises:
-        NoLogs: no input names a log (a folder without logs, a pattern matching nothing).
+        NoLogs: no input names a log (`check_log_inputs`).
     """
+    check_log_inputs(inputs)
     empty: list[tuple[str, str]] = []
     paths = log_names(inputs, empty=empty, text=text)
     if not paths:
@@ -99,3 +102,38 @@ def require_log_names(
             raise NoLogs(*empty[0])
         raise NoLogs(" ".join(map(str, inputs)) or "(no input)", "none of these holds a log")
     return paths, empty
+
+
+def check_log_inputs(inputs: Sequence[str | Path]) -> None:
+    """At least one input is a file that starts as an MCAP file does, or a folder or pattern
+    that finds a log. Otherwise the command can do nothing: a mistake in it (exit 2), said
+    before any output is created. Among inputs that work, a bad one is the job's error line
+    (exit 1), and the others are done.
+
+    Raises:
+        NoLogs: no input names a log; the message names the first input and its problem.
+    """
+    problems = [_problem(Path(item)) for item in inputs]
+    if problems and problems[0] is not None and all(problems):
+        raise NoLogs(*problems[0])
+
+
+def _problem(path: Path) -> tuple[str, str] | None:
+    """What is wrong with one input, or None when it names a log."""
+    if path.is_dir() or (not path.exists() and any(c in str(path) for c in "*?[")):
+        empty: list[tuple[str, str]] = []  # a folder or pattern: does it find a log?
+        return None if log_names([path], empty=empty) else empty[0]
+    try:
+        with open_regular(path) as stream:  # never waits: a pipe is refused
+            magic = stream.read(len(MAGIC))
+    except FileNotFoundError:
+        return str(path), "file not found"
+    except UnreadableInput as exc:
+        return str(path), f"{exc}: not a log"
+    except OSError as exc:
+        return str(path), f"cannot read: {exc.strerror or exc}"
+    if magic != MAGIC:
+        spec = path.suffix in (".toml", ".xml")
+        hint = "; `impactlab record` records a spec or model" if spec else ""
+        return str(path), f"not an MCAP file (bad magic bytes){hint}"
+    return None

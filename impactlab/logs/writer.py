@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import threading
@@ -285,9 +286,11 @@ class LogWriter:
         return self.path
 
     def abort(self) -> None:
-        """Close and remove the temporary file (nothing is left behind)."""
+        """Close and remove the temporary file (nothing is left behind, also when closing
+        fails: a full disk refuses what was still buffered)."""
         if self._stream is not None:
-            self._stream.close()
+            with contextlib.suppress(OSError):
+                self._stream.close()
             self._stream = None
         self.tmp.unlink(missing_ok=True)
 

@@ -10,8 +10,6 @@ plans, keeping a sweep as its grid (`PlannedRuns`), `work` estimates and refuses
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.mjcf`,
 `impactlab.executors`, MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`,
 `impactlab.calibrate`.
-
-This package is also the function `impactlab.record(...)` (see `record` below).
 """
 
 from __future__ import annotations
@@ -20,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from impactlab.packages import callable_package, lazy_exports
+from impactlab.packages import lazy_exports
 
 if TYPE_CHECKING:
     from impactlab.executors.base import Executor
@@ -147,6 +145,3 @@ def record(
             allow_large=allow_large,
             progress=shown,
         )
-
-
-callable_package(__name__, record)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
+from impactlab.files import FULL
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path
 from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
@@ -20,18 +21,20 @@ from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
 BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
 
 Reuse = Callable[[PlannedRun], "RecordedRun | None"]
-Report = Callable[[RecordedRun], None]
 
 
 class LogWriteError(ImpactlabError):
     """A log cannot be written (a full disk): nothing more of the job can be."""
 
     def __init__(self, path: Path, problem: str, written: int) -> None:
-        self.path, self.problem = path, problem
+        self.path, self.problem, self.written = path, problem, written
         super().__init__(
             f"{path}: cannot write the log: {problem} "
             f"({written} log(s) of this job written before it are complete)"
         )
+
+    def __reduce__(self) -> tuple[type[LogWriteError], tuple[Path, str, int]]:
+        return LogWriteError, (self.path, self.problem, self.written)  # from a worker
 
 
 def batches(
@@ -39,7 +42,7 @@ def batches(
     size: int,
     *,
     reuse: Reuse | None = None,
-    report: Report = lambda _: None,
+    report: Callable[[RecordedRun], None] = lambda _: None,
     fail: Callable[[PlannedRun, str], None] = lambda run, reason: None,
 ) -> Iterator[list[RunRequest]]:
     """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built.
@@ -117,30 +120,19 @@ def record_batches(
     *,
     batch_size: int = BATCH_RUNS,
     threads: int | None = None,
-    stop_on_write_error: bool = True,
     reuse: Reuse | None = None,
-    on_run: Report = lambda _: None,
-    keep: bool = True,
 ) -> list[RecordedRun]:
-    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion
-    (none with `keep=False`: `on_run` has them all, and nothing grows with the runs here).
+    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
-    written fails its run, or, with `stop_on_write_error` (a full disk: nothing more can be
-    written), raises `LogWriteError` saying how many logs of the job are complete.
+    written for a full disk (`files.FULL`: nothing more can be written) raises `LogWriteError`
+    saying how many logs of these runs are complete; for another reason (a folder in its
+    place) it fails its run.
     `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
-    it meanwhile). `on_run` is called with each run as soon as its log is written. On any
-    exit (an error, Ctrl-C) the logs being written are removed.
+    it meanwhile). On any exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
-    written = 0
-
-    def report(run: RecordedRun) -> None:
-        nonlocal written
-        written += run.status == "recorded"
-        if keep:
-            out.append(run)
-        on_run(run)
+    report = out.append
 
     logs: dict[RunRequest, _OpenLog] = {}
     dead: set[RunRequest] = set()  # runs whose log failed: their further rows are dropped
@@ -184,7 +176,8 @@ def record_batches(
                 except Exception as exc:
                     if request in logs:
                         logs.pop(request).abort()
-                    if stop_on_write_error and isinstance(exc, OSError):
+                    if isinstance(exc, OSError) and exc.errno in FULL:  # nothing more fits
+                        written = sum(r.status == "recorded" for r in out)
                         raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)
                     fail(run, f"cannot write the log: {describe_error(exc)}")

@@ -6,17 +6,16 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
-from impactlab.executors.base import Executor
-from impactlab.executors.processes import available_cpus
+from impactlab.executors.base import Executor, LocalExecutor
+from impactlab.executors.processes import ProcessExecutor, available_cpus, can_fork
 from impactlab.files import check_writable
 from impactlab.logs.writer import PARTIAL_SUFFIX, remove_stale_partials
 from impactlab.progress import Progress, Tracker
-from impactlab.record.batch import BATCH_RUNS, record_batches
+from impactlab.record.batch import BATCH_RUNS
 from impactlab.record.folder import log_path, reusable
-from impactlab.record.forked import can_fork, record_forked
 from impactlab.record.planner import PlannedRun, Subset
 from impactlab.record.results import RecordedRun, RecordResult
-from impactlab.record.tasks import count_run, record_on
+from impactlab.record.tasks import record_on
 from impactlab.record.work import Work, check_space
 
 
@@ -37,9 +36,9 @@ def record_runs(
         runs: from `impactlab.record.planner.plan`.
         out_dir: the output folder (created); on a cluster, a path every machine sees.
         executor: where the runs are simulated (default: here, on every core: the runs are
-            shared among forked worker processes, one per core, each simulating batched
-            rollouts on one thread while it writes their logs; where forking is not safe,
-            in this process on rollout threads).
+            shared among worker processes forked for the job (`ProcessExecutor`), one per
+            core, each simulating batched rollouts on one thread while it writes their logs;
+            where forking is not safe, in this process on rollout threads).
         overwrite: record again runs whose complete log exists.
         allow_large: record even when the logs to write are estimated larger than the
             free space in `out_dir`.
@@ -63,7 +62,6 @@ def record_runs(
     by_id: dict[str, RecordedRun] = {}
     order: list[str] = []  # every run's id, in plan order
     todo: list[int] = []  # the runs to record, by their index in `runs`
-    steps: list[float] = []  # and their steps (to share the work)
     work = Work()
     # temporary files left in the folder, listed once (not one scan of it per run)
     partials = [n for n in os.listdir(out_dir) if n.endswith(PARTIAL_SUFFIX)]
@@ -77,36 +75,27 @@ def record_runs(
             if partials and any(n.startswith(f"{path.name}.") for n in partials):
                 remove_stale_partials(path)
             todo.append(index)
-            steps.append(float(run.work.steps))
             work += run.work
     check_space(work, out_dir, allow_large=allow_large)
     pending = Subset(runs, todo)
     tracker = Tracker("record", len(todo), progress, reused=len(by_id))
     if by_id:
         tracker.say(f"reused {len(by_id)} complete log(s) in {out_dir}/, running {len(todo)}")
-    reuse = None if overwrite else lambda run: reusable(out_dir, run)
     workers = min(threads or available_cpus(), len(todo))
-    if executor is not None and executor.name != "local":
-        done = record_on(executor, pending, out_dir, tracker, overwrite=overwrite, threads=threads)
-    elif workers > 1 and can_fork():
-        done = record_forked(
-            pending,
-            out_dir,
-            workers=workers,
-            batch_size=batch_size,
-            reuse=reuse,
-            on_run=lambda run: count_run(tracker, run),
-            steps=steps,
+    if executor is None or executor.name == "local":
+        forked = workers > 1 and can_fork()
+        executor = (
+            ProcessExecutor(workers, min_items=2, start="fork") if forked else LocalExecutor()
         )
-    else:
-        done = record_batches(
-            pending,
-            out_dir,
-            batch_size=batch_size,
-            threads=threads,
-            reuse=reuse,
-            on_run=lambda run: count_run(tracker, run),
-        )
+    done = record_on(
+        executor,
+        pending,
+        out_dir,
+        tracker,
+        overwrite=overwrite,
+        threads=threads,
+        batch_size=batch_size,
+    )
     by_id |= {r.run_id: r for r in done}
     del done
     return RecordResult([by_id[run_id] for run_id in order if run_id in by_id])

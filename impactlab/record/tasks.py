@@ -1,6 +1,6 @@
-"""Record runs as executor tasks (here or on a Ray cluster): small tasks, logs named by hash.
+"""Record runs as executor tasks (worker processes, a Ray cluster): small tasks, logs named by hash.
 
-The planned runs are cut into tasks (`task_groups`); each task records its runs with
+The planned runs are cut into tasks (`task_ranges`); each task records its runs with
 batched rollouts and writes their logs straight to the output folder, named by the run's
 spec hash and written atomically, so a retried task overwrites its own partial output and
 never duplicates a run. A task returns only a `RecordedRun` per run.
@@ -16,11 +16,13 @@ from pathlib import Path
 from typing import TypeVar
 
 from impactlab.executors.base import Executor
+from impactlab.executors.processes import ProcessExecutor
+from impactlab.logs.writer import remove_stale_partials
 from impactlab.progress import Tracker
-from impactlab.record.batch import record_batches
+from impactlab.record.batch import BATCH_RUNS, LogWriteError, record_batches
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.model import model_from_spec
-from impactlab.record.planner import PlannedRun
+from impactlab.record.planner import PlannedRun, Subset
 from impactlab.record.results import RecordedRun
 
 T = TypeVar("T")
@@ -46,17 +48,16 @@ def _same(value: T) -> T:
     return value
 
 
-def task_groups(runs: Sequence[T], slots: int, *, max_runs: int = MAX_TASK_RUNS) -> list[list[T]]:
-    """Consecutive runs cut into tasks: about TASKS_PER_SLOT tasks per slot, 1..max_runs runs.
+def task_ranges(runs: int, slots: int, *, max_runs: int = MAX_TASK_RUNS) -> list[range]:
+    """Consecutive runs (by index) cut into tasks: about TASKS_PER_SLOT tasks per slot,
+    1..max_runs runs each.
 
     Consecutive runs are mostly points of one sweep, so a task's runs share a batched
     rollout; several tasks per slot keep every slot busy until the end, and a task stays
     small enough that a retry costs little and results stream to the driver.
     """
-    if not runs:
-        return []
-    size = max(1, min(max_runs, math.ceil(len(runs) / (max(1, slots) * TASKS_PER_SLOT))))
-    return [list(runs[i : i + size]) for i in range(0, len(runs), size)]
+    size = max(1, min(max_runs, math.ceil(runs / (max(1, slots) * TASKS_PER_SLOT))))
+    return [range(i, min(i + size, runs)) for i in range(0, runs, size)]
 
 
 def record_group(
@@ -65,24 +66,16 @@ def record_group(
     *,
     threads: int | None = None,
     skip_complete: bool = True,
+    batch_size: int = BATCH_RUNS,
 ) -> list[RecordedRun]:
     """Record a group of planned runs (the body of one record task).
 
-    Runs whose complete log is there already (a retried task) are not simulated again. A
-    batch that fails, or a log that cannot be written, fails only its own runs.
+    Runs whose complete log is there already (a retried task, a concurrent job) are not
+    simulated again. A batch that fails, or a log that cannot be written, fails only its own
+    runs; a full disk raises `LogWriteError` (nothing more can be written).
     """
-    out: list[RecordedRun] = []
-    todo = []
-    for run in runs:
-        found = reusable(out_dir, run) if skip_complete else None
-        if found is not None:
-            out.append(found)
-        else:
-            todo.append(run)
     reuse = (lambda run: reusable(out_dir, run)) if skip_complete else None
-    return out + record_batches(
-        todo, out_dir, threads=threads, stop_on_write_error=False, reuse=reuse
-    )
+    return record_batches(runs, out_dir, batch_size=batch_size, threads=threads, reuse=reuse)
 
 
 def record_on(
@@ -93,29 +86,57 @@ def record_on(
     *,
     overwrite: bool,
     threads: int | None,
+    batch_size: int = BATCH_RUNS,
 ) -> list[RecordedRun]:
-    """Record runs (none of them reusable) as tasks of `executor`; returns every run's result."""
-    groups = task_groups([portable(r) for r in runs], executor.slots)
-    if threads is None and executor.name != "local":
+    """Record runs (none of them reusable) as tasks of `executor`; returns every run's result.
+
+    Forked workers read their runs from `runs` themselves; other executors get each run
+    `portable`. A task that fails (a worker killed) fails its runs whose log is not complete.
+
+    Raises:
+        LogWriteError: a log could not be written for a full disk; the logs counted in its
+            message are complete.
+    """
+    ranges = task_ranges(len(runs), executor.slots)
+    groups: list[Sequence[PlannedRun]]
+    if isinstance(executor, ProcessExecutor) and executor.start == "fork":
+        groups = [Subset(runs, r) for r in ranges]  # read in the workers
+    else:
+        groups = [[portable(runs[i]) for i in r] for r in ranges]
+    if executor.name != "local":
         threads = 1  # one rollout thread per task slot (a Ray task asks for one CPU)
     task = functools.partial(  # absolute: a worker's working folder is not the driver's
-        record_group, out_dir=out_dir.absolute(), threads=threads, skip_complete=not overwrite
+        record_group,
+        out_dir=out_dir.absolute(),
+        threads=threads,
+        skip_complete=not overwrite,
+        batch_size=batch_size,
     )
     out: list[RecordedRun] = []
     for outcome in executor.map(task, groups) if groups else ():
-        group = groups[outcome.index]
+        full = outcome.exception
+        if isinstance(full, LogWriteError):  # with the logs its task wrote before
+            written = sum(r.status == "recorded" for r in out) + full.written
+            raise LogWriteError(full.path, full.problem, written)
         if outcome.ok:
             done = [dataclasses.replace(s, path=out_dir / s.path.name) for s in outcome.value or []]
         else:
             reason = outcome.error or "task failed"
-            done = [
-                RecordedRun(r.info.run_id, log_path(out_dir, r), "failed", reason=reason)
-                for r in group
-            ]
+            done = [_lost(out_dir, run, reason, overwrite) for run in groups[outcome.index]]
         for run in done:
             out.append(run)
             count_run(tracker, run)
     return out
+
+
+def _lost(out_dir: Path, run: PlannedRun, reason: str, overwrite: bool) -> RecordedRun:
+    """A run of a task that failed (its worker killed): recorded when its log is complete,
+    else failed (what a dead worker was writing removed)."""
+    remove_stale_partials(log_path(out_dir, run))
+    found = None if overwrite else reusable(out_dir, run)
+    if found is not None:
+        return dataclasses.replace(found, status="recorded")
+    return RecordedRun(run.info.run_id, log_path(out_dir, run), "failed", reason=reason)
 
 
 def count_run(tracker: Tracker, run: RecordedRun) -> None:

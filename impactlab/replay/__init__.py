@@ -1,12 +1,10 @@
-"""Replay: logs (and their analysis) -> Rerun recordings; also the function `replay`."""
+"""Replay: logs (and their analysis) -> Rerun recordings, and the function `replay`."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal, overload
-
-from impactlab.packages import callable_package
 
 if TYPE_CHECKING:
     from impactlab.progress import Progress
@@ -88,6 +86,3 @@ def replay(
             progress=shown,
         )
         return Recordings(written)
-
-
-callable_package(__name__, replay)

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from specs import drop, toml
 
+from impactlab.analyze import publish as publish_module
 from impactlab.analyze.publish import LOCK, MANIFEST, publish, read_manifest, staged
 from impactlab.cli import main
 from impactlab.files import OutputError
@@ -148,7 +149,7 @@ def test_manifests_that_are_not_files_are_read_within_bounds(tmp_path, kind, mon
     elif kind == "folder":
         manifest.mkdir()
     elif kind == "huge":
-        monkeypatch.setattr("impactlab.analyze.publish.MAX_MANIFEST_BYTES", 100)
+        monkeypatch.setattr(publish_module, "MAX_MANIFEST_BYTES", 100)
         manifest.write_text(json.dumps({"files": {"x" * 200: [[1, 2, 3]]}}))
     else:
         manifest.write_text("[" * 100_000 + "]" * 100_000)

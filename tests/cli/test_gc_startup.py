@@ -27,7 +27,7 @@ def test_record_turns_the_collector_back_on_with_its_start_up_frozen(
 ):
     spec = write(tmp_path, drop(max_time=0.05))
     seen = {}
-    import impactlab.record.recorder as recorder
+    from impactlab.record import recorder
 
     real = recorder.record_runs
 

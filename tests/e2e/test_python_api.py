@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import re
 import shutil
 import subprocess
@@ -78,14 +79,19 @@ def test_nothing_prints_unless_asked(tmp_path, capfd):
     assert "reused 1 complete log(s)" in capfd.readouterr().out
 
 
-def test_stage_packages_are_their_functions():
+def test_stage_functions_are_plain_functions():
+    """`impactlab.record` and the others are the functions, also once a module of their
+    package was imported (which would set the package as the attribute)."""
     import impactlab.analyze.measure.energy  # a module of the stage still imports
     import impactlab.record.spec
+    import impactlab.replay.convert
 
-    assert callable(impactlab.record) and callable(impactlab.analyze)
-    assert impactlab.record is sys.modules["impactlab.record"]
-    assert "overrides" in str(impactlab.record.__signature__)
-    assert impactlab.plan is impactlab.record.plan
+    for name in ("record", "analyze", "replay", "plan"):
+        function = getattr(impactlab, name)
+        assert inspect.isfunction(function), name
+        assert function is getattr(sys.modules[function.__module__], name)
+    assert "overrides" in str(inspect.signature(impactlab.record))
+    assert impactlab.record.__module__ == "impactlab.record"
 
 
 def test_a_spec_document_records_like_its_file(tmp_path):
@@ -98,3 +104,19 @@ def test_a_spec_document_records_like_its_file(tmp_path):
     log = impactlab.load(run.path)
     assert log.meta["experiment"] == "tiny" and log.meta["source"] == "<python>"
     assert log.bodies["ball"].height == 26  # 0.05 s at the default 2 ms step, both ends
+
+
+@pytest.mark.parametrize("given", ["nosuch/", "nosuch.mcap", "logs/*.mcap", "not-a-log.txt"])
+def test_analyze_and_replay_of_no_log_create_nothing(tmp_path, monkeypatch, given):
+    """Inputs that name no log are a mistake (`NoLogs`, exit code 2 on the command line), said
+    before any output folder is made, as the command line says it."""
+    from impactlab.logs.inputs import NoLogs
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "not-a-log.txt").write_text("text")
+    with pytest.raises(NoLogs, match=r"nosuch|matches no file|not an MCAP file"):
+        impactlab.analyze(given, out=tmp_path / "out" / "results", figures=True, report=True)
+    with pytest.raises(NoLogs):
+        impactlab.replay(given, out=tmp_path / "out" / "replays")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["logs", "not-a-log.txt"]

@@ -295,7 +295,7 @@ def test_no_worker_can_start_runs_the_tasks_here_with_a_warning(monkeypatch, cap
 def test_workers_that_cannot_be_created_run_the_tasks_here(monkeypatch, caplog):
     """No process to be had (fork fails with EAGAIN): one warning, the tasks run here."""
 
-    def no_process():
+    def no_process(*args):
         raise OSError(errno.EAGAIN, os.strerror(errno.EAGAIN))
 
     monkeypatch.setattr(processes, "_start", no_process)

@@ -22,7 +22,7 @@ from impactlab.cli import main
 from impactlab.executors.base import LocalExecutor
 from impactlab.executors.choose import RAY_INSTALL_HINT
 from impactlab.record import plan, record_runs
-from impactlab.record.tasks import task_groups
+from impactlab.record.tasks import task_ranges
 
 pytestmark = [pytest.mark.slow, pytest.mark.extras]  # a local Ray cluster (the ray extra)
 
@@ -218,12 +218,12 @@ def test_cli_on_a_running_cluster_by_address_then_resume(ray_executor, spec_path
     ]
 
 
-def test_task_groups_give_every_slot_several_small_tasks():
-    assert task_groups([], 4) == []
-    assert [len(g) for g in task_groups(list(range(5)), 2)] == [1] * 5
-    assert [len(g) for g in task_groups(list(range(32)), 2)] == [4] * 8
-    assert [len(g) for g in task_groups(list(range(1000)), 2)] == [16] * 62 + [8]
-    assert [x for g in task_groups(list(range(37)), 3) for x in g] == list(range(37))
+def test_task_ranges_give_every_slot_several_small_tasks():
+    assert task_ranges(0, 4) == []
+    assert [len(g) for g in task_ranges(5, 2)] == [1] * 5
+    assert [len(g) for g in task_ranges(32, 2)] == [4] * 8
+    assert [len(g) for g in task_ranges(1000, 2)] == [16] * 62 + [8]
+    assert [x for g in task_ranges(37, 3) for x in g] == list(range(37))
 
 
 @pytest.mark.parametrize("command", ["record", "analyze", "lab"])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from paths import EXPERIMENTS
 
-import impactlab.record.contact_pairs as contact_pairs
+from impactlab.record import contact_pairs as contact_pairs
 from impactlab.record.planner import plan
 
 

@@ -10,8 +10,8 @@ import mujoco
 import pytest
 from paths import GOLDEN
 
-import impactlab.record.model as model_module
-import impactlab.record.planner as planner
+from impactlab.record import model as model_module
+from impactlab.record import planner as planner
 from impactlab.record.log_rows import shared_geom_contact
 from impactlab.record.tasks import portable
 

@@ -76,7 +76,7 @@ def test_recording_holds_no_planned_run_in_the_driver(tmp_path):
     """While forked workers record a sweep, the driver holds its runs as indices: when each
     run's result arrives, at most one planned run (the last one read, with its resolved
     spec) is alive here, not one per run."""
-    from impactlab.record.forked import can_fork
+    from impactlab.executors.processes import can_fork
     from impactlab.record.recorder import record_runs
 
     assert can_fork()

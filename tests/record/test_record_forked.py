@@ -1,5 +1,6 @@
-"""Recording over forked worker processes: the same logs, progress as runs finish, and every
-fault a worker can meet (killed, a bug, interrupted) ends in complete logs or none."""
+"""Recording over forked worker processes (the processes executor with `start="fork"`): the
+same logs, progress as runs finish, and every fault a worker can meet (killed, a bug,
+interrupted) ends in complete logs or none."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ import pytest
 from specs import drop, toml
 from waiting import interrupt, record_process, wait_until
 
+from impactlab.executors.processes import ProcessExecutor, can_fork
 from impactlab.progress import ProgressEvent
-from impactlab.record import forked, plan, record_runs
-from impactlab.record.forked import DIED, can_fork, share_ranges
+from impactlab.record import batch, plan, record_runs
+from impactlab.record.tasks import task_ranges
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 
@@ -27,14 +29,12 @@ def _spec(tmp_path: Path, runs: int, max_time: float = 0.3) -> Path:
     return path
 
 
-def test_shares_are_consecutive_balanced_and_never_empty(tmp_path):
-    runs = plan([_spec(tmp_path, 7)])
-    for parts in (1, 2, 3, 7, 20):
-        cut = [[runs[i] for i in r] for r in share_ranges([r.work.steps for r in runs], parts)]
-        assert [r for share in cut for r in share] == list(runs)  # consecutive, all of them
-        assert len(cut) == min(parts, len(runs)) and all(cut)
-        sizes = [len(s) for s in cut]
-        assert max(sizes) - min(sizes) <= 1, (parts, sizes)  # equal steps: equal counts
+def test_tasks_are_consecutive_and_never_empty():
+    for runs in (1, 5, 7, 37, 1000):
+        for slots in (1, 2, 3, 7, 20):
+            ranges = task_ranges(runs, slots)
+            assert [i for r in ranges for i in r] == list(range(runs))  # consecutive, all
+            assert all(ranges) and len({len(r) for r in ranges[:-1]}) <= 1  # one size
 
 
 def test_forked_logs_equal_one_process_logs(tmp_path, monkeypatch):
@@ -44,16 +44,16 @@ def test_forked_logs_equal_one_process_logs(tmp_path, monkeypatch):
     assert can_fork()
     events: list[ProgressEvent] = []
     calls = []
-    real = forked.record_forked
+    real = ProcessExecutor.map
 
-    def spy(*args, **kwargs):
-        calls.append(kwargs["workers"])
-        return real(*args, **kwargs)
+    def spy(self, *args, **kwargs):
+        calls.append((self.start, self.workers))
+        return real(self, *args, **kwargs)
 
-    monkeypatch.setattr("impactlab.record.recorder.record_forked", spy)
+    monkeypatch.setattr(ProcessExecutor, "map", spy)
     two = record_runs(runs, tmp_path / "two", threads=2, progress=events.append)
     one = record_runs(runs, tmp_path / "one", threads=1)
-    assert calls == [2]
+    assert calls == [("fork", 2)]
     assert [r.run_id for r in two] == [r.info.run_id for r in runs]
     for a, b in zip(two, one, strict=True):
         assert (a.status, a.outcome, a.steps, a.logged) == (b.status, b.outcome, b.steps, b.logged)
@@ -75,14 +75,17 @@ def test_a_killed_worker_fails_only_its_unreported_runs(tmp_path):
     by_id = {r.run_id: r for r in result}
     status = [by_id[r.info.run_id].status for r in runs]
     assert status[:2] == ["recorded"] * 2  # the other worker's share
-    assert (status[3], by_id[runs[3].info.run_id].reason) == ("failed", DIED)
+    assert by_id[runs[3].info.run_id].reason == "worker process died (exit code 9)"
+    assert status[3] == "failed"
     assert status[2] in ("recorded", "failed")  # logged before the worker died, or not
     assert sorted(p.name for p in (tmp_path / "logs").iterdir()) == sorted(
         r.path.name for r in result if r.status == "recorded"
     )
 
 
-def test_a_bug_in_a_worker_reaches_the_caller(tmp_path):
+def test_a_bug_in_a_worker_fails_its_runs_with_the_reason(tmp_path):
+    """An exception in a worker (a bug) fails the runs of its task, with the exception's
+    type and message, as on any executor; nothing is left in the folder."""
     runs = list(plan([_spec(tmp_path, 2)]))
 
     def broken(*args, **kwargs):
@@ -90,9 +93,9 @@ def test_a_bug_in_a_worker_reaches_the_caller(tmp_path):
         yield
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr("impactlab.record.batch.batches", broken)
-        with pytest.raises(RuntimeError, match="ZeroDivisionError: a bug"):
-            record_runs(runs, tmp_path / "logs", threads=2)
+        mp.setattr(batch, "batches", broken)
+        result = record_runs(runs, tmp_path / "logs", threads=2)
+    assert [(r.status, r.reason) for r in result] == [("failed", "ZeroDivisionError: a bug")] * 2
     assert not list((tmp_path / "logs").iterdir())
 
 
@@ -103,7 +106,7 @@ def test_with_another_thread_running_it_records_in_one_process(tmp_path, monkeyp
     def refuse(*args, **kwargs):
         raise AssertionError("forked with another thread running")
 
-    monkeypatch.setattr("impactlab.record.recorder.record_forked", refuse)
+    monkeypatch.setattr(ProcessExecutor, "map", refuse)
     stop = threading.Event()
     other = threading.Thread(target=stop.wait)
     other.start()
@@ -141,3 +144,19 @@ def _state(pid: int) -> str:
         return Path(f"/proc/{pid}/stat").read_text().split()[2]
     except FileNotFoundError:
         return "gone"
+
+
+@pytest.mark.parametrize("threads", [1, 2])  # here, and over forked workers
+def test_a_run_that_cannot_be_written_fails_alone(tmp_path, threads):
+    """A folder where one log should go fails that run only (not a full disk: the others
+    are written); recorded again once the folder is gone."""
+    runs = plan([_spec(tmp_path, 3)])
+    out = tmp_path / "logs"
+    blocked = out / f"{runs[1].info.run_id}.mcap"
+    blocked.mkdir(parents=True)
+    result = record_runs(runs, out, threads=threads)
+    assert [r.status for r in result] == ["recorded", "failed", "recorded"]
+    assert result[1].reason.startswith("cannot write the log: IsADirectoryError")
+    blocked.rmdir()
+    again = record_runs(runs, out, threads=threads)
+    assert [r.status for r in again] == ["reused", "recorded", "reused"]

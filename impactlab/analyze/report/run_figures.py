@@ -47,15 +47,12 @@ def draws_own_figures(sweep_index: int, sweep_size: int) -> bool:
     return sweep_index in set(chosen.tolist())
 
 
-def run_figures(
-    a: RunAnalysis, fig_dir: Path, previous: Path | None = None
-) -> list[tuple[str, Path]]:
+def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     """Draw one run's own figures (energy, first collision); returns (kind, path) in order.
 
     In a sweep of many runs only `FIGURE_RUNS_PER_SWEEP` evenly spread points get them;
     the sweep's summary figures cover every run. A figure whose inputs did not change since
-    the analysis that left its figures in `previous` is copied from there
-    (`figure_cache.drawn`).
+    the last analysis into the same folder is copied (`figure_cache.drawn`).
     """
     if not draws_own_figures(*a.run.sweep_point):
         return []
@@ -73,7 +70,7 @@ def run_figures(
     for kind, name, data in jobs:
         path = fig_dir / f"{kind}-{file_part(a.run.run_id)}.png"
         draw = functools.partial(draw_named, name, *data, title=title, path=path)
-        made.append((kind, drawn(path, figure_key(kind, *data, title), previous, draw)))
+        made.append((kind, drawn(path, figure_key(kind, *data, title), draw)))
     return made
 
 

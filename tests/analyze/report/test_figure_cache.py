@@ -135,7 +135,7 @@ def test_a_figure_failing_in_a_worker_fails_here_with_its_error(tmp_path):
 
     jobs = [(tmp_path / f"{i}.png", "key", broken) for i in range(2)]
     with pytest.raises(ValueError, match="cannot draw this"):
-        figure_cache.draw_all(jobs, None, Failing())
+        figure_cache.draw_all(jobs, Failing())
 
 
 @pytest.mark.parametrize("keep", [0.5, 0.99])
