@@ -12,6 +12,7 @@ _FIELDS = ("dist", "pos", "frame", "friction", "dim", "geom", "flex", "exclude",
 _PROBE = """<mujoco><worldbody><geom type="plane" size="1 1 1"/>
 <body pos="0 0 0.05"><freejoint/><geom size="0.1"/></body></worldbody></mujoco>"""
 
+
 def _address(array: np.ndarray) -> int:
     return int(array.__array_interface__["data"][0])
 
