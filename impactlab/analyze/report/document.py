@@ -29,6 +29,7 @@ from impactlab.analyze.report.handout import as_written
 from impactlab.files import write_text
 from impactlab.logs.labels import parameter_words
 from impactlab.show import number
+from impactlab.text import visible
 
 TITLE = "Impact lab: free fall and impact"
 STEPS: tuple[tuple[str, Callable[[Tables], questions.Answer]], ...] = (
@@ -95,7 +96,8 @@ def _problems(t: Tables) -> list[Block]:
     """The inputs not analyzed and the partial logs, if any."""
     out: list[Block] = []
     if t.failed:
-        failed = pl.DataFrame(t.failed, schema=["input", "why"], orient="row")
+        rows = [(visible(name), visible(why)) for name, why in t.failed]  # bytes not UTF-8
+        failed = pl.DataFrame(rows, schema=["input", "why"], orient="row")
         cols = (Column("input", "Input"), Column("why", "Why it was not analyzed"))
         table = Table(failed, cols, source="summary.json", limit=questions.MAIN_ROWS)
         out += [Paragraph(("Inputs not analyzed:",)), table]
