@@ -92,13 +92,17 @@ def test_jointed_links_and_rotor_energy_are_part_of_the_total(tmp_path):
 
 
 def test_welded_head_impact_is_found(humanoid):
+    """The head has no joint: welded to the torso, it is part of the torso's rigid body
+    (MuJoCo's tree, `body_weldid`), and its geom's impact on the floor is the torso's."""
     run, _ = humanoid
-    assert "head" in run.bodies  # a body without a joint, welded to the torso
+    assert "head" not in run.bodies and "head" in run.body_info["torso"].geoms
+    first_touch = run.contacts.filter(pl.col("geom2") == "head")["t_s"].min()
     hits = analyze_run(run).bounces.filter(
-        (pl.col("body") == "head") & pl.col("impact_t_s").is_not_null()
+        (pl.col("body") == "torso") & pl.col("impact_t_s").is_not_null()
     )
     assert hits.height >= 1
     first = hits.row(0, named=True)
+    assert first["impact_t_s"] == pytest.approx(first_touch, abs=1e-9)  # the head's contact
     assert first["surface"] == "floor" and first["v_in_mps"] < -1.0
     assert first["max_penetration_m"] > 1e-3
     # not ballistic: no apex heights, and the note says why
