@@ -8,7 +8,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from impactlab.text import terminal_text
+from impactlab.text import one_line
 
 COUNT_KEYS = ("finished", "unstable", "failed", "reused")
 
@@ -132,7 +132,7 @@ class ConsoleProgress:
     def _print(self, event: ProgressEvent) -> None:
         if event.line is None:
             return
-        line = terminal_text(event.line)  # it may quote a log's or a model's names
+        line = one_line(event.line)  # one line, whatever names of logs or models it quotes
         if event.level in ("error", "warning"):
             print(line, file=sys.stderr)
         elif self._bar is not None:

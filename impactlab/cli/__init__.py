@@ -25,7 +25,7 @@ from impactlab.cli import (
 )
 from impactlab.cli.options import OneLineParser, started
 from impactlab.errors import ImpactlabError
-from impactlab.text import terminal_text
+from impactlab.text import one_line
 from impactlab.version import __version__
 
 COMMANDS = (record, info, analyze, replay, diff, contact, calibrate, lab, examples)  # in help order
@@ -60,7 +60,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except ImpactlabError as exc:
-        print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
+        print(one_line(f"impactlab: error: {exc}"), file=sys.stderr)
         return exc.exit_code
     except KeyboardInterrupt:
         print("impactlab: interrupted", file=sys.stderr)

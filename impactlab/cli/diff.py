@@ -14,7 +14,7 @@ import math
 import sys
 from pathlib import Path
 
-from impactlab.text import terminal_text
+from impactlab.text import one_line, terminal_text
 from impactlab.tools import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
 
 EXIT_EQUAL, EXIT_DIFFERENT, EXIT_BAD_INPUT = 0, 1, 2
@@ -102,12 +102,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         a, b = load_log(args.a), load_log(args.b)
     except LogError as exc:  # LogError's own exit code is 1, which here means "different"
-        print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
+        print(one_line(f"impactlab: error: {exc}"), file=sys.stderr)
         return EXIT_BAD_INPUT
     for log in (a, b):
         if log.partial:  # compared all the same: the differences show what is missing
             print(
-                terminal_text(f"impactlab: warning: {log.path}: {'; '.join(log.problems)}"),
+                one_line(f"impactlab: warning: {log.path}: {'; '.join(log.problems)}"),
                 file=sys.stderr,
             )
     ignored = [*([] if args.all_meta else DEFAULT_IGNORED_META), *args.ignore_meta]

@@ -19,19 +19,19 @@ def run(args: argparse.Namespace) -> int:
     one line, exit 2."""
     from impactlab.errors import ImpactlabError
     from impactlab.logs.inputs import check_log_inputs, require_logs
-    from impactlab.text import terminal_text
+    from impactlab.text import one_line, terminal_text
     from impactlab.tools.info import describe
 
     check_log_inputs(args.logs)
     paths, empty = require_logs(args.logs)
     for where, why in empty:
-        print(terminal_text(f"impactlab: error: {where}: {why}"), file=sys.stderr)
+        print(one_line(f"impactlab: error: {where}: {why}"), file=sys.stderr)
     failed = len(empty)
     for i, path in enumerate(paths):
         try:
             text = describe(path)
         except ImpactlabError as exc:
-            print(terminal_text(f"impactlab: error: {exc}"), file=sys.stderr)
+            print(one_line(f"impactlab: error: {exc}"), file=sys.stderr)
             failed += 1
             continue
         print(terminal_text(("\n" if i else "") + text))

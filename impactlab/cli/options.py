@@ -9,7 +9,7 @@ from pathlib import Path
 
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
-from impactlab.text import terminal_text
+from impactlab.text import one_line
 
 
 def started() -> None:
@@ -70,5 +70,5 @@ class OneLineParser(argparse.ArgumentParser):
     """An argument parser whose mistakes are one line on stderr and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        line = terminal_text(f"{self.prog}: error: {message} (see {self.prog} --help)")
+        line = one_line(f"{self.prog}: error: {message} (see {self.prog} --help)")
         self.exit(2, line + "\n")

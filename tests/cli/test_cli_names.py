@@ -125,3 +125,31 @@ def test_an_output_file_of_the_longest_name_is_written(tmp_path, logs, capsys, l
     assert main(["replay", str(logs[0]), "-o", str(out)]) == 0
     assert [p.name for p in tmp_path.iterdir()] == [out.name] and out.stat().st_size > 0
     capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["analyze", "{bad}", "-o", "out"],
+        ["replay", "{bad}", "-o", "out"],
+        ["info", "{bad}"],
+        ["diff", "{bad}", "{bad}"],
+        ["record", "{bad}", "-o", "out"],
+        ["analyze", "--no-such-option\nx", "{bad}"],
+    ],
+)
+def test_a_newline_in_a_name_stays_in_its_error_line(tmp_path, capsys, monkeypatch, argv):
+    """Every error line is one line: a name holding a newline, a tab or an escape is shown
+    with them escaped, never as lines of its own or a terminal sequence."""
+    name = "bad\nimpactlab: error: forged\t\x1b[31m.mcap"
+    (tmp_path / name).write_bytes(b"not a log")
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main([a.replace("{bad}", name) for a in argv])
+    except SystemExit as exit_:  # argparse's mistakes leave by SystemExit
+        code = exit_.code
+    err = capsys.readouterr().err
+    assert code != 0
+    (line,) = [line for line in err.splitlines() if ": error: " in line]
+    assert "forged" not in line or "bad\\nimpactlab: error: forged\\t\\x1b[31m" in line
+    assert "\x1b" not in err and "\t" not in err
