@@ -16,7 +16,7 @@ from impactlab.logs import format as logformat
 from impactlab.logs.checks import MetadataCheck, check_channels, check_metadata, optional_keys
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, WORK_FIELDS
 from impactlab.logs.metadata import ANALYSIS_KEYS, Body, GeomContact, PairTarget, Surface
-from impactlab.logs.reader import read_mcap
+from impactlab.logs.reader import log_errors, read_mcap
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.show import count, html_table, plain
 
@@ -234,16 +234,8 @@ def load_log(path: str | Path) -> RunLog:
     damage and bad metadata key. LogError when the file does not exist, is not a regular
     file, is too large, is not MCAP, or holds no impactlab channel or metadata."""
     path = Path(path)
-    try:
+    with log_errors(path):
         raw = read_mcap(path, skip_topics=UNREAD_TOPICS)
-    except FileNotFoundError:
-        raise LogError(str(path), "file not found") from None
-    except IsADirectoryError:
-        raise LogError(str(path), "is a folder, not a log") from None
-    except OSError as exc:
-        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    except ValueError as exc:  # not a regular file, too large, not MCAP
-        raise LogError(str(path), str(exc)) from None
     data = [c for c in raw.channels.values() if c.schema in DATA_SCHEMAS]
     if logformat.RUN_METADATA not in raw.metadata and not any(c.pieces for c in data):
         reason = raw.problems[0] if raw.problems else "no impactlab channels or metadata"

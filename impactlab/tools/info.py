@@ -12,10 +12,10 @@ import numpy as np
 from mcap.reader import make_reader
 
 from impactlab.errors import LogError
-from impactlab.files import UnreadableInput, open_regular
+from impactlab.files import open_regular
 from impactlab.logs import format as logformat
 from impactlab.logs.checks import check_channels, check_metadata
-from impactlab.logs.reader import MAGIC, add_metadata, read_mcap
+from impactlab.logs.reader import MAGIC, add_metadata, log_errors, read_mcap
 from impactlab.text import one_line
 
 
@@ -42,22 +42,12 @@ def describe(path: Path) -> str:
     Raises:
         LogError: the file cannot be read, is not MCAP, or is truncated or damaged.
     """
-    try:
+    with log_errors(path):
         with open_regular(path) as stream:
             head = stream.read(len(MAGIC))
         if head != MAGIC:
             raise LogError(str(path), "not an MCAP file (bad magic bytes)")
         return render(path, from_summary(path) or from_reading(path))
-    except FileNotFoundError:
-        raise LogError(str(path), "file not found") from None
-    except IsADirectoryError:
-        raise LogError(str(path), "is a folder, not a log") from None
-    except UnreadableInput as exc:
-        raise LogError(str(path), f"{exc}: not a log") from None
-    except OSError as exc:
-        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    except ValueError as exc:  # not a regular file, too large
-        raise LogError(str(path), str(exc)) from None
 
 
 def from_summary(path: Path) -> Overview | None:
