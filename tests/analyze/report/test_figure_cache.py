@@ -46,12 +46,18 @@ def pngs(out: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted((out / "figures").glob("*.png"))}
 
 
-def test_unchanged_figures_are_copied_changed_ones_drawn(tmp_path, drawn, monkeypatch):
+def analyzed_drop(tmp_path: Path) -> tuple[Path, Path]:
+    """A folder holding the golden drop's log, and its analysis into `out`."""
     logs = tmp_path / "logs"
     logs.mkdir()
     shutil.copy(GOLDEN / "drop_bounces.mcap", logs)
     out = tmp_path / "out"
     assert run_analysis([logs], out).exit_code == 0
+    return logs, out
+
+
+def test_unchanged_figures_are_copied_changed_ones_drawn(tmp_path, drawn, monkeypatch):
+    logs, out = analyzed_drop(tmp_path)
     first = pngs(out)
     assert "restitution-vs-speed.png" in first and any(n.startswith("energy-") for n in first)
     assert sorted(drawn) == sorted(first)  # a new folder: everything drawn
@@ -142,11 +148,7 @@ def test_a_figure_failing_in_a_worker_fails_here_with_its_error(tmp_path):
 def test_a_damaged_figure_is_drawn_again(tmp_path, drawn, keep):
     """A PNG of the last analysis cut short (a full disk, a copy interrupted) is never
     published again: its key is not trusted, the figure is drawn anew and whole."""
-    logs = tmp_path / "logs"
-    logs.mkdir()
-    shutil.copy(GOLDEN / "drop_bounces.mcap", logs)
-    out = tmp_path / "out"
-    assert run_analysis([logs], out).exit_code == 0
+    logs, out = analyzed_drop(tmp_path)
     first = pngs(out)
     energy = next(n for n in first if n.startswith("energy-"))
     whole = first[energy]
