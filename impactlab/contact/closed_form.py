@@ -17,13 +17,36 @@ RESTITUTION_FLOOR = math.exp(-2.0)
 ZETA_MAX = 1.0
 
 
-def positive(name: str, value: float | None) -> float:
+LIMITS = {
+    "speed": (1e-4, 1e4, "m/s"),
+    "timestep_s": (1e-9, 1.0, "s"),
+    "radius_m": (1e-6, 1e3, "m"),
+    "max_penetration_m": (1e-9, 1e3, "m"),
+    "max_penetration_fraction": (1e-9, 1e3, ""),
+    "duration_s": (1e-9, 10.0, "s"),
+    "gravity_mps2": (0.0, 1e4, "m/s^2"),
+}
+"""What the designer handles; outside, one clear error instead of overflowing arithmetic."""
+
+
+def checked(name: str, value: object, key: str | None = None) -> float:
+    """`value` as a positive number (>= 0 where LIMITS allows 0) within LIMITS[key or name].
+
+    Raises:
+        ContactModelError: not a number, not positive, or outside LIMITS.
+    """
+    lo, hi, unit = LIMITS[key or name]
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError):
-        raise ContactModelError(f"{name} must be a positive number, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ContactModelError(f"{name} must be a positive number, got {value!r}")
+        x = math.nan
+    if not math.isfinite(x) or x < 0.0 or (x == 0.0 and lo > 0.0):
+        kind = "a positive number" if lo > 0.0 else "a number >= 0"
+        raise ContactModelError(f"{name} must be {kind}, got {value!r}")
+    if not lo <= x <= hi:
+        raise ContactModelError(
+            f"{name} = {x:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
+        )
     return x
 
 

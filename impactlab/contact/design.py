@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 
@@ -13,9 +12,9 @@ from impactlab.contact.calibration import Evaluation, evaluate, params_from, shi
 from impactlab.contact.closed_form import (
     ContactModelError,
     check_restitution,
+    checked,
     contact_time_factor,
     max_penetration_factor,
-    positive,
     zeta_for_restitution,
 )
 from impactlab.contact.emulation import scheme_of
@@ -38,38 +37,6 @@ step phases). The rest of ``PHASE_BUDGET`` goes to the phase error, so the times
 depends on how wide the range is."""
 
 
-LIMITS = {
-    "speed": (1e-4, 1e4, "m/s"),
-    "timestep_s": (1e-9, 1.0, "s"),
-    "radius_m": (1e-6, 1e3, "m"),
-    "max_penetration_m": (1e-9, 1e3, "m"),
-    "duration_s": (1e-9, 10.0, "s"),
-    "gravity_mps2": (0.0, 1e4, "m/s^2"),
-}
-"""What the designer handles; outside, one clear error instead of overflowing arithmetic."""
-
-
-def _checked(name: str, value: object, key: str | None = None) -> float:
-    """`value` as a positive number (>= 0 where LIMITS allows 0) within LIMITS[key or name].
-
-    Raises:
-        ContactModelError: not a number, not positive, or outside LIMITS.
-    """
-    lo, hi, unit = LIMITS[key or name]
-    try:
-        x = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        x = math.nan
-    if not math.isfinite(x) or x < 0.0 or (x == 0.0 and lo > 0.0):
-        kind = "a positive number" if lo > 0.0 else "a number >= 0"
-        raise ContactModelError(f"{name} must be {kind}, got {value!r}")
-    if not lo <= x <= hi:
-        raise ContactModelError(
-            f"{name} = {x:g} {unit} is outside what the designer handles ({lo:g} .. {hi:g})"
-        )
-    return x
-
-
 def speed_range(
     speed_range_mps: Sequence[float] | None, impact_speed_mps: float | None
 ) -> tuple[float, float]:
@@ -81,7 +48,7 @@ def speed_range(
     if (speed_range_mps is None) == (impact_speed_mps is None):
         raise ContactModelError("give speed_range_mps = (v_lo, v_hi) or impact_speed_mps")
     if impact_speed_mps is not None:
-        v = _checked("impact_speed_mps", impact_speed_mps, "speed")
+        v = checked("impact_speed_mps", impact_speed_mps, "speed")
         return v, v
     try:
         lo, hi = speed_range_mps  # type: ignore[misc]
@@ -89,49 +56,10 @@ def speed_range(
         raise ContactModelError(
             f"speed_range_mps must be two speeds (v_lo, v_hi), got {speed_range_mps!r}"
         ) from None
-    lo, hi = _checked("v_lo", lo, "speed"), _checked("v_hi", hi, "speed")
+    lo, hi = checked("v_lo", lo, "speed"), checked("v_hi", hi, "speed")
     if lo > hi:
         raise ContactModelError(f"speed_range_mps must have v_lo <= v_hi, got ({lo:g}, {hi:g})")
     return lo, hi
-
-
-def design_inputs(
-    restitution: float,
-    *,
-    radius_m: float | None,
-    timestep_s: float,
-    speed_range_mps: Sequence[float] | None,
-    impact_speed_mps: float | None,
-    integrator: str,
-    duration_s: float | None,
-    max_penetration_m: float | None,
-    max_penetration_fraction: float,
-    gravity_mps2: float,
-) -> tuple[float, tuple[float, float], float, float, float | None, float | None]:
-    """Checked inputs: (e, (v_lo, v_hi), dt, g, penetration bound or None, duration or None).
-
-    Raises:
-        ContactModelError: a value of the wrong type or outside LIMITS, both a duration and
-            a max penetration, or none of radius, max penetration and duration.
-    """
-    e = check_restitution(restitution)
-    speeds = speed_range(speed_range_mps, impact_speed_mps)
-    dt = _checked("timestep_s", timestep_s)
-    scheme_of(integrator)
-    g = _checked("gravity_mps2", gravity_mps2)
-    bound = duration = None
-    if duration_s is not None and max_penetration_m is not None:
-        raise ContactModelError("give duration_s or max_penetration_m, not both")
-    if duration_s is not None:
-        duration = _checked("duration_s", duration_s)
-    elif max_penetration_m is not None:
-        bound = _checked("max_penetration_m", max_penetration_m)
-    elif radius_m is None:
-        raise ContactModelError("give a radius, a max penetration or a contact duration")
-    else:
-        fraction = positive("max_penetration_fraction", max_penetration_fraction)
-        bound = fraction * _checked("radius_m", radius_m)
-    return e, speeds, dt, g, bound, duration
 
 
 def design_stiffness(
@@ -195,20 +123,27 @@ def design_contact(
         when the timestep cannot resolve the contact.
 
     Raises:
-        ContactModelError: invalid input or an unreachable target.
+        ContactModelError: an unreachable target; a value of the wrong type or outside
+            LIMITS; both a duration and a max penetration; none of radius, max penetration
+            and duration.
     """
-    e, (lo, hi), dt, g, bound, duration = design_inputs(
-        restitution,
-        radius_m=radius_m,
-        timestep_s=timestep_s,
-        speed_range_mps=speed_range_mps,
-        impact_speed_mps=impact_speed_mps,
-        integrator=integrator,
-        duration_s=duration_s,
-        max_penetration_m=max_penetration_m,
-        max_penetration_fraction=max_penetration_fraction,
-        gravity_mps2=gravity_mps2,
-    )
+    e = check_restitution(restitution)
+    lo, hi = speed_range(speed_range_mps, impact_speed_mps)
+    dt = checked("timestep_s", timestep_s)
+    scheme_of(integrator)
+    g = checked("gravity_mps2", gravity_mps2)
+    bound = duration = None
+    if duration_s is not None and max_penetration_m is not None:
+        raise ContactModelError("give duration_s or max_penetration_m, not both")
+    if duration_s is not None:
+        duration = checked("duration_s", duration_s)
+    elif max_penetration_m is not None:
+        bound = checked("max_penetration_m", max_penetration_m)
+    elif radius_m is None:
+        raise ContactModelError("give a radius, a max penetration or a contact duration")
+    else:
+        fraction = checked("max_penetration_fraction", max_penetration_fraction)
+        bound = fraction * checked("radius_m", radius_m)
     speeds = shift_speeds(lo, hi)
     ev = design_stiffness(
         e, bound_m=bound, duration_s=duration, dt=dt, speeds=speeds, g=g, integrator=integrator

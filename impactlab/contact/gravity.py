@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from impactlab.contact.closed_form import ContactModelError, positive
+from impactlab.contact.closed_form import ContactModelError, checked
 from impactlab.contact.emulation import emulate_surface, scheme_of, speed_in
 from impactlab.contact.fast import impact_fast
 from impactlab.contact.params import ContactParams
@@ -74,12 +74,10 @@ def restitution_spread(
     speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
     if not np.all(speeds > 0.0):
         raise ContactModelError(f"impact speeds must be positive, got {impact_speed_mps!r}")
-    g = float(gravity_mps2)
-    if not math.isfinite(g) or g < 0.0:
-        raise ContactModelError(f"gravity_mps2 must be >= 0, got {gravity_mps2!r}")
+    g = checked("gravity_mps2", gravity_mps2)
     w0 = math.sqrt(params.stiffness)
     zeta = params.damping / (2.0 * w0)
-    h = w0 * positive("timestep_s", timestep_s)
+    h = w0 * checked("timestep_s", timestep_s)
     ph = (np.arange(phases) + 0.5) / phases
     gr = (g / (w0 * speeds))[:, None]
     _, surface, _ = emulate_surface(zeta, h, ph[None, :], gr, integrator=params.integrator)
