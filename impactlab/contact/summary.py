@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -97,16 +98,10 @@ def design_lines(
     return lines
 
 
-def _prediction(pred: Prediction, target: float) -> dict[str, Any] | None:
-    if not pred.speeds_mps:
-        return None
+def _prediction(pred: Prediction, target: float) -> dict[str, Any]:
     lo, hi = pred.e_range()
     return {
-        "speeds_mps": list(pred.speeds_mps),
-        "mean": list(pred.mean),
-        "lowest": list(pred.lowest),
-        "highest": list(pred.highest),
-        "in_range": list(pred.in_range),
+        **dataclasses.asdict(pred),
         "e_lowest_in_range": lo,
         "e_highest_in_range": hi,
         "worst_error_in_range": pred.worst_error(target),
@@ -114,20 +109,9 @@ def _prediction(pred: Prediction, target: float) -> dict[str, Any] | None:
 
 
 def params_dict(p: ContactParams) -> dict[str, Any]:
-    """The parameters and the designer's own (table) predictions."""
-    return {
-        "solref": list(p.solref),
-        "solimp": list(p.solimp),
-        "stiffness": p.stiffness,
-        "damping": p.damping,
-        "zeta": p.zeta,
-        "duration_s": p.duration_s,
-        "steps_per_contact": p.steps_per_contact,
-        "max_penetration_m": p.max_penetration_m,
-        "gravity_shift": p.gravity_shift,
-        "gravity_spread": p.gravity_spread,
-        "phase_error": p.phase_error,
-    }
+    """The parameters, what they were designed for and the designer's own (table)
+    predictions."""
+    return {**dataclasses.asdict(p), "steps_per_contact": p.steps_per_contact}
 
 
 def design_dict(
@@ -142,12 +126,7 @@ def design_dict(
     out: dict[str, Any] = {
         "ok": design.ok,
         "problem": design.problem,
-        "restitution": p.restitution,
         "tolerance": RESTITUTION_TOLERANCE,
-        "speed_range_mps": list(p.speed_range_mps),
-        "timestep_s": p.timestep_s,
-        "integrator": p.integrator,
-        "gravity_mps2": p.gravity_mps2,
         **params_dict(p),
         "predicted": _prediction(design.prediction, p.restitution),
         "mjcf_pair": pair_element or p.mjcf_pair(geom1, geom2),
