@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
+from impactlab.contact.calibration import Evaluation, Request, evaluate, shift_speeds
 from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
@@ -56,19 +56,20 @@ class ContactDesign:
     """A designed contact and how well it meets its target (`design_contact`).
 
     Attributes:
-        params: the designed contact (for the given timestep, even when too coarse).
-        evaluation: its stiffness evaluated (zeta, the predicted errors).
-        speeds: the speeds gravity's shift was evaluated at, m/s.
+        evaluation: its stiffness evaluated for the request (zeta, the predicted errors).
         problem: why the timestep does not resolve it, or None.
         timestep_max_s: the largest timestep at which this contact meets the target (None
             when the timestep is fine or no timestep helps).
     """
 
-    params: ContactParams
     evaluation: Evaluation
-    speeds: np.ndarray
     problem: str | None = None
     timestep_max_s: float | None = None
+
+    @functools.cached_property
+    def params(self) -> ContactParams:
+        """The designed contact (for the given timestep, even when too coarse)."""
+        return self.evaluation.params
 
     @property
     def ok(self) -> bool:
@@ -82,14 +83,12 @@ class ContactDesign:
 
     @functools.cached_property
     def _best_evaluation(self) -> Evaluation | None:
-        return None if self.ok else _best(self.params, self.speeds, self.evaluation)
+        return None if self.ok else _best(self.evaluation)
 
     @property
     def best(self) -> ContactParams | None:
         """The most accurate contact at the given timestep (None when ok)."""
-        return (
-            None if self._best_evaluation is None else _params(self.params, self._best_evaluation)
-        )
+        return None if self._best_evaluation is None else self._best_evaluation.params
 
     @functools.cached_property
     def best_prediction(self) -> Prediction | None:
@@ -103,11 +102,11 @@ class ContactDesign:
         best = self._best_evaluation
         if best is None or not best.resolved or best.w0 >= self.evaluation.w0:
             return None
-        soft = _stiffest_ok(self.params, self.speeds, best, self.evaluation.w0)
+        soft = _stiffest_ok(best, self.evaluation.w0)
         # a little softer than the edge: the designer asked for that penetration makes the
         # contact 0.5 % stiffer than the bound needs
-        eased = _try(self.params, self.speeds, max(best.w0, 0.97 * soft.w0))
-        return _params(self.params, eased if eased is not None and eased.resolved else soft)
+        eased = _try(best.request, max(best.w0, 0.97 * soft.w0))
+        return (eased if eased is not None and eased.resolved else soft).params
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -144,31 +143,25 @@ def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> P
     )
 
 
-def _params(p: ContactParams, ev: Evaluation) -> ContactParams:
-    """The contact of another stiffness for the same request as `p`."""
-    return params_from(
-        ev, p.restitution, p.speed_range_mps, p.timestep_s, p.gravity_mps2, p.integrator
-    )
-
-
-def _try(p: ContactParams, speeds: np.ndarray, w0: float) -> Evaluation | None:
+def _try(request: Request, w0: float) -> Evaluation | None:
     try:
-        return evaluate(p.restitution, w0, p.timestep_s, speeds, p.gravity_mps2, p.integrator)
+        return evaluate(request, w0)
     except ContactModelError:
         return None
 
 
-def _best(asked: ContactParams, speeds: np.ndarray, designed: Evaluation) -> Evaluation | None:
+def _best(designed: Evaluation) -> Evaluation | None:
     """The stiffness with the smallest predicted error at dt (golden section in log w0, up to
     four times the designed one)."""
-    dt, g = asked.timestep_s, asked.gravity_mps2
+    asked = designed.request
+    dt, g, speeds = asked.timestep_s, asked.gravity_mps2, asked.speeds
     w_hi = min(designed.w0 * 4.0, designed.w0dt_max / dt)
     w_lo = w_hi * 1e-4 if g <= 0.0 else max(g / (0.3 * float(speeds.min())), w_hi * 1e-4)
     if w_lo >= w_hi:
         return None
 
     def cost(lw: float) -> float:
-        ev = _try(asked, speeds, math.exp(lw))
+        ev = _try(asked, math.exp(lw))
         return math.inf if ev is None else ev.error
 
     a, b = math.log(w_lo), math.log(w_hi)
@@ -184,18 +177,16 @@ def _best(asked: ContactParams, speeds: np.ndarray, designed: Evaluation) -> Eva
             a, c, fc = c, d, fd
             d = a + r * (b - a)
             fd = cost(d)
-    return _try(asked, speeds, math.exp(c if fc <= fd else d))
+    return _try(asked, math.exp(c if fc <= fd else d))
 
 
-def _stiffest_ok(
-    asked: ContactParams, speeds: np.ndarray, soft: Evaluation, stiff_w0: float
-) -> Evaluation:
+def _stiffest_ok(soft: Evaluation, stiff_w0: float) -> Evaluation:
     """The stiffest w0 between soft.w0 (meets the target) and stiff_w0 (does not) that does."""
     lo, hi = soft.w0, stiff_w0
     best = soft
     for _ in range(30):
         mid = math.sqrt(lo * hi)
-        ev = _try(asked, speeds, mid)
+        ev = _try(soft.request, mid)
         if ev is not None and ev.resolved:
             lo, best = mid, ev
         else:

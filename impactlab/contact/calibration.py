@@ -15,17 +15,40 @@ from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, tab
 
 
 @dataclass(frozen=True)
-class Evaluation:
-    """One stiffness evaluated: calibrated zeta and the predicted errors (units of e)."""
+class Request:
+    """What a contact must deliver: e within the tolerance of `e` at every normal impact
+    speed in `speed_range_mps` (m/s), at a timestep (s) and integrator, under gravity along
+    the normal (m/s^2; 0 for two free bodies)."""
 
+    e: float
+    speed_range_mps: tuple[float, float]
+    timestep_s: float
+    integrator: str
+    gravity_mps2: float
+
+    @property
+    def speeds(self) -> np.ndarray:
+        """Where gravity's shift is evaluated (`shift_speeds`), m/s."""
+        return shift_speeds(*self.speed_range_mps)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One stiffness evaluated for a request: calibrated zeta and the predicted errors (units
+    of e)."""
+
+    request: Request
     w0: float
     zeta: float
     shift: float  # centre of gravity's shift over the range, calibrated out
     spread: float  # half the change of e by gravity across the range
     phase: float  # worst-case phase error at this w0 * dt
     pen: float  # worst-case penetration factor w0 x_max / v_in
-    w0dt: float
     w0dt_max: float  # the table's coarsest step
+
+    @property
+    def w0dt(self) -> float:
+        return self.w0 * self.request.timestep_s
 
     @property
     def error(self) -> float:
@@ -37,6 +60,28 @@ class Evaluation:
         """The timestep resolves this contact: the predicted worst case within PHASE_BUDGET
         (the tolerance minus 0.001 for the table's interpolation), inside the table."""
         return self.w0dt <= self.w0dt_max * (1.0 + 1e-9) and self.error <= PHASE_BUDGET + 1e-6
+
+    @property
+    def params(self) -> ContactParams:
+        """The contact parameters of this stiffness."""
+        r, w0, k = self.request, self.w0, self.w0 * self.w0
+        return ContactParams(
+            solref=(-k, -2.0 * self.zeta * w0),
+            solimp=SOLIMP,
+            stiffness=k,
+            damping=2.0 * self.zeta * w0,
+            zeta=self.zeta,
+            duration_s=contact_time_factor(self.zeta) / w0,
+            max_penetration_m=r.speed_range_mps[1] * self.pen / w0,
+            restitution=r.e,
+            speed_range_mps=r.speed_range_mps,
+            timestep_s=r.timestep_s,
+            integrator=r.integrator,
+            gravity_mps2=r.gravity_mps2,
+            gravity_shift=self.shift,
+            gravity_spread=self.spread,
+            phase_error=self.phase,
+        )
 
 
 def shift_speeds(lo: float, hi: float) -> np.ndarray:
@@ -50,15 +95,8 @@ def shift_speeds(lo: float, hi: float) -> np.ndarray:
     return np.geomspace(lo, hi, n)
 
 
-def evaluate(
-    e: float,
-    w0: float,
-    dt: float,
-    speeds: np.ndarray,
-    g: float,
-    integrator: str,
-) -> Evaluation:
-    """Calibrate zeta at stiffness w0**2 for target e and predict the errors.
+def evaluate(request: Request, w0: float) -> Evaluation:
+    """Calibrate zeta at stiffness w0**2 for the request and predict the errors.
 
     zeta and gravity's shift depend on each other: a few fixed-point iterations. The shift is
     piecewise constant in zeta (the step in which the ball is back at the surface jumps by one
@@ -67,9 +105,11 @@ def evaluate(
     Raises:
         ContactModelError: gravity's shift cannot be calibrated out at this stiffness.
     """
+    e, g, integrator = request.e, request.gravity_mps2, request.integrator
+    speeds = request.speeds
     scheme = scheme_of(integrator)
     cap = table(scheme).w0dt_max
-    h = min(w0 * dt, cap)
+    h = min(w0 * request.timestep_s, cap)
     ratios = g / (w0 * speeds) if g > 0.0 else np.zeros(speeds.size)
     shift, spread, step = 0.0, 0.0, 0.0
     for _ in range(12):
@@ -89,7 +129,7 @@ def evaluate(
         )
     zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
     _, phase, pen = discrete(zeta, h, scheme)
-    return Evaluation(w0, zeta, shift, spread, phase, pen, w0 * dt, cap)
+    return Evaluation(request, w0, zeta, shift, spread, phase, pen, cap)
 
 
 def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
@@ -102,32 +142,3 @@ def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:
             "contact"
         )
     return target
-
-
-def params_from(
-    ev: Evaluation,
-    e: float,
-    speeds: tuple[float, float],
-    dt: float,
-    g: float,
-    integrator: str,
-) -> ContactParams:
-    """The ContactParams of an evaluated stiffness."""
-    k = ev.w0 * ev.w0
-    return ContactParams(
-        solref=(-k, -2.0 * ev.zeta * ev.w0),
-        solimp=SOLIMP,
-        stiffness=k,
-        damping=2.0 * ev.zeta * ev.w0,
-        zeta=ev.zeta,
-        duration_s=contact_time_factor(ev.zeta) / ev.w0,
-        max_penetration_m=speeds[1] * ev.pen / ev.w0,
-        restitution=e,
-        speed_range_mps=speeds,
-        timestep_s=dt,
-        integrator=integrator,
-        gravity_mps2=g,
-        gravity_shift=ev.shift,
-        gravity_spread=ev.spread,
-        phase_error=ev.phase,
-    )

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 
-import numpy as np
-
 from impactlab.contact.advice import ContactDesign
-from impactlab.contact.calibration import Evaluation, evaluate, params_from, shift_speeds
+from impactlab.contact.calibration import Evaluation, Request, evaluate
 from impactlab.contact.closed_form import (
     ContactModelError,
     check_restitution,
@@ -63,30 +62,23 @@ def speed_range(
 
 
 def design_stiffness(
-    e: float,
-    *,
-    bound_m: float | None,
-    duration_s: float | None,
-    dt: float,
-    speeds: np.ndarray,
-    g: float,
-    integrator: str,
+    request: Request, *, bound_m: float | None, duration_s: float | None
 ) -> Evaluation:
     """The stiffness rule (module docstring) and the calibrated contact it gives."""
+    e, g, speeds = request.e, request.gravity_mps2, request.speeds
     v_hi = float(speeds.max())
     if duration_s is not None:
         w0 = contact_time_factor(zeta_for_restitution(e)) / duration_s
         for _ in range(5):
-            ev = evaluate(e, w0, dt, speeds, g, integrator)
-            w0 = contact_time_factor(ev.zeta) / duration_s
-        return evaluate(e, w0, dt, speeds, g, integrator)
+            w0 = contact_time_factor(evaluate(request, w0).zeta) / duration_s
+        return evaluate(request, w0)
     assert bound_m is not None
     w0 = v_hi * max_penetration_factor(zeta_for_restitution(e)) / bound_m
     if g > 0.0:  # start where gravity's effect is small: the iteration softens if it may
         w0 = max(w0, g / (GRAVITY_RATIO_START * float(speeds.min())))
     for _ in range(16):
         try:
-            ev = evaluate(e, w0, dt, speeds, g, integrator)
+            ev = evaluate(request, w0)
         except ContactModelError:  # gravity's shift too large to calibrate out: stiffer
             w0 *= 4.0
             continue
@@ -97,7 +89,7 @@ def design_stiffness(
         if abs(new - w0) <= 1e-4 * w0:
             break
         w0 = new
-    return evaluate(e, w0, dt, speeds, g, integrator)
+    return evaluate(request, w0)
 
 
 def design_contact(
@@ -127,11 +119,14 @@ def design_contact(
             LIMITS; both a duration and a max penetration; none of radius, max penetration
             and duration.
     """
-    e = check_restitution(restitution)
-    lo, hi = speed_range(speed_range_mps, impact_speed_mps)
-    dt = checked("timestep_s", timestep_s)
     scheme_of(integrator)
-    g = checked("gravity_mps2", gravity_mps2)
+    request = Request(
+        check_restitution(restitution),
+        speed_range(speed_range_mps, impact_speed_mps),
+        checked("timestep_s", timestep_s),
+        integrator,
+        checked("gravity_mps2", gravity_mps2),
+    )
     bound = duration = None
     if duration_s is not None and max_penetration_m is not None:
         raise ContactModelError("give duration_s or max_penetration_m, not both")
@@ -144,17 +139,13 @@ def design_contact(
     else:
         fraction = checked("max_penetration_fraction", max_penetration_fraction)
         bound = fraction * checked("radius_m", radius_m)
-    speeds = shift_speeds(lo, hi)
-    ev = design_stiffness(
-        e, bound_m=bound, duration_s=duration, dt=dt, speeds=speeds, g=g, integrator=integrator
-    )
-    params = params_from(ev, e, (lo, hi), dt, g, integrator)
+    ev = design_stiffness(request, bound_m=bound, duration_s=duration)
     if ev.resolved:
-        return ContactDesign(params, ev, speeds)
+        return ContactDesign(ev)
     dt_max = None
-    if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
-        dt_max = accepted_largest_timestep(params, bound, duration)
-    return ContactDesign(params, ev, speeds, timestep_problem(params, dt_max), dt_max)
+    if ev.spread < PHASE_BUDGET:  # the bound as printed is accepted when used
+        dt_max = accepted_largest_timestep(ev, bound, duration)
+    return ContactDesign(ev, timestep_problem(ev.params, dt_max), dt_max)
 
 
 def contact_params(
@@ -220,32 +211,17 @@ def contact_params(
 
 
 def accepted_largest_timestep(
-    params: ContactParams, bound_m: float | None, duration_s: float | None
+    designed: Evaluation, bound_m: float | None, duration_s: float | None
 ) -> float:
     """The largest timestep (three significant digits, as messages print it) at which the
     same request (target, speeds, penetration bound or duration) is met by the design made
     for that timestep: a timestep named as the bound is accepted when used as printed."""
-    e, (lo, hi), g, integrator = (
-        params.restitution,
-        params.speed_range_mps,
-        params.gravity_mps2,
-        params.integrator,
-    )
-    speeds = shift_speeds(lo, hi)
 
     def passes(dt: float) -> bool:
+        request = dataclasses.replace(designed.request, timestep_s=dt)
         try:
-            ev = design_stiffness(
-                e,
-                bound_m=bound_m,
-                duration_s=duration_s,
-                dt=dt,
-                speeds=speeds,
-                g=g,
-                integrator=integrator,
-            )
+            return design_stiffness(request, bound_m=bound_m, duration_s=duration_s).resolved
         except ContactModelError:
             return False
-        return ev.resolved
 
-    return accepted_timestep(largest_timestep(params), passes)
+    return accepted_timestep(largest_timestep(designed), passes)

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 
-from impactlab.contact.calibration import evaluate, shift_speeds
+from impactlab.contact.calibration import Evaluation, evaluate
 from impactlab.contact.closed_form import ContactModelError
-from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE, table
+from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
 
 
 def timestep_problem(params: ContactParams, timestep_max_s: float | None) -> str:
@@ -34,20 +34,18 @@ def timestep_problem(params: ContactParams, timestep_max_s: float | None) -> str
     )
 
 
-def largest_timestep(params: ContactParams) -> float:
-    """The largest timestep at which the contact's stiffness meets the tolerance (about 1 %):
+def largest_timestep(designed: Evaluation) -> float:
+    """The largest timestep at which the designed stiffness meets the tolerance (about 1 %):
     halved from the table's coarsest step until it does, then bisected."""
-    e, integrator, g = params.restitution, params.integrator, params.gravity_mps2
-    speeds = shift_speeds(*params.speed_range_mps)
-    w0 = math.sqrt(params.stiffness)
+    w0 = designed.w0
 
     def ok(dt: float) -> bool:
         try:
-            return evaluate(e, w0, dt, speeds, g, integrator).resolved
+            return evaluate(dataclasses.replace(designed.request, timestep_s=dt), w0).resolved
         except ContactModelError:
             return False
 
-    hi = table(scheme_of(integrator)).w0dt_max / w0
+    hi = designed.w0dt_max / w0
     if ok(hi):
         return hi
     lo = hi / 2.0
