@@ -103,7 +103,6 @@ def generate_table(scheme: str = "euler") -> TableDocument:
 class Table:
     zeta: np.ndarray
     log_w0dt: np.ndarray
-    closed: np.ndarray
     delta: np.ndarray
     half: np.ndarray
     pen: np.ndarray
@@ -143,7 +142,6 @@ def table(scheme: str = "euler") -> Table:
     return Table(
         zeta=zeta,
         log_w0dt=np.log(np.asarray(raw["w0dt"], float)),
-        closed=np.array([restitution_closed_form(z) for z in zeta]),
         delta=np.asarray(raw["delta"], float),
         half=np.asarray(raw["half"], float),
         pen=np.asarray(raw["pen"], float),

@@ -53,15 +53,16 @@ def _indent(raw: bytes, pos: int) -> bytes:
 
 
 def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]], source: str) -> bytes:
-    """The model's bytes with a ``<pair>`` element per (geom1, geom2, element) added.
+    """The model's bytes with a ``<pair>`` element per (geom1, geom2, element) added (each
+    pair of geoms given once).
 
     A ``<pair>`` of the same two geoms in the model's top-level ``<contact>`` is replaced;
     the others go into that ``<contact>`` (or a new one before ``</mujoco>``). Every other
     byte is kept: the new text is written in the file's encoding and with its line ends.
 
     Raises:
-        SpecError: the text (of the file `source`) is not XML with a ``<mujoco>`` root, a
-            pair is given twice, or a name cannot be written in the file's encoding.
+        SpecError: the text (of the file `source`) is not XML with a ``<mujoco>`` root,
+            or a name cannot be written in the file's encoding.
     """
     charset = encoding(raw, source)
     if "<".encode(charset, errors="replace") != b"<":
@@ -70,11 +71,6 @@ def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]], source: str
     layout = _layout(raw, source)
     if layout.root_end is None:
         raise SpecError(source, "", "the model has no <mujoco> root element with an end tag")
-    keys = [frozenset((g1, g2)) for g1, g2, _ in elements]
-    for i, key in enumerate(keys):
-        if key in keys[:i]:
-            g1, g2, _ = elements[i]
-            raise SpecError(source, "", f"the pair {g1}/{g2} is given twice")
     edits: list[tuple[int, int, bytes]] = []
     new: list[bytes] = []
     for g1, g2, element in elements:
