@@ -99,15 +99,10 @@ def contact_time_factor(zeta: float) -> float:
         w0 * t_c (dimensionless): pi at zeta = 0, 2 at zeta = 1.
     """
     z = check_zeta(zeta)
-    if z == 0.0:
-        return math.pi
     if z < 1.0:
         w = math.sqrt(1.0 - z * z)
-        if z < math.sqrt(0.5):
-            return (math.pi - math.atan(2.0 * z * w / (w * w - z * z))) / w
-        if z * z - w * w == 0.0:
-            return (math.pi / 2.0) / w
-        return math.atan(2.0 * z * w / (z * z - w * w)) / w
+        # atan2 joins the paper's two underdamped branches (zeta below and above 1/sqrt(2))
+        return (math.pi - math.atan2(2.0 * z * w, w * w - z * z)) / w
     if z == 1.0:
         return 2.0
     g = math.sqrt(z * z - 1.0)
