@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import decimal
 import math
 from typing import Any
 
 from impactlab.contact.advice import ContactDesign, Prediction
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import RESTITUTION_TOLERANCE
+from impactlab.contact.timestep import significant
 
 
 def _range(p: ContactParams) -> str:
@@ -30,10 +32,9 @@ def _e_line(pred: Prediction, target: float) -> str:
     )
 
 
-def round_up(x: float, digits: int = 3) -> float:
-    """x rounded up to `digits` significant digits (a bound the user can type)."""
-    exponent = math.floor(math.log10(x)) - digits + 1
-    return float(f"{math.ceil(x / 10.0**exponent * (1.0 - 1e-12))}e{exponent}")
+def round_up(x: float) -> float:
+    """x rounded up to three significant digits (a bound the user can type)."""
+    return significant(x, decimal.ROUND_CEILING)
 
 
 def design_lines(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import decimal
 import math
 from collections.abc import Callable
 
@@ -61,15 +62,12 @@ def largest_timestep(designed: Evaluation) -> float:
     return lo
 
 
-def round_down(value: float, digits: int = 3) -> float:
-    """`value` rounded down to `digits` significant digits (as ``:.3g`` prints it, never
-    above `value`)."""
-    mantissa, exponent = f"{value:.{digits - 1}e}".split("e")
-    units = round(float(mantissa) * 10 ** (digits - 1))
-    scale = int(exponent) - (digits - 1)
-    while units > 0 and float(f"{units}e{scale}") > value:
-        units -= 1
-    return float(f"{units}e{scale}")
+def significant(value: float, rounding: str, digits: int = 3) -> float:
+    """`value` to `digits` significant digits of its printed form, rounded as `rounding`
+    says (``decimal.ROUND_FLOOR``: never above `value`, ``ROUND_CEILING``: never below)."""
+    exact = decimal.Decimal(repr(value))
+    unit = decimal.Decimal(f"1e{exact.adjusted() - digits + 1}")
+    return float(exact.quantize(unit, rounding=rounding))
 
 
 def accepted_timestep(
@@ -82,11 +80,10 @@ def accepted_timestep(
 
     Returns the last one tried if none passes in `tries` steps.
     """
-    dt = round_down(estimate, digits)
+    dt = significant(estimate, decimal.ROUND_FLOOR, digits)
     for _ in range(tries):
         if dt <= 0 or passes(dt):
             return dt
-        mantissa, exponent = f"{dt:.{digits - 1}e}".split("e")
-        units = round(float(mantissa) * 10 ** (digits - 1)) - 1
-        dt = float(f"{units}e{int(exponent) - (digits - 1)}")
+        last = decimal.Decimal(repr(dt))
+        dt = float(last - decimal.Decimal(f"1e{last.adjusted() - digits + 1}"))
     return dt
