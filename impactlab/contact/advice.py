@@ -13,6 +13,7 @@ from impactlab.contact.calibration import Evaluation, Request, evaluate, shift_s
 from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
+from impactlab.contact.timestep import largest_passing
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -102,11 +103,15 @@ class ContactDesign:
         best = self._best_evaluation
         if best is None or not best.resolved or best.w0 >= self.evaluation.w0:
             return None
-        soft = _stiffest_ok(best, self.evaluation.w0)
+        edge = largest_passing(
+            lambda w0: _resolved(best.request, w0), best.w0, self.evaluation.w0, ratio=1.002
+        )
         # a little softer than the edge: the designer asked for that penetration makes the
         # contact 0.5 % stiffer than the bound needs
-        eased = _try(best.request, max(best.w0, 0.97 * soft.w0))
-        return (eased if eased is not None and eased.resolved else soft).params
+        for w0 in (max(best.w0, 0.97 * edge), edge):
+            if _resolved(best.request, w0):
+                return evaluate(best.request, w0).params
+        return best.params
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -150,6 +155,11 @@ def _try(request: Request, w0: float) -> Evaluation | None:
         return None
 
 
+def _resolved(request: Request, w0: float) -> bool:
+    ev = _try(request, w0)
+    return ev is not None and ev.resolved
+
+
 def _best(designed: Evaluation) -> Evaluation | None:
     """The stiffness with the smallest predicted error at dt (golden section in log w0, up to
     four times the designed one)."""
@@ -178,19 +188,3 @@ def _best(designed: Evaluation) -> Evaluation | None:
             d = a + r * (b - a)
             fd = cost(d)
     return _try(asked, math.exp(c if fc <= fd else d))
-
-
-def _stiffest_ok(soft: Evaluation, stiff_w0: float) -> Evaluation:
-    """The stiffest w0 between soft.w0 (meets the target) and stiff_w0 (does not) that does."""
-    lo, hi = soft.w0, stiff_w0
-    best = soft
-    for _ in range(30):
-        mid = math.sqrt(lo * hi)
-        ev = _try(soft.request, mid)
-        if ev is not None and ev.resolved:
-            lo, best = mid, ev
-        else:
-            hi = mid
-        if hi / lo < 1.002:
-            break
-    return best

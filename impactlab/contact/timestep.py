@@ -52,11 +52,15 @@ def largest_timestep(designed: Evaluation) -> float:
     lo = hi / 2.0
     for _ in range(40):
         if ok(lo):
-            break
+            return largest_passing(ok, lo, hi, ratio=1.0002)
         hi, lo = lo, lo / 2.0
-    else:
-        return lo
-    for _ in range(12):
+    return lo
+
+
+def largest_passing(ok: Callable[[float], bool], lo: float, hi: float, *, ratio: float) -> float:
+    """The largest x found with ok(x) between lo (ok) and hi (not ok): bisected geometrically
+    until hi / lo < ratio."""
+    while hi / lo >= ratio:
         mid = math.sqrt(lo * hi)
         lo, hi = (mid, hi) if ok(mid) else (lo, mid)
     return lo
