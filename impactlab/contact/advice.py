@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -122,8 +121,8 @@ class ContactDesign:
         return ()
 
 
-def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> Prediction:
-    """e over the speed range and at fractions `below` of v_lo.
+def predict(params: ContactParams) -> Prediction:
+    """e over the speed range and at fractions BELOW_RANGE of v_lo.
 
     Over the range: twice as dense as where the designer evaluates gravity's shift (those
     speeds included), at least 7 speeds.
@@ -131,7 +130,7 @@ def predict(params: ContactParams, *, below: Sequence[float] = BELOW_RANGE) -> P
     lo, hi = params.speed_range_mps
     n = max(7, 2 * len(shift_speeds(lo, hi)) - 1)
     inside = list(np.geomspace(lo, hi, n)) if hi > lo else [lo]
-    outside = [lo * f for f in below] if params.gravity_mps2 > 0.0 else []
+    outside = [lo * f for f in BELOW_RANGE] if params.gravity_mps2 > 0.0 else []
     speeds = np.array(sorted(outside) + inside)
     # below w0 dt = 0.002 (some 1500 steps per contact) the phase error is under 2e-4 and
     # shrinks in proportion: emulate at 0.002, which bounds it from above, not step by step

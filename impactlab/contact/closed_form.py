@@ -22,7 +22,6 @@ LIMITS = {
     "timestep_s": (1e-9, 1.0, "s"),
     "radius_m": (1e-6, 1e3, "m"),
     "max_penetration_m": (1e-9, 1e3, "m"),
-    "max_penetration_fraction": (1e-9, 1e3, ""),
     "duration_s": (1e-9, 10.0, "s"),
     "gravity_mps2": (0.0, 1e4, "m/s^2"),
 }

@@ -26,6 +26,9 @@ SPEED_FLOOR_MPS = 0.5
 below it a bounce is 1.3 cm high, and holding e there needs a much stiffer contact (gravity's
 effect on e grows as 1 / v). Set the range explicitly to go lower."""
 
+PENETRATION_FRACTION = 0.02
+"""The default penetration bound at v_hi, as a fraction of the smaller radius."""
+
 GRAVITY_RATIO_START = 0.015
 """g / (w0 v_lo) of the stiffness the iteration starts from."""
 
@@ -102,7 +105,6 @@ def design_contact(
     integrator: str = "Euler",
     duration_s: float | None = None,
     max_penetration_m: float | None = None,
-    max_penetration_fraction: float = 0.02,
     gravity_mps2: float = 9.81,
 ) -> ContactDesign:
     """Design a contact like :func:`contact_params` and say how well it meets its target.
@@ -137,8 +139,7 @@ def design_contact(
     elif radius_m is None:
         raise ContactModelError("give a radius, a max penetration or a contact duration")
     else:
-        fraction = checked("max_penetration_fraction", max_penetration_fraction)
-        bound = fraction * checked("radius_m", radius_m)
+        bound = PENETRATION_FRACTION * checked("radius_m", radius_m)
     ev = design_stiffness(request, bound_m=bound, duration_s=duration)
     if ev.resolved:
         return ContactDesign(ev)
@@ -158,7 +159,6 @@ def contact_params(
     integrator: str = "Euler",
     duration_s: float | None = None,
     max_penetration_m: float | None = None,
-    max_penetration_fraction: float = 0.02,
     gravity_mps2: float = 9.81,
     allow_coarse: bool = False,
 ) -> ContactParams:
@@ -169,7 +169,8 @@ def contact_params(
 
     Args:
         restitution: target e, RESTITUTION_FLOOR <= e <= 1.
-        radius_m: smaller radius of the two bodies in m (sets the default penetration bound).
+        radius_m: smaller radius of the two bodies in m (the default penetration bound is
+            PENETRATION_FRACTION of it).
         timestep_s: simulation timestep in s (the calibration is for this timestep).
         speed_range_mps: (v_lo, v_hi), the normal impact speeds in m/s at which e must be
             within RESTITUTION_TOLERANCE of the target.
@@ -177,7 +178,6 @@ def contact_params(
         integrator: MuJoCo's integrator ("Euler", "implicit", "implicitfast", "RK4").
         duration_s: contact duration in s; overrides the stiffness rule.
         max_penetration_m: max penetration in m at v_hi; overrides the default bound.
-        max_penetration_fraction: default penetration bound as a fraction of radius_m.
         gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
             (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
             does not change).
@@ -200,7 +200,6 @@ def contact_params(
         integrator=integrator,
         duration_s=duration_s,
         max_penetration_m=max_penetration_m,
-        max_penetration_fraction=max_penetration_fraction,
         gravity_mps2=gravity_mps2,
     )
     if found.problem is not None:

@@ -41,8 +41,6 @@ def design_lines(
     design: ContactDesign,
     *,
     radius_m: float | None,
-    geom1: str = "GEOM1",
-    geom2: str = "GEOM2",
     pair_element: str | None = None,
 ) -> list[str]:
     """What ``impactlab contact`` prints for one designed contact."""
@@ -68,7 +66,7 @@ def design_lines(
         lines += [
             f"  worst penetration {_pen(p, radius_m)}",
             f"  contact duration {p.duration_s * 1e3:.4g} ms = {p.steps_per_contact:.1f} steps",
-            "  " + (pair_element or p.mjcf_pair(geom1, geom2)),
+            "  " + (pair_element or p.mjcf_pair("GEOM1", "GEOM2")),
         ]
         return lines
     if design.timestep_max_s is None:
@@ -118,8 +116,6 @@ def params_dict(p: ContactParams) -> dict[str, Any]:
 def design_dict(
     design: ContactDesign,
     *,
-    geom1: str = "GEOM1",
-    geom2: str = "GEOM2",
     pair_element: str | None = None,
 ) -> dict[str, Any]:
     """The design as JSON-ready data (``impactlab contact --json``)."""
@@ -130,7 +126,7 @@ def design_dict(
         "tolerance": RESTITUTION_TOLERANCE,
         **params_dict(p),
         "predicted": _prediction(design.prediction, p.restitution),
-        "mjcf_pair": pair_element or p.mjcf_pair(geom1, geom2),
+        "mjcf_pair": pair_element or p.mjcf_pair("GEOM1", "GEOM2"),
         "timestep_max_s": design.timestep_max_s,
         "best": None,
         "softer": None,
