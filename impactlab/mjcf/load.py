@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import functools
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -15,8 +16,6 @@ if TYPE_CHECKING:
     import mujoco  # imported where used: `impactlab.mjcf` loads without it
 
 MESSAGES: collections.deque[str] = collections.deque(maxlen=100)  # the last ones, any run
-_installed = threading.Lock()
-_done = False
 T = TypeVar("T")
 
 
@@ -24,31 +23,12 @@ def _keep(message: str) -> None:
     MESSAGES.append(" ".join(str(message).split()))
 
 
+@functools.cache
 def quiet_mujoco() -> None:
     """Route MuJoCo's warnings to `MESSAGES` (once per process; no MUJOCO_LOG.TXT)."""
     import mujoco
 
-    global _done
-    with _installed:
-        if not _done:
-            mujoco.set_mju_user_warning(_keep)
-            _done = True
-
-
-def parse_warnings(parse: Callable[[], T]) -> tuple[T, list[str]]:
-    """Call `parse` (e.g. `mujoco.MjSpec.from_file`) with MuJoCo's warnings kept from the
-    working folder; its result and the warnings it raised."""
-    quiet_mujoco()
-    marker = f"impactlab: parse {id(parse)} {threading.get_ident()}"
-    MESSAGES.append(marker)
-    try:
-        result = parse()
-    finally:
-        kept = list(MESSAGES)
-        fresh = kept[kept.index(marker) + 1 :] if marker in kept else kept
-        if marker in kept:
-            MESSAGES.remove(marker)
-    return result, fresh
+    mujoco.set_mju_user_warning(_keep)
 
 
 def one_line(exc: BaseException) -> str:
@@ -96,10 +76,18 @@ def _read(path: Path, parse: Callable[[], T]) -> T:
     # MuJoCo caches compiled meshes and textures by file name: a file edited since would be
     # read from the cache, stale, so every user model is read from its files again
     mujoco.mj_clearCache(mujoco.mj_getCache())
+    quiet_mujoco()
+    marker = f"impactlab: parse {id(parse)} {threading.get_ident()}"  # where its warnings start
+    MESSAGES.append(marker)
     try:
-        result, fresh = parse_warnings(parse)
+        result = parse()
     except Exception as exc:  # MuJoCo raises ValueError with the parser's message
         raise SpecError(str(path), "", f"invalid MJCF: {one_line(exc)}") from None
+    finally:
+        kept = list(MESSAGES)
+        fresh = kept[kept.index(marker) + 1 :] if marker in kept else kept
+        if marker in kept:
+            MESSAGES.remove(marker)
     nan = next((m for m in fresh if "NaN" in m), None)
     if nan is not None:
         raise SpecError(str(path), "", f"invalid MJCF: a number is NaN ({nan})")
