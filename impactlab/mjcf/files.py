@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from impactlab.errors import SpecError
+from impactlab.files import open_regular
 
 if TYPE_CHECKING:
     import mujoco
@@ -70,10 +71,9 @@ def read_text(path: Path) -> str:
 
 
 def _read(path: Path) -> bytes:
-    if path.exists() and not path.is_file():  # a FIFO or a device: never read it
-        raise SpecError(str(path), "", "not a regular file")
     try:
-        return path.read_bytes()
+        with open_regular(path) as stream:  # a FIFO or a device: never read it
+            return stream.read()
     except OSError as exc:
         raise SpecError(str(path), "", f"cannot read: {exc.strerror or exc}") from None
 
