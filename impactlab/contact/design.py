@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from collections.abc import Sequence
+from typing import Required, TypedDict, Unpack
 
 from impactlab.contact.advice import ContactDesign
 from impactlab.contact.calibration import Evaluation, Request, evaluate
@@ -95,6 +96,19 @@ def design_stiffness(
     return evaluate(request, w0)
 
 
+class DesignOptions(TypedDict, total=False):
+    """`design_contact`'s keyword arguments, which `contact_params` takes too."""
+
+    radius_m: Required[float | None]
+    timestep_s: Required[float]
+    speed_range_mps: Sequence[float] | None
+    impact_speed_mps: float | None
+    integrator: str
+    duration_s: float | None
+    max_penetration_m: float | None
+    gravity_mps2: float
+
+
 def design_contact(
     restitution: float,
     *,
@@ -107,14 +121,32 @@ def design_contact(
     max_penetration_m: float | None = None,
     gravity_mps2: float = 9.81,
 ) -> ContactDesign:
-    """Design a contact like :func:`contact_params` and say how well it meets its target.
+    """Design a contact (solref, solimp) that makes MuJoCo deliver a restitution, and say how
+    well it meets its target.
 
-    Args: as :func:`contact_params`; ``radius_m`` may be None when ``max_penetration_m`` or
-    ``duration_s`` is given.
+    No simulation: the closed form, the discretisation table and a closed-form evaluation of
+    the step emulation for gravity's shift (a few ms).
+
+    Args:
+        restitution: target e, RESTITUTION_FLOOR <= e <= 1.
+        radius_m: smaller radius of the two bodies in m (the default penetration bound is
+            PENETRATION_FRACTION of it); may be None when ``max_penetration_m`` or
+            ``duration_s`` is given.
+        timestep_s: simulation timestep in s (the calibration is for this timestep).
+        speed_range_mps: (v_lo, v_hi), the normal impact speeds in m/s at which e must be
+            within RESTITUTION_TOLERANCE of the target.
+        impact_speed_mps: a single impact speed instead of a range (v_lo = v_hi).
+        integrator: MuJoCo's integrator ("Euler", "implicit", "implicitfast", "RK4").
+        duration_s: contact duration in s; overrides the stiffness rule.
+        max_penetration_m: max penetration in m at v_hi; overrides the default bound.
+        gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
+            (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
+            does not change).
 
     Returns:
         The :class:`ContactDesign`; ``ok`` is False (with the advice filled in when asked)
-        when the timestep cannot resolve the contact.
+        when the timestep cannot resolve the contact (``problem`` names the steps per
+        contact and the largest timestep that works).
 
     Raises:
         ContactModelError: an unreachable target; a value of the wrong type or outside
@@ -150,58 +182,16 @@ def design_contact(
 
 
 def contact_params(
-    restitution: float,
-    *,
-    radius_m: float,
-    timestep_s: float,
-    speed_range_mps: Sequence[float] | None = None,
-    impact_speed_mps: float | None = None,
-    integrator: str = "Euler",
-    duration_s: float | None = None,
-    max_penetration_m: float | None = None,
-    gravity_mps2: float = 9.81,
-    allow_coarse: bool = False,
+    restitution: float, *, allow_coarse: bool = False, **options: Unpack[DesignOptions]
 ) -> ContactParams:
-    """Contact parameters (solref, solimp) that make MuJoCo deliver a restitution.
-
-    No simulation: the closed form, the discretisation table and a closed-form evaluation of
-    the step emulation for gravity's shift (a few ms).
-
-    Args:
-        restitution: target e, RESTITUTION_FLOOR <= e <= 1.
-        radius_m: smaller radius of the two bodies in m (the default penetration bound is
-            PENETRATION_FRACTION of it).
-        timestep_s: simulation timestep in s (the calibration is for this timestep).
-        speed_range_mps: (v_lo, v_hi), the normal impact speeds in m/s at which e must be
-            within RESTITUTION_TOLERANCE of the target.
-        impact_speed_mps: a single impact speed instead of a range (v_lo = v_hi).
-        integrator: MuJoCo's integrator ("Euler", "implicit", "implicitfast", "RK4").
-        duration_s: contact duration in s; overrides the stiffness rule.
-        max_penetration_m: max penetration in m at v_hi; overrides the default bound.
-        gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
-            (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
-            does not change).
-        allow_coarse: warn instead of raising if the timestep does not resolve the contact.
-
-    Returns:
-        The calibrated :class:`ContactParams`.
+    """The parameters of :func:`design_contact` (same arguments), or an error when the
+    timestep does not resolve the contact (a warning with ``allow_coarse``).
 
     Raises:
-        ContactModelError: unreachable restitution, invalid input, both duration_s and
-            max_penetration_m given, or a timestep too coarse for the contact (the message
-            names the steps per contact and the largest timestep that works).
+        ContactModelError: as :func:`design_contact`, and the design's ``problem`` when the
+            timestep is too coarse.
     """
-    found = design_contact(
-        restitution,
-        radius_m=radius_m,
-        timestep_s=timestep_s,
-        speed_range_mps=speed_range_mps,
-        impact_speed_mps=impact_speed_mps,
-        integrator=integrator,
-        duration_s=duration_s,
-        max_penetration_m=max_penetration_m,
-        gravity_mps2=gravity_mps2,
-    )
+    found = design_contact(restitution, **options)
     if found.problem is not None:
         if not allow_coarse:
             raise ContactModelError(found.problem)
