@@ -108,8 +108,9 @@ class ContactDesign:
         # a little softer than the edge: the designer asked for that penetration makes the
         # contact 0.5 % stiffer than the bound needs
         for w0 in (max(best.w0, 0.97 * edge), edge):
-            if _resolved(best.request, w0):
-                return evaluate(best.request, w0).params
+            ev = _try(best.request, w0)
+            if ev is not None and ev.resolved:
+                return ev.params
         return best.params
 
     @property
