@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ class Request:
     integrator: str
     gravity_mps2: float
 
-    @property
+    @functools.cached_property
     def speeds(self) -> np.ndarray:
         """Where gravity's shift is evaluated (`shift_speeds`), m/s."""
         return shift_speeds(*self.speed_range_mps)
