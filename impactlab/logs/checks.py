@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import itertools
 import json
 import math
 from collections.abc import Mapping
@@ -19,16 +18,11 @@ from impactlab.logs.metadata import (
     KEYS,
     RECORDS,
     TEXT,
-    GeomContact,
-    PairTarget,
-    Positive,
-    adapter,
 )
-from impactlab.physics import INTEGRATORS, half_step_s
+from impactlab.physics import half_step_s
 
 MAX_STEP_NS = 1 << 62  # timestep x log_every must stay far from int64 overflow
-PLANE_GEOM = "plane"  # the plane of a spec's model (format-1 logs name their pairs with it)
-SPEC_CONTACT = {"solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001, 0.5, 2.0)}  # a spec's
+PLANE_GEOM = "plane"  # the plane of a spec's model, as its contact pairs name it
 
 
 @functools.cache
@@ -145,8 +139,7 @@ def step_ns(timestep_s: float) -> int:
 
 
 def _relate(values: dict[str, Any], problems: dict[str, str]) -> None:
-    """What the keys say of each other: the sweep point, the stride, the half step; a
-    format-1 log gets the keys of format 2 derived."""
+    """What the keys say of each other: the sweep point, the stride, the half step."""
     index, size = values.get("sweep_index"), values.get("sweep_size")
     if index is not None and size is not None and index >= size:
         problems["sweep_index"] = f"{index} is not below sweep_size {size}"
@@ -159,59 +152,13 @@ def _relate(values: dict[str, Any], problems: dict[str, str]) -> None:
     if dt is not None and every is not None and step_ns(dt) * every > MAX_STEP_NS:
         problems["log_every"] = f"{every} steps of {dt:g} s between logged rows is out of range"
         del values["log_every"]
-    if values.get("log_format_version") == "1":
-        spec = values.get("spec", {})
-        if integrator is None and "integrator" not in problems:
-            options = spec.get("options") or {}
-            if (integrator := options.get("integrator", "Euler")) in INTEGRATORS:
-                values["integrator"] = integrator
-        values |= _from_spec(spec)
-        if dt is not None and integrator in INTEGRATORS:
-            values["half_step_s"] = half_step_s(integrator, dt)
-    elif (half := values.get("half_step_s")) is not None and dt is not None and integrator:
+    if (half := values.get("half_step_s")) is not None and dt is not None and integrator:
         expected = half_step_s(integrator, dt)
         if not math.isclose(half, expected, rel_tol=1e-9, abs_tol=1e-18):
             problems["half_step_s"] = (
                 f"{half:g} s, but {integrator} at dt = {dt:g} s gives {expected:g} s"
             )
             del values["half_step_s"]
-
-
-def _from_spec(spec: Mapping[str, Any]) -> dict[str, Any]:
-    """`contact_targets`, `geom_contact` and `separation_m` as a format-1 log's spec gives them
-    (its `contact`, `plane`, `bodies` and `stop` tables; a user's model has none but `stop`),
-    paired as the recorder of format 1 paired them."""
-
-    def valid(model: Any, *args: Any) -> Any:
-        try:
-            return model(*args)
-        except (ValidationError, TypeError):
-            return None
-
-    separation = (spec.get("stop") or {}).get("separation")
-    out: dict[str, Any] = {"contact_targets": (), "geom_contact": None}
-    out["separation_m"] = valid(adapter(Positive).validate_python, separation)
-    bodies, contact = spec.get("bodies"), spec.get("contact") or {}
-    if not isinstance(bodies, dict):
-        return out  # a user's model: its geoms' contact is in model.xml only
-    shared = {k: contact.get(k, v) for k, v in SPEC_CONTACT.items()}
-    out["geom_contact"] = valid(GeomContact, shared["solref"], shared["solimp"])
-    pairs = contact.get("pairs") if isinstance(contact.get("pairs"), dict) else {}
-    assert isinstance(pairs, dict)
-    plane = (
-        [(PLANE_GEOM, b) for b in bodies] if (spec.get("plane") or {}).get("enabled", True) else []
-    )
-    targets = []
-    for geom1, geom2 in plane + list(itertools.combinations(bodies, 2)):
-        own = pairs.get("/".join(sorted((geom1, geom2))))
-        own = own if isinstance(own, dict) else {}
-        e, speeds = (own.get(k, contact.get(k)) for k in ("restitution", "speed_range"))
-        target = valid(PairTarget, geom1, geom2, e, speeds) or valid(
-            PairTarget, geom1, geom2, e, None
-        )
-        targets += [target] if target is not None else []
-    out["contact_targets"] = tuple(targets)
-    return out
 
 
 def check_channels(

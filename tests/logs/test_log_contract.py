@@ -1,8 +1,7 @@
 """The keys of format 2 (`impactlab.logs.metadata`): what the analysis reads instead of the spec.
 
 The recorder writes them from what it planned; a log of format 1 (the golden logs as they
-were before format 2: `tests/golden/format1/`) gets them derived from its spec, integrator and
-timestep, and reads and analyzes as its format-2 recording does.
+were before format 2: `tests/golden/format1/`) lacks them: it is read, not analyzed.
 """
 
 from __future__ import annotations
@@ -11,6 +10,7 @@ import pytest
 from paths import GOLDEN
 
 from impactlab.analyze.measure.analysis import expects_collision
+from impactlab.errors import LogError
 from impactlab.logs import format as logformat
 from impactlab.logs.load import load_log
 from impactlab.logs.metadata import GeomContact
@@ -30,29 +30,33 @@ def test_the_half_step_is_half_a_timestep_for_the_semi_implicit_integrators_only
         half_step_s("Verlet", 1e-3)
 
 
-def test_a_format1_collision_gets_the_keys_of_format_2_derived_from_its_spec():
+def test_a_format1_log_reads_without_the_keys_of_format_2_which_its_recording_has():
+    """A format-1 log is read (info, diff, replay) but not analyzed (`test_bounce_rules`):
+    the keys of format 2 it lacks read as unknown, and lacking them is no problem."""
     old, new = _pair("collision")
     assert (old.meta["log_format_version"], new.meta["log_format_version"]) == ("1", "3")
     assert not set(logformat.RUN_KEYS_FORMAT_2) & set(old.meta)  # written before format 2
     assert set(logformat.RUN_KEYS_FORMAT_2) <= set(new.meta)
     assert not old.partial and not new.partial, (old.problems, new.problems)
-    for run in (old, new):  # golden collision.toml: separation = 0.1, dt = 1e-4 s, Euler
-        assert run.separation_m == 0.1 and expects_collision(run)
-        assert run.half_step_s == pytest.approx(0.5e-4, rel=1e-12)
-        assert run.geom_contact == DEFAULT_CONTACT and run.contact_targets == ()
+    assert old.unanalyzable() is None  # its metadata is sound: its format is what is refused
+    assert (old.separation_m, old.geom_contact, old.contact_targets) == (None, None, ())
+    with pytest.raises(LogError, match="damaged metadata: half_step_s: missing"):
+        _ = old.half_step_s
+    # golden collision.toml: separation = 0.1, dt = 1e-4 s, Euler
+    assert new.separation_m == 0.1 and expects_collision(new)
+    assert new.half_step_s == pytest.approx(0.5e-4, rel=1e-12)
+    assert new.geom_contact == DEFAULT_CONTACT and new.contact_targets == ()
 
 
-def test_a_format1_calibrated_drop_gets_its_target_without_the_unrecorded_speed_range():
-    old, new = _pair("drop_restitution")
-    assert not old.partial and old.unanalyzable() is None, old.problems
-    (o,), (n,) = old.contact_targets, new.contact_targets
-    assert (o.pair, o.restitution) == (n.pair, n.restitution) == ("plane/ball", 0.9)
-    assert o.speed_range_mps is None  # the experiment's default range: format 1 did not say
+def test_a_calibrated_drop_records_its_target_and_speed_range():
+    new = load_log(GOLDEN / "logs" / "drop_restitution.mcap")
+    (n,) = new.contact_targets
+    assert (n.pair, n.restitution) == ("plane/ball", 0.9)
     assert n.speed_range_mps is not None and 0 < n.speed_range_mps[0] <= n.speed_range_mps[1]
-    for run in (old, new):  # golden drop_restitution.toml: dt = 1e-5 s, Euler, no separation
-        assert run.separation_m is None and not expects_collision(run)
-        assert run.half_step_s == pytest.approx(0.5e-5, rel=1e-12)
-        assert run.geom_contact == DEFAULT_CONTACT
+    # golden drop_restitution.toml: dt = 1e-5 s, Euler, no separation
+    assert new.separation_m is None and not expects_collision(new)
+    assert new.half_step_s == pytest.approx(0.5e-5, rel=1e-12)
+    assert new.geom_contact == DEFAULT_CONTACT
 
 
 def test_the_recorded_targets_are_the_planned_calibration():
