@@ -50,6 +50,10 @@ the first and last step (`px_in` .. `nz_out`), each side's state at the first st
 and the first after (`s1_in_x` .. `s2_out_wz`; null for a side that is not a rigid body)."""
 
 
+IMPACT_SCALARS = pb.Impact.DESCRIPTOR.fields[:18]
+"""`impactlab.Impact`'s fields side1 .. open: `IMPACT_SCHEMA`'s columns after run_id, in order."""
+
+
 def frame(run_id: str, t_ns: np.ndarray, columns: dict[str, Any]) -> pl.DataFrame:
     """(run_id, t_ns, t_s, *columns) of times (n,) int64 ns and columns of n values."""
     return pl.DataFrame(
@@ -239,30 +243,8 @@ def impacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
             list(s.values) if len(s.values) == len(BODY_FIELDS) else [None] * len(BODY_FIELDS)
             for s in (i.side1_in, i.side2_in, i.side1_out, i.side2_out)
         ]
-        rows.append(
-            (
-                run_id,
-                i.side1,
-                i.kind1,
-                i.side2,
-                i.kind2,
-                i.geom1,
-                i.geom2,
-                i.onset_ns,
-                i.release_ns,
-                i.v_in,
-                i.v_out,
-                i.work_compression,
-                i.work_restitution,
-                i.work_friction,
-                i.peak_force,
-                i.impulse,
-                i.max_penetration,
-                i.steps,
-                i.open,
-                *(x for v in (*vectors, *states) for x in v),
-            )
-        )
+        scalars = (getattr(i, f.name) for f in IMPACT_SCALARS)
+        rows.append((run_id, *scalars, *(x for v in (*vectors, *states) for x in v)))
     return pl.DataFrame(rows, schema=IMPACT_SCHEMA, orient="row")
 
 

@@ -214,3 +214,20 @@ def test_an_index_wrong_in_a_later_chunk_is_reported_and_loses_nothing(long_log,
         return {k: sorted(zip(*v, strict=True)) for k, v in _messages(c).items()}
 
     assert rows(content) == rows(read_mcap(long_log))
+
+
+def test_impacts_hold_each_message_field_of_the_column_name():
+    """Each scalar column of `/impacts` is the protobuf field of its name (less its unit)."""
+    import re
+
+    from impactlab.logs.decode import IMPACT_SCHEMA
+
+    path = ROOT / "tests" / "golden" / "logs" / "drop_bounces.mcap"
+    run = load_log(path)
+    with open(path, "rb") as stream:
+        found = make_reader(stream).iter_messages(topics=["/impacts"])
+        impacts = [pb.Impact.FromString(m.data) for _, _, m in found]
+    assert run.impacts.height == len(impacts) > 0
+    for column in list(IMPACT_SCHEMA)[1:19]:  # side1 .. open
+        name = re.sub(r"_(mps|J|N|Ns|m)$", "", column)
+        assert run.impacts[column].to_list() == [getattr(i, name) for i in impacts], column
