@@ -7,7 +7,7 @@ import json
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, NamedTuple
 
-from pydantic import AfterValidator, Field, TypeAdapter, model_validator
+from pydantic import AfterValidator, Field, TypeAdapter
 from pydantic.dataclasses import dataclass
 
 from impactlab.logs import format as logformat
@@ -72,15 +72,6 @@ class Body:
     rest_height_m: Within | None = None
     geoms: Sequence[Text] = ()
     motion: Annotated[str, one_of("free", "articulated")] = "free"  # written unless free
-
-    @model_validator(mode="before")
-    @classmethod
-    def _older(cls, data: Any) -> Any:
-        """Logs before `shape` and `rest_height_m` had spheres only."""
-        if isinstance(data, dict) and "radius" in data:
-            sphere = "sphere" if data["radius"] is not None else ""
-            data = {"rest_height_m": data["radius"], "shape": sphere, **data}
-        return data
 
 
 @dataclass(frozen=True)
