@@ -81,10 +81,8 @@ GOLDENS = (
 )
 
 
-def record_golden(
-    golden: Golden, out_dir: Path, *, overrides: Sequence[str] = (), name: str | None = None
-) -> Path:
-    """Record one golden spec (plus extra overrides) to `out_dir/<name>.mcap`, its path;
+def record_golden(golden: Golden, out_dir: Path, *, overrides: Sequence[str] = ()) -> Path:
+    """Record one golden spec (plus extra overrides) to `out_dir/<its name>.mcap`, its path;
     SpecError when the spec or an override is wrong, or it gives more than one run."""
     from impactlab.errors import SpecError
 
@@ -94,7 +92,7 @@ def record_golden(
     work = Path(tempfile.mkdtemp(prefix=f".{golden.name}-", dir=out_dir))
     try:
         (result,) = record_runs(runs, work)
-        target = out_dir / f"{name or golden.name}.mcap"
+        target = out_dir / f"{golden.name}.mcap"
         result.path.replace(target)
     finally:
         shutil.rmtree(work, ignore_errors=True)

@@ -52,10 +52,9 @@ def diff_logs(
     *,
     tolerance: Tolerance = Tolerance(),  # noqa: B008 (frozen)
     ignore_meta: Iterable[str] = DEFAULT_IGNORED_META,
-    attachments: bool = True,
 ) -> LogDiff:
     """Compare log A with log B (`tolerance`: `EXACT` for equal decoded values; `ignore_meta`:
-    keys not compared; `attachments`: compare them too, read from the files again)."""
+    keys not compared), their attachments read from the files again."""
     ignored = tuple(dict.fromkeys(ignore_meta))
     ca, cb = channel_tables(a), channel_tables(b)
     channels = []
@@ -65,7 +64,7 @@ def diff_logs(
             names = tuple(n for n in names if n in ca[topic][2] and n in cb[topic][2])
         fa, fb = (c[topic][0] if topic in c else None for c in (ca, cb))
         channels.append(compare_channel(topic, fa, fb, keys, names, tolerance))
-    found = (read_attachments(a.path), read_attachments(b.path)) if attachments else ({}, {})
+    found = read_attachments(a.path), read_attachments(b.path)
     return LogDiff(
         a=str(a.path),
         b=str(b.path),
