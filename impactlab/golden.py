@@ -39,7 +39,7 @@ FIELD_UNITS = {
     **dict.fromkeys(("fx", "fy", "fz"), "N"),
     **dict.fromkeys(("kinetic", "potential", "total"), "J"),
     **dict.fromkeys(("work_compression_J", "work_restitution_J"), "J"),
-    **dict.fromkeys(("v_start_mps", "v_end_mps"), "m/s"),
+    **dict.fromkeys(("v_in_mps", "v_out_mps"), "m/s"),
 }
 FIELD_RTOL = dict.fromkeys(("work_compression_J", "work_restitution_J"), 1e-9)
 """Looser agreement for sums over every step of a contact (a contact's work): a last-bit
