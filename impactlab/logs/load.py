@@ -23,17 +23,15 @@ from impactlab.show import count, html_table, plain
 BodyInfo = Body  # the names readers know them by
 SurfaceInfo = Surface
 UNREAD_TOPICS = frozenset({logformat.TF_TOPIC})  # poses for viewers; /bodies holds the same
-DATA_SCHEMAS = frozenset(
-    {
-        logformat.BODY_STATE_SCHEMA,
-        logformat.CONTACT_SCHEMA,
-        logformat.CONTACTS_SCHEMA,
-        logformat.ENERGY_SCHEMA,
-        logformat.CLEARANCE_SCHEMA,
-        logformat.IMPACT_SCHEMA,
-        logformat.WORK_SCHEMA,
-    }
+ONE_PER_STEP = (  # schemas of channels with at most one message per logged step
+    logformat.BODY_STATE_SCHEMA,
+    logformat.CLEARANCE_SCHEMA,
+    logformat.CONTACTS_SCHEMA,
+    logformat.CONTACT_SCHEMA,
+    logformat.ENERGY_SCHEMA,
+    logformat.WORK_SCHEMA,
 )
+DATA_SCHEMAS = frozenset({*ONE_PER_STEP, logformat.IMPACT_SCHEMA})  # impactlab channels
 
 
 def _empty(names: tuple[str, ...]) -> pl.DataFrame:
@@ -217,16 +215,6 @@ class RunLog:
                 ["problems (partial log)"], [[p] for p in self.problems], unit="problems"
             )
         return table
-
-
-ONE_PER_STEP = (  # schemas of channels with at most one message per logged step
-    logformat.BODY_STATE_SCHEMA,
-    logformat.CLEARANCE_SCHEMA,
-    logformat.CONTACTS_SCHEMA,
-    logformat.CONTACT_SCHEMA,
-    logformat.ENERGY_SCHEMA,
-    logformat.WORK_SCHEMA,
-)
 
 
 def load_log(path: str | Path) -> RunLog:
