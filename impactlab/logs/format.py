@@ -7,7 +7,6 @@ from __future__ import annotations
 
 LOG_FORMAT_VERSION = "3"
 READABLE_FORMATS = ("1", "2", "3")  # 1, 2: read for info, diff and replay, not analyzed
-ENCODING = "protobuf"
 
 BODY_STATE_TOPIC = "/bodies/{body}/state"  # impactlab.BodyState, every logged step
 CLEARANCE_TOPIC = "/bodies/{body}/clearance"  # impactlab.Clearance, bodies over a ground
