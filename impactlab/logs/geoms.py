@@ -205,45 +205,34 @@ def scene_update(
 
 
 def _primitives(entity: SceneEntity, geom: GeomShape, stl: bytes | None) -> None:
-    """The geom's primitives, each posed (shifted in the geom's frame) and coloured."""
+    """The geom's primitives, each posed (shifted along the geom's z axis) and coloured."""
     a, b, c = geom.size
-    parts: list[tuple[Any, tuple[float, float, float], tuple[float, float, float]]] = []
+    parts: list[tuple[Any, tuple[float, float, float], float]] = []  # primitive, size, shift
     if geom.type == "plane":
         sx, sy = (s if s > 0 else INFINITE_PLANE_HALF_M for s in (a, b))
-        parts.append(
-            (
-                entity.cubes.add(),
-                (2 * sx, 2 * sy, PLANE_THICKNESS_M),
-                (0, 0, -PLANE_THICKNESS_M / 2),
-            )
-        )
+        cube = entity.cubes.add()
+        parts.append((cube, (2 * sx, 2 * sy, PLANE_THICKNESS_M), -PLANE_THICKNESS_M / 2))
     elif geom.type == "box":
-        parts.append((entity.cubes.add(), (2 * a, 2 * b, 2 * c), (0, 0, 0)))
+        parts.append((entity.cubes.add(), (2 * a, 2 * b, 2 * c), 0))
     elif geom.type in ("sphere", "ellipsoid"):
         radii = (a, a, a) if geom.type == "sphere" else (a, b, c)
-        parts.append((entity.spheres.add(), tuple(2 * r for r in radii), (0, 0, 0)))  # type: ignore[arg-type]
+        parts.append((entity.spheres.add(), tuple(2 * r for r in radii), 0))  # type: ignore[arg-type]
     elif geom.type in ("cylinder", "capsule"):
         cylinder = entity.cylinders.add()
         cylinder.bottom_scale = cylinder.top_scale = 1.0
-        parts.append((cylinder, (2 * a, 2 * a, 2 * b), (0, 0, 0)))
+        parts.append((cylinder, (2 * a, 2 * a, 2 * b), 0))
         ends = (-b, b) if geom.type == "capsule" else ()
-        parts += [(entity.spheres.add(), (2 * a, 2 * a, 2 * a), (0, 0, end)) for end in ends]
+        parts += [(entity.spheres.add(), (2 * a, 2 * a, 2 * a), end) for end in ends]
     elif stl is not None:  # mesh, hfield
         model = entity.models.add(media_type=STL_MEDIA_TYPE, data=stl, override_color=True)
         model.scale.x = model.scale.y = model.scale.z = 1.0
-        parts.append((model, (0, 0, 0), (0, 0, 0)))
+        parts.append((model, (0, 0, 0), 0))
     w, x, y, z = geom.quat
-    rot = np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-    for prim, size, offset in parts:
+    z_axis = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    for prim, size, shift in parts:
         if prim.DESCRIPTOR.name != "ModelPrimitive":
             prim.size.x, prim.size.y, prim.size.z = size
-        pos = np.asarray(geom.pos) + rot @ np.asarray(offset, dtype=float)
+        pos = np.asarray(geom.pos) + shift * z_axis
         prim.pose.position.x, prim.pose.position.y, prim.pose.position.z = (float(v) for v in pos)
         o = prim.pose.orientation
         o.w, o.x, o.y, o.z = geom.quat
