@@ -7,7 +7,7 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from functools import wraps
 from pathlib import Path
-from typing import Any, Literal, ParamSpec, TypeVar
+from typing import Any, ParamSpec, TypeVar
 
 import matplotlib
 import numpy as np
@@ -40,16 +40,11 @@ def styled(draw: Callable[P, R]) -> Callable[P, R]:
 
 
 def subplots(
-    nrows: int = 1,
-    ncols: int = 1,
-    *,
-    figsize: tuple[float, float],
-    layout: Literal["constrained"] | None = None,
-    **options: Any,
+    nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **options: Any
 ) -> tuple[Figure, Any]:
     """A new figure on an Agg canvas of its own (not pyplot's) and its axes, as
     `pyplot.subplots` returns them."""
-    fig = Figure(figsize=figsize, layout=layout)
+    fig = Figure(figsize=figsize)
     FigureCanvasAgg(fig)
     return fig, fig.subplots(nrows, ncols, **options)
 
@@ -69,22 +64,16 @@ def plain(text: object) -> str:
     return str(text).replace("$", r"\$")
 
 
-def save_figure(fig: Figure, path: Path, *, dpi: int = DPI, tight_bbox: bool = False) -> Path:
-    """Save as PNG under a temporary name, then rename into place. Returns `path`.
-
-    The layout is `tight_layout`, or with `tight_bbox` the saved box is cut to the artists
-    (for figures whose colour bar spans several axes).
-    """
+def save_figure(fig: Figure, path: Path) -> Path:
+    """Save as PNG (laid out by `tight_layout`) under a temporary name, then rename into
+    place. Returns `path`."""
     path.parent.mkdir(parents=True, exist_ok=True)
     canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
-    fig.set_dpi(dpi)  # laid out at the resolution it is saved at: text measured once
+    fig.set_dpi(DPI)  # laid out at the resolution it is saved at: text measured once
     with atomic_path(path) as tmp:
-        if tight_bbox:
-            fig.savefig(tmp, dpi=dpi, format="png", bbox_inches="tight", metadata=_PNG_TEXT.get())
-        else:
-            fig.tight_layout()
-            fig.set_layout_engine(None)  # laid out: drawn once, not twice
-            _write_png(canvas, tmp)
+        fig.tight_layout()
+        fig.set_layout_engine(None)  # laid out: drawn once, not twice
+        _write_png(canvas, tmp)
     return path
 
 

@@ -3,24 +3,25 @@
 from __future__ import annotations
 
 import contextlib
-import functools
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import polars as pl
 
 from impactlab.analyze.report.context import RunBrief, Tables, labelled, repeated_runs
 from impactlab.analyze.report.decimate_lines import LINE_BINS
 from impactlab.analyze.report.document import answers, summary_answers, write_reports
-from impactlab.analyze.report.run_figures import draw_named
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
 from impactlab.files import write_json_stream, write_parquet
 from impactlab.text import file_part
+
+if TYPE_CHECKING:
+    from impactlab.analyze.report.figure_cache import FigureJob
 
 SUMMARY_SLICE = 1000
 """summary.json lists the runs from slices of this many rows of the runs table."""
@@ -75,7 +76,7 @@ def write_all(
         jobs = summary_figure_jobs(
             (bounces, collisions), result.studies, shown, params, out / "figures"
         )
-        for kind, path, _, _ in jobs:
+        for kind, (path, _, _) in jobs:
             figs.setdefault(kind, []).append(path)
     files += [p for ps in figs.values() for p in ps]
     t = labelled(
@@ -103,7 +104,7 @@ def write_all(
     }
     # the summary figures are drawn (in the workers, when they are up) while summary.json is
     # written here; the report embeds them, so it waits
-    with _drawing([job[1:] for job in jobs], executor) as drawn:
+    with _drawing([job for _, job in jobs], executor) as drawn:
         files.append(write_json_stream(out / "summary.json", summary))
         drawn()
     if report:
@@ -112,9 +113,7 @@ def write_all(
 
 
 @contextlib.contextmanager
-def _drawing(
-    jobs: Sequence[tuple[Path, str, Callable[[], Path]]], executor: Executor | None
-) -> Iterator[Callable[[], None]]:
+def _drawing(jobs: Sequence[FigureJob], executor: Executor | None) -> Iterator[Callable[[], None]]:
     """Draw the figures `jobs` (`figure_cache.draw_all`): with workers, from a thread while
     the block runs, here before it without. Yields the wait for them (raising a drawing's
     error); they are waited for when the block ends, however it ends."""
@@ -162,14 +161,12 @@ def summary_figure_jobs(
     briefs: Sequence[RunBrief],
     params: dict[str, list[str]],
     fig_dir: Path,
-) -> list[tuple[str, Path, str, Callable[[], Path]]]:
-    """The figures over many runs to draw, nothing drawn yet: (kind,
-    path, key, drawing) of each."""
-    from impactlab.analyze.report.figure_cache import figure_key
+) -> list[tuple[str, FigureJob]]:
+    """The figures over many runs to draw, nothing drawn yet: (kind, job) of each."""
+    from impactlab.analyze.report.figure_cache import figure_job
 
     all_bounces, collisions = tables
-    jobs: list[tuple[str, Path, str, Callable[[], Path]]] = []  # kind, path, key, draw
-
+    jobs: list[tuple[str, FigureJob]] = []
     fig_dir.mkdir(parents=True, exist_ok=True)
     by_exp: dict[str, list[RunBrief]] = {}
     for b in briefs:
@@ -180,61 +177,39 @@ def summary_figure_jobs(
             labels = {b.run_id: b.label for b in grounded}
             path = fig_dir / f"bounce-decay-{file_part(exp)}.png"
             title = f"Bounce height decay: {exp}"
-            key = figure_key("decay", all_bounces, labels, title)
-            draw = functools.partial(
-                draw_named,
-                "bounce_decay_figure",
-                all_bounces,
-                labels,
-                title=title,
-                path=path.absolute(),
-            )
-            jobs.append(("decay", path, key, draw))
+            job = figure_job(path, "bounce_decay_figure", all_bounces, labels, title=title)
+            jobs.append(("decay", job))
     has_e = (all_bounces.height and all_bounces["e_velocity"].drop_nulls().len()) or (
         collisions.height and collisions["e_velocity"].drop_nulls().len()
     )
     if has_e:
         experiments = {b.run_id: b.experiment for b in briefs}
-        targets = _targets(briefs)
         path = fig_dir / "restitution-vs-speed.png"
-        key = figure_key("restitution", all_bounces, collisions, experiments, targets)
-        draw = functools.partial(
-            draw_named,
+        job = figure_job(
+            path,
             "restitution_figure",
             all_bounces,
             collisions,
             experiments,
-            path=path.absolute(),
-            targets=targets,
+            targets=_targets(briefs),
         )
-        jobs.append(("restitution", path, key, draw))
+        jobs.append(("restitution", job))
     for name, study in studies.items():
         param, group = params[name][0], by_exp.get(name, [])
+        path, title = fig_dir / f"study-{file_part(name)}.png", f"Parameter study: {name}"
         if not group:
             continue
         if "e_collision" in study.columns and study["e_collision"].drop_nulls().len():
-            path, title = fig_dir / f"study-{file_part(name)}.png", f"Parameter study: {name}"
             m1, m2 = group[0].masses[:2]
-            key = figure_key("collision-study", study, param, title, m1, m2)
-            draw = functools.partial(
-                draw_named,
-                "collision_study_figure",
-                study,
-                param,
-                title=title,
-                m1=m1,
-                m2=m2,
-                path=path.absolute(),
+            job = figure_job(
+                path, "collision_study_figure", study, param, title=title, m1=m1, m2=m2
             )
-            jobs.append(("study", path, key, draw))
+            jobs.append(("study", job))
         elif "e_velocity_first" in study.columns:
-            path = fig_dir / f"study-{file_part(name)}.png"
-            title = f"Parameter study: {name}: e of the first bounce"
-            key = figure_key("bounce-study", study, param, title)
-            draw = functools.partial(
-                draw_named, "bounce_study_figure", study, param, title=title, path=path.absolute()
+            title += ": e of the first bounce"
+            jobs.append(
+                ("study", figure_job(path, "bounce_study_figure", study, param, title=title))
             )
-            jobs.append(("study", path, key, draw))
     return jobs
 
 

@@ -85,10 +85,33 @@ def png_key(data: bytes) -> str | None:
     return key if isinstance(key, str) else None
 
 
+FigureJob = tuple[Path, str, Callable[[], Path]]
+"""A figure to draw: its path, its key and its drawing."""
+
+
+def figure_job(path: Path, name: str, *data: Any, **options: Any) -> FigureJob:
+    """The figure `figures.<name>(*data, **options)` at `path`, keyed by the drawing's name and
+    every input (not by the path: a staged one, see `published`)."""
+    key = figure_key(name, *data, *options.items())
+    return path, key, functools.partial(draw_named, name, *data, path=path.absolute(), **options)
+
+
+def draw_named(name: str, *args: Any, **kwargs: Any) -> Path:
+    """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
+    copied unchanged from the last analysis needs none, nor does a driver whose workers
+    draw)."""
+    from impactlab.analyze.report import figures
+
+    path: Path = getattr(figures, name)(*args, **kwargs)
+    return path
+
+
 def drawn(path: Path, key: str, draw: Callable[[], Path]) -> Path:
     """The figure at `path`: copied from the last analysis' (`published`) when it has the
     same key, else drawn by `draw` with the key."""
-    return path if copied(path, key) else draw_with_key((key, draw))
+    if not copied(path, key):
+        draw_with_key((key, draw))
+    return path
 
 
 def published(path: Path) -> Path | None:
@@ -121,9 +144,7 @@ def draw_with_key(job: tuple[str, Callable[[], Path]]) -> Path:
         return draw()
 
 
-def draw_all(
-    jobs: Sequence[tuple[Path, str, Callable[[], Path]]], executor: Executor | None = None
-) -> list[Path]:
+def draw_all(jobs: Sequence[FigureJob], executor: Executor | None = None) -> list[Path]:
     """`drawn` of each (path, key, draw), in order; the figures to draw go to the executor's
     workers when it has some (each draws at its own path, which must be one they see)."""
     todo = [(path, key, draw) for path, key, draw in jobs if not copied(path, key)]

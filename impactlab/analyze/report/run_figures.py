@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -56,7 +55,7 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     """
     if not draws_own_figures(*a.run.sweep_point):
         return []
-    from impactlab.analyze.report.figure_cache import drawn, figure_key
+    from impactlab.analyze.report.figure_cache import drawn, figure_job
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
     title = run_title(a)
@@ -66,19 +65,8 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     impacts = a.collisions.filter(pl.col("px_before_Ns").is_not_null())  # a state before
     for row in impacts.head(1).iter_rows(named=True):
         jobs.append(("collision", "collision_figure", (a.states, row, contacts)))
-    made = []
-    for kind, name, data in jobs:
-        path = fig_dir / f"{kind}-{file_part(a.run.run_id)}.png"
-        draw = functools.partial(draw_named, name, *data, title=title, path=path)
-        made.append((kind, drawn(path, figure_key(kind, *data, title), draw)))
-    return made
-
-
-def draw_named(name: str, *args: Any, **kwargs: Any) -> Path:
-    """Draw with `figures.<name>`, importing matplotlib only when a figure is drawn (a figure
-    copied unchanged from the last analysis needs none, nor does a driver whose workers
-    draw)."""
-    from impactlab.analyze.report import figures
-
-    path: Path = getattr(figures, name)(*args, **kwargs)
-    return path
+    paths = [fig_dir / f"{kind}-{file_part(a.run.run_id)}.png" for kind, _, _ in jobs]
+    return [
+        (kind, drawn(*figure_job(path, name, *data, title=title)))
+        for path, (kind, name, data) in zip(paths, jobs, strict=True)
+    ]
