@@ -21,7 +21,6 @@ import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis, analyze_runs
 from impactlab.analyze.report.run_figures import run_figures
-from impactlab.analyze.tables.combine import TableReducer
 from impactlab.analyze.tables.decimate import with_decimated_energy
 from impactlab.errors import LogError
 from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
@@ -45,8 +44,6 @@ class AnalyzedLog:
     figures: list[tuple[str, Path]]
     error: tuple[str, str] | None = None
 
-
-_TAKEN = AnalyzedLog(None, [])  # a result handed to `collect` and dropped
 
 BATCH_LOGS = 64
 """At most this many logs are analyzed together (`analysis.analyze_runs`)."""
@@ -164,17 +161,13 @@ def analyze_logs(
     paths: Sequence[str | Path],
     *,
     fig_dir: Path | None,
+    take: Callable[[AnalyzedLog], None],
     executor: Executor | None = None,
     progress: Progress | None = None,
-    reducer: TableReducer | None = None,
-    collect: Callable[[AnalyzedLog], None] | None = None,
-) -> list[AnalyzedLog]:
-    """Analyze each log (and draw its own figures when `fig_dir` is given), in order of `paths`.
-
-    `reducer`: takes each run's tables, in order of `paths`, as soon as it can (the
-    analyses returned then keep only the run's metadata). `collect`: then receives each
-    result, in order of `paths`, and none is kept (the list returned is empty): with both,
-    memory holds the batches in flight, whatever the number of logs.
+) -> None:
+    """Analyze each log (and draw its own figures when `fig_dir` is given): `take` receives
+    each result in order of `paths` as soon as those before it are done, and none is kept,
+    so memory holds the batches in flight, whatever the number of logs.
 
     A task that fails (not an unreadable log: that is an `AnalyzedLog.error`) gives an
     error entry with the task's reason.
@@ -183,25 +176,22 @@ def analyze_logs(
     # one string per log, shared: a Path, which holds its parts too, is made per batch
     items = [(q, q) for q in map(str, paths)]
     out: list[AnalyzedLog | None] = [None] * len(paths)
-    ready = 0  # out[:ready] has gone through the reducer
+    ready = 0  # out[:ready] has been taken
 
     def done(i: int, result: AnalyzedLog) -> None:
         nonlocal ready
         out[i] = result
         _count(tracker, result)
         while ready < len(out) and (r := out[ready]) is not None:
-            if reducer is not None and r.analysis is not None:
-                r = out[ready] = dataclasses.replace(r, analysis=reducer.take(r.analysis))
-            if collect is not None:
-                collect(r)
-                out[ready] = _TAKEN
+            take(r)
+            out[ready] = None
             ready += 1
 
     if executor is None or executor.name == "local":
         for group in batches(items):
             for i, result in zip(group, _task([items[i] for i in group], fig_dir), strict=True):
                 done(i, result)  # slim at once
-        return [r for r in out if r is not None and r is not _TAKEN]
+        return
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
     task = functools.partial(_task, fig_dir=None if fig_dir is None else fig_dir.absolute())
@@ -237,7 +227,6 @@ def analyze_logs(
                 raise full
             for i in group:
                 done(i, AnalyzedLog(None, [], (str(paths[i]), outcome.error or "")))
-    return [r for r in out if r is not None and r is not _TAKEN]
 
 
 def _count(tracker: Tracker, result: AnalyzedLog | None) -> None:

@@ -8,6 +8,7 @@ and a new one removes the files of the previous one that it does not write again
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -52,9 +53,7 @@ def run_analysis(
     """
     paths, empty = require_log_names(inputs, text=True)  # log names go into the tables
     out = None if out_dir is None else Path(out_dir)
-    if out is None:
-        return _analysis(paths, empty, None, None, figures, report, executor, progress)
-    with staged(out) as stage:
+    with contextlib.nullcontext(None) if out is None else staged(out) as stage:
         return _analysis(paths, empty, out, stage, figures, report, executor, progress)
 
 
@@ -78,37 +77,28 @@ def _analysis(
     run_figs: list[list[tuple[str, Path]]] = []
     failed: list[tuple[str, str]] = []
     partial: list[str] = []
-    count = 0
 
-    def collect(d: AnalyzedLog) -> None:
-        nonlocal count
+    def take(d: AnalyzedLog) -> None:
         if d.error is not None:
             failed.append(d.error)
         if d.analysis is None:
             return
-        count += 1
-        if d.analysis.run.partial:
-            problems = "; ".join(d.analysis.run.problems)
-            partial.append(f"impactlab: warning: {d.analysis.run.path}: partial log ({problems})")
-        briefs.append(brief(d.analysis))
+        a = reducer.take(d.analysis)
+        if a.run.partial:
+            problems = "; ".join(a.run.problems)
+            partial.append(f"impactlab: warning: {a.run.path}: partial log ({problems})")
+        briefs.append(brief(a))
         if d.figures:
             run_figs.append(d.figures)
 
-    analyze_logs(
-        paths,
-        fig_dir=fig_dir,
-        executor=executor,
-        progress=progress,
-        reducer=reducer,
-        collect=collect,
-    )
+    analyze_logs(paths, fig_dir=fig_dir, take=take, executor=executor, progress=progress)
     for where, why in empty:
         say(progress, "analyze", f"impactlab: error: {where}: {why}", "error")
     failed = [*empty, *failed]
     for line in partial:
         say(progress, "analyze", line, "warning")
     result = reducer.result(out, failed)
-    if not count or out is None or stage is None:
+    if not briefs or out is None or stage is None:
         if stage is not None:  # nothing analyzed: nothing is published
             result.sources = {}
         return result
@@ -124,5 +114,5 @@ def _analysis(
     result.files = publish(stage, out, written)
     result.sources = {name: out / f"{name}.parquet" for name in result.sources}
     where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
-    say(progress, "analyze", f"{count} run(s) analyzed, {len(failed)} failed; {where}")
+    say(progress, "analyze", f"{len(briefs)} run(s) analyzed, {len(failed)} failed; {where}")
     return result
