@@ -22,7 +22,7 @@ from impactlab.analyze.measure.flights import flight_rows, flights
 from impactlab.analyze.measure.ground import Ground, references, run_ground
 from impactlab.analyze.measure.phases import WORK_COLUMNS, energy_phases
 from impactlab.analyze.measure.states import per_run, state_blocks, states_long
-from impactlab.analyze.measure.summary import run_aggregates, summary_row
+from impactlab.analyze.measure.summary import duration_s, run_aggregates, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
 from impactlab.logs.messages import WORK_FIELDS
@@ -64,11 +64,6 @@ class RunAnalysis:
     energy_logged: tuple[int, int] = (0, 0)
 
 
-def expects_collision(run: RunLog) -> bool:
-    """Whether the run was meant to bring two bodies together (a separation stop rule)."""
-    return run.separation_m is not None
-
-
 def analyze_run(run: RunLog) -> RunAnalysis:
     """Compute energy, bounces, collisions and the summary row of one decoded log.
 
@@ -97,14 +92,6 @@ def _check(run: RunLog) -> Ground:
             "spec is in the log: `impactlab info` shows it)",
         )
     return run_ground(run)
-
-
-def _run_slices(states: pl.DataFrame) -> dict[str, pl.DataFrame]:
-    """`states_long` of several runs split by run (each run's rows are together: slices)."""
-    spans: dict[str, list[int]] = {}
-    for r, _, first, end in state_blocks(states):
-        spans.setdefault(r, [first, end])[1] = end
-    return {r: states.slice(first, end - first) for r, (first, end) in spans.items()}
 
 
 def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
@@ -198,7 +185,7 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
         [row for run in runs for row in _target_rows(run)], schema=TARGET_SCHEMA, orient="row"
     )
     found = bounces(on_ground, fl, gravity_n=g_n, articulated=articulated, targets=targets)
-    states_of = _run_slices(states)
+    states_of = by_run(states)
     bnc = _with_no_bounce_rows(runs, grounds, states_of, found, on_ground)
     bounces_of, phases_of, eps_of = by_run(bnc), by_run(phases), by_run(eps)
     aggregates = run_aggregates(pl.concat(list(total_of.values())), phases, bnc)
@@ -217,7 +204,8 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
             g = float(np.linalg.norm(run.gravity))
             links = frozenset(n for n, i in run.body_info.items() if i.motion != "free")
             col = _with_targets(with_surroundings(col, mine, g, links), targets)
-        if col.is_empty() and len(names) >= 2 and expects_collision(run):
+        # a separation stop rule: the run was meant to bring two bodies together
+        if col.is_empty() and len(names) >= 2 and run.separation_m is not None:
             col = no_collision_rows(
                 rid,
                 run_states,
@@ -371,11 +359,6 @@ def _with_no_bounce_rows(
         for run, name in missing
     ]
     return pl.concat([bnc, no_bounce_rows(reasons)]).sort("run_id", maintain_order=True)
-
-
-def duration_s(states: pl.DataFrame) -> float:
-    """Logged duration in s (0 when nothing was logged)."""
-    return float(states.select(pl.col("t_s").max()).item() or 0.0) if states.height else 0.0
 
 
 def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:

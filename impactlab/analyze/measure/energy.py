@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.ground import Ground, Reference
+from impactlab.analyze.measure.ground import Ground, Reference, up_vector
 from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import BodyInfo, RunLog
 
@@ -78,10 +78,8 @@ vector against it and the reference point."""
 
 def constants(info: BodyInfo, gravity: np.ndarray, ref: np.ndarray) -> tuple[float, ...]:
     """The values of `CONSTANTS` for one body."""
-    g = float(np.linalg.norm(gravity))
-    up = -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
     m = info.mass
-    return (0.5 * m, -m, *info.inertia, *(float(c) for c in gravity), *up, *ref)
+    return (0.5 * m, -m, *info.inertia, *(float(c) for c in gravity), *up_vector(gravity), *ref)
 
 
 def energy_rows(frame: pl.DataFrame) -> pl.DataFrame:

@@ -21,7 +21,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.ground import Ground
+from impactlab.analyze.measure.ground import Ground, up_vector
 from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import RunLog
 
@@ -217,9 +217,8 @@ def flight_rows(
 def _vertical(run: RunLog) -> tuple[float, float, float, float, float]:
     """A run's unit vector against gravity, the velocity shift g h and |g|."""
     g = float(np.linalg.norm(run.gravity))
-    up = -run.gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
-    w_shift = g * run.half_step_s
-    return float(up[0]), float(up[1]), float(up[2]), w_shift, g
+    up = up_vector(run.gravity)
+    return float(up[0]), float(up[1]), float(up[2]), g * run.half_step_s, g
 
 
 def _code(names: list[str | None], name: str | None) -> int:

@@ -106,6 +106,11 @@ def run_aggregates(
     return RunAggregates(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
 
 
+def duration_s(states: pl.DataFrame) -> float:
+    """Logged duration in s (0 when nothing was logged)."""
+    return float(states.select(pl.col("t_s").max()).item() or 0.0) if states.height else 0.0
+
+
 def predicted_drift(run: RunLog, flight_s: float | None, forced: bool) -> float | None:
     """The energy drift, J, the run's integrator gives its free bodies in a flight of
     `flight_s`: -M g^2 h T with h the log's half step (`RunLog.half_step_s`), so -M g^2 dt T / 2
@@ -175,9 +180,7 @@ def summary_row(
         "timestep_s": run.timestep_s,
         "integrator": run.integrator,
         "log_every": run.log_every,
-        "duration_s": float(states.select(pl.col("t_s").max()).item() or 0.0)
-        if states.height
-        else 0.0,
+        "duration_s": duration_s(states),
         "n_bodies": len(run.bodies),
         "ground": ground,
         "sweep": "{}" if "sweep" in run.checked.problems else run.meta.get("sweep", "{}"),
