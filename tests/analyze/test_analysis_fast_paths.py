@@ -1,9 +1,9 @@
-"""The analysis' fast paths (taken on frames as the recorder writes them) give what their
-general path gives on the same data in any order: MuJoCo's energy at given times, and a table written as one
-part."""
+"""MuJoCo's energy compared at the times it was logged; the table parts' fast join (a table
+written as one part, parts of different types) gives what one concatenation gives."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +11,7 @@ import polars as pl
 import pytest
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze.measure.energy import _mujoco_at
+from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.analyze.tables.combine import _join, _relaxed
 from impactlab.files import write_parquet
 from impactlab.logs.load import load_log
@@ -26,22 +26,29 @@ def runs():
     return [load_log(p) for p in logs]
 
 
-def test_mujoco_energy_at_the_logged_times_equals_the_searched_one(runs):
-    """At exactly the logged times (no search) and at the same times with one that was not
-    logged (searched), the values agree where both have them."""
-    energy = runs[0].energy
-    t = energy["t_ns"].to_numpy()
-    fast, found = _mujoco_at(energy, t, 0.5)
-    assert found.all()
-    asked = np.concatenate([t, [t[-1] + 1]])  # one time not logged: the general path
-    searched, where = _mujoco_at(energy, asked, 0.5)
-    np.testing.assert_array_equal(searched[:-1], fast)
-    assert where[:-1].all() and not where[-1] and np.isnan(searched[-1])
-    np.testing.assert_array_equal(fast, energy["total"].to_numpy() - 0.5)
-    null_at_3 = pl.when(pl.col("t_ns") == t[3]).then(None).otherwise(pl.col("total"))
-    nulls = energy.with_columns(null_at_3.alias("total"))
-    values, found = _mujoco_at(nulls, t, 0.5)
-    assert not found[3] and np.isnan(values[3]) and found.sum() == t.size - 1
+def test_mujoco_energy_is_compared_at_the_times_it_was_logged(runs):
+    """The energy table's MuJoCo total is the logged one, shifted by one constant per run;
+    a time whose MuJoCo total is missing (null) has none, and no difference."""
+    run = runs[0]
+    t3 = run.energy["t_ns"][3]
+    for damaged in (False, True):
+        energy = run.energy
+        if damaged:
+            null_at_3 = pl.when(pl.col("t_ns") == t3).then(None).otherwise(pl.col("total"))
+            energy = energy.with_columns(null_at_3.alias("total"))
+        total = analyze_run(replace(run, energy=energy)).energy.filter(pl.col("is_total"))
+        joined = total.join(energy, on="t_ns")
+        assert joined.height == energy.height == total.height
+        known = joined.filter(pl.col("total").is_not_null())
+        shift = (known["total"] - known["mujoco_total_J"]).to_numpy()
+        np.testing.assert_allclose(shift, shift[0], rtol=0, atol=1e-12)
+        diff = known["mujoco_total_J"] - known["total_J"]
+        np.testing.assert_allclose(known["mujoco_diff_J"].to_numpy(), diff.to_numpy(), atol=1e-15)
+        missing = joined.filter(pl.col("total").is_null())
+        assert missing.height == damaged
+        assert (
+            missing["mujoco_total_J"].is_null().all() and missing["mujoco_diff_J"].is_null().all()
+        )
 
 
 def test_one_part_is_renamed_and_two_are_joined(tmp_path):

@@ -21,7 +21,7 @@ from impactlab.analyze.measure.episodes import episodes
 from impactlab.analyze.measure.flights import flight_rows, flights
 from impactlab.analyze.measure.ground import Ground, references, run_ground
 from impactlab.analyze.measure.phases import WORK_COLUMNS, energy_phases
-from impactlab.analyze.measure.states import per_run, state_blocks, states_long
+from impactlab.analyze.measure.states import by_run, per_run, state_blocks, states_long
 from impactlab.analyze.measure.summary import duration_s, run_aggregates, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
@@ -92,20 +92,6 @@ def _check(run: RunLog) -> Ground:
             "spec is in the log: `impactlab info` shows it)",
         )
     return run_ground(run)
-
-
-def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
-    """A frame of several runs split by run_id (each run's rows in their order): slices when
-    each run's rows are together (the batch's frames are by run), else a partition."""
-    if not frame.height:
-        return {}
-    blocks = frame["run_id"].rle()
-    ids = blocks.struct.field("value").to_list()
-    if len(set(ids)) != len(ids) or None in ids:
-        return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
-    lengths = blocks.struct.field("len").to_list()
-    ends = np.cumsum(lengths).tolist()
-    return {r: frame.slice(e - n, n) for r, n, e in zip(ids, lengths, ends, strict=True)}
 
 
 def analyze_runs(runs: Sequence[RunLog]) -> list[RunAnalysis | LogError]:

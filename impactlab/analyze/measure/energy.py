@@ -19,7 +19,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.ground import Ground, Reference, up_vector
-from impactlab.analyze.measure.states import state_blocks
+from impactlab.analyze.measure.states import by_run, state_blocks
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
@@ -170,43 +170,81 @@ def run_energies(
     bodies = energy_rows(frame.hstack(extra))
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
     bodies = _with_heights(bodies, kept, starts, grounds, refs)
-    sums = {c: bodies[c].to_numpy() for c in ("t_ns", "t_s", *ENERGY_COLUMNS)}
-    exact = not any(bodies[c].null_count() for c in ENERGY_COLUMNS)
     spans: dict[str, dict[str, tuple[int, int]]] = {}
     for (r, b, _, _), at, n in zip(kept, starts, lengths, strict=True):
         spans.setdefault(r, {})[b] = (int(at), int(at + n))
-    summed, slow = [], {}  # runs summed over arrays; the others by a group-by
-    for r, mine in spans.items():
-        run = by_id[r]
-        order = [b for b in refs[r] if b in mine]  # the bodies in the order of the metadata
-        shift = float(sum(-run.body_info[n].mass * run.gravity @ refs[r][n].point for n in refs[r]))
-        shift += run.static_potential_J  # MuJoCo counts the static bodies' mass too
-        cols = [{c: v[a:z] for c, v in sums.items()} for a, z in (mine[b] for b in order)]
-        if exact and all(
-            np.array_equal(f["t_ns"], cols[0]["t_ns"]) and np.array_equal(f["t_s"], cols[0]["t_s"])
-            for f in cols
-        ):  # every body logged at the same times: sums over the arrays, in the bodies' order
-            total = {c: cols[0][c] for c in ENERGY_COLUMNS}
-            for f in cols[1:]:
-                total = {c: total[c] + f[c] for c in ENERGY_COLUMNS}
-            total = _with_joints(total, run.joint_energy, cols[0]["t_ns"])
-            theirs, found = _mujoco_at(run.energy, cols[0]["t_ns"], shift)
-            summed.append((r, cols[0]["t_ns"], cols[0]["t_s"], total, theirs, found))
-        else:
-            parts = [bodies.slice(mine[b][0], mine[b][1] - mine[b][0]) for b in order]
-            slow[r] = total_energy(parts, run.energy, shift, run.joint_energy)
-    by_run = _totals(summed) | slow
-    totals = [by_run[r] for r in spans]
-    out = _by_run(bodies, spans, totals)
-    by_time = {
-        r: t if t["t_ns"].is_sorted() else t.sort("t_ns")
-        for r, t in zip(spans, totals, strict=True)
-    }
+    code = np.repeat([list(spans).index(r) for r, _, _, _ in kept], lengths)
+    total = _totals(bodies, code, frame["row"].to_numpy(), [by_id[r] for r in spans], refs)
+    totals = by_run(total)
+    out = _by_run(bodies, spans, [totals[r] for r in spans])
     empty = empty_energy()
     return (
         {run.run_id: out.get(run.run_id, empty) for run in runs},
-        {run.run_id: by_time.get(run.run_id, empty) for run in runs},
+        {run.run_id: totals.get(run.run_id, empty) for run in runs},
     )
+
+
+def _totals(
+    bodies: pl.DataFrame,
+    run: np.ndarray,
+    row: np.ndarray,
+    runs: Sequence[RunLog],
+    refs: Mapping[str, dict[str, Reference]],
+) -> pl.DataFrame:
+    """The runs' "total" rows: their bodies' energies summed at each logged row (`run`: each
+    body row's index in `runs`, in order; `row`: its row as `states_long` numbers them, the
+    run's distinct logged times in order), plus the joints' where the run logs them (rotor
+    inertia's kinetic energy counts as rotation, springs as potential energy; NaN at a time
+    without them), and MuJoCo's total minus sum(-m g . r_ref) and the static bodies'
+    potential energy (null where not logged)."""
+    size = np.zeros(len(runs), np.int64)
+    np.maximum.at(size, run, row + 1)
+    ends = np.cumsum(size)
+    at = (ends - size)[run] + row
+    t_ns, t_s = np.zeros(ends[-1], np.int64), np.zeros(ends[-1])
+    t_ns[at], t_s[at] = bodies["t_ns"].to_numpy(), bodies["t_s"].to_numpy()
+    sums = {c: np.bincount(at, bodies[c].to_numpy(), minlength=ends[-1]) for c in ENERGY_COLUMNS}
+    theirs = np.full(t_ns.size, np.nan)
+    for r, end, n in zip(runs, ends, size, strict=True):
+        mine = slice(end - n, end)
+        shift = r.static_potential_J  # MuJoCo counts the static bodies' mass too
+        shift += sum(
+            -r.body_info[b].mass * r.gravity @ ref.point for b, ref in refs[r.run_id].items()
+        )
+        theirs[mine] = _at(t_ns[mine], r.energy, "total") - shift
+        if r.joint_energy.height:
+            rotor = _at(t_ns[mine], r.joint_energy, "kinetic")
+            spring = _at(t_ns[mine], r.joint_energy, "potential")
+            sums["ke_rot_J"][mine] += rotor
+            sums["pe_J"][mine] += spring
+            sums["total_J"][mine] += rotor + spring
+    ids = pl.Series("run_id", [r.run_id for r in runs], dtype=pl.String)
+    mujoco = pl.Series("mujoco_total_J", theirs, nan_to_null=True)
+    return pl.DataFrame(
+        [
+            ids.gather(np.repeat(np.arange(len(runs)), size)),
+            pl.Series("body", ["total"], dtype=pl.String).new_from_index(0, t_ns.size),
+            pl.Series("t_ns", t_ns),
+            pl.Series("t_s", t_s),
+            pl.Series("height_m", [None], dtype=pl.Float64).new_from_index(0, t_ns.size),
+            *[pl.Series(c, v) for c, v in sums.items()],
+            mujoco,
+            (mujoco - pl.Series(sums["total_J"])).alias("mujoco_diff_J"),
+        ]
+    )
+
+
+def _at(t: np.ndarray, logged: pl.DataFrame, column: str) -> np.ndarray:
+    """`column` of `logged` (t_ns, `column`) at each time of `t`; NaN where not logged."""
+    times, values = logged["t_ns"].to_numpy(), logged[column].cast(pl.Float64).to_numpy()
+    out = np.full(t.size, np.nan)
+    if times.size:
+        order = np.argsort(times, kind="stable")
+        times, values = times[order], values[order]
+        spot = np.clip(np.searchsorted(times, t), 0, times.size - 1)
+        found = times[spot] == t
+        out[found] = values[spot[found]]
+    return out
 
 
 def _by_run(
@@ -264,117 +302,6 @@ def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
     """`values` as a Float64 column, null where not `found`."""
     column = pl.Series(name, values, dtype=pl.Float64)
     return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
-
-
-def total_energy(
-    bodies: list[pl.DataFrame],
-    mujoco: pl.DataFrame,
-    shift: float,
-    joints: pl.DataFrame | None = None,
-) -> pl.DataFrame:
-    """The run's "total" rows when its bodies are not all logged at the same times (a
-    damaged log): the bodies' energies summed by a group-by at each logged time, plus the
-    joints' (`joints`: t_ns, kinetic, potential), and MuJoCo's total (`mujoco`: t_ns, total)
-    minus `shift` where it was logged at that time."""
-    total = (
-        pl.concat(bodies)
-        .group_by("run_id", "t_ns", "t_s", maintain_order=True)
-        .agg(*[pl.col(c).sum() for c in ENERGY_COLUMNS])
-    )
-    if joints is not None and joints.height:
-        sums = _with_joints(
-            {c: total[c].to_numpy() for c in ENERGY_COLUMNS}, joints, total["t_ns"].to_numpy()
-        )
-        total = total.with_columns(pl.Series(c, v) for c, v in sums.items())
-    theirs, found = _mujoco_at(mujoco, total["t_ns"].to_numpy(), shift)
-    mujoco_total = with_nulls("mujoco_total_J", theirs, found)
-    return total.select(
-        "run_id",
-        pl.lit("total").alias("body"),
-        "t_ns",
-        "t_s",
-        pl.lit(None, dtype=pl.Float64).alias("height_m"),
-        *ENERGY_COLUMNS,
-        mujoco_total,
-        (mujoco_total - total["total_J"]).alias("mujoco_diff_J"),
-    )
-
-
-def _totals(
-    summed: list[tuple[str, np.ndarray, np.ndarray, dict[str, np.ndarray], np.ndarray, np.ndarray]],
-) -> dict[str, pl.DataFrame]:
-    """The "total" rows of runs summed over arrays (run id, t_ns, t_s, the sums, MuJoCo's
-    total and where it was logged), built as one frame and split into each run's slice."""
-    if not summed:
-        return {}
-    sizes = [t.size for _, t, *_ in summed]
-    n = sum(sizes)
-    ids = pl.Series("run_id", [r for r, *_ in summed], dtype=pl.String)
-    total_j = np.concatenate([x[3]["total_J"] for x in summed])
-    mujoco_total = with_nulls(
-        "mujoco_total_J",
-        np.concatenate([x[4] for x in summed]),
-        np.concatenate([x[5] for x in summed]),
-    )
-    frame = pl.DataFrame(
-        [
-            ids.gather(np.repeat(np.arange(len(summed)), sizes)),
-            pl.Series("body", ["total"], dtype=pl.String).new_from_index(0, n),
-            pl.Series("t_ns", np.concatenate([x[1] for x in summed]), dtype=pl.Int64),
-            pl.Series("t_s", np.concatenate([x[2] for x in summed]), dtype=pl.Float64),
-            pl.Series("height_m", [None], dtype=pl.Float64).new_from_index(0, n),
-            *[
-                pl.Series(c, np.concatenate([x[3][c] for x in summed]), dtype=pl.Float64)
-                for c in ENERGY_COLUMNS
-            ],
-            mujoco_total,
-            (mujoco_total - pl.Series(total_j)).alias("mujoco_diff_J"),
-        ]
-    )
-    starts = np.cumsum(sizes) - sizes
-    return {
-        r: frame.slice(int(a), size) for (r, *_), a, size in zip(summed, starts, sizes, strict=True)
-    }
-
-
-def _with_joints(
-    total: dict[str, np.ndarray], joints: pl.DataFrame, t: np.ndarray
-) -> dict[str, np.ndarray]:
-    """The bodies' summed energy plus the joints' at each time of `t`: rotor inertia's
-    kinetic energy counts as rotation, springs as potential energy (none logged: unchanged)."""
-    if not joints.height:
-        return total
-    logged = joints["t_ns"].to_numpy()
-    spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
-    found = logged[spot] == t
-    rotor = np.where(found, joints["kinetic"].to_numpy()[spot], np.nan)
-    spring = np.where(found, joints["potential"].to_numpy()[spot], np.nan)
-    out = dict(total)
-    out["ke_rot_J"] = total["ke_rot_J"] + rotor
-    out["pe_J"] = total["pe_J"] + spring
-    out["total_J"] = total["total_J"] + rotor + spring
-    return out
-
-
-def _mujoco_at(mujoco: pl.DataFrame, t: np.ndarray, shift: float) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's total energy (`mujoco`: t_ns, total) minus `shift` at each time of `t`, and
-    whether it was logged there (NaN where not)."""
-    logged, values = mujoco["t_ns"].to_numpy(), mujoco["total"].to_numpy()
-    nulls = mujoco["total"].has_nulls()
-    if not nulls and np.array_equal(logged, t) and bool((t[1:] > t[:-1]).all()):
-        # as recorded: one value at each time
-        return values - shift, np.ones(t.size, dtype=bool)
-    order = np.argsort(logged, kind="stable")
-    logged, values = logged[order], values[order]
-    found = np.zeros(t.size, dtype=bool)
-    theirs = np.full(t.size, np.nan)
-    if logged.size:
-        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
-        found = logged[spot] == t
-        if nulls:
-            found &= mujoco["total"].is_not_null().to_numpy()[order][spot]
-        theirs[found] = values[spot[found]] - shift
-    return theirs, found
 
 
 def empty_energy() -> pl.DataFrame:

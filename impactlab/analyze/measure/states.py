@@ -23,6 +23,20 @@ def per_run(runs: Sequence[RunLog], value: Callable[[RunLog], float]) -> pl.Expr
     return pl.col("run_id").replace_strict(mapping, return_dtype=pl.Float64)
 
 
+def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """A frame of several runs split by run_id (each run's rows in their order): slices when
+    each run's rows are together (the batch's frames are by run), else a partition."""
+    if not frame.height:
+        return {}
+    blocks = frame["run_id"].rle()
+    ids = blocks.struct.field("value").to_list()
+    if len(set(ids)) != len(ids) or None in ids:
+        return {str(k[0]): f for k, f in frame.partition_by("run_id", as_dict=True).items()}
+    lengths = blocks.struct.field("len").to_list()
+    ends = np.cumsum(lengths).tolist()
+    return {r: frame.slice(e - n, n) for r, n, e in zip(ids, lengths, ends, strict=True)}
+
+
 def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
     """Every body's state of every run in one frame, and each run's logged rows.
 
