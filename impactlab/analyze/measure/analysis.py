@@ -21,7 +21,7 @@ from impactlab.analyze.measure.episodes import episodes
 from impactlab.analyze.measure.flights import flight_rows, flights
 from impactlab.analyze.measure.ground import Ground, references, run_ground
 from impactlab.analyze.measure.phases import WORK_COLUMNS, energy_phases
-from impactlab.analyze.measure.states import by_run, per_run, state_blocks, states_long
+from impactlab.analyze.measure.states import at_times, by_run, per_run, state_blocks, states_long
 from impactlab.analyze.measure.summary import duration_s, run_aggregates, summary_row
 from impactlab.errors import LogError
 from impactlab.logs.load import RunLog
@@ -266,22 +266,14 @@ def _budget(run: RunLog, total: pl.DataFrame) -> pl.DataFrame:
     energy rows: the bodies' energy and the rotor inertia's, without the springs' (their
     work is booked instead), and the work each kind of force did so far."""
     t = total["t_ns"].to_numpy()
-    spring = np.zeros(t.size)
     joints = run.joint_energy
-    if joints.height:
-        spot = np.clip(np.searchsorted(joints["t_ns"].to_numpy(), t), 0, joints.height - 1)
-        spring = joints["potential"].to_numpy()[spot]
-    work = run.work
-    done = np.full((t.size, len(WORK_FIELDS)), np.nan)
-    if work.height:
-        logged = work["t_ns"].to_numpy()
-        spot = np.clip(np.searchsorted(logged, t), 0, logged.size - 1)
-        found = logged[spot] == t
-        for i, kind in enumerate(WORK_FIELDS):
-            done[found, i] = work[kind].to_numpy()[spot[found]]
+    spring = at_times(t, joints, "potential") if joints.height else np.zeros(t.size)
     return total.select("run_id", "t_ns", "t_s").with_columns(
         pl.Series("energy_J", total["total_J"].to_numpy() - spring),
-        *[pl.Series(c, done[:, i]) for i, c in enumerate(WORK_COLUMNS)],
+        *[
+            pl.Series(c, at_times(t, run.work, k))
+            for k, c in zip(WORK_FIELDS, WORK_COLUMNS, strict=True)
+        ],
     )
 
 

@@ -19,7 +19,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.ground import Ground, Reference, up_vector
-from impactlab.analyze.measure.states import by_run, state_blocks
+from impactlab.analyze.measure.states import at_times, by_run, state_blocks
 from impactlab.logs.load import BodyInfo, RunLog
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
@@ -211,10 +211,10 @@ def _totals(
         shift += sum(
             -r.body_info[b].mass * r.gravity @ ref.point for b, ref in refs[r.run_id].items()
         )
-        theirs[mine] = _at(t_ns[mine], r.energy, "total") - shift
+        theirs[mine] = at_times(t_ns[mine], r.energy, "total") - shift
         if r.joint_energy.height:
-            rotor = _at(t_ns[mine], r.joint_energy, "kinetic")
-            spring = _at(t_ns[mine], r.joint_energy, "potential")
+            rotor = at_times(t_ns[mine], r.joint_energy, "kinetic")
+            spring = at_times(t_ns[mine], r.joint_energy, "potential")
             sums["ke_rot_J"][mine] += rotor
             sums["pe_J"][mine] += spring
             sums["total_J"][mine] += rotor + spring
@@ -232,19 +232,6 @@ def _totals(
             (mujoco - pl.Series(sums["total_J"])).alias("mujoco_diff_J"),
         ]
     )
-
-
-def _at(t: np.ndarray, logged: pl.DataFrame, column: str) -> np.ndarray:
-    """`column` of `logged` (t_ns, `column`) at each time of `t`; NaN where not logged."""
-    times, values = logged["t_ns"].to_numpy(), logged[column].cast(pl.Float64).to_numpy()
-    out = np.full(t.size, np.nan)
-    if times.size:
-        order = np.argsort(times, kind="stable")
-        times, values = times[order], values[order]
-        spot = np.clip(np.searchsorted(times, t), 0, times.size - 1)
-        found = times[spot] == t
-        out[found] = values[spot[found]]
-    return out
 
 
 def _by_run(

@@ -37,6 +37,19 @@ def by_run(frame: pl.DataFrame) -> dict[str, pl.DataFrame]:
     return {r: frame.slice(e - n, n) for r, n, e in zip(ids, lengths, ends, strict=True)}
 
 
+def at_times(t: np.ndarray, logged: pl.DataFrame, column: str) -> np.ndarray:
+    """`column` of `logged` (t_ns, `column`) at each time of `t`; NaN where not logged."""
+    times, values = logged["t_ns"].to_numpy(), logged[column].cast(pl.Float64).to_numpy()
+    out = np.full(t.size, np.nan)
+    if times.size:
+        order = np.argsort(times, kind="stable")
+        times, values = times[order], values[order]
+        spot = np.clip(np.searchsorted(times, t), 0, times.size - 1)
+        found = times[spot] == t
+        out[found] = values[spot[found]]
+    return out
+
+
 def states_long(runs: Sequence[RunLog]) -> tuple[pl.DataFrame, pl.DataFrame]:
     """Every body's state of every run in one frame, and each run's logged rows.
 
