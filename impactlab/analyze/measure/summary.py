@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -11,46 +10,17 @@ import polars as pl
 from impactlab.analyze.measure.phases import WORK_COLUMNS
 from impactlab.logs.load import RunLog
 
-EMPTY_ENERGY: dict[str, Any] = {"energy_start": None, "energy_end": None, "mujoco_diff_max": None}
-EMPTY_PHASES: dict[str, Any] = {
+NO_ROWS: dict[str, Any] = {
     "n_flights": 0,
-    "drift_max": None,
-    "drift_worst": None,
-    "drift_worst_T": None,
-    "dev_max": None,
     "n_contacts": 0,
     "loss_sum": 0.0,
-    "residual": None,
-    **{c: None for c in WORK_COLUMNS},
-}
-EMPTY_BOUNCES: dict[str, Any] = {
     "n_bounces": 0,
     "n_pairs": 0,
     "n_good": 0,
-    "apex_before_m": None,
-    "v_in_mps": None,
-    "e_velocity": None,
-    "e_velocity_mean": None,
-    "e_apex_mean": None,
     "notes": [],
 }
-
-
-@dataclass(frozen=True)
-class RunAggregates:
-    """Per run (by run_id), the aggregates of its frames that its summary row needs."""
-
-    energy: dict[str, dict[str, Any]]
-    phases: dict[str, dict[str, Any]]
-    bounces: dict[str, dict[str, Any]]
-
-    def of(self, run_id: str) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
-        """The run's energy, phase and bounce aggregates (those of no rows where it has none)."""
-        return (
-            self.energy.get(run_id, EMPTY_ENERGY),
-            self.phases.get(run_id, EMPTY_PHASES),
-            self.bounces.get(run_id, EMPTY_BOUNCES),
-        )
+"""The aggregates `run_aggregates` gives a run without energy, phase or bounce rows (any
+other aggregate: None)."""
 
 
 NEGLIGIBLE_ENERGY_J = 1e-9
@@ -60,8 +30,8 @@ energy, is zero: the budget closes on MuJoCo's energy to about 1e-11 J."""
 
 def run_aggregates(
     total: pl.DataFrame, phases: pl.DataFrame, bounces: pl.DataFrame
-) -> RunAggregates:
-    """The aggregates of every run in the frames, in one group-by each.
+) -> dict[str, dict[str, Any]]:
+    """The aggregates of every run in the frames, by run id, in one group-by per frame.
 
     Args:
         total: the runs' "total" energy rows, each run's by time.
@@ -103,7 +73,11 @@ def run_aggregates(
         pl.col("e_apex").filter(good).mean().alias("e_apex_mean"),
         pl.col("note").filter(~bounced).alias("notes"),
     )
-    return RunAggregates(*({r.pop("run_id"): r for r in f.to_dicts()} for f in (e, p, b)))
+    out: dict[str, dict[str, Any]] = {}
+    for frame in (e, p, b):
+        for row in frame.to_dicts():
+            out.setdefault(row.pop("run_id"), {}).update(row)
+    return out
 
 
 def duration_s(states: pl.DataFrame) -> float:
@@ -130,7 +104,7 @@ def predicted_drift(run: RunLog, flight_s: float | None, forced: bool) -> float 
 def summary_row(
     run: RunLog,
     *,
-    aggregates: RunAggregates,
+    aggregates: dict[str, dict[str, Any]],
     states: pl.DataFrame,
     collisions: pl.DataFrame,
     ground: bool,
@@ -139,24 +113,24 @@ def summary_row(
 
     Args:
         run: the decoded log; `states` and `collisions` are its analysis (`RunAnalysis`).
-        aggregates: the aggregates of the run's energy, phases and bounces (`run_aggregates`).
+        aggregates: the runs' aggregates of their energy, phases and bounces (`run_aggregates`).
         ground: whether the run has ground surfaces.
     """
-    en, ph, bo = aggregates.of(run.run_id)
-    energy_start, energy_end = en["energy_start"], en["energy_end"]
-    single = bo["n_pairs"] == 1
+    agg = NO_ROWS | aggregates.get(run.run_id, {})
+    energy_start, energy_end = agg.get("energy_start"), agg.get("energy_end")
+    single = agg["n_pairs"] == 1
     col = collisions.row(0, named=True) if collisions.height else None
-    notes = [n for n in bo["notes"] if n]
-    if bo["n_pairs"] > 1:
+    notes = [n for n in agg["notes"] if n]
+    if agg["n_pairs"] > 1:
         notes.append(
-            f"bounces of {bo['n_pairs']} body-surface pairs: e per pair in the bounces table"
+            f"bounces of {agg['n_pairs']} body-surface pairs: e per pair in the bounces table"
         )
     if col is not None and not col["complete"] and col["note"]:
         notes.append(col["note"])
     scale = abs(energy_start) if energy_start else None
     contact = ("work_contact_normal_J", "work_contact_friction_J", "work_solver_J")
     forced = any(  # a force besides gravity and the contacts' works: no free-flight formula
-        abs(ph[c] or 0.0) > NEGLIGIBLE_ENERGY_J * max(1.0, scale or 0.0)
+        abs(agg.get(c) or 0.0) > NEGLIGIBLE_ENERGY_J * max(1.0, scale or 0.0)
         for c in WORK_COLUMNS
         if c not in contact
     )
@@ -165,7 +139,7 @@ def summary_row(
         return col[name] if col is not None else None
 
     def f(name: str) -> Any:
-        return bo[name] if single else None
+        return agg.get(name) if single else None
 
     return {
         "run_id": run.run_id,
@@ -187,23 +161,25 @@ def summary_row(
         "energy_initial_J": energy_start,
         "energy_final_J": energy_end,
         "energy_loss_frac": (energy_start - energy_end) / energy_start if energy_start else None,
-        "flight_drift_max_J": ph["drift_max"] if ph["n_flights"] else None,
-        "flight_drift_max_rel": (ph["dev_max"] / scale) if ph["n_flights"] and scale else None,
-        "flight_drift_J": ph["drift_worst"] if ph["n_flights"] else None,
-        "flight_drift_predicted_J": predicted_drift(run, ph["drift_worst_T"], forced)
-        if ph["n_flights"]
+        "flight_drift_max_J": agg.get("drift_max") if agg["n_flights"] else None,
+        "flight_drift_max_rel": (agg.get("dev_max") / scale)
+        if agg["n_flights"] and scale
         else None,
-        "contact_loss_sum_J": ph["loss_sum"],
-        **{c: ph[c] for c in WORK_COLUMNS},
-        "residual_J": ph["residual"],
-        "mujoco_diff_max_J": en["mujoco_diff_max"],
+        "flight_drift_J": agg.get("drift_worst") if agg["n_flights"] else None,
+        "flight_drift_predicted_J": predicted_drift(run, agg.get("drift_worst_T"), forced)
+        if agg["n_flights"]
+        else None,
+        "contact_loss_sum_J": agg["loss_sum"],
+        **{c: agg.get(c) for c in WORK_COLUMNS},
+        "residual_J": agg.get("residual"),
+        "mujoco_diff_max_J": agg.get("mujoco_diff_max"),
         "drop_height_m": f("apex_before_m"),
-        "n_bounces": bo["n_bounces"],
-        "n_bounces_complete": bo["n_good"],
+        "n_bounces": agg["n_bounces"],
+        "n_bounces_complete": agg["n_good"],
         "first_impact_speed_mps": -f("v_in_mps") if f("v_in_mps") is not None else None,
         "e_velocity_first": f("e_velocity"),
-        "e_velocity_mean": bo["e_velocity_mean"] if single and bo["n_good"] else None,
-        "e_apex_mean": bo["e_apex_mean"] if single and bo["n_good"] else None,
+        "e_velocity_mean": agg.get("e_velocity_mean") if single and agg["n_good"] else None,
+        "e_apex_mean": agg.get("e_apex_mean") if single and agg["n_good"] else None,
         "n_collisions": collisions.height - collisions["collision"].null_count(),
         "e_collision": c("e_velocity"),
         "v1n_before_mps": c("v1n_before_mps"),
