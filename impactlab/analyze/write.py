@@ -2,26 +2,23 @@
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor, wait
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import polars as pl
 
 from impactlab.analyze.report.context import RunBrief, Tables, labelled, repeated_runs
 from impactlab.analyze.report.decimate_lines import LINE_BINS
 from impactlab.analyze.report.document import answers, summary_answers, write_reports
+from impactlab.analyze.report.figure_cache import FigureJob, draw_all, figure_job
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
 from impactlab.files import write_json_stream, write_parquet
 from impactlab.text import file_part
-
-if TYPE_CHECKING:
-    from impactlab.analyze.report.figure_cache import FigureJob
 
 SUMMARY_SLICE = 1000
 """summary.json lists the runs from slices of this many rows of the runs table."""
@@ -102,39 +99,20 @@ def write_all(
         "answers": summary_answers(replies),
         "energy_table": t.energy_note,
     }
-    # the summary figures are drawn (in the workers, when they are up) while summary.json is
-    # written here; the report embeds them, so it waits
-    with _drawing([job for _, job in jobs], executor) as drawn:
+    # with workers, the summary figures are drawn by them (from a thread here) while
+    # summary.json is written; without, here first. The report embeds them, so it waits
+    todo = [job for _, job in jobs]
+    workers = executor is not None and executor.name != "local"
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-figures") as thread:
+        drawing = thread.submit(draw_all, todo, executor) if todo and workers else None
+        if drawing is None:
+            draw_all(todo, executor)
         files.append(write_json_stream(out / "summary.json", summary))
-        drawn()
+        if drawing is not None:
+            drawing.result()
     if report:
         files += write_reports(t, out, replies)
     return files
-
-
-@contextlib.contextmanager
-def _drawing(jobs: Sequence[FigureJob], executor: Executor | None) -> Iterator[Callable[[], None]]:
-    """Draw the figures `jobs` (`figure_cache.draw_all`): with workers, from a thread while
-    the block runs, here before it without. Yields the wait for them (raising a drawing's
-    error); they are waited for when the block ends, however it ends."""
-    from impactlab.analyze.report.figure_cache import draw_all
-
-    if not jobs or executor is None or executor.name == "local":
-        draw_all(jobs, executor)
-        yield lambda: None
-        return
-    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="impactlab-figures")
-    future = pool.submit(draw_all, jobs, executor)
-    pool.shutdown(wait=False)
-
-    def drawn() -> None:
-        future.result()
-
-    try:
-        yield drawn
-    finally:
-        wait([future])
-    drawn()
 
 
 def _rows(frame: pl.DataFrame) -> Iterator[dict[str, Any]]:
@@ -163,8 +141,6 @@ def summary_figure_jobs(
     fig_dir: Path,
 ) -> list[tuple[str, FigureJob]]:
     """The figures over many runs to draw, nothing drawn yet: (kind, job) of each."""
-    from impactlab.analyze.report.figure_cache import figure_job
-
     all_bounces, collisions = tables
     jobs: list[tuple[str, FigureJob]] = []
     fig_dir.mkdir(parents=True, exist_ok=True)
