@@ -54,65 +54,51 @@ def run_analysis(
     paths, empty = require_log_names(inputs, text=True)  # log names go into the tables
     out = None if out_dir is None else Path(out_dir)
     with contextlib.nullcontext(None) if out is None else staged(out) as stage:
-        return _analysis(paths, empty, out, stage, figures, report, executor, progress)
+        draw = stage is not None and figures
+        fig_dir = stage / "figures" if draw and stage is not None else None
+        # with a folder the tables are written as the batches finish (`TableReducer`): the
+        # driver keeps each run's brief and figure paths only, never its frames or metadata
+        reducer = TableReducer(folder=stage)
+        briefs: list[RunBrief] = []
+        run_figs: list[list[tuple[str, Path]]] = []
+        failed: list[tuple[str, str]] = []
+        partial: list[str] = []
 
+        def take(d: AnalyzedLog) -> None:
+            if d.error is not None:
+                failed.append(d.error)
+            if d.analysis is None:
+                return
+            a = reducer.take(d.analysis)
+            if a.run.partial:
+                problems = "; ".join(a.run.problems)
+                partial.append(f"impactlab: warning: {a.run.path}: partial log ({problems})")
+            briefs.append(brief(a))
+            if d.figures:
+                run_figs.append(d.figures)
 
-def _analysis(
-    paths: Sequence[str],
-    empty: Sequence[tuple[str, str]],
-    out: Path | None,
-    stage: Path | None,
-    figures: bool,
-    report: bool,
-    executor: Executor | None,
-    progress: Progress | None,
-) -> AnalysisResult:
-    """Analyze; with `out`, write every file into `stage` and then publish them into `out`."""
-    draw = stage is not None and figures
-    fig_dir = stage / "figures" if draw and stage is not None else None
-    # with a folder the tables are written as the batches finish (`TableReducer`): the
-    # driver keeps each run's brief and figure paths only, never its frames or metadata
-    reducer = TableReducer(folder=stage)
-    briefs: list[RunBrief] = []
-    run_figs: list[list[tuple[str, Path]]] = []
-    failed: list[tuple[str, str]] = []
-    partial: list[str] = []
-
-    def take(d: AnalyzedLog) -> None:
-        if d.error is not None:
-            failed.append(d.error)
-        if d.analysis is None:
-            return
-        a = reducer.take(d.analysis)
-        if a.run.partial:
-            problems = "; ".join(a.run.problems)
-            partial.append(f"impactlab: warning: {a.run.path}: partial log ({problems})")
-        briefs.append(brief(a))
-        if d.figures:
-            run_figs.append(d.figures)
-
-    analyze_logs(paths, fig_dir=fig_dir, take=take, executor=executor, progress=progress)
-    for where, why in empty:
-        say(progress, "analyze", f"impactlab: error: {where}: {why}", "error")
-    failed = [*empty, *failed]
-    for line in partial:
-        say(progress, "analyze", line, "warning")
-    result = reducer.result(out, failed)
-    if not briefs or out is None or stage is None:
-        if stage is not None:  # nothing analyzed: nothing is published
-            result.sources = {}
+        analyze_logs(paths, fig_dir=fig_dir, take=take, executor=executor, progress=progress)
+        for where, why in empty:
+            say(progress, "analyze", f"impactlab: error: {where}: {why}", "error")
+        failed = [*empty, *failed]
+        for line in partial:
+            say(progress, "analyze", line, "warning")
+        result = reducer.result(out, failed)
+        if not briefs or out is None or stage is None:
+            if stage is not None:  # nothing analyzed: nothing is published
+                result.sources = {}
+            return result
+        written = write_all(
+            result,
+            briefs,
+            run_figs,
+            out=stage,
+            figures=draw,
+            report=report,
+            executor=executor,
+        )
+        result.files = publish(stage, out, written)
+        result.sources = {name: out / f"{name}.parquet" for name in result.sources}
+        where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
+        say(progress, "analyze", f"{len(briefs)} run(s) analyzed, {len(failed)} failed; {where}")
         return result
-    written = write_all(
-        result,
-        briefs,
-        run_figs,
-        out=stage,
-        figures=draw,
-        report=report,
-        executor=executor,
-    )
-    result.files = publish(stage, out, written)
-    result.sources = {name: out / f"{name}.parquet" for name in result.sources}
-    where = f"report: {out / 'report.md'}" if report else f"tables in {out}/"
-    say(progress, "analyze", f"{len(briefs)} run(s) analyzed, {len(failed)} failed; {where}")
-    return result

@@ -8,7 +8,7 @@ import json
 import polars as pl
 from polars.testing import assert_frame_equal
 
-from impactlab.analyze.tables.studies import parameters, studies, study_parameters, with_parameters
+from impactlab.analyze.tables.studies import parameters, studies, study_parameters
 
 
 def test_parameters_are_set_once_and_the_studies_are_the_swept_experiments():
@@ -24,9 +24,9 @@ def test_parameters_are_set_once_and_the_studies_are_the_swept_experiments():
             "note": ["", "", ""],
         }
     )
-    once = with_parameters(runs)
+    _, once = parameters(runs)
     assert once.columns == ["run_id", "experiment", "sweep", "note", "ball.mass", "ball.pos[2]"]
-    assert_frame_equal(with_parameters(once), once)  # computed again: the same table
+    assert_frame_equal(parameters(once)[1], once)  # computed again: the same table
     assert study_parameters(once, "drop") == ["ball.pos[2]"]
     params, joined = parameters(runs)
     assert params == ["ball.mass", "ball.pos[2]"] and joined.equals(once)

@@ -99,11 +99,6 @@ def _dtype(column: list[Any]) -> PolarsDataType:
     return pl.String
 
 
-def with_parameters(runs: pl.DataFrame) -> pl.DataFrame:
-    """The runs table with its sweep parameter columns (`parameters`)."""
-    return parameters(runs)[1]
-
-
 def parameters(runs: pl.DataFrame) -> tuple[list[str], pl.DataFrame]:
     """The runs table's sweep parameter columns, and the table with them after its own (set
     anew on a table that has them already), sorted by experiment and parameters."""
