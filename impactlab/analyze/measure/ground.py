@@ -43,13 +43,11 @@ class Ground:
         surfaces: by name.
         clearance: (body, surface, t_ns, clearance_m) for every logged step.
         up: unit vector against gravity, (3,).
-        recorded: whether the log records clearances (False: derived for spheres only).
     """
 
     surfaces: dict[str, SurfaceInfo]
     clearance: pl.DataFrame
     up: np.ndarray
-    recorded: bool
 
     def reference(self, body: str, first_surface: str | None, rest: float | None) -> str | None:
         """The surface a body's energy is referred to: where it lands first, else the nearest
@@ -124,9 +122,9 @@ def run_ground(run: RunLog) -> Ground:
     surfaces = run.surfaces
     if surfaces is not None:
         clearance = run.clearance.select(list(CLEARANCE_SCHEMA)).cast(CLEARANCE_SCHEMA)
-        return Ground({s.name: s for s in surfaces}, clearance, up, recorded=True)
+        return Ground({s.name: s for s in surfaces}, clearance, up)
     if run.plane_z is None:
-        return Ground({}, pl.DataFrame(schema=CLEARANCE_SCHEMA), up, recorded=False)
+        return Ground({}, pl.DataFrame(schema=CLEARANCE_SCHEMA), up)
     plane = legacy_plane_name(run)
     frames = [
         frame.select(
@@ -140,7 +138,7 @@ def run_ground(run: RunLog) -> Ground:
     ]
     clearance = pl.concat(frames) if frames else pl.DataFrame(schema=CLEARANCE_SCHEMA)
     surface = SurfaceInfo(plane, "plane", float(run.plane_z), True)
-    return Ground({plane: surface}, clearance.cast(CLEARANCE_SCHEMA), up, recorded=False)
+    return Ground({plane: surface}, clearance.cast(CLEARANCE_SCHEMA), up)
 
 
 def legacy_plane_name(run: RunLog) -> str:
