@@ -263,9 +263,11 @@ class Stop(Section):
     body on the plane. `at_rest`: stop once every body is slower than `rest_speed` for
     `rest_time`. `separation`: a collision; stop once the bodies have touched and their
     surfaces are this far apart again (a run that ends without that contact is warned about).
-    A run is stopped as unstable when its state becomes non-finite, its mechanical energy
-    grows by more than `max_energy_gain` (fraction of its energy scale), a penetration
-    exceeds `max_penetration` (fraction of the smaller radius) or MuJoCo raises a warning.
+    A run is stopped as unstable when its state becomes non-finite, the energy no force
+    explains (the budget's residual) grows in one step by more than `max_energy_gain` (a
+    fraction of the energy in play so far: the largest kinetic energy, potential-energy swing
+    or work of a force), a penetration deepens past `max_penetration` (a fraction of the
+    smaller radius) beyond its depth at the start, or MuJoCo raises a warning.
     """
 
     max_time: Annotated[Positive, Field(le=MAX_TIME_S), unit("s")]

@@ -175,9 +175,14 @@ class _Separated(_Rule):
 
 @dataclass
 class _Residual(_Rule):
-    """Unstable when energy appears that no force explains: the budget's energy (MuJoCo's
-    kinetic energy plus the bodies' gravitational potential energy) minus the work of every
-    other force grows beyond a bound (`impactlab.record.budget`)."""
+    """Unstable when the integrator makes energy: in one step, the residual (the change of
+    the budget's energy, MuJoCo's kinetic energy plus the bodies' gravitational potential
+    energy, minus the work of every other force, `impactlab.record.budget`) grows by more
+    than `fraction` of the energy in play so far (the largest kinetic energy before the step,
+    potential-energy swing before it, or magnitude of any force's work up to its end; at
+    least `floor_J`). A bounded drift (semi-implicit Euler's) changes the residual by a
+    small part of that energy per step, a blow-up by a large one, and energy a force's work
+    explains, however large, leaves it unchanged."""
 
     kinetic_adr: int
     pos_adr: list[int]
@@ -186,29 +191,43 @@ class _Residual(_Rule):
     timestep: float
     floor_J: float
     start: float | None = None
-    scale: float = 0.0
-    work_done: float = 0.0
+    residual: float = 0.0  # at the last step seen
+    in_play: float = 0.0  # the energy in play before the next step
+    potential: tuple[float, float] = (math.inf, -math.inf)  # lowest, highest so far
+    work_done: np.ndarray | None = None  # per kind, J
 
     def update(self, chunk: Chunk) -> Verdict | None:
-        rows = chunk.rows
-        potential = sum(
-            rows[:, a : a + 3] @ w for a, w in zip(self.pos_adr, self.weights, strict=True)
-        )
+        rows, work = chunk.rows, chunk.work
+        potential = np.zeros(rows.shape[0])
+        for a, w in zip(self.pos_adr, self.weights, strict=True):
+            potential += rows[:, a : a + 3] @ w
         kinetic = rows[:, self.kinetic_adr]
         energy = kinetic + potential
         if self.start is None:
             self.start = float(energy[0])
-            self.scale = max(float(kinetic[0] + abs(energy[0] - kinetic[0])), self.floor_J, 1e-6)
-        done = self.work_done + np.r_[0.0, np.cumsum(chunk.work.sum(axis=1))[:-1]]
-        self.work_done += float(chunk.work.sum())
-        residual = energy - self.start - done
-        bad = _first(residual > self.fraction * self.scale)
+            self.work_done = np.zeros(work.shape[1])
+        assert self.work_done is not None
+        # per step i, the work done before it (`done`) and the energy in play up to it
+        done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, 0)])
+        residual = energy - self.start - done[:-1].sum(axis=1)
+        low = np.minimum.accumulate(np.r_[self.potential[0], potential])
+        high = np.maximum.accumulate(np.r_[self.potential[1], potential])
+        before = np.maximum(np.r_[self.in_play, kinetic], high - low)
+        works = np.abs(done).max(axis=1)
+        in_play = np.maximum.accumulate(np.maximum(before, works))
+        growth = np.diff(np.r_[self.residual, residual])
+        bound = self.fraction * np.maximum(in_play[:-1], self.floor_J)
+        self.work_done = done[-1]
+        self.residual, self.in_play = float(residual[-1]), float(in_play[-1])
+        self.potential = (float(low[-1]), float(high[-1]))
+        bad = _first(growth > bound)
         if bad is None:
             return None
         t = (chunk.step0 + bad) * self.timestep
         reason = (
-            f"energy grew by {residual[bad]:.4g} J that no force explains (bound "
-            f"{self.fraction:g} x {self.scale:.4g} J) at t = {t:.6g} s"
+            f"energy grew by {growth[bad]:.4g} J in one step that no force explains (bound "
+            f"{self.fraction:g} x {bound[bad] / self.fraction:.4g} J, the energy in play) at "
+            f"t = {t:.6g} s"
         )
         return Verdict(chunk.step0 + bad, "unstable", reason)
 
@@ -216,22 +235,35 @@ class _Residual(_Rule):
 @dataclass
 class _Penetration(_Rule):
     """Unstable when a contact of a ball penetrates deeper than a fraction of its radius
-    (`bounds_m`: per party, the bound; inf for parties without a radius)."""
+    (`bounds_m`: per party, the bound; inf for parties without a radius) beyond the depth
+    its two parties had at the start (a model may start with bodies overlapping: MuJoCo
+    runs it, and so does the recorder, until the overlap deepens by the bound)."""
 
     bounds_m: np.ndarray
     timestep: float
+    start: dict[tuple[int, int], float] | None = None  # deepest at step 0, per pair of parties
 
     def update(self, chunk: Chunk) -> Verdict | None:
         p1, p2 = chunk.sides
+        depth, step = chunk.contacts.penetration, chunk.contacts.step
+        if self.start is None:
+            self.start = {}
+            for i in np.flatnonzero(step == 0) if chunk.step0 == 0 else []:
+                pair = (int(min(p1[i], p2[i])), int(max(p1[i], p2[i])))
+                self.start[pair] = max(self.start.get(pair, 0.0), float(depth[i]))
         bound = np.minimum(self.bounds_m[p1], self.bounds_m[p2])
-        over = chunk.contacts.penetration > bound
+        over = depth > bound
+        for i in np.flatnonzero(over):
+            pair = (int(min(p1[i], p2[i])), int(max(p1[i], p2[i])))
+            bound[i] += self.start.get(pair, 0.0)
+        over &= depth > bound
         if not over.any():
             return None
-        bad = int(chunk.contacts.step[over].min())
-        depth = float(chunk.contacts.penetration[over & (chunk.contacts.step == bad)].max())
-        limit = float(bound[over & (chunk.contacts.step == bad)].min())
+        bad = int(step[over].min())
+        deepest = float(depth[over & (step == bad)].max())
+        limit = float(bound[over & (step == bad)].min())
         t = (chunk.step0 + bad) * self.timestep
-        reason = f"penetration {depth:.4g} m > {limit:.4g} m at t = {t:.6g} s"
+        reason = f"penetration {deepest:.4g} m > {limit:.4g} m at t = {t:.6g} s"
         return Verdict(chunk.step0 + bad, "unstable", reason)
 
 
@@ -251,7 +283,7 @@ class StopMonitor:
                 weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
                 fraction=stop.max_energy_gain,
                 timestep=timestep,
-                floor_J=0.1 * mass * math.hypot(*g),  # no overflow
+                floor_J=max(0.1 * mass * math.hypot(*g), 1e-6),  # no overflow
             )
         )
         bounds = np.full(len(inst.party_names), np.inf)
