@@ -88,6 +88,7 @@ def write_all(
             figs,
             list(result.failed),
             _stride_note(result),
+            figures_asked=figures,
         )
     )
     replies = answers(t)

@@ -20,6 +20,8 @@ TF_TOPIC = "/tf"  # foxglove.FrameTransforms, every logged step
 SCENE_TOPIC = "/scene"  # foxglove.SceneUpdate, once: every visible geom
 EVENTS_TOPIC = "/events"  # foxglove.Log, at the end: outcome and warnings
 WORLD_FRAME = "world"
+NOTHING_MOVES = "nothing moves: every body of the model is welded to the world"
+"""The warning of a run whose model has no body that moves (its log has no body channels)."""
 
 BODY_STATE_SCHEMA = "impactlab.BodyState"
 CLEARANCE_SCHEMA = "impactlab.Clearance"

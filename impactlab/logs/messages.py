@@ -52,6 +52,8 @@ class Template:
         setter(msg, sentinels)
         raw = msg.SerializeToString()
         data = np.frombuffer(raw, np.uint8)
+        if k == 0:  # nothing varies (e.g. the transforms of a model with no moving body)
+            return cls(data.copy(), np.empty(0, np.int64), np.ones(data.size, bool))
         # every 8 bytes that may hold a sentinel (a double in [1, 2): its top bytes 0x3FFx)
         starts = np.flatnonzero((data[7:] == 0x3F) & (data[6:-1] >= 0xF0))
         found = np.lib.stride_tricks.sliding_window_view(data, 8)[starts].copy().view("<f8")[:, 0]

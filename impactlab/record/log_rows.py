@@ -148,9 +148,9 @@ def log_rows(
     """The log's arrays for logged rows of sensordata (n, nsensordata), the work done
     before each (n, kinds) and the contacts at those rows (`step`: the row)."""
     n = sensordata.shape[0]
-    bodies = np.stack(
-        [sensordata[:, b.adr : b.adr + BODY_STATE_SIZE] for b in inst.bodies], axis=1
-    ).reshape(n, len(inst.bodies), BODY_STATE_SIZE)
+    bodies = np.empty((n, len(inst.bodies), BODY_STATE_SIZE))
+    for i, b in enumerate(inst.bodies):
+        bodies[:, i] = sensordata[:, b.adr : b.adr + BODY_STATE_SIZE]
     e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
     energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
     clearance = [

@@ -202,8 +202,8 @@ def instrument(
     model's MJCF text, kept for the log. The sensors and sites do not change the dynamics.
 
     Raises:
-        SpecError: the model does not compile, has no body that moves, lacks `keyframe`, or
-            the separation rule would watch more than `MAX_GAP_PAIRS` pairs.
+        SpecError: the model does not compile, lacks `keyframe`, or the separation rule
+            would watch more than `MAX_GAP_PAIRS` pairs.
     """
     name_unnamed(spec)
     prefix = sensor_prefix(spec)
@@ -214,10 +214,6 @@ def instrument(
     data = mujoco.MjData(plain)
     mujoco.mj_kinematics(plain, data)
     rigid = geometry.rigid_bodies(plain, data)
-    if not rigid:
-        raise SpecError(
-            source, "", "the model has no body that moves (every body is welded to the world)"
-        )
     if keyframe is not None and keyframe not in {plain.key(k).name for k in range(plain.nkey)}:
         known = ", ".join(repr(plain.key(k).name) for k in range(plain.nkey)) or "none"
         raise SpecError(

@@ -11,6 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from impactlab.logs.format import NOTHING_MOVES
 from impactlab.record import budget
 from impactlab.record.contacts import ContactTape, StepContacts, decode
 from impactlab.record.episodes import Episode, Episodes
@@ -297,6 +298,8 @@ class _Run:
             )
         if verdict.outcome == "unstable":
             warnings.append(f"unstable: {verdict.reason}")
+        if not nbody:  # recorded as MuJoCo runs it: contacts, a constant energy
+            warnings.append(NOTHING_MOVES)
         return Ending(verdict, warnings, self.logged, self.last_t_ns, episodes)
 
 

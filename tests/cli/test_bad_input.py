@@ -21,7 +21,7 @@ COLLIDE = toml(
         separation=0.1,
     )
 )
-NO_FREE_BODY = '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/></worldbody></mujoco>'
+NOTHING_MOVES = '<mujoco><worldbody><geom type="plane" size="1 1 0.1"/></worldbody></mujoco>'
 NO_GROUND = '<mujoco><worldbody><body><freejoint/><geom size="0.1"/></body></worldbody></mujoco>'
 
 
@@ -156,9 +156,8 @@ def assert_one_line_error(capsys, code: int, words: list[str], out: Path) -> Non
             ["--duration", "1"],
             ["model.xml", "invalid MJCF"],
         ),
-        ("nothing moves", NO_FREE_BODY, ["--duration", "1"], ["model.xml", "no body that moves"]),
-        ("no duration", NO_FREE_BODY, [], ["--duration"]),
-        ("set on mjcf", NO_FREE_BODY, ["--duration", "1", "--set", "a=1"], ["--set"]),
+        ("no duration", NOTHING_MOVES, [], ["--duration"]),
+        ("set on mjcf", NOTHING_MOVES, ["--duration", "1", "--set", "a=1"], ["--set"]),
         (
             "mjcf bad option",
             NO_GROUND,

@@ -223,3 +223,47 @@ def test_a_turning_box_gives_the_same_e_logged_every_25_steps(record_model, edge
     assert fine.height == sparse.height >= 3
     for col in ("v_in_mps", "v_out_mps", "e_velocity"):
         np.testing.assert_allclose(sparse[col], fine[col], rtol=0, atol=1e-9, err_msg=col)
+
+
+STATIC_SCENE = """<mujoco><worldbody><geom name="floor" type="plane" size="5 5 .1"/>
+  <body name="brick" pos="0 0 .1"><geom name="brick" type="box" size=".1 .1 .1"/></body>
+</worldbody></mujoco>"""
+
+
+def test_a_model_where_nothing_moves_is_recorded_analyzed_and_replayed(tmp_path, capsys):
+    """A brick welded to the world on a plane (dm_control's arenas and lego brick, lqr.xml):
+    MuJoCo loads and steps it, so impactlab records it (no body, a constant energy), and the
+    record, the analysis (with figures) and the replay say that nothing moves, with no error."""
+    from impactlab.logs.format import NOTHING_MOVES
+
+    model = tmp_path / "static.xml"
+    model.write_text(STATIC_SCENE)
+    logs, results = tmp_path / "logs", tmp_path / "results"
+    assert main(["record", str(model), "--duration", "0.1", "-o", str(logs)]) == 0
+    (path,) = logs.glob("*.mcap")
+    assert f"warning: {path.stem}: {NOTHING_MOVES}" in capsys.readouterr().out
+    run = load_log(path)
+    assert not run.partial and run.outcome == "completed" and not run.bodies
+    assert run.energy.height == 51  # every step of 0.1 s at 2 ms
+    assert np.ptp(run.energy["total"].to_numpy()) == 0.0
+    assert run.contacts.is_empty()  # the brick and the floor are one rigid body: the world
+    assert main(["analyze", str(logs), "-o", str(results)]) == 0
+    capsys.readouterr()
+    report = (results / "report.md").read_text()
+    assert f"In every run {NOTHING_MOVES}" in report and "no figure to draw" in report
+    assert "--no-figures" not in report  # figures were asked for: none has anything to show
+    assert "Not answered: nothing moves in any run." in report
+    runs = pl.read_parquet(results / "runs.parquet")
+    assert runs["n_bodies"].to_list() == [0] and runs["outcome"].to_list() == ["completed"]
+    assert NOTHING_MOVES in runs["warnings"][0]
+    assert main(["replay", str(path), "-o", str(tmp_path / "static.rrd")]) == 0
+    capsys.readouterr()
+    import rerun as rr
+
+    texts = [
+        text[0]
+        for chunk in rr.chunk.RrdReader(tmp_path / "static.rrd").stream()
+        if not chunk.is_static and chunk.entity_path.endswith("/events/log")
+        for text in chunk.to_record_batch().column("TextLog:text").to_pylist()
+    ]
+    assert NOTHING_MOVES in texts

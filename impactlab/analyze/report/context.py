@@ -11,6 +11,7 @@ import polars as pl
 from impactlab.analyze.measure.analysis import RunAnalysis
 from impactlab.analyze.report.blocks import Column
 from impactlab.analyze.report.run_figures import contact_words
+from impactlab.logs.format import NOTHING_MOVES
 from impactlab.logs.labels import run_label, run_labels
 from impactlab.show import number
 
@@ -39,6 +40,7 @@ def brief(a: RunAnalysis) -> RunBrief:
         size = f", r = {number(b.radius, None)} m" if b.radius else ""
         kinds.setdefault(f"{number(b.mass, None)} kg{size}", []).append(b.name)
     bodies = "; ".join(f"{', '.join(names)}: {kind}" for kind, names in kinds.items())
+    bodies = bodies or NOTHING_MOVES
     try:
         gravity: float | None = float(np.linalg.norm(a.run.gravity))
     except Exception:
@@ -149,8 +151,16 @@ class Tables:
     energy_note: str = ""
     same: dict[str, str] = field(default_factory=dict)
     """Each run left out -> the run it repeats (the same physics, the same numbers)."""
+    figures_asked: bool = True
+    """Whether figures were asked for (`--no-figures` is False)."""
     all_runs: pl.DataFrame = field(default_factory=pl.DataFrame)
     """The runs table with every run, labelled (`runs` has each run once)."""
+
+    @property
+    def still(self) -> bool:
+        """Whether nothing moves in any run (every body of every model welded to the world)."""
+        bodies = self.runs.get_column("n_bodies", default=None)
+        return bodies is not None and not bodies.is_empty() and bodies.max() == 0
 
     def figure(self, kind: str, name: str) -> Path | None:
         """The figure of `kind` whose file is `name`, if drawn."""

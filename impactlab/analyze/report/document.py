@@ -27,6 +27,7 @@ from impactlab.analyze.report.blocks import (
 from impactlab.analyze.report.context import Tables, repeat_notes
 from impactlab.analyze.report.handout import as_written
 from impactlab.files import write_text
+from impactlab.logs.format import NOTHING_MOVES
 from impactlab.logs.labels import parameter_words
 from impactlab.show import number
 from impactlab.text import visible
@@ -69,7 +70,8 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
         + (f"; {len(t.failed)} input(s) could not be read" if t.failed else "")
         + (f"; {_repeats(t)}" if t.same else "")
         + ". Units: SI."
-        + ("" if any(t.figures.values()) else " No figures were drawn (--no-figures).")
+        + _still(t)
+        + ("" if t.figures_asked else " No figures were drawn (--no-figures).")
         + " Every table and figure, the method and the files are in "
     )
     doc = Document(TITLE, [Paragraph((intro, Link("the appendix", questions.APPENDIX), "."))])
@@ -84,6 +86,16 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
     ]
     doc.blocks += [Heading("Conclusion"), Bullets(tuple(steps))]
     return doc
+
+
+def _still(t: Tables) -> str:
+    """The sentence saying that nothing moves, when nothing moves in any run."""
+    if not t.still:
+        return ""
+    drawn = ", and no figure to draw" if t.figures_asked else ""
+    return (
+        f" In every run {NOTHING_MOVES}; there is no flight, bounce or collision to measure{drawn}."
+    )
 
 
 def _repeats(t: Tables) -> str:

@@ -86,7 +86,7 @@ def energy(t: Tables) -> Answer:
     if "ground" in known.columns:  # falls first: the question is the drop's
         known = known.sort("ground", descending=True, maintain_order=True)
     if known.is_empty():
-        return not_answered("no run's energy is known")
+        return not_answered("nothing moves in any run" if t.still else "no run's energy is known")
     booked = [c for c in ("work_contact_normal_J", "work_contact_friction_J") if c in known.columns]
     contacts = (
         pl.sum_horizontal(booked)
