@@ -31,6 +31,7 @@ PINNED_S = {
     "models/cloth_drop.xml": 0.4,
     "models/damped_pendulum.xml": 0.6,
     "models/flexcomp_drop.xml": 0.4,  # MuJoCo's onset 0.284 s
+    "models/gravcomp_actuated.xml": 0.4,
     "models/humanoid/humanoid.xml": 0.3,
     "models/humanoids_10.xml": 0.2,
     "models/jointed_boxes.xml": 0.5,  # the impact at 0.381 s

@@ -58,6 +58,17 @@ def generalised_forces(model: mujoco.MjModel) -> list[tuple[int, str]]:
     return [(KIND[kind], array) for kind, array in _GENERALISED.items() if can[kind]]
 
 
+def booked_dofs(model: mujoco.MjModel, kind: int) -> np.ndarray | None:
+    """Per dof, 1 where the force of `kind` (a `generalised_forces` kind) is booked to it and
+    0 where another kind holds it; None: every dof. Gravity compensation of a joint with
+    `actuatorgravcomp` is in `qfrc_actuator` too (MuJoCo adds it there instead of to the
+    passive force), so it is booked to the actuators only."""
+    actuated: np.ndarray = np.asarray(model.jnt_actgravcomp, bool)[model.dof_jntid]
+    if kind != KIND["gravity_compensation"] or not actuated.any():
+        return None
+    return np.where(actuated, 0.0, 1.0)
+
+
 def other_constraints(model: mujoco.MjModel) -> bool:
     """Whether the model can have constraint rows besides contacts (limits, equalities,
     friction loss): their type is then copied at each step, to book their work."""

@@ -109,6 +109,7 @@ class _Run:
         self.dt_ns = timestep_ns(self.dt)
         self.total = run_steps(request.max_time, self.dt)
         self.forces = budget.generalised_forces(model)
+        self.booked = [budget.booked_dofs(model, kind) for kind, _ in self.forces]
         values = model.nsensordata + model.nq + model.nv * (2 + len(self.forces))
         self.chunk = chunk_steps(self.dt, values)
         self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
@@ -222,8 +223,9 @@ class _Run:
         dt = self.dt
         v_mid = 0.5 * (v_start + self.vel[:n])
         work = np.zeros((n, len(budget.WORK_KINDS)))
-        for buf, (kind, _) in zip(self.generalised, self.forces, strict=True):
-            work[:, kind] = dt * np.einsum("ij,ij->i", buf[:n], v_mid)
+        for buf, (kind, _), dofs in zip(self.generalised, self.forces, self.booked, strict=True):
+            force = buf[:n] if dofs is None else buf[:n] * dofs
+            work[:, kind] = dt * np.einsum("ij,ij->i", force, v_mid)
         solver = budget.KIND["solver"]
         work[:, solver] = dt * np.einsum("ij,ij->i", self.unbalanced[:n], v_mid)
         contacts, power, in_contact = decode(self.tape, self.pyramidal)
