@@ -264,10 +264,11 @@ class Stop(Section):
     `rest_time`. `separation`: a collision; stop once the bodies have touched and their
     surfaces are this far apart again (a run that ends without that contact is warned about).
     A run is stopped as unstable when its state becomes non-finite, the energy no force
-    explains (the budget's residual) grows in one step by more than `max_energy_gain` (a
-    fraction of the energy in play so far: the largest kinetic energy, potential-energy swing
-    or work of a force), a penetration deepens past `max_penetration` (a fraction of the
-    smaller radius) beyond its depth at the start, or MuJoCo raises a warning.
+    explains (the budget's residual) rises in one step above its highest so far by more than
+    `max_energy_gain` (a fraction of the energy in play so far: the largest kinetic energy,
+    potential-energy swing or work of a force), a penetration deepens past `max_penetration`
+    (a fraction of the smaller radius) beyond its depth at the start, or MuJoCo raises a
+    warning.
     """
 
     max_time: Annotated[Positive, Field(le=MAX_TIME_S), unit("s")]

@@ -177,12 +177,13 @@ class _Separated(_Rule):
 class _Residual(_Rule):
     """Unstable when the integrator makes energy: in one step, the residual (the change of
     the budget's energy, MuJoCo's kinetic energy plus the bodies' gravitational potential
-    energy, minus the work of every other force, `impactlab.record.budget`) grows by more
-    than `fraction` of the energy in play so far (the largest kinetic energy before the step,
-    potential-energy swing before it, or magnitude of any force's work up to its end; at
-    least `floor_J`). A bounded drift (semi-implicit Euler's) changes the residual by a
-    small part of that energy per step, a blow-up by a large one, and energy a force's work
-    explains, however large, leaves it unchanged."""
+    energy, minus the work of every other force, `impactlab.record.budget`) rises above its
+    highest so far by more than `fraction` of the energy in play so far (the largest kinetic
+    energy before the step, potential-energy swing before it, or magnitude of any force's
+    work up to its end; at least `floor_J`). A bounded drift (semi-implicit Euler's) moves
+    the residual by a small part of that energy per step, a blow-up by a large one; a
+    residual that comes back after a drop (an impulse's work booked a step early) makes no
+    new energy, and energy a force's work explains, however large, leaves it unchanged."""
 
     kinetic_adr: int
     pos_adr: list[int]
@@ -191,7 +192,7 @@ class _Residual(_Rule):
     timestep: float
     floor_J: float
     start: float | None = None
-    residual: float = 0.0  # at the last step seen
+    highest: float = 0.0  # the highest residual so far
     in_play: float = 0.0  # the energy in play before the next step
     potential: tuple[float, float] = (math.inf, -math.inf)  # lowest, highest so far
     work_done: np.ndarray | None = None  # per kind, J
@@ -215,10 +216,11 @@ class _Residual(_Rule):
         before = np.maximum(np.r_[self.in_play, kinetic], high - low)
         works = np.abs(done).max(axis=1)
         in_play = np.maximum.accumulate(np.maximum(before, works))
-        growth = np.diff(np.r_[self.residual, residual])
+        highest = np.maximum.accumulate(np.r_[self.highest, residual])
+        growth = residual - highest[:-1]
         bound = self.fraction * np.maximum(in_play[:-1], self.floor_J)
         self.work_done = done[-1]
-        self.residual, self.in_play = float(residual[-1]), float(in_play[-1])
+        self.highest, self.in_play = float(highest[-1]), float(in_play[-1])
         self.potential = (float(low[-1]), float(high[-1]))
         bad = _first(growth > bound)
         if bad is None:

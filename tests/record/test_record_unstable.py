@@ -152,3 +152,27 @@ def test_bodies_overlapping_at_the_start_are_not_an_instability(tmp_path, capsys
     assert log.outcome == "completed"
     deepest = log.contacts["penetration"].max()
     assert deepest == pytest.approx(0.2, abs=1e-6)
+
+
+def test_a_residual_that_comes_back_is_not_growth_one_above_its_highest_is():
+    """The energy rule on the budget alone (no body, so the energy is the kinetic column): a
+    limit does 300 J in the first step and 290 J appear (residual -10 J); later the residual
+    drops by 46 J and comes back by 42 J (a limit impulse RK4 books a step early, as in
+    Gymnasium's ant): no new energy. Then 20 J appear with no work, 6 J above the highest
+    residual so far, under 0.1 of the 306 J in play; then 40 J more: unstable at that step."""
+    from impactlab.record.stop import Chunk, _Residual
+
+    kinetic = np.array([0.0, 290, 290, 290, 244, 286, 286, 306, 306, 346, 346])
+    work = np.zeros((kinetic.size, 2))
+    work[0, 1] = 300.0  # the step from row 0 to row 1
+    rule = _Residual(0, [], np.zeros((0, 3)), 0.1, 0.01, floor_J=1.0)
+
+    def feed(rows: slice):
+        chunk = Chunk(kinetic[rows, None], rows.start, None, (None, None), [], work[rows])
+        return rule.update(chunk)
+
+    assert feed(slice(0, 4)) is None and feed(slice(4, 8)) is None  # chunks carry the state
+    verdict = feed(slice(8, 11))
+    assert verdict is not None and verdict.last_step == 9 and verdict.outcome == "unstable"
+    assert verdict.reason.startswith("energy grew by 40 J in one step that no force explains")
+    assert "(bound 0.1 x 306 J, the energy in play) at t = 0.09 s" in verdict.reason
