@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from impactlab.physics import min_impact_speed
+from impactlab.record.budget import WORK_KINDS
 from impactlab.record.contacts import StepContacts
 from impactlab.record.geometry import can_collide, gravity, up_vector
 from impactlab.record.model import InstrumentedModel
@@ -180,7 +181,7 @@ class _Residual(_Rule):
     energy, minus the work of every other force, `impactlab.record.budget`) rises above its
     highest so far by more than `fraction` of the energy in play so far (the largest kinetic
     energy before the step, potential-energy swing before it, or magnitude of any force's
-    work up to its end; at least `floor_J`). A bounded drift (semi-implicit Euler's) moves
+    work up to its end; at least `in_play` as given). A bounded drift (semi-implicit Euler's) moves
     the residual by a small part of that energy per step, a blow-up by a large one; a
     residual that comes back after a drop (an impulse's work booked a step early) makes no
     new energy, and energy a force's work explains, however large, leaves it unchanged."""
@@ -190,12 +191,11 @@ class _Residual(_Rule):
     weights: np.ndarray  # per body, -mass * gravity (3,): its potential energy is w . x
     fraction: float
     timestep: float
-    floor_J: float
+    in_play: float  # the energy in play before the next step, J (given: the floor)
     start: float | None = None
     highest: float = 0.0  # the highest residual so far
-    in_play: float = 0.0  # the energy in play before the next step
     potential: tuple[float, float] = (math.inf, -math.inf)  # lowest, highest so far
-    work_done: np.ndarray | None = None  # per kind, J
+    work_done: np.ndarray = field(default_factory=lambda: np.zeros(len(WORK_KINDS)))  # J
 
     def update(self, chunk: Chunk) -> Verdict | None:
         rows, work = chunk.rows, chunk.work
@@ -206,8 +206,6 @@ class _Residual(_Rule):
         energy = kinetic + potential
         if self.start is None:
             self.start = float(energy[0])
-            self.work_done = np.zeros(work.shape[1])
-        assert self.work_done is not None
         # per step i, the work done before it (`done`) and the energy in play up to it
         done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, 0)])
         residual = energy - self.start - done[:-1].sum(axis=1)
@@ -218,7 +216,7 @@ class _Residual(_Rule):
         in_play = np.maximum.accumulate(np.maximum(before, works))
         highest = np.maximum.accumulate(np.r_[self.highest, residual])
         growth = residual - highest[:-1]
-        bound = self.fraction * np.maximum(in_play[:-1], self.floor_J)
+        bound = self.fraction * in_play[:-1]
         self.work_done = done[-1]
         self.highest, self.in_play = float(highest[-1]), float(in_play[-1])
         self.potential = (float(low[-1]), float(high[-1]))
@@ -285,7 +283,7 @@ class StopMonitor:
                 weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
                 fraction=stop.max_energy_gain,
                 timestep=timestep,
-                floor_J=max(0.1 * mass * math.hypot(*g), 1e-6),  # no overflow
+                in_play=max(0.1 * mass * math.hypot(*g), 1e-6),  # 0.1 m of weight; no overflow
             )
         )
         bounds = np.full(len(inst.party_names), np.inf)

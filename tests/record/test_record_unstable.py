@@ -160,12 +160,13 @@ def test_a_residual_that_comes_back_is_not_growth_one_above_its_highest_is():
     drops by 46 J and comes back by 42 J (a limit impulse RK4 books a step early, as in
     Gymnasium's ant): no new energy. Then 20 J appear with no work, 6 J above the highest
     residual so far, under 0.1 of the 306 J in play; then 40 J more: unstable at that step."""
+    from impactlab.record.budget import WORK_KINDS
     from impactlab.record.stop import Chunk, _Residual
 
     kinetic = np.array([0.0, 290, 290, 290, 244, 286, 286, 306, 306, 346, 346])
-    work = np.zeros((kinetic.size, 2))
-    work[0, 1] = 300.0  # the step from row 0 to row 1
-    rule = _Residual(0, [], np.zeros((0, 3)), 0.1, 0.01, floor_J=1.0)
+    work = np.zeros((kinetic.size, len(WORK_KINDS)))
+    work[0, WORK_KINDS.index("limits")] = 300.0  # the step from row 0 to row 1
+    rule = _Residual(0, [], np.zeros((0, 3)), 0.1, 0.01, in_play=1.0)
 
     def feed(rows: slice):
         chunk = Chunk(kinetic[rows, None], rows.start, None, (None, None), [], work[rows])
