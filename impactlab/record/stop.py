@@ -129,8 +129,9 @@ class _AtRest(_Rule):
 
     def update(self, chunk: Chunk) -> Verdict | None:
         rows, step0 = chunk.rows, chunk.step0
-        speeds = np.stack([np.linalg.norm(rows[:, c : c + 3], axis=1) for c in self.vel_cols])
-        slow = (speeds < self.speed).all(axis=0)
+        slow = np.ones(rows.shape[0], bool)  # a model where nothing moves is at rest
+        for c in self.vel_cols:
+            slow &= np.linalg.norm(rows[:, c : c + 3], axis=1) < self.speed
         # length of the run of slow steps ending at each row, continuing the previous chunk's
         breaks = np.flatnonzero(~slow)
         idx = np.arange(slow.size)

@@ -267,3 +267,9 @@ def test_a_model_where_nothing_moves_is_recorded_analyzed_and_replayed(tmp_path,
         for text in chunk.to_record_batch().column("TextLog:text").to_pylist()
     ]
     assert NOTHING_MOVES in texts
+    # every body (none) is at rest: the at-rest rule ends it after its rest time
+    rest = ["--set", "stop.at_rest=true", "-o", str(tmp_path / "rest")]
+    assert main(["record", str(model), "--duration", "0.1", *rest]) == 0
+    capsys.readouterr()
+    (path,) = (tmp_path / "rest").glob("*.mcap")
+    assert load_log(path).meta["reason"] == "bodies at rest"
