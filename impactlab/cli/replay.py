@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     from impactlab.errors import ImpactlabError, LogError
     from impactlab.logs.inputs import require_logs
-    from impactlab.progress import console_progress
+    from impactlab.progress import ConsoleProgress
     from impactlab.replay.recordings import replay_logs
 
     paths, empty = require_logs(logs)
@@ -80,8 +80,7 @@ def run(args: argparse.Namespace) -> int:
     elif connect is not None:
         url = connect if "://" in connect else f"rerun+http://{connect}/proxy"
         sinks.append(lambda: rr.GrpcSink(url))
-    progress = console_progress()
-    try:
+    with ConsoleProgress() as progress:
         written = replay_logs(
             paths,
             out=args.out,
@@ -90,8 +89,6 @@ def run(args: argparse.Namespace) -> int:
             on_error=failed.append,
             progress=progress,
         )
-    finally:
-        progress.close()
     for rrd in written:
         print(terminal_text(f"wrote {rrd}"))
     if args.serve and written:
