@@ -11,16 +11,14 @@ from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.files import FULL
 from impactlab.logs.writer import LogWriter
-from impactlab.record.folder import log_path
+from impactlab.record.folder import log_path, reusable
 from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
 
-BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
-
-Reuse = Callable[[PlannedRun], "RecordedRun | None"]
+BATCH_RUNS = 4  # runs simulated side by side: few runs in memory
 
 
 class LogWriteError(ImpactlabError):
@@ -40,21 +38,22 @@ class LogWriteError(ImpactlabError):
 def batches(
     runs: Sequence[PlannedRun],
     size: int,
+    out_dir: Path,
     *,
-    reuse: Reuse | None = None,
-    report: Callable[[RecordedRun], None] = lambda _: None,
-    fail: Callable[[PlannedRun, str], None] = lambda run, reason: None,
+    reuse: bool,
+    report: Callable[[RecordedRun], None],
+    fail: Callable[[PlannedRun, str], None],
 ) -> Iterator[list[RunRequest]]:
     """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built.
 
-    Each run is built when its batch is needed. A run whose complete log `reuse` finds (e.g.
-    written by a concurrent job meanwhile) is `report`ed, one whose model fails to build is
-    `fail`ed, instead of simulated.
+    Each run is built when its batch is needed. With `reuse`, a run whose complete log is in
+    `out_dir` (e.g. written by a concurrent job meanwhile) is `report`ed, one whose model
+    fails to build is `fail`ed, instead of simulated.
     """
     batch: list[RunRequest] = []
     key = None
     for run in runs:
-        found = reuse(run) if reuse is not None else None
+        found = reusable(out_dir, run) if reuse else None
         if found is not None:
             report(found)
             continue
@@ -119,17 +118,18 @@ def record_batches(
     out_dir: Path,
     *,
     batch_size: int = BATCH_RUNS,
-    threads: int | None = None,
-    reuse: Reuse | None = None,
+    reuse: bool = True,
 ) -> list[RecordedRun]:
-    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
+    """Simulate and write every run (the body of one record task); returns one `RecordedRun`
+    per run, in order of completion.
 
     A batch that fails to build or simulate fails only its own runs. A log that cannot be
     written for a full disk (`files.FULL`: nothing more can be written) raises `LogWriteError`
     saying how many logs of these runs are complete; for another reason (a folder in its
     place) it fails its run.
-    `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
-    it meanwhile). On any exit (an error, Ctrl-C) the logs being written are removed.
+    With `reuse`, a run whose complete log is there already (a retried task, a concurrent
+    job) is not simulated again: the folder is looked at just before the run would be. On
+    any exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
     report = out.append
@@ -151,6 +151,7 @@ def record_batches(
     groups = batches(
         runs,
         batch_size,
+        out_dir,
         reuse=reuse,
         report=found.put,
         fail=lambda run, reason: found.put(_failed(run, log_path(out_dir, run), reason)),

@@ -37,14 +37,13 @@ def record_runs(
         out_dir: the output folder (created); on a cluster, a path every machine sees.
         executor: where the runs are simulated (default: here, on every core: the runs are
             shared among worker processes forked for the job (`ProcessExecutor`), one per
-            core, each simulating batched rollouts on one thread while it writes their logs;
-            where forking is not safe, in this process on rollout threads).
+            core, each simulating batched rollouts while it writes their logs; where forking
+            is not safe, in this process).
         overwrite: record again runs whose complete log exists.
         allow_large: record even when the logs to write are estimated larger than the
             free space in `out_dir`.
-        threads: cores to use here (worker processes, or rollout threads where forking is
-            not safe; default: every available core); rollout threads per task on a cluster
-            (default: one).
+        threads: worker processes to fork here (default: one per available core; 1: this
+            process only).
         batch_size: runs per rollout here.
         progress: receives the job's progress (see `impactlab.progress`); None: silent.
 
@@ -93,7 +92,6 @@ def record_runs(
         out_dir,
         tracker,
         overwrite=overwrite,
-        threads=threads,
         batch_size=batch_size,
     )
     by_id |= {r.run_id: r for r in done}

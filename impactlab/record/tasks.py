@@ -60,24 +60,6 @@ def task_ranges(runs: int, slots: int, *, max_runs: int = MAX_TASK_RUNS) -> list
     return [range(i, min(i + size, runs)) for i in range(0, runs, size)]
 
 
-def record_group(
-    runs: Sequence[PlannedRun],
-    out_dir: Path,
-    *,
-    threads: int | None = None,
-    skip_complete: bool = True,
-    batch_size: int = BATCH_RUNS,
-) -> list[RecordedRun]:
-    """Record a group of planned runs (the body of one record task).
-
-    Runs whose complete log is there already (a retried task, a concurrent job) are not
-    simulated again. A batch that fails, or a log that cannot be written, fails only its own
-    runs; a full disk raises `LogWriteError` (nothing more can be written).
-    """
-    reuse = (lambda run: reusable(out_dir, run)) if skip_complete else None
-    return record_batches(runs, out_dir, batch_size=batch_size, threads=threads, reuse=reuse)
-
-
 def record_on(
     executor: Executor,
     runs: Sequence[PlannedRun],
@@ -85,7 +67,6 @@ def record_on(
     tracker: Tracker,
     *,
     overwrite: bool,
-    threads: int | None,
     batch_size: int = BATCH_RUNS,
 ) -> list[RecordedRun]:
     """Record runs (none of them reusable) as tasks of `executor`; returns every run's result.
@@ -103,14 +84,8 @@ def record_on(
         groups = [Subset(runs, r) for r in ranges]  # read in the workers
     else:
         groups = [[portable(runs[i]) for i in r] for r in ranges]
-    if executor.name != "local":
-        threads = 1  # one rollout thread per task slot (a Ray task asks for one CPU)
     task = functools.partial(  # absolute: a worker's working folder is not the driver's
-        record_group,
-        out_dir=out_dir.absolute(),
-        threads=threads,
-        skip_complete=not overwrite,
-        batch_size=batch_size,
+        record_batches, out_dir=out_dir.absolute(), batch_size=batch_size, reuse=not overwrite
     )
     out: list[RecordedRun] = []
     for outcome in executor.map(task, groups) if groups else ():
