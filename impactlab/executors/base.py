@@ -9,7 +9,7 @@ runs them as Ray tasks on a cluster. `make_executor("local" | "processes" | "ray
 picks one.
 
 Executors know nothing of recording or analysis: the record tasks live in
-`impactlab.record.tasks`, the analysis batch in `impactlab.analyze.batch`.
+`impactlab.record.recorder`, the analysis batch in `impactlab.analyze.batch`.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from waiting import interrupt, record_process, wait_until
 from impactlab.executors.processes import ProcessExecutor, can_fork
 from impactlab.progress import ProgressEvent
 from impactlab.record import batch, plan, record_runs
-from impactlab.record.tasks import task_ranges
+from impactlab.record.recorder import task_ranges
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 

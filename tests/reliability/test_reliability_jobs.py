@@ -232,7 +232,7 @@ def test_unwritable_target_fails_before_simulating(tmp_path, capsys, monkeypatch
     def forbidden(*args: object, **kwargs: object) -> None:
         raise AssertionError("simulated before checking the output folder")
 
-    monkeypatch.setattr(recorder_module, "record_on", forbidden)  # every way to simulate
+    monkeypatch.setattr(recorder_module, "record_batches", forbidden)  # every way to simulate
     monkeypatch.setattr(simulate_module, "simulate", forbidden)
     code = main(["record", str(spec), "-o", str(out)])
     err = capsys.readouterr().err
