@@ -1,7 +1,7 @@
 """The record job: reuse complete logs, record the rest here or as executor tasks, report.
 
 The runs to record are cut into tasks of consecutive runs (`task_ranges`); each task records
-its runs with batched rollouts (`record_batches`) and writes their logs straight to the output
+its runs one after the other (`record_logs`) and writes their logs straight to the output
 folder, named by the run's spec hash and written atomically, so a retried task overwrites its
 own partial output and never duplicates a run. A task returns only a `RecordedRun` per run.
 """
@@ -21,7 +21,7 @@ from impactlab.executors.processes import ProcessExecutor, available_cpus, can_f
 from impactlab.files import check_writable
 from impactlab.logs.writer import PARTIAL_SUFFIX, remove_stale_partials
 from impactlab.progress import Progress, Tracker
-from impactlab.record.batch import BATCH_RUNS, LogWriteError, record_batches
+from impactlab.record.batch import LogWriteError, record_logs
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.model import model_from_spec
 from impactlab.record.planner import PlannedRun, Subset
@@ -42,7 +42,6 @@ def record_runs(
     overwrite: bool = False,
     allow_large: bool = False,
     threads: int | None = None,
-    batch_size: int = BATCH_RUNS,
     progress: Progress | None = None,
 ) -> RecordResult:
     """Record planned runs into `out_dir`, one log per run; reuse complete logs.
@@ -52,7 +51,7 @@ def record_runs(
         out_dir: the output folder (created); on a cluster, a path every machine sees.
         executor: where the runs are simulated (default: here, on every core: the runs are
             shared among worker processes forked for the job (`ProcessExecutor`), one per
-            core, each simulating batched rollouts while it writes their logs; where forking
+            core, each simulating its runs while it writes their logs; where forking
             is not safe, in this process). Forked workers read their runs from `runs`
             themselves; other executors get each run `portable`.
         overwrite: record again runs whose complete log exists.
@@ -60,7 +59,6 @@ def record_runs(
             free space in `out_dir`.
         threads: worker processes to fork here (default: one per available core; 1: this
             process only).
-        batch_size: runs per rollout here.
         progress: receives the job's progress (see `impactlab.progress`); None: silent.
 
     Returns:
@@ -110,7 +108,7 @@ def record_runs(
     else:
         groups = [[portable(pending[i]) for i in r] for r in ranges]
     task = functools.partial(  # absolute: a worker's working folder is not the driver's
-        record_batches, out_dir=out_dir.absolute(), batch_size=batch_size, reuse=not overwrite
+        record_logs, out_dir=out_dir.absolute(), reuse=not overwrite
     )
     written = 0  # logs of this job complete so far
     for outcome in executor.map(task, groups) if groups else ():
@@ -150,8 +148,7 @@ def task_ranges(runs: int, slots: int, *, max_runs: int = MAX_TASK_RUNS) -> list
     """Consecutive runs (by index) cut into tasks: about TASKS_PER_SLOT tasks per slot,
     1..max_runs runs each.
 
-    Consecutive runs are mostly points of one sweep, so a task's runs share a batched
-    rollout; several tasks per slot keep every slot busy until the end, and a task stays
+    Several tasks per slot keep every slot busy until the end, and a task stays
     small enough that a retry costs little and results stream to the driver.
     """
     size = max(1, min(max_runs, math.ceil(runs / (max(1, slots) * TASKS_PER_SLOT))))
