@@ -83,7 +83,13 @@ def serve(conn: Connection, parent: int, inherited: Inherited | None = None) -> 
         signal.signal(signal.SIGTERM, _unwind)
         die_with_parent(parent)
         conn.send((READY, os.getpid()))
-        while (task := _receive(conn)) is not None:
+        while True:
+            try:
+                task = conn.recv()
+            except EOFError:  # the parent closed the pipe (or died)
+                break
+            if task is None:
+                break
             index, payload = task
             if isinstance(index, str):  # PRELOAD
                 _preload(payload)
@@ -114,15 +120,6 @@ def _preload(modules: object) -> None:
     for name in modules if isinstance(modules, (list, tuple)) else ():
         with contextlib.suppress(Exception):
             importlib.import_module(str(name))
-
-
-def _receive(conn: Connection) -> tuple[Any, Any] | None:
-    """The next (index, pickled task) or (PRELOAD, module names); None once the pipe closed."""
-    try:
-        task: tuple[Any, Any] = conn.recv()
-        return task
-    except EOFError:  # the parent closed the pipe (or died)
-        return None
 
 
 def _run(index: int, payload: bytes | None, inherited: Inherited | None) -> memoryview:
