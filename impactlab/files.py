@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import io
+import itertools
 import json
 import math
 import os
@@ -13,7 +14,6 @@ import re
 import secrets
 import stat
 import tempfile
-import textwrap
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -179,38 +179,28 @@ def write_bytes(path: Path, data: bytes) -> Path:
 
 
 def write_json(path: Path, document: Any) -> Path:
-    """Write a JSON document atomically (indented; NaN and inf as null). Returns `path`."""
-    return write_text(path, json.dumps(_finite(document), indent=2, default=str) + "\n")
-
-
-def write_json_stream(path: Path, document: dict[str, Any]) -> Path:
-    """Write `document` as `write_json` would, where every iterator in it (a generator, not a
-    list) is written as a list one item at a time: a long list is never held. Returns `path`."""
-    streams: dict[str, Iterator[Any]] = {}
-
-    def mark(value: Any) -> Any:
-        if isinstance(value, dict):
-            return {k: mark(v) for k, v in value.items()}
-        if isinstance(value, Iterator):
-            marker = f"impactlab-stream-{os.getpid()}-{len(streams)}"
-            streams[json.dumps(marker)] = value
-            return marker
-        return value
-
-    text = json.dumps(_finite(mark(document)), indent=2, default=str) + "\n"
+    """Write a JSON document atomically (indented; NaN and inf as null), where every iterator
+    in it (a generator, not a list) is written as a list one item at a time, by json's own
+    encoder: a long list is never held. Returns `path`."""
+    encoder = json.JSONEncoder(indent=2, default=str)  # indented: the encoder in Python
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as stream:
-        for marker, items in streams.items():
-            head, text = text.split(marker, 1)  # the markers' first places: ours, in order
-            stream.write(head + "[")
-            pad = " " * (len(head.rsplit("\n", 1)[-1]) - len(head.rsplit("\n", 1)[-1].lstrip()))
-            first = True
-            for item in items:
-                dumped = json.dumps(_finite(item), indent=2, default=str)
-                stream.write(("\n" if first else ",\n") + textwrap.indent(dumped, pad + "  "))
-                first = False
-            stream.write("]" if first else f"\n{pad}]")
-        stream.write(text)
+        stream.writelines(encoder.iterencode(_finite(document)))
+        stream.write("\n")
     return path
+
+
+class _Items(list):  # type: ignore[type-arg]  # a list only to json's encoder
+    """A non-empty iterator as json's encoder takes a list: item by item, never held."""
+
+    def __init__(self, items: Iterator[Any]) -> None:
+        super().__init__()
+        self.items = items
+
+    def __bool__(self) -> bool:
+        return True
+
+    def __iter__(self) -> Iterator[Any]:
+        return map(_finite, self.items)
 
 
 def write_parquet(frame: Any, path: Path) -> Path:
@@ -221,9 +211,13 @@ def write_parquet(frame: Any, path: Path) -> Path:
 
 
 def _finite(value: Any) -> Any:
-    """The document with every non-finite float (NaN, inf) replaced by None."""
+    """The document with every non-finite float (NaN, inf) replaced by None, every iterator
+    made an `_Items`."""
     if isinstance(value, float) and not math.isfinite(value):
         return None
+    if isinstance(value, Iterator):
+        first = next(value, _Items)  # a sentinel: the class itself
+        return [] if first is _Items else _Items(itertools.chain([first], value))
     if isinstance(value, dict):
         return {str(k): _finite(v) for k, v in value.items()}
     if isinstance(value, list | tuple):

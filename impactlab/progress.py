@@ -35,7 +35,7 @@ class ProgressEvent:
 
 
 # every stage that works through items takes one: called after each item and for each line
-# of news; None reports nothing; `console_progress()` is the command line's and verbose=True's
+# of news; None reports nothing; `ConsoleProgress()` is the command line's and verbose=True's
 Progress = Callable[[ProgressEvent], None]
 
 
@@ -80,7 +80,8 @@ class ConsoleProgress:
     With `notebook`, the bar is `tqdm.auto`'s (a widget in a Jupyter notebook), always shown
     and left in the cell when the job is over.
 
-    Call `close()` when the job is over (the bar is removed from the terminal).
+    Call `close()` when the job is over (the bar is removed from the terminal), or use it
+    as a context manager.
     """
 
     def __init__(self, *, echo: Callable[[str], None] = print, notebook: bool = False) -> None:
@@ -140,6 +141,12 @@ class ConsoleProgress:
         else:
             self.echo(line)
 
+    def __enter__(self) -> ConsoleProgress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     def close(self) -> None:
         """Remove the bar."""
         if self._bar is not None:
@@ -147,11 +154,6 @@ class ConsoleProgress:
             self._bar = None
         self._stage = None
         self._done = 0
-
-
-def console_progress() -> ConsoleProgress:
-    """The command line's progress: a bar on stderr, the lines on stdout."""
-    return ConsoleProgress()
 
 
 def in_notebook() -> bool:
@@ -173,8 +175,5 @@ def reporter(progress: Progress | None, verbose: bool) -> Iterator[Progress | No
     if progress is not None or not verbose:
         yield progress
         return
-    console = ConsoleProgress(notebook=True) if in_notebook() else console_progress()
-    try:
+    with ConsoleProgress(notebook=in_notebook()) as console:
         yield console
-    finally:
-        console.close()

@@ -17,7 +17,7 @@ from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
 from impactlab.executors.base import Executor
-from impactlab.files import write_json_stream, write_parquet
+from impactlab.files import write_json, write_parquet
 from impactlab.text import file_part
 
 SUMMARY_SLICE = 1000
@@ -92,7 +92,7 @@ def write_all(
         )
     )
     replies = answers(t)
-    summary = {  # the runs and studies listed slice by slice (`write_json_stream`)
+    summary = {  # the runs and studies listed slice by slice (`write_json`)
         "runs": _rows(result.runs),
         "failed": [{"path": p, "problem": why} for p, why in result.failed],
         "studies": {name: _rows(s) for name, s in result.studies.items()},
@@ -108,7 +108,7 @@ def write_all(
         drawing = thread.submit(draw_all, todo, executor) if todo and workers else None
         if drawing is None:
             draw_all(todo, executor)
-        files.append(write_json_stream(out / "summary.json", summary))
+        files.append(write_json(out / "summary.json", summary))
         if drawing is not None:
             drawing.result()
     if report:

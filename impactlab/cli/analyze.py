@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor, path
+from impactlab.cli.options import add_executor_options, path
 
 ANALYSIS_TASKS = "impactlab.analyze.batch"  # the module of the analysis' executor tasks
 
@@ -38,24 +38,21 @@ def run(args: argparse.Namespace) -> int:
     replacing its previous analysis as one set. Exit 2 and nothing written when no input
     names a readable log or the folder cannot be written; 1 when some inputs failed (one
     line each) and the others were analyzed."""
-    from impactlab.executors.choose import check_executor
+    from contextlib import closing
+
+    from impactlab.executors.choose import make_executor
     from impactlab.executors.processes import ProcessExecutor
     from impactlab.logs.inputs import check_log_inputs
-    from impactlab.progress import console_progress
+    from impactlab.progress import ConsoleProgress
 
-    check_executor(args.executor, args.address)  # a wrong option first, as record does
+    executor = make_executor(args.executor, args.address)  # a wrong option first (starts nothing)
     check_log_inputs(args.logs)
-    executor = make_executor(args)
-    if isinstance(executor, ProcessExecutor):  # the workers import while this process does
-        executor.prestart([ANALYSIS_TASKS])
-    progress = console_progress()
-    try:
+    with closing(executor), ConsoleProgress() as progress:
+        if isinstance(executor, ProcessExecutor):  # the workers import while this process does
+            executor.prestart([ANALYSIS_TASKS])
         from impactlab.analyze.job import run_analysis
 
         result = run_analysis(
             args.logs, args.out, figures=args.figures, executor=executor, progress=progress
         )
-    finally:
-        progress.close()
-        executor.close()
     return result.exit_code

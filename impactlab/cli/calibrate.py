@@ -36,13 +36,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Calibrate; exit 0 when every impact meets its bound, else 1."""
     from impactlab.calibrate.job import run_calibration
-    from impactlab.progress import console_progress
+    from impactlab.progress import ConsoleProgress
 
-    progress = console_progress()
-    try:
+    with ConsoleProgress() as progress:
         result = run_calibration(
             args.out, targets=args.targets, keep_logs=not args.discard_logs, progress=progress
         )
-    finally:
-        progress.close()
     return result.exit_code

@@ -7,9 +7,10 @@ input.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal, overload
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from impactlab.contact.tune import PairRequest
@@ -33,23 +34,31 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "input. See docs/contact-model.md.",
     )
     p.add_argument("model", nargs="?", type=Path, metavar="MODEL.xml", help="an MJCF model")
-    p.add_argument("--restitution", metavar="E", help="target e (0.1354..1)")
-    p.add_argument("--radius", metavar="M", help="smaller ball radius in m (without a model)")
-    p.add_argument("--speed", metavar="LO..HI", help="normal impact speeds in m/s, or one speed")
-    p.add_argument("--timestep", metavar="S", help="timestep in s (without a model)")
+    p.add_argument("--restitution", type=number, metavar="E", help="target e (0.1354..1)")
+    p.add_argument(
+        "--radius", type=number, metavar="M", help="smaller ball radius in m (without a model)"
+    )
+    p.add_argument(
+        "--speed", type=speeds, metavar="LO..HI", help="normal impact speeds in m/s, or one speed"
+    )
+    p.add_argument("--timestep", type=number, metavar="S", help="timestep in s (without a model)")
     p.add_argument(
         "--integrator", choices=INTEGRATORS, help="MuJoCo integrator (default Euler; no model)"
     )
     p.add_argument(
         "--gravity",
+        type=number,
         metavar="G",
         help="gravity along the contact normal in m/s^2 (default 9.81, or from the model; "
         "0 for two free bodies or zero gravity)",
     )
-    p.add_argument("--max-penetration", metavar="M", help="max penetration in m at the top speed")
-    p.add_argument("--duration", metavar="S", help="contact duration in s (instead)")
+    p.add_argument(
+        "--max-penetration", type=number, metavar="M", help="max penetration in m at the top speed"
+    )
+    p.add_argument("--duration", type=number, metavar="S", help="contact duration in s (instead)")
     p.add_argument(
         "--pair",
+        type=pair,
         action="append",
         default=[],
         metavar="G1/G2=E[@LO..HI]",
@@ -77,21 +86,6 @@ def run(args: argparse.Namespace) -> int:
         raise SpecError(str(args.model) if args.model else SOURCE, "", str(exc)) from None
 
 
-@overload
-def _number(args: argparse.Namespace, name: str, required: Literal[True]) -> float: ...
-@overload
-def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None: ...
-def _number(args: argparse.Namespace, name: str, required: bool = False) -> float | None:
-    from impactlab.contact import ContactModelError
-
-    text = getattr(args, name.replace("-", "_"))
-    if text is None:
-        if required:
-            raise ContactModelError(f"--{name} is required")
-        return None
-    return parse_number(text, f"--{name}")
-
-
 def _emit(args: argparse.Namespace, lines: list[str], document: object) -> None:
     import json
 
@@ -107,18 +101,20 @@ def _alone(args: argparse.Namespace) -> int:
             raise ContactModelError(f"{flag} needs an MJCF model: impactlab contact MODEL.xml")
     if args.speed is None:
         raise ContactModelError("--speed LO..HI is required (normal impact speeds in m/s)")
-    radius = _number(args, "radius")
+    for flag in ("restitution", "timestep"):
+        if getattr(args, flag) is None:
+            raise ContactModelError(f"--{flag} is required")
     design = design_contact(
-        _number(args, "restitution", required=True),
-        radius_m=radius,
-        timestep_s=_number(args, "timestep", required=True),
-        speed_range_mps=parse_speeds(args.speed),
+        args.restitution,
+        radius_m=args.radius,
+        timestep_s=args.timestep,
+        speed_range_mps=args.speed,
         integrator=args.integrator or "Euler",
-        gravity_mps2=9.81 if args.gravity is None else _number(args, "gravity", required=True),
-        max_penetration_m=_number(args, "max-penetration"),
-        duration_s=_number(args, "duration"),
+        gravity_mps2=9.81 if args.gravity is None else args.gravity,
+        max_penetration_m=args.max_penetration,
+        duration_s=args.duration,
     )
-    _emit(args, design_lines(design, radius_m=radius), design_dict(design))
+    _emit(args, design_lines(design, radius_m=args.radius), design_dict(design))
     return 0 if design.ok else 1
 
 
@@ -143,12 +139,12 @@ def _model(args: argparse.Namespace) -> int:
         check_not_input(args.out, args.model, parse_mjcf(args.model))
     tuned = tune_model(
         args.model,
-        [parse_pair(text) for text in args.pair],
-        restitution=_number(args, "restitution"),
-        speeds=None if args.speed is None else parse_speeds(args.speed),
-        gravity_mps2=_number(args, "gravity"),
-        max_penetration_m=_number(args, "max-penetration"),
-        duration_s=_number(args, "duration"),
+        args.pair,
+        restitution=args.restitution,
+        speeds=args.speed,
+        gravity_mps2=args.gravity,
+        max_penetration_m=args.max_penetration,
+        duration_s=args.duration,
     )
     lines = [
         f"{args.model}: timestep {tuned.options.timestep_s:g} s, integrator "
@@ -187,43 +183,33 @@ def _model(args: argparse.Namespace) -> int:
 _PAIR = re.compile(r"^\s*([^/=@\s]+)\s*/\s*([^/=@\s]+)\s*(?:=\s*([^@\s]+))?\s*(?:@\s*(\S+))?\s*$")
 
 
-def parse_number(text: str, what: str) -> float:
-    """A finite number from the command line, or ContactModelError naming `what`."""
-    from impactlab.contact import ContactModelError
-
+def number(text: str) -> float:
+    """An argument that is a finite number."""
     try:
         value = float(text)
-    except (TypeError, ValueError):
-        raise ContactModelError(f"{what} must be a number, got {text!r}") from None
-    if value != value or value in (float("inf"), float("-inf")):
-        raise ContactModelError(f"{what} must be finite, got {text!r}")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
     return value
 
 
-def parse_speeds(text: str, what: str = "--speed") -> tuple[float, float]:
-    """``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
-    from impactlab.contact import ContactModelError
-
+def speeds(text: str) -> tuple[float, float]:
+    """An argument ``LO..HI`` or ``V`` (m/s) -> (lo, hi)."""
     lo_text, sep, hi_text = text.partition("..")
-    lo = parse_number(lo_text, what)
-    hi = parse_number(hi_text, what) if sep else lo
+    lo = number(lo_text)
+    hi = number(hi_text) if sep else lo
     if not 0.0 < lo <= hi:
-        raise ContactModelError(f"{what} must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
+        raise argparse.ArgumentTypeError(f"must be LO..HI with 0 < LO <= HI (m/s), got {text!r}")
     return lo, hi
 
 
-def parse_pair(text: str) -> PairRequest:
-    """``G1/G2[=E][@LO..HI]`` -> PairRequest."""
-    from impactlab.contact import ContactModelError
+def pair(text: str) -> PairRequest:
+    """An argument ``G1/G2[=E][@LO..HI]`` -> PairRequest."""
     from impactlab.contact.tune import PairRequest
 
     m = _PAIR.match(text)
     if not m:
-        raise ContactModelError(f"--pair must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
-    g1, g2, e, speeds = m.groups()
-    return PairRequest(
-        g1,
-        g2,
-        None if e is None else parse_number(e, f"--pair {text}: restitution"),
-        None if speeds is None else parse_speeds(speeds, f"--pair {text}: speeds"),
-    )
+        raise argparse.ArgumentTypeError(f"must be GEOM1/GEOM2=E[@LO..HI], got {text!r}")
+    g1, g2, e, at = m.groups()
+    return PairRequest(g1, g2, None if e is None else number(e), None if at is None else speeds(at))

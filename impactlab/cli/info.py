@@ -18,12 +18,11 @@ def run(args: argparse.Namespace) -> int:
     """Describe each log; one error line per log that cannot be read (exit 1); none that can:
     one line, exit 2."""
     from impactlab.errors import ImpactlabError
-    from impactlab.logs.inputs import check_log_inputs, require_logs
+    from impactlab.logs.inputs import require_logs
     from impactlab.text import one_line, terminal_text
     from impactlab.tools.info import describe
 
-    check_log_inputs(args.logs)
-    paths, empty = require_logs(args.logs)
+    paths, empty = require_logs(args.logs)  # none names a log: NoLogs, exit 2
     for where, why in empty:
         print(one_line(f"impactlab: error: {where}: {why}"), file=sys.stderr)
     failed = len(empty)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor, path
+from impactlab.cli.options import add_executor_options, path
 from impactlab.text import terminal_text
 
 
@@ -40,12 +40,16 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the lab; print where the report is."""
-    from impactlab.lab import run_lab
-    from impactlab.progress import console_progress
+    from contextlib import closing
 
-    executor = make_executor(args)
-    progress = console_progress()
-    try:
+    from impactlab.executors.choose import make_executor
+    from impactlab.lab import run_lab
+    from impactlab.progress import ConsoleProgress
+
+    with (
+        closing(make_executor(args.executor, args.address)) as executor,
+        ConsoleProgress() as progress,
+    ):
         result = run_lab(
             args.out,
             experiments=args.experiments,
@@ -55,8 +59,5 @@ def run(args: argparse.Namespace) -> int:
             executor=executor,
             progress=progress,
         )
-    finally:
-        progress.close()
-        executor.close()
     print(terminal_text(f"report: {result.report}"))
     return result.exit_code

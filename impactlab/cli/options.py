@@ -7,7 +7,7 @@ import gc
 import math
 from pathlib import Path
 
-from impactlab.executors.base import PROCESS_MIN_ITEMS, Executor
+from impactlab.executors.base import PROCESS_MIN_ITEMS
 from impactlab.executors.choose import EXECUTORS, RAY_INSTALL_HINT
 from impactlab.text import one_line
 
@@ -38,13 +38,6 @@ def add_executor_options(parser: argparse.ArgumentParser, default: str = "local"
         help="Ray cluster address HOST:PORT (default: start Ray on this machine); "
         "see docs/cluster.md",
     )
-
-
-def make_executor(args: argparse.Namespace) -> Executor:
-    """The executor the options ask for (checked before any work is done)."""
-    from impactlab.executors.choose import make_executor as make
-
-    return make(args.executor, args.address)
 
 
 def path(text: str) -> Path:

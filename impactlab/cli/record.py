@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from impactlab.cli.options import add_executor_options, make_executor, path, seconds, started
+from impactlab.cli.options import add_executor_options, path, seconds, started
 from impactlab.text import terminal_text
 
 
@@ -50,10 +50,13 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Plan (everything validated first), record, print one line per run and a summary."""
-    from impactlab.progress import console_progress
+    from contextlib import closing
+
+    from impactlab.executors.choose import make_executor
+    from impactlab.progress import ConsoleProgress
     from impactlab.record.recorder import record_runs
 
-    executor = make_executor(args)
+    executor = make_executor(args.executor, args.address)
     from impactlab.record.planner import plan
 
     runs = plan(
@@ -63,8 +66,7 @@ def run(args: argparse.Namespace) -> int:
         allow_large=args.allow_large,
     )
     started()
-    progress = console_progress()
-    try:
+    with closing(executor), ConsoleProgress() as progress:
         result = record_runs(
             runs,
             args.out,
@@ -73,8 +75,5 @@ def run(args: argparse.Namespace) -> int:
             allow_large=args.allow_large,
             progress=progress,
         )
-    finally:
-        progress.close()
-        executor.close()
     print(terminal_text(result.summary(args.out)))
     return result.exit_code

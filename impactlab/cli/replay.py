@@ -53,23 +53,21 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write the recordings (and stream or serve them); exit 1 when a log failed."""
-    from impactlab.logs.inputs import check_log_inputs
+    from impactlab.logs.inputs import require_logs
 
     logs = list(args.logs)
     connect = args.connect
     if connect is not None and Path(connect).is_file():  # `--connect LOG`: LOG is no address
         logs.append(Path(connect))
         connect = DEFAULT_URL
-    check_log_inputs(logs)
+    paths, empty = require_logs(logs)  # no input names a log: exit 2 before rerun is loaded
 
     import rerun as rr
 
     from impactlab.errors import ImpactlabError, LogError
-    from impactlab.logs.inputs import require_logs
-    from impactlab.progress import console_progress
+    from impactlab.progress import ConsoleProgress
     from impactlab.replay.recordings import replay_logs
 
-    paths, empty = require_logs(logs)
     failed: list[ImpactlabError] = [LogError(where, why) for where, why in empty]
     for error in failed:
         print(terminal_text(f"impactlab: error: {error}"), file=sys.stderr)
@@ -80,8 +78,7 @@ def run(args: argparse.Namespace) -> int:
     elif connect is not None:
         url = connect if "://" in connect else f"rerun+http://{connect}/proxy"
         sinks.append(lambda: rr.GrpcSink(url))
-    progress = console_progress()
-    try:
+    with ConsoleProgress() as progress:
         written = replay_logs(
             paths,
             out=args.out,
@@ -90,8 +87,6 @@ def run(args: argparse.Namespace) -> int:
             on_error=failed.append,
             progress=progress,
         )
-    finally:
-        progress.close()
     for rrd in written:
         print(terminal_text(f"wrote {rrd}"))
     if args.serve and written:

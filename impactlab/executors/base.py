@@ -9,12 +9,11 @@ runs them as Ray tasks on a cluster. `make_executor("local" | "processes" | "ray
 picks one.
 
 Executors know nothing of recording or analysis: the record tasks live in
-`impactlab.record.tasks`, the analysis batch in `impactlab.analyze.batch`.
+`impactlab.record.recorder`, the analysis batch in `impactlab.analyze.batch`.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, Protocol, TypeVar
@@ -40,7 +39,6 @@ class TaskOutcome(Generic[R]):
     index: int
     value: R | None = None
     error: str | None = None
-    wall_s: float = 0.0
     exception: BaseException | None = None
 
     @property
@@ -81,14 +79,12 @@ class LocalExecutor:
 
     def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
         for i, item in enumerate(items):
-            start = time.perf_counter()
             try:
                 value = fn(item)
             except Exception as exc:  # one failed item never stops the others
-                wall_s = time.perf_counter() - start
-                yield TaskOutcome(i, error=describe_error(exc), wall_s=wall_s, exception=exc)
+                yield TaskOutcome(i, error=describe_error(exc), exception=exc)
             else:
-                yield TaskOutcome(i, value=value, wall_s=time.perf_counter() - start)
+                yield TaskOutcome(i, value=value)
 
     def close(self) -> None:
         pass

@@ -12,14 +12,24 @@ RAY_INSTALL_HINT = "pip install 'impactlab[ray]'"
 
 
 def make_executor(name: str = "local", address: str | None = None) -> Executor:
-    """The executor called `name` ("local", "processes" or "ray"; `address` is Ray's).
+    """The executor called `name` ("local", "processes" or "ray"; `address` is Ray's),
+    checked before any work starts (nothing is started here).
 
     Raises:
         ExecutorError: unknown name, an address for the local executor, or Ray is not
             installed (the message says how to install it).
     """
-    check_executor(name, address)
+    if name not in EXECUTORS:
+        raise ExecutorError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
+    if name != "ray" and address:
+        raise ExecutorError("--address applies to --executor ray")
     if name == "ray":
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ExecutorError(
+                f"--executor ray needs Ray, which is not installed: {RAY_INSTALL_HINT}"
+            ) from None
         from impactlab.executors.ray import RayExecutor
 
         return RayExecutor(address=address)
@@ -29,26 +39,6 @@ def make_executor(name: str = "local", address: str | None = None) -> Executor:
         refuse_in_worker_start()  # a script without the __main__ guard, imported by a worker
         return ProcessExecutor()
     return LocalExecutor()
-
-
-def check_executor(name: str, address: str | None = None) -> None:
-    """Raise `ExecutorError` now if `make_executor(name, address)` cannot work (starts nothing)."""
-    if name not in EXECUTORS:
-        raise ExecutorError(f"unknown executor {name!r}; choose one of {', '.join(EXECUTORS)}")
-    if name != "ray" and address:
-        raise ExecutorError("--address applies to --executor ray")
-    if name == "ray":
-        require_ray()
-
-
-def require_ray() -> None:
-    """Raise `ExecutorError` with the install command when Ray cannot be imported."""
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise ExecutorError(
-            f"--executor ray needs Ray, which is not installed: {RAY_INSTALL_HINT}"
-        ) from None
 
 
 @contextlib.contextmanager

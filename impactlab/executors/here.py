@@ -4,7 +4,6 @@ workers while this process works."""
 
 from __future__ import annotations
 
-import dataclasses
 import multiprocessing
 import os
 import threading
@@ -12,7 +11,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import Any, Generic, TypeVar
 
-from impactlab.executors.base import LocalExecutor, TaskOutcome, describe_error
+from impactlab.executors.base import TaskOutcome, describe_error
 from impactlab.executors.workers import TEST_SIGKILL_TASK
 
 R = TypeVar("R")
@@ -47,10 +46,12 @@ class HereTasks(Generic[R]):
         self._thread.start()
 
     def _run(self) -> None:
+        index = self._index
         try:
-            self._outcome = _one(self.fn, self.items, self._index)
+            self._outcome = TaskOutcome(index, value=self.fn(self.items[index]))
         except BaseException as exc:  # told to the loop as the task's failure
-            self._outcome = TaskOutcome(self._index, error=describe_error(exc))
+            caught = exc if isinstance(exc, Exception) else None
+            self._outcome = TaskOutcome(index, error=describe_error(exc), exception=caught)
         finally:
             self._writer.send_bytes(b"")
 
@@ -68,9 +69,3 @@ class HereTasks(Generic[R]):
         if self._thread is None:
             self.reader.close()
             self._writer.close()
-
-
-def _one(fn: Callable[[Any], R], items: Sequence[Any], index: int) -> TaskOutcome[R]:
-    """Task `index` run in this process."""
-    outcome = next(iter(LocalExecutor().map(fn, [items[index]])))
-    return dataclasses.replace(outcome, index=index)

@@ -26,7 +26,6 @@ import multiprocessing
 import os
 import signal
 import sys
-import time
 from collections.abc import Callable, Sequence
 from multiprocessing.connection import Connection
 from multiprocessing.reduction import ForkingPickler
@@ -84,7 +83,13 @@ def serve(conn: Connection, parent: int, inherited: Inherited | None = None) -> 
         signal.signal(signal.SIGTERM, _unwind)
         die_with_parent(parent)
         conn.send((READY, os.getpid()))
-        while (task := _receive(conn)) is not None:
+        while True:
+            try:
+                task = conn.recv()
+            except EOFError:  # the parent closed the pipe (or died)
+                break
+            if task is None:
+                break
             index, payload = task
             if isinstance(index, str):  # PRELOAD
                 _preload(payload)
@@ -117,20 +122,10 @@ def _preload(modules: object) -> None:
             importlib.import_module(str(name))
 
 
-def _receive(conn: Connection) -> tuple[Any, Any] | None:
-    """The next (index, pickled task) or (PRELOAD, module names); None once the pipe closed."""
-    try:
-        task: tuple[Any, Any] = conn.recv()
-        return task
-    except EOFError:  # the parent closed the pipe (or died)
-        return None
-
-
 def _run(index: int, payload: bytes | None, inherited: Inherited | None) -> memoryview:
-    """(index, value, error, wall time, exception) of the task, pickled: a function or item
-    that cannot be unpickled here, or a value that cannot be pickled, is the task's failure;
-    its exception goes along when it can be pickled (else None: the error says it)."""
-    start = time.perf_counter()
+    """(index, value, error, exception) of the task, pickled: a function or item that cannot
+    be unpickled here, or a value that cannot be pickled, is the task's failure; its exception
+    goes along when it can be pickled (else None: the error says it)."""
     try:
         if payload is not None:
             fn, item = ForkingPickler.loads(payload)
@@ -138,9 +133,9 @@ def _run(index: int, payload: bytes | None, inherited: Inherited | None) -> memo
             assert inherited is not None  # a task without its payload goes to forked workers
             fn, item = inherited[0], inherited[1][index]
         value = fn(item)
-        return ForkingPickler.dumps((index, value, None, time.perf_counter() - start, None))
+        return ForkingPickler.dumps((index, value, None, None))
     except Exception as exc:  # one failed item never stops the others
-        failed = (index, None, describe_error(exc), time.perf_counter() - start)
+        failed = (index, None, describe_error(exc))
         try:
             data = ForkingPickler.dumps((*failed, exc))
             ForkingPickler.loads(data)  # the parent can read it back

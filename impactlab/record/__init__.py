@@ -2,10 +2,10 @@
 
 Owns: the spec's declared schema (`schema`), experiment specs and sweeps (`spec`, `sweep`),
 an MJCF model's run options (`mjcf_options`), the instrumented MuJoCo models (`model`,
-`geometry`, `contact_pairs`), batched rollouts streamed chunk by chunk with their stop rules
+`geometry`, `contact_pairs`), the simulation streamed chunk by chunk with its stop rules
 and MuJoCo's warnings (`simulate`, `stop`, `mujoco_warnings`), and the record job (`planner`
 plans, keeping a sweep as its grid (`PlannedRuns`), `work` estimates and refuses absurd jobs,
-`recorder` runs here or as executor `tasks`).
+`recorder` runs here or as executor tasks).
 
 May import: `impactlab.logs` (to write logs), `impactlab.contact`, `impactlab.mjcf`,
 `impactlab.executors`, MuJoCo. Must not import: `impactlab.analyze`, `impactlab.replay`,

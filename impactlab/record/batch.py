@@ -1,9 +1,8 @@
-"""Record a list of planned runs: batched rollouts, each run's rows streamed into its log."""
+"""Record a list of planned runs, one after the other: each run's rows streamed into its log."""
 
 from __future__ import annotations
 
 import contextlib
-import queue
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
@@ -11,16 +10,12 @@ from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.files import FULL
 from impactlab.logs.writer import LogWriter
-from impactlab.record.folder import log_path
+from impactlab.record.folder import log_path, reusable
 from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
 from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
-
-BATCH_RUNS = 4  # runs simulated side by side: enough for two threads, few runs in memory
-
-Reuse = Callable[[PlannedRun], "RecordedRun | None"]
 
 
 class LogWriteError(ImpactlabError):
@@ -37,41 +32,28 @@ class LogWriteError(ImpactlabError):
         return LogWriteError, (self.path, self.problem, self.written)  # from a worker
 
 
-def batches(
+def requests(
     runs: Sequence[PlannedRun],
-    size: int,
+    out_dir: Path,
     *,
-    reuse: Reuse | None = None,
-    report: Callable[[RecordedRun], None] = lambda _: None,
-    fail: Callable[[PlannedRun, str], None] = lambda run, reason: None,
-) -> Iterator[list[RunRequest]]:
-    """Consecutive runs that can share a rollout (same MuJoCo sizes and timestep), built.
-
-    Each run is built when its batch is needed. A run whose complete log `reuse` finds (e.g.
-    written by a concurrent job meanwhile) is `report`ed, one whose model fails to build is
-    `fail`ed, instead of simulated.
-    """
-    batch: list[RunRequest] = []
-    key = None
+    reuse: bool,
+    report: Callable[[RecordedRun], None],
+) -> Iterator[RunRequest]:
+    """Each run built when the simulation reaches it. With `reuse`, a run whose complete log
+    is in `out_dir` (e.g. written by a concurrent job meanwhile) is `report`ed instead, as is
+    one whose model fails to build (failed)."""
     for run in runs:
-        found = reuse(run) if reuse is not None else None
+        found = reusable(out_dir, run) if reuse else None
         if found is not None:
             report(found)
             continue
         try:
             inst = run.build()
         except Exception as exc:  # e.g. a model that no longer compiles on a worker
-            fail(run, str(exc) if isinstance(exc, ImpactlabError) else describe_error(exc))
+            reason = str(exc) if isinstance(exc, ImpactlabError) else describe_error(exc)
+            report(_failed(run, log_path(out_dir, run), reason))
             continue
-        m = inst.model
-        this = (m.nq, m.nv, m.na, m.nu, m.nbody, m.ngeom, m.nsensordata, m.opt.timestep)
-        if batch and (this != key or len(batch) >= size):
-            yield batch
-            batch = []
-        key = this
-        batch.append(RunRequest(inst, run.max_time, run.stop, run.info.log_every, tag=run))
-    if batch:
-        yield batch
+        yield RunRequest(inst, run.max_time, run.stop, run.info.log_every, tag=run)
 
 
 def _failed(run: PlannedRun, path: Path, reason: str) -> RecordedRun:
@@ -114,58 +96,38 @@ class _OpenLog:
         self.writer.abort()
 
 
-def record_batches(
+def record_logs(
     runs: Sequence[PlannedRun],
     out_dir: Path,
     *,
-    batch_size: int = BATCH_RUNS,
-    threads: int | None = None,
-    reuse: Reuse | None = None,
+    reuse: bool = True,
 ) -> list[RecordedRun]:
-    """Simulate and write every run; returns one `RecordedRun` per run, in order of completion.
+    """Simulate and write every run (the body of one record task); returns one `RecordedRun`
+    per run, in order of completion.
 
-    A batch that fails to build or simulate fails only its own runs. A log that cannot be
-    written for a full disk (`files.FULL`: nothing more can be written) raises `LogWriteError`
+    A run that fails to build or simulate fails alone. A log that cannot be written for a full
+    disk (`files.FULL`: nothing more can be written) raises `LogWriteError`
     saying how many logs of these runs are complete; for another reason (a folder in its
     place) it fails its run.
-    `reuse(run)` is asked just before a run is simulated (a concurrent job may have written
-    it meanwhile). On any exit (an error, Ctrl-C) the logs being written are removed.
+    With `reuse`, a run whose complete log is there already (a retried task, a concurrent
+    job) is not simulated again: the folder is looked at just before the run would be. On
+    any exit (an error, Ctrl-C) the logs being written are removed.
     """
     out: list[RecordedRun] = []
     report = out.append
 
     logs: dict[RunRequest, _OpenLog] = {}
     dead: set[RunRequest] = set()  # runs whose log failed: their further rows are dropped
-
-    def fail(run: PlannedRun, reason: str) -> None:
-        report(_failed(run, log_path(out_dir, run), reason))
-
-    # runs are built on the simulation thread: what it finds (a reused log, a model that
-    # fails to build) is reported here, on this thread, with the next piece or at the end
-    found: queue.SimpleQueue[RecordedRun] = queue.SimpleQueue()
-
-    def report_found() -> None:
-        while not found.empty():
-            report(found.get())
-
-    groups = batches(
-        runs,
-        batch_size,
-        reuse=reuse,
-        report=found.put,
-        fail=lambda run, reason: found.put(_failed(run, log_path(out_dir, run), reason)),
-    )
     try:
-        requests = (request for group in groups for request in group)
-        with contextlib.closing(simulate(requests)) as pieces:
+        built = requests(runs, out_dir, reuse=reuse, report=report)
+        with contextlib.closing(simulate(built)) as pieces:
             for piece in pieces:
-                report_found()
                 request, run = piece.request, piece.request.tag
                 path = log_path(out_dir, run)
                 if piece.error is not None:
                     if request in logs:
                         logs.pop(request).abort()
-                    fail(run, piece.error)
+                    report(_failed(run, path, piece.error))
                     continue
                 if request in dead:
                     continue
@@ -180,12 +142,11 @@ def record_batches(
                         written = sum(r.status == "recorded" for r in out)
                         raise LogWriteError(path, exc.strerror or str(exc), written) from None
                     dead.add(request)
-                    fail(run, f"cannot write the log: {describe_error(exc)}")
+                    report(_failed(run, path, f"cannot write the log: {describe_error(exc)}"))
                     continue
                 if done is not None:
                     del logs[request]
                     report(done)
-        report_found()
     finally:
         for log in logs.values():
             log.abort()

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 
@@ -71,41 +71,29 @@ class RecordedRun:
         )
 
 
-@dataclass
-class RecordResult:
-    """Every run of a record job, in plan order; iterate it like a list of `RecordedRun`."""
-
-    runs: list[RecordedRun] = field(default_factory=list)
-
-    def __iter__(self) -> Iterator[RecordedRun]:
-        return iter(self.runs)
-
-    def __len__(self) -> int:
-        return len(self.runs)
-
-    def __getitem__(self, i: int) -> RecordedRun:
-        return self.runs[i]
+class RecordResult(list[RecordedRun]):
+    """Every run of a record job, in plan order: a list of `RecordedRun`."""
 
     @property
     def paths(self) -> list[Path]:
         """The log of every run that has one (recorded or reused), in plan order."""
-        return [r.path for r in self.runs if not r.failed]
+        return [r.path for r in self if not r.failed]
 
     @property
     def recorded(self) -> list[RecordedRun]:
-        return [r for r in self.runs if r.status == "recorded"]
+        return [r for r in self if r.status == "recorded"]
 
     @property
     def reused(self) -> list[RecordedRun]:
-        return [r for r in self.runs if r.status == "reused"]
+        return [r for r in self if r.status == "reused"]
 
     @property
     def failed(self) -> list[RecordedRun]:
-        return [r for r in self.runs if r.failed]
+        return [r for r in self if r.failed]
 
     @property
     def unstable(self) -> list[RecordedRun]:
-        return [r for r in self.runs if r.unstable]
+        return [r for r in self if r.unstable]
 
     @property
     def exit_code(self) -> int:

@@ -16,7 +16,7 @@ def record_repr(result: Any) -> str:
         for kind in ("recorded", "reused", "unstable", "failed")
         if getattr(result, kind)
     ]
-    folders = {r.path.parent for r in result.runs}
+    folders = {r.path.parent for r in result}
     head = count(len(result), "run") + (f": {', '.join(parts)}" if parts else "")
     folder = f", {where(next(iter(folders))) if len(folders) == 1 else 'several folders'}"
     return f"<RecordResult {head}{folder if folders else ''}>"
@@ -26,7 +26,7 @@ def record_html(result: Any) -> str:
     """One row per run: its status, outcome and why, simulated time, steps, log file."""
     rows = [
         [r.run_id, r.status, r.outcome, r.reason, r.t_end_s or None, r.steps or None, r.path.name]
-        for r in result.runs[:30]
+        for r in result[:30]
     ]
     headers = ["run", "status", "outcome", "why", "t end (s)", "steps", "log"]
     caption = record_repr(result).strip("<>")

@@ -13,7 +13,7 @@ from impactlab.files import write_bytes
 from impactlab.logs.load import load_log
 from impactlab.progress import Progress, Tracker
 from impactlab.replay.events import load_analysis
-from impactlab.replay.recordings import log_runs, recording_of
+from impactlab.replay.recordings import recording
 from impactlab.show import count, html_table, plain, where
 
 NOTEBOOK_EXTRA = "pip install 'impactlab[notebook]'"
@@ -118,11 +118,4 @@ def notebook_replay(
         tracker.add("finished")
     if not runs:
         raise LogError(" ".join(map(str, logs)), "no readable log to replay")
-    rec = recording_of(runs)
-    try:
-        memory = rec.memory_recording()
-        log_runs(rec, runs, tables)
-        data = memory.drain_as_bytes()
-    finally:
-        rec.disconnect()
-    return NotebookReplay(tuple(run.run_id for run in runs), data)
+    return NotebookReplay(tuple(run.run_id for run in runs), recording(runs, tables))

@@ -100,7 +100,7 @@ def replay_logs(
             error(LogError(str(target), f"cannot write: {exc.strerror or exc}"))
         for make in sinks:
             try:
-                stream_recording(runs, make(), tables=tables)
+                recording(runs, tables, sink=make())
             except RuntimeError as exc:  # the SDK's error when no viewer answers
                 error(ImpactlabError(f"viewer: {exc}"))
                 sinks = []  # one error is enough; the files are still written
@@ -119,40 +119,36 @@ def write_recording(
     Raises:
         OSError: the file cannot be written.
     """
-    rec = recording_of(runs)
-    stream = rr.binary_stream(recording=rec)
-    try:
-        log_runs(rec, runs, tables, active=True)
-        data = stream.read(flush=True)
-    finally:
-        rec.disconnect()
+    data = recording(runs, tables)
     if not data:
         raise OSError(errno.EIO, "the recording was not made")
     path.parent.mkdir(parents=True, exist_ok=True)
     return write_bytes(path, data)
 
 
-def stream_recording(
-    runs: Sequence[RunLog], sink: rr.GrpcSink, *, tables: Mapping[str, pl.DataFrame] | None = None
-) -> None:
-    """Send the recording of `runs` to a viewer.
+def recording(
+    runs: Sequence[RunLog],
+    tables: Mapping[str, pl.DataFrame] | None,
+    *,
+    sink: rr.GrpcSink | None = None,
+) -> bytes:
+    """The recording of `runs` (its id: the run's, or a digest of theirs) as an .rrd stream
+    made in memory, or sent to a viewer's `sink` (then b"").
 
     Raises:
         RuntimeError: the viewer cannot be reached.
     """
-    rec = recording_of(runs)
-    try:
-        rec.set_sinks(sink)
-        log_runs(rec, runs, tables)
-    finally:
-        rec.disconnect()
-
-
-def recording_of(runs: Sequence[RunLog]) -> rr.RecordingStream:
-    """A new recording stream for `runs` (its id: the run's, or a digest of theirs)."""
     ids = [run.run_id for run in runs]
     recording_id = ids[0] if len(ids) == 1 else "replay-" + _digest(ids)
-    return rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id, send_properties=False)
+    stream = rr.binary_stream(recording=rec) if sink is None else None
+    try:
+        if sink is not None:
+            rec.set_sinks(sink)
+        log_runs(rec, runs, tables, active=sink is None)
+        return b"" if stream is None else bytes(stream.read(flush=True) or b"")
+    finally:
+        rec.disconnect()
 
 
 def log_runs(
@@ -164,8 +160,9 @@ def log_runs(
 ) -> rrb.Blueprint:
     """Every run, the recording's name and the blueprint (returned); flushed.
 
-    The blueprint is the default, and with `active` (files) also the active one: the web
-    viewer shows only an active blueprint; a viewer streamed to keeps the layout it has.
+    The blueprint is the default, and with `active` (files, the notebook's recording) also
+    the active one: the web viewer shows only an active blueprint; a viewer streamed to
+    keeps the layout it has.
     """
     ids = [run.run_id for run in runs]
     rec.send_recording_name(ids[0] if len(ids) == 1 else f"{len(ids)} runs")

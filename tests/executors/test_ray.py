@@ -22,7 +22,7 @@ from impactlab.cli import main
 from impactlab.executors.base import LocalExecutor
 from impactlab.executors.choose import RAY_INSTALL_HINT
 from impactlab.record import plan, record_runs
-from impactlab.record.tasks import task_ranges
+from impactlab.record.recorder import task_ranges
 
 pytestmark = [pytest.mark.slow, pytest.mark.extras]  # a local Ray cluster (the ray extra)
 

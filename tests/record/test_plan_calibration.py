@@ -13,7 +13,7 @@ from paths import GOLDEN
 from impactlab.record import model as model_module
 from impactlab.record import planner as planner
 from impactlab.record.log_rows import shared_geom_contact
-from impactlab.record.tasks import portable
+from impactlab.record.recorder import portable
 
 SPEC = GOLDEN / "specs" / "drop_restitution.toml"
 

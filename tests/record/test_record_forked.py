@@ -17,7 +17,7 @@ from waiting import interrupt, record_process, wait_until
 from impactlab.executors.processes import ProcessExecutor, can_fork
 from impactlab.progress import ProgressEvent
 from impactlab.record import batch, plan, record_runs
-from impactlab.record.tasks import task_ranges
+from impactlab.record.recorder import task_ranges
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forks on Linux")
 
@@ -62,7 +62,7 @@ def test_forked_logs_equal_one_process_logs(tmp_path, monkeypatch):
 
 
 def test_a_killed_worker_fails_only_its_unreported_runs(tmp_path):
-    """A worker that dies while building its second batch: its runs not yet logged fail with
+    """A worker that dies while building its second run: its runs not yet logged fail with
     the reason, the other worker's runs are complete, the temporary file of the log it was
     writing is removed."""
     runs = list(plan([_spec(tmp_path, 4)]))
@@ -71,7 +71,7 @@ def test_a_killed_worker_fails_only_its_unreported_runs(tmp_path):
         os._exit(9)
 
     runs[3] = dataclasses.replace(runs[3], build=die)
-    result = record_runs(runs, tmp_path / "logs", threads=2, batch_size=1)
+    result = record_runs(runs, tmp_path / "logs", threads=2)
     by_id = {r.run_id: r for r in result}
     status = [by_id[r.info.run_id].status for r in runs]
     assert status[:2] == ["recorded"] * 2  # the other worker's share
@@ -93,7 +93,7 @@ def test_a_bug_in_a_worker_fails_its_runs_with_the_reason(tmp_path):
         yield
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(batch, "batches", broken)
+        mp.setattr(batch, "requests", broken)
         result = record_runs(runs, tmp_path / "logs", threads=2)
     assert [(r.status, r.reason) for r in result] == [("failed", "ZeroDivisionError: a bug")] * 2
     assert not list((tmp_path / "logs").iterdir())

@@ -209,18 +209,18 @@ def test_overwrite_reruns_everything(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_batching_does_not_change_the_logs(tmp_path):
-    """Serial (one run at a time, one thread) and batched (4 runs, 2 threads) recordings of the
-    same spec file give byte-identical logs. Byte for byte holds because both are recorded on
+def test_scheduling_does_not_change_the_logs(tmp_path):
+    """Serial (this process) and forked (2 worker processes) recordings of the same spec file
+    give byte-identical logs. Byte for byte holds because both are recorded on
     the same machine in the same process; across machines logs agree numerically only (see
     tests/e2e/test_golden.py)."""
     sweep = '[sweep]\n"ball.pos" = [[0.0, 0.0, 0.3], [0.1, 0.0, 0.4], [0.0, 0.2, 0.5], [0.0, 0.0, 0.6], [0.3, 0.0, 0.7]]'
     spec = spec_file(tmp_path, "same", max_time=0.8, extra=sweep)
     runs = plan([spec])
-    serial = record_runs(runs, tmp_path / "serial", batch_size=1, threads=1)
-    batched = record_runs(runs, tmp_path / "batched", batch_size=4, threads=2)
-    assert [r.path.name for r in serial] == [r.path.name for r in batched]
-    for a, b in zip(serial, batched, strict=True):
+    serial = record_runs(runs, tmp_path / "serial", threads=1)
+    forked = record_runs(runs, tmp_path / "forked", threads=2)
+    assert [r.path.name for r in serial] == [r.path.name for r in forked]
+    for a, b in zip(serial, forked, strict=True):
         assert a.path.read_bytes() == b.path.read_bytes(), a.path.name
 
 
@@ -238,7 +238,7 @@ def test_unwritable_target_fails_before_simulating(tmp_path, capsys, monkeypatch
     def forbidden(*args: object, **kwargs: object) -> None:
         raise AssertionError("simulated before checking the output folder")
 
-    monkeypatch.setattr(recorder_module, "record_on", forbidden)  # every way to simulate
+    monkeypatch.setattr(recorder_module, "record_logs", forbidden)  # every way to simulate
     monkeypatch.setattr(simulate_module, "simulate", forbidden)
     code = main(["record", str(spec), "-o", str(out)])
     err = capsys.readouterr().err

@@ -22,7 +22,7 @@ from impactlab.logs.load import load_log
 from impactlab.replay import blueprint as layout
 from impactlab.replay import style
 from impactlab.replay.convert import run_prefix
-from impactlab.replay.recordings import log_runs, recording_of
+from impactlab.replay.recordings import log_runs
 
 LOGS = {name: GOLDEN / "logs" / f"{name}.mcap" for name in ("drop_bounces", "collision")}
 LOGS |= {"sweep_point": GOLDEN / "logs" / "collision_sweep_point.mcap"}
@@ -44,7 +44,7 @@ def _replay(names: list[str], folder: Path) -> tuple[rrb.Blueprint, dict[str, di
     from impactlab.replay.events import load_analysis
 
     runs = [load_log(LOGS[n]) for n in names]
-    rec = recording_of(runs)
+    rec = rr.RecordingStream("impactlab", recording_id="layout", send_properties=False)
     memory = rec.memory_recording()
     try:
         blueprint = log_runs(rec, runs, load_analysis(RESULTS))
