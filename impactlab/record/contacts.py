@@ -44,31 +44,36 @@ class ContactTape:
 
     MuJoCo keeps `mjData.contact` at the start of its arena; `_contacts` views it as a
     structured array (`CONTACT_DTYPE`), so a step's contacts are copied in one operation.
-    Per constraint row: MuJoCo's force, its velocity J v at the step's start and J v' after
-    the step (`mj_mulJacVec` with the new velocity), J v before any contact force acted
-    (`arrive`: at the step's start, but for RK4 at the previous step's start, whose later
-    stages already meet a contact the start state shows first), and with `types` its
-    constraint type.
+    Per step: its numbers of contacts and rows (`ncon`, `nefc`). Per constraint row:
+    MuJoCo's force, its velocity J v at the step's start and J v' after the step
+    (`mj_mulJacVec` with the new velocity), with `types` its constraint type, and for RK4
+    J v before any contact force acted (`arrive`: at the previous step's start, whose later
+    stages already meet a contact the start state shows first; for the other integrators
+    it is J v at the step's start).
     """
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, types: bool) -> None:
+    def __init__(
+        self, model: mujoco.MjModel, data: mujoco.MjData, nstep: int, *, types: bool
+    ) -> None:
         self.model, self.data, self.types = model, data, types
+        self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
         self._contacts: np.ndarray | None = None
         self._jacobian: tuple[int, int, tuple[np.ndarray, ...]] = (0, 0, ())
+        self.ncon = np.zeros(nstep, np.int64)
+        self.nefc = np.zeros(nstep, np.int64)
+        self.contact = np.empty((64, CONTACT_DTYPE.itemsize), np.uint8)  # mjContact bytes
+        self.force = np.empty(256)
+        self.vel = np.empty(256)
+        self.vel_after = np.empty(256)
+        self.arrive = np.empty(256)  # RK4's (`after_step`)
+        self.type = np.empty(256, np.int32)
         self.reset()
 
     def reset(self) -> None:
         """Empty the buffers for the next chunk (they keep the room they grew to)."""
         self.ncontact = self.nrow = 0
-        if not hasattr(self, "contact"):
-            self.contact = np.empty((64, CONTACT_DTYPE.itemsize), np.uint8)  # mjContact bytes
-            self.contact_step = np.empty(64, np.int64)
-            self.force = np.empty(256)
-            self.vel = np.empty(256)
-            self.vel_after = np.empty(256)
-            self.arrive = np.empty(256)
-            self.type = np.empty(256, np.int32)
-            self.row_step = np.empty(256, np.int64)
+        self.ncon[:] = 0
+        self.nefc[:] = 0
 
     def _view(self) -> np.ndarray:
         """The contact array of `data` as rows of bytes, one per mjContact (a plain copy of
@@ -83,36 +88,41 @@ class ContactTape:
         """Copy the contacts and constraint rows MuJoCo has for step `step` (its start
         state's, as `mj_step` leaves them for every integrator but RK4), and with `after`
         J v' for the velocity after the step; without (RK4, whose stages leave another
-        state's Jacobian), the Jacobian is kept for `after_step` to apply."""
+        state's Jacobian), the Jacobian is kept for `after_step` to apply. Called once per
+        step with constraint rows: every operation here is paid per simulated step."""
         data = self.data
-        ncon, nefc = int(data.ncon), int(data.nefc)
-        if ncon:
-            if self._contacts is None:
-                self._contacts = self._view()
-            k = self.ncontact
-            if k + ncon > len(self.contact):
-                self.contact = _grow(self.contact, k + ncon)
-                self.contact_step = _grow(self.contact_step, k + ncon)
-            self.contact[k : k + ncon] = self._contacts[:ncon]
-            self.contact_step[k : k + ncon] = step
-            self.ncontact = k + ncon
+        ncon, nefc = data.ncon, data.nefc
+        self.nefc[step] = nefc
         r = self.nrow
-        if r + nefc > self.force.size:
-            self.force, self.vel = _grow(self.force, r + nefc), _grow(self.vel, r + nefc)
-            self.vel_after = _grow(self.vel_after, r + nefc)
-            self.arrive = _grow(self.arrive, r + nefc)
-            self.type, self.row_step = _grow(self.type, r + nefc), _grow(self.row_step, r + nefc)
-        self.force[r : r + nefc] = data.efc_force
-        self.vel[r : r + nefc] = data.efc_vel
-        self.arrive[r : r + nefc] = data.efc_vel
+        end = self.nrow = r + nefc
+        if end > self.force.size:
+            self._grow_rows(end)
+        self.force[r:end] = data.efc_force
+        self.vel[r:end] = data.efc_vel
         if after:
-            mujoco.mj_mulJacVec(self.model, data, self.vel_after[r : r + nefc], data.qvel)
+            mujoco.mj_mulJacVec(self.model, data, self.vel_after[r:end], data.qvel)
         else:
             self._jacobian = (r, nefc, self._jacobian_rows())
         if self.types:
-            self.type[r : r + nefc] = data.efc_type
-        self.row_step[r : r + nefc] = step
-        self.nrow = r + nefc
+            self.type[r:end] = data.efc_type
+        if ncon:
+            self.ncon[step] = ncon
+            k = self.ncontact
+            if self._contacts is None:
+                self._contacts = self._view()
+            if k + ncon > len(self.contact):
+                self.contact = _grow(self.contact, k + ncon)
+            self.contact[k : k + ncon] = self._contacts[:ncon]
+            self.ncontact = k + ncon
+
+    def _grow_rows(self, need: int) -> None:
+        self.force, self.vel = _grow(self.force, need), _grow(self.vel, need)
+        self.vel_after, self.type = _grow(self.vel_after, need), _grow(self.type, need)
+        self.arrive = _grow(self.arrive, need)
+
+    def row_step(self) -> np.ndarray:
+        """The chunk's local step of each constraint row."""
+        return np.repeat(np.arange(self.nefc.size), self.nefc)
 
     def _jacobian_rows(self) -> tuple[np.ndarray, ...]:
         """A copy of the constraint Jacobian (dense rows, or MuJoCo's sparse rows)."""
@@ -210,12 +220,13 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
     raw = tape.contact[: tape.ncontact].view(CONTACT_DTYPE)[:, 0]
     n_rows = tape.nrow
     force, vel, after = tape.force[:n_rows], tape.vel[:n_rows], tape.vel_after[:n_rows]
-    arrive = tape.arrive[:n_rows]
+    arrive = tape.arrive[:n_rows] if tape.rk4 else vel
     power = force * 0.5 * (vel + after)
     active = (raw["exclude"] == 0) & (raw["efc_address"] >= 0)
-    raw, step = raw[active], tape.contact_step[: tape.ncontact][active]
+    step = np.repeat(np.arange(tape.ncon.size), tape.ncon)
+    raw, step = raw[active], step[active]
     # each contact's first row in this chunk's row buffer: rows of one step are contiguous
-    first_row = np.searchsorted(tape.row_step[:n_rows], step) + raw["efc_address"]
+    first_row = (np.cumsum(tape.nefc) - tape.nefc)[step] + raw["efc_address"]
     dim = raw["dim"].astype(np.int64)
     friction_dims = np.where(dim > 1, dim - 1, 0)
     nrows = np.where(dim == 1, 1, 2 * friction_dims if pyramidal else dim)

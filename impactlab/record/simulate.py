@@ -114,7 +114,7 @@ class _Run:
         self.chunk = chunk_steps(self.dt, values)
         self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
         self.pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
-        self.tape = ContactTape(model, self.data, types=budget.other_constraints(model))
+        self.tape = ContactTape(model, self.data, self.chunk, types=budget.other_constraints(model))
         self.episodes = Episodes(inst, self.dt)
         self.monitor = StopMonitor(inst, request.stop, timestep=self.dt)
         self.work_done = np.zeros(len(budget.WORK_KINDS))
@@ -130,7 +130,8 @@ class _Run:
         self.vel = np.empty((n, nv))
         self.qpos = np.empty((n, model.nq)) if inst.joints is not None else None
         self.generalised = [np.empty((n, nv)) for _ in self.forces]
-        self.unbalanced = np.zeros((n, nv))  # M qacc - smooth - constraint forces, per step
+        self.mass_acc = np.zeros((n, nv))  # M qacc, per step with constraints
+        self.smooth_force = np.zeros((n, nv))  # qfrc_smooth, per step with constraints
 
     def next_piece(self) -> Piece:
         """Simulate the next chunk and return what it logs (the last one with the ending)."""
@@ -168,13 +169,14 @@ class _Run:
         return piece
 
     def _steps(self, n: int) -> None:
-        """Step n times, copying what MuJoCo computed for each step (hot loop)."""
+        """Step n times, copying what MuJoCo computed for each step (hot loop: every
+        operation in it is paid at every simulated step)."""
         model, data, tape = self.model, self.data, self.tape
         rows, times, vel, qpos = self.rows, self.times, self.vel, self.qpos
-        sensordata, qvel = data.sensordata, data.qvel
-        qacc, smooth, constraint = data.qacc, data.qfrc_smooth, data.qfrc_constraint
-        unbalanced = self.unbalanced
-        unbalanced[:n] = 0.0
+        sensordata, qvel, qacc, smooth = data.sensordata, data.qvel, data.qacc, data.qfrc_smooth
+        mass_acc, smooth_force = self.mass_acc, self.smooth_force
+        mass_acc[:n] = 0.0
+        smooth_force[:n] = 0.0
         mul_m = mujoco.mj_mulM
         copies = [
             (buf, getattr(data, name))
@@ -183,11 +185,12 @@ class _Run:
         tape.reset()
         step = mujoco.mj_step
         before = self.v_before  # RK4: the velocity at the previous step's start
+        rk4 = self.rk4
         for i in range(n):
-            times[i] = data.time
             if qpos is not None:
+                times[i] = data.time
                 qpos[i] = data.qpos
-            if self.rk4:  # forces are read at the step's start, before the four stages
+            if rk4:  # forces are read at the step's start, before the four stages
                 mujoco.mj_checkPos(model, data)
                 mujoco.mj_checkVel(model, data)
                 mujoco.mj_forward(model, data)
@@ -197,9 +200,8 @@ class _Run:
                 nefc = data.nefc
                 if nefc:
                     tape.add(i, after=False)
-                    mul_m(model, data, unbalanced[i], qacc)
-                    unbalanced[i] -= smooth
-                    unbalanced[i] -= constraint
+                    mul_m(model, data, mass_acc[i], qacc)
+                    smooth_force[i] = smooth
                 start = qvel.copy()
                 mujoco.mj_RungeKutta(model, data, 4)
                 if nefc:
@@ -211,33 +213,38 @@ class _Run:
                     buf[i] = src
                 if data.nefc:
                     tape.add(i)
-                    mul_m(model, data, unbalanced[i], qacc)
-                    unbalanced[i] -= smooth
-                    unbalanced[i] -= constraint
+                    mul_m(model, data, mass_acc[i], qacc)
+                    smooth_force[i] = smooth
             rows[i] = sensordata
             vel[i] = qvel
         self.v_before = before
 
     def _work(self, n: int, v_start: np.ndarray) -> np.ndarray:
-        """Work of each kind of force during each step of the chunk, (n, kinds) J."""
+        """Work of each kind of force during each step of the chunk, (n, kinds) J.
+
+        The solver's is what its forces leave unbalanced, M qacc - smooth forces - constraint
+        forces; the constraint forces' power is their rows' (J^T f . v = f . J v)."""
         dt = self.dt
         v_mid = 0.5 * (v_start + self.vel[:n])
         work = np.zeros((n, len(budget.WORK_KINDS)))
         for buf, (kind, _), dofs in zip(self.generalised, self.forces, self.booked, strict=True):
             force = buf[:n] if dofs is None else buf[:n] * dofs
             work[:, kind] = dt * np.einsum("ij,ij->i", force, v_mid)
-        solver = budget.KIND["solver"]
-        work[:, solver] = dt * np.einsum("ij,ij->i", self.unbalanced[:n], v_mid)
         contacts, power, in_contact = decode(self.tape, self.pyramidal)
         self._decoded = (contacts, power, in_contact)
+        tape = self.tape
+        row_step = tape.row_step()
+        unbalanced = self.mass_acc[:n] - self.smooth_force[:n]
+        work[:, budget.KIND["solver"]] = dt * (
+            np.einsum("ij,ij->i", unbalanced, v_mid) - np.bincount(row_step, power, n)
+        )
         normal, friction = budget.KIND["contact_normal"], budget.KIND["contact_friction"]
         work[:, normal] = dt * np.bincount(contacts.step, contacts.power_normal, n)
         work[:, friction] = dt * np.bincount(contacts.step, contacts.power_friction, n)
-        if self.tape.types:
+        if tape.types:
             rest = ~in_contact
-            tape = self.tape
             work += budget.constraint_work(
-                power[rest], tape.type[: tape.nrow][rest], tape.row_step[: tape.nrow][rest], n, dt
+                power[rest], tape.type[: tape.nrow][rest], row_step[rest], n, dt
             )
         return work
 
