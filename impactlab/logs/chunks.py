@@ -19,12 +19,12 @@ import zstandard
 from isal.isal_zlib import crc32  # zlib's CRC-32, an order of magnitude faster
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
-from mcap.records import Chunk, ChunkIndex, Statistics
+from mcap.records import AttachmentIndex, Chunk, ChunkIndex, Statistics
 from mcap.writer import Writer
 
 MCAP_VERSION = "1.6.0"
 """The mcap version `PRIVATE` was read from (tests/logs/test_chunks.py checks it)."""
-PRIVATE = ("_Writer__statistics", "_Writer__chunk_indices")
+PRIVATE = ("_Writer__statistics", "_Writer__chunk_indices", "_Writer__attachment_indexes")
 HEAD = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
@@ -55,9 +55,9 @@ class Block:
 
 
 class ChunkWriter:
-    """mcap's Writer (`writer`), plus `write_chunk`. Every schema and channel is registered
-    (`channel`) before the first chunk, and the Writer's buffered records are written out
-    (by `add_metadata`, `add_attachment`) before each chunk."""
+    """mcap's Writer (`writer`), plus `write_chunk` and `attach`. Every schema and channel is
+    registered (`channel`) before the first chunk, and the Writer's buffered records are
+    written out (by `add_metadata`, `add_attachment`) before each chunk."""
 
     def __init__(self, stream: IO[bytes], *, library: str) -> None:
         self.stream = stream
@@ -71,6 +71,7 @@ class ChunkWriter:
         self.writer.start(profile="", library=library)
         self.statistics: Statistics = getattr(self.writer, PRIVATE[0])
         self.chunk_indexes: list[ChunkIndex] = getattr(self.writer, PRIVATE[1])
+        self.attachment_indexes: list[AttachmentIndex] = getattr(self.writer, PRIVATE[2])
         self._schemas: dict[str, int] = {}
         self._compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
 
@@ -81,6 +82,24 @@ class ChunkWriter:
         if schema not in self._schemas:
             self._schemas[schema] = self.writer.register_schema(schema, "protobuf", data)
         return self.writer.register_channel(topic, "protobuf", self._schemas[schema], metadata)
+
+    def attach(self, name: str, media_type: str, data: bytes) -> None:
+        """Write an attachment as `Writer.add_attachment` does (times 0), its data written
+        once and its CRC from isal: mcap's own copies a large model's data three times."""
+        head = bytearray(16)  # log time and create time
+        for text in (name, media_type):
+            head += len(text.encode()).to_bytes(4, "little") + text.encode()
+        head += len(data).to_bytes(8, "little")
+        crc = crc32(data, crc32(head))
+        length = len(head) + len(data) + 4
+        at = self.stream.tell()
+        self.stream.write(bytes([Opcode.ATTACHMENT]) + length.to_bytes(8, "little") + head)
+        self.stream.write(data)
+        self.stream.write(crc.to_bytes(4, "little"))
+        self.statistics.attachment_count += 1
+        self.attachment_indexes.append(
+            AttachmentIndex(at, 9 + length, 0, 0, len(data), name, media_type)
+        )
 
     def write_chunk(self, blocks: Sequence[Block]) -> None:
         """Write one chunk holding every message of `blocks`, sorted by (time, block order)."""
@@ -165,7 +184,7 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     record = [HEAD.itemsize + p.shape[2] for p in payloads]  # one message's
     sizes = [r * len(b.channels) for r, b in zip(record, blocks, strict=True)]
     out = np.empty(int(present.sum(axis=1) @ np.array(sizes)), np.uint8)
-    parts: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+    index: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # channel, time, offset
     position = 0
     for lo, hi in itertools.pairwise([0, *change.tolist(), times.size]):
         members = np.flatnonzero(present[:, lo]).tolist()
@@ -180,16 +199,28 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
             mine[:, :, : HEAD.itemsize] = _headers(b, t, size - HEAD.itemsize)
             mine[:, :, HEAD.itemsize :] = payloads[i][first : first + hi - lo]
             starts = position + column + row * np.arange(hi - lo)
-            for k, channel_id in enumerate(b.channels):
-                parts.setdefault(channel_id, []).append((t, starts + k * size))
+            channels = np.atleast_1d(b.channel_id)  # (C,): a row of records per time
+            index.append(
+                (
+                    np.repeat(channels[None], t.size, axis=0).ravel(),
+                    np.repeat(t, channels.size),
+                    (starts[:, None] + size * np.arange(channels.size)).ravel(),
+                )
+            )
             column += sizes[i]
         position += (hi - lo) * row
-    return out, {
-        c: np.stack(
-            [np.concatenate([t for t, _ in ps]), np.concatenate([s for _, s in ps])], axis=1
-        )
-        for c, ps in parts.items()
-    }
+    return out, _by_channel(*(np.concatenate(column) for column in zip(*index, strict=True)))
+
+
+def _by_channel(
+    channel: np.ndarray, log_time: np.ndarray, offset: np.ndarray
+) -> dict[int, np.ndarray]:
+    """Each channel's index rows (log_time, offset), in the order given."""
+    order = np.argsort(channel, kind="stable")
+    channel = channel[order]
+    pairs = np.stack([log_time[order], offset[order]], axis=1)
+    bounds = np.flatnonzero(np.r_[True, channel[1:] != channel[:-1], True])
+    return {int(channel[a]): pairs[a:b] for a, b in itertools.pairwise(bounds.tolist())}
 
 
 def _loose(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
@@ -216,8 +247,4 @@ def _loose(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
         for part in (heads[k * n : k * n + n], payloads[i])
     )
     starts = np.concatenate([[0], np.cumsum(lengths + n)[:-1]])
-    return np.frombuffer(records, np.uint8), {
-        int(c): np.stack([times[order][mine], starts[mine]], axis=1)
-        for c in dict.fromkeys(b.channel_id for b in blocks)
-        if (mine := channel[order] == c).any()
-    }
+    return np.frombuffer(records, np.uint8), _by_channel(channel[order], times[order], starts)

@@ -180,7 +180,7 @@ class LogWriter:
             SCENE_METADATA, scene_record(header.geoms, header.meshes, header.flexes)
         )
         for name, triangles in header.meshes.items():  # first: a cut log still draws the model
-            writer.add_attachment(0, 0, name, STL_MEDIA_TYPE, encode_stl(triangles))
+            out.attach(name, STL_MEDIA_TYPE, encode_stl(triangles))
         self._tf_bodies = bodies
         row_bytes = (
             len(bodies) * messages.body_state().size
@@ -248,7 +248,8 @@ class LogWriter:
         row, sides, values = rows.contacts
         if row.size:  # messages of any length: a chunk of their own (the others are dense)
             points = messages.contact_payloads(row, sides, values)
-            self._out.write_chunk([Block(self._contacts, t[np.unique(row)], points)])
+            first = np.r_[True, row[1:] != row[:-1]]  # rows ascending; np.unique imports numpy.ma
+            self._out.write_chunk([Block(self._contacts, t[row[first]], points)])
 
     def finish(self, outcome: Outcome, impacts: Sequence[pb.Impact] = ()) -> Path:
         """Write the rest, the impacts (`/impacts`: the run's contact episodes, in order of
@@ -271,9 +272,9 @@ class LogWriter:
             )
             writer = self._out.writer
             model = self.header.model_xml.encode()
-            writer.add_attachment(0, 0, logformat.MODEL_ATTACHMENT, "application/xml", model)
+            self._out.attach(logformat.MODEL_ATTACHMENT, "application/xml", model)
             for name, media_type, data in self.header.attachments:
-                writer.add_attachment(0, 0, name, media_type, data)
+                self._out.attach(name, media_type, data)
             writer.add_metadata(logformat.OUTCOME_METADATA, outcome.record())
             writer.finish()  # type: ignore[no-untyped-call]  # mcap: finish() has no hints
             assert self._stream is not None

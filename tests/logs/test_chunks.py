@@ -80,3 +80,21 @@ def test_chunks_written_through_the_adapter_are_in_the_file_and_its_summary():
         ("/b", 10, b"x"),
     ]
     assert [m.log_time for _, _, m in reader.iter_messages()] == sorted(x[1] for x in got)
+
+
+@pytest.mark.parametrize("data", [b"", b"<mujoco/>", bytes(range(256)) * 999])
+def test_an_attachment_is_the_bytes_mcaps_writer_writes_and_in_the_summary(data):
+    streams = io.BytesIO(), io.BytesIO()
+    ours, theirs = (ChunkWriter(s, library="test") for s in streams)
+    ours.attach("model.xml", "application/xml", data)
+    theirs.writer.add_attachment(0, 0, "model.xml", "application/xml", data)
+    for out in (ours, theirs):
+        out.writer.finish()
+    assert streams[0].getvalue() == streams[1].getvalue()
+    reader = make_reader(io.BytesIO(streams[0].getvalue()))
+    (attachment,) = reader.iter_attachments()
+    assert (attachment.name, attachment.media_type, attachment.data) == (
+        "model.xml",
+        "application/xml",
+        data,
+    )
