@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache, cached_property
@@ -197,13 +196,22 @@ def _tags(record: np.dtype) -> dict[str, int]:
 POINT_RECORD = _point_record()
 
 
-def contact_payloads(row: np.ndarray, sides: np.ndarray, values: np.ndarray) -> list[bytes]:
-    """`Contacts` payloads, one per logged row with contacts (rows ascending): the points'
-    rows (m,), sides (m, 2) int (a geom id, or -1 - a flex id) and values (m, 13)."""
-    flat = _points(row, sides, values, POINT_RECORD).view(np.uint8)
-    size = POINT_RECORD.itemsize
-    bounds = np.flatnonzero(np.r_[True, np.diff(row) != 0, True])
-    return [flat[a * size : b * size].tobytes() for a, b in itertools.pairwise(bounds)]
+def contact_payloads(
+    row: np.ndarray, sides: np.ndarray, values: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """`Contacts` payloads, one per logged row with contacts, of the points' rows (m,)
+    ascending, sides (m, 2) int (a geom id, or -1 - a flex id) and values (m, 13); grouped
+    by their number of points, (the rows, payloads (k, L) uint8) per group: fixed-size
+    payloads, written as dense blocks."""
+    flat = _points(row, sides, values, POINT_RECORD).view(np.uint8).reshape(row.size, -1)
+    starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
+    counts = np.diff(np.r_[starts, row.size])
+    groups = []
+    for count in np.flatnonzero(np.bincount(counts)).tolist():  # np.unique imports numpy.ma
+        first = starts[counts == count]
+        points = (first[:, None] + np.arange(count)).ravel()
+        groups.append((row[first], flat[points].reshape(first.size, -1)))
+    return groups
 
 
 def contact_points(payloads: Sequence[bytes]) -> tuple[np.ndarray, np.ndarray] | None:

@@ -246,10 +246,9 @@ class LogWriter:
             blocks.append(Block(self._tf, t[at], payloads))
         self._out.write_chunk(blocks)
         row, sides, values = rows.contacts
-        if row.size:  # messages of any length: a chunk of their own (the others are dense)
-            points = messages.contact_payloads(row, sides, values)
-            first = np.r_[True, row[1:] != row[:-1]]  # rows ascending; np.unique imports numpy.ma
-            self._out.write_chunk([Block(self._contacts, t[row[first]], points)])
+        if row.size:  # a chunk of their own: a block per number of points
+            groups = messages.contact_payloads(row, sides, values)
+            self._out.write_chunk([Block(self._contacts, t[at], p) for at, p in groups])
 
     def finish(self, outcome: Outcome, impacts: Sequence[pb.Impact] = ()) -> Path:
         """Write the rest, the impacts (`/impacts`: the run's contact episodes, in order of

@@ -16,7 +16,12 @@ def test_contact_points_read_back_and_any_other_layout_is_refused():
     row = np.array([0, 0, 1, 4, 4, 4])
     sides = rng.integers(-3, 50, (row.size, 2))
     values = rng.normal(size=(row.size, len(messages.POINT_FIELDS)))
-    payloads = messages.contact_payloads(row, sides, values)
+    groups = messages.contact_payloads(row, sides, values)
+    by_row = {
+        int(r): p.tobytes() for rows, group in groups for r, p in zip(rows, group, strict=True)
+    }
+    assert sorted(by_row) == [0, 1, 4]
+    payloads = [by_row[r] for r in sorted(by_row)]
     assert [len(p) // messages.POINT_RECORD.itemsize for p in payloads] == [2, 1, 3]
     found = messages.contact_points(payloads)
     assert found is not None
