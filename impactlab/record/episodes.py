@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import dataclasses
-import itertools
+import copy
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -59,33 +58,27 @@ class Episode:
 
 
 @dataclass
-class _PairSteps:
-    """One pair's aggregates per step in contact within a chunk (local steps)."""
+class _Segments:
+    """A chunk's contacts as runs of steps of one pair, fewer than `MIN_FLIGHT_STEPS` steps
+    apart (local steps), in order of pair then step: per run its aggregates, first and
+    last step's values. Lists, for the loop over runs (`Episodes._segment`)."""
 
-    steps: np.ndarray
-    force: np.ndarray
-    power_n: np.ndarray
-    power_f: np.ndarray
-    penetration: np.ndarray
-    v_start: np.ndarray
-    v_end: np.ndarray
-    v_arrive: np.ndarray
-    point: np.ndarray
-    normal: np.ndarray
-    geoms: np.ndarray  # (k, 2) the first contact's geoms at each step
-
-
-def _copy(episode: Episode) -> Episode:
-    """A copy of `episode` that shares no array with it."""
-    return dataclasses.replace(
-        episode,
-        point_in=episode.point_in.copy(),
-        normal_in=episode.normal_in.copy(),
-        point_out=episode.point_out.copy(),
-        normal_out=episode.normal_out.copy(),
-        state_in=episode.state_in.copy(),
-        state_out=episode.state_out.copy(),
-    )
+    key: list[int]
+    first: list[int]
+    last: list[int]
+    continued: list[bool]  # the pair's next run in this chunk follows
+    work_c: list[float]
+    work_r: list[float]
+    work_f: list[float]
+    peak_force: list[float]
+    impulse: list[float]
+    max_penetration: list[float]
+    steps: list[int]
+    v_arrive: list[float]  # at the first step
+    v_end: list[float]  # at the last step
+    point: np.ndarray  # (runs, 2, 3): at the first and the last step
+    normal: np.ndarray  # (runs, 2, 3)
+    geoms: list[list[int]]  # the first contact's geoms at the first step
 
 
 class Episodes:
@@ -102,11 +95,12 @@ class Episodes:
         self.closed: list[Episode] = []
 
     def snapshot(self) -> tuple[dict[int, Episode], int]:
-        """What `restore` needs to undo the next updates."""
-        return {key: _copy(e) for key, e in self.open.items()}, len(self.closed)
+        """What `restore` needs to undo the next updates: shallow copies, as an episode's
+        arrays are replaced, never written into, once it exists."""
+        return {key: copy.copy(e) for key, e in self.open.items()}, len(self.closed)
 
     def restore(self, saved: tuple[dict[int, Episode], int]) -> None:
-        self.open = {key: _copy(e) for key, e in saved[0].items()}
+        self.open = {key: copy.copy(e) for key, e in saved[0].items()}
         del self.closed[saved[1] :]
 
     def sides(self, contacts: StepContacts) -> tuple[np.ndarray, np.ndarray]:
@@ -122,9 +116,11 @@ class Episodes:
         before = len(self.closed)
         for ep in self.open.values():  # a release after the previous chunk's last step
             if np.isnan(ep.state_out).all() and ep.last == step0 - 1:
-                self._state(ep.state_out, ep, rows[0])
-        for key, pair in self._pairs(contacts).items():
-            self._pair(key, pair, rows, step0)
+                ep.state_out = self._state(ep, rows[0])
+        runs = self._segments(contacts)
+        if runs is not None:
+            for i in range(len(runs.key)):
+                self._segment(runs, i, rows, step0)
         end = step0 + n - 1
         for key in [k for k, ep in self.open.items() if ep.confirmed <= end]:
             self.closed.append(self.open.pop(key))
@@ -139,10 +135,11 @@ class Episodes:
         self.open = {}
         return sorted(self.closed, key=lambda ep: (ep.last, ep.side1, ep.side2))
 
-    def _pairs(self, contacts: StepContacts) -> dict[int, _PairSteps]:
-        """The chunk's contacts aggregated per pair of parties and step."""
+    def _segments(self, contacts: StepContacts) -> _Segments | None:
+        """The chunk's contacts aggregated per pair of parties and step, then per run of
+        steps of a pair (None without contacts)."""
         if not len(contacts):
-            return {}
+            return None
         p1, p2 = self.sides(contacts)
         lo, hi = np.minimum(p1, p2), np.maximum(p1, p2)
         flip = np.where(p1 > p2, -1.0, 1.0)
@@ -152,89 +149,89 @@ class Episodes:
         order = np.lexsort((step, key))
         key, step = key[order], step[order]
         pick = np.flatnonzero(keep)[order]
+        if not pick.size:
+            return None
         starts = np.flatnonzero(np.r_[True, (np.diff(key) != 0) | (np.diff(step) != 0)])
         count = np.diff(np.r_[starts, key.size])
 
         def total(values: np.ndarray) -> np.ndarray:
             return np.add.reduceat(values[pick], starts, axis=0)
 
+        # per pair and step
         normal = total(contacts.frame[:, :3] * flip[:, None])
         normal /= np.linalg.norm(normal, axis=1, keepdims=True).clip(1e-300)
-        group_key = key[starts]
-        out: dict[int, _PairSteps] = {}
-        bounds = np.flatnonzero(np.r_[True, np.diff(group_key) != 0, True])
-        force, pen = total(contacts.force[:, 0]), contacts.penetration[pick]
-        p_n, p_f = total(contacts.power_normal), total(contacts.power_friction)
-        v_start, v_end = total(contacts.v_start) / count, total(contacts.v_end) / count
-        v_arrive = total(contacts.v_arrive) / count
+        force = total(contacts.force[:, 0])
+        power_n = total(contacts.power_normal) * self.dt
         point = total(contacts.pos) / count[:, None]
+        penetration = np.maximum.reduceat(contacts.penetration[pick], starts)
+        key, step = key[starts], step[starts]
+        # per run: a new one at another pair or after a gap of more than MIN_FLIGHT_STEPS
+        new_pair = np.r_[True, key[1:] != key[:-1]]
+        first = np.flatnonzero(new_pair | np.r_[True, np.diff(step) > MIN_FLIGHT_STEPS])
+        last = np.r_[first[1:], key.size] - 1
         geoms = np.stack([contacts.geom1[pick][starts], contacts.geom2[pick][starts]], axis=1)
-        penetration = np.maximum.reduceat(pen, starts)
-        for a, b in itertools.pairwise(bounds):
-            out[int(group_key[a])] = _PairSteps(
-                step[starts[a:b]],
-                force[a:b],
-                p_n[a:b],
-                p_f[a:b],
-                penetration[a:b],
-                v_start[a:b],
-                v_end[a:b],
-                v_arrive[a:b],
-                point[a:b],
-                normal[a:b],
-                geoms[a:b],
-            )
-        return out
-
-    def _pair(self, key: int, pair: _PairSteps, rows: np.ndarray, step0: int) -> None:
-        """Extend, close and open the pair's episodes with its steps of this chunk."""
-        steps = pair.steps + step0
-        breaks = np.flatnonzero(np.diff(steps) > MIN_FLIGHT_STEPS) + 1
-        bounds = [0, *breaks.tolist(), steps.size]
-        for a, b in itertools.pairwise(bounds):
-            ep = self.open.get(key)
-            if ep is not None and steps[a] - ep.last > MIN_FLIGHT_STEPS:
-                self.closed.append(self.open.pop(key))
-                ep = None
-            if ep is None:
-                ep = self._start(key, pair, a, steps[a], rows[pair.steps[a]])
-                self.open[key] = ep
-            seg = slice(a, b)
-            power = pair.power_n[seg] * self.dt
-            ep.work_c += float(power[power < 0].sum())
-            ep.work_r += float(power[power > 0].sum())
-            ep.work_f += float(pair.power_f[seg].sum() * self.dt)
-            ep.peak_force = max(ep.peak_force, float(pair.force[seg].max()))
-            ep.impulse += float(pair.force[seg].sum() * self.dt)
-            ep.max_penetration = max(ep.max_penetration, float(pair.penetration[seg].max()))
-            ep.steps += b - a
-            ep.last = int(steps[b - 1])
-            ep.v_out = float(pair.v_end[b - 1])
-            ep.point_out, ep.normal_out = pair.point[b - 1], pair.normal[b - 1]
-            ep.state_out = np.full((2, BODY_STATE_SIZE), np.nan)
-            after = pair.steps[b - 1] + 1
-            if after < rows.shape[0]:
-                self._state(ep.state_out, ep, rows[after])
-            if b < steps.size:  # another episode of the pair follows in this chunk
-                self.closed.append(self.open.pop(key))
-
-    def _start(self, key: int, pair: _PairSteps, i: int, step: int, row: np.ndarray) -> Episode:
-        ep = Episode(
-            side1=key // self.nparty,
-            side2=key % self.nparty,
-            geom1=int(pair.geoms[i, 0]),
-            geom2=int(pair.geoms[i, 1]),
-            onset=int(step),
-            last=int(step),
-            v_in=float(pair.v_arrive[i]),
-            point_in=pair.point[i],
-            normal_in=pair.normal[i],
+        return _Segments(
+            key=key[first].tolist(),
+            first=step[first].tolist(),
+            last=step[last].tolist(),
+            continued=np.r_[~new_pair[first[1:]], False].tolist(),
+            work_c=np.add.reduceat(np.minimum(power_n, 0.0), first).tolist(),
+            work_r=np.add.reduceat(np.maximum(power_n, 0.0), first).tolist(),
+            work_f=(np.add.reduceat(total(contacts.power_friction), first) * self.dt).tolist(),
+            peak_force=np.maximum.reduceat(force, first).tolist(),
+            impulse=(np.add.reduceat(force, first) * self.dt).tolist(),
+            max_penetration=np.maximum.reduceat(penetration, first).tolist(),
+            steps=(last - first + 1).tolist(),
+            v_arrive=(total(contacts.v_arrive) / count)[first].tolist(),
+            v_end=(total(contacts.v_end) / count)[last].tolist(),
+            point=np.stack([point[first], point[last]], axis=1),
+            normal=np.stack([normal[first], normal[last]], axis=1),
+            geoms=geoms[first].tolist(),
         )
-        self._state(ep.state_in, ep, row)
-        return ep
 
-    def _state(self, out: np.ndarray, ep: Episode, row: np.ndarray) -> None:
+    def _segment(self, runs: _Segments, i: int, rows: np.ndarray, step0: int) -> None:
+        """Extend the pair's open episode with run i of this chunk, or close it and open
+        another."""
+        key = runs.key[i]
+        ep = self.open.get(key)
+        if ep is not None and step0 + runs.first[i] - ep.last > MIN_FLIGHT_STEPS:
+            self.closed.append(self.open.pop(key))
+            ep = None
+        if ep is None:
+            ep = Episode(
+                side1=key // self.nparty,
+                side2=key % self.nparty,
+                geom1=runs.geoms[i][0],
+                geom2=runs.geoms[i][1],
+                onset=step0 + runs.first[i],
+                last=step0 + runs.first[i],
+                v_in=runs.v_arrive[i],
+                point_in=runs.point[i, 0],
+                normal_in=runs.normal[i, 0],
+            )
+            ep.state_in = self._state(ep, rows[runs.first[i]])
+            self.open[key] = ep
+        ep.work_c += runs.work_c[i]
+        ep.work_r += runs.work_r[i]
+        ep.work_f += runs.work_f[i]
+        ep.peak_force = max(ep.peak_force, runs.peak_force[i])
+        ep.impulse += runs.impulse[i]
+        ep.max_penetration = max(ep.max_penetration, runs.max_penetration[i])
+        ep.steps += runs.steps[i]
+        ep.last = step0 + runs.last[i]
+        ep.v_out = runs.v_end[i]
+        ep.point_out, ep.normal_out = runs.point[i, 1], runs.normal[i, 1]
+        after = runs.last[i] + 1
+        ep.state_out = self._state(ep, rows[after] if after < rows.shape[0] else None)
+        if runs.continued[i]:  # another episode of the pair follows in this chunk
+            self.closed.append(self.open.pop(key))
+
+    def _state(self, ep: Episode, row: np.ndarray | None) -> np.ndarray:
+        """The two sides' states in sensordata `row` (NaN for a side that is not a rigid
+        body, or for both without a row)."""
+        out = np.full((2, BODY_STATE_SIZE), np.nan)
         for k, side in enumerate((ep.side1, ep.side2)):
-            if side < len(self.state_adr):
+            if row is not None and side < len(self.state_adr):
                 adr = self.state_adr[side]
                 out[k] = row[adr : adr + BODY_STATE_SIZE]
+        return out
