@@ -224,7 +224,8 @@ def decode(tape: ContactTape, pyramidal: bool) -> tuple[StepContacts, np.ndarray
     power = force * 0.5 * (vel + after)
     active = (raw["exclude"] == 0) & (raw["efc_address"] >= 0)
     step = np.repeat(np.arange(tape.ncon.size), tape.ncon)
-    raw, step = raw[active], step[active]
+    if not active.all():  # (a copy of every contact's whole struct otherwise)
+        raw, step = raw[active], step[active]
     # each contact's first row in this chunk's row buffer: rows of one step are contiguous
     first_row = (np.cumsum(tape.nefc) - tape.nefc)[step] + raw["efc_address"]
     dim = raw["dim"].astype(np.int64)

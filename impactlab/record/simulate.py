@@ -282,8 +282,12 @@ class _Run:
             rows = np.hstack([rows, joints.terms(states, rows)])
         # the work done before each logged step: the run's so far and the chunk's steps before
         done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, axis=0)])
-        logged = contacts.take(np.isin(contacts.step, keep))
-        logged = dataclasses.replace(logged, step=np.searchsorted(keep, logged.step))
+        row = np.searchsorted(keep, contacts.step)  # steps and `keep` ascending
+        logged = row < keep.size
+        logged[logged] = keep[row[logged]] == contacts.step[logged]
+        if not logged.all():
+            contacts, row = contacts.take(logged), row[logged]
+        contacts = dataclasses.replace(contacts, step=row)
         t_ns = (self.step0 + keep) * self.dt_ns
         if t_ns.size:
             self.logged += t_ns.size
@@ -292,7 +296,7 @@ class _Run:
         if verdict is not None:
             ending = self._ending(verdict)
         wall = time.perf_counter() - self.started
-        return Piece(self.request, t_ns, rows, done[keep], logged, ending, wall_s=wall)
+        return Piece(self.request, t_ns, rows, done[keep], contacts, ending, wall_s=wall)
 
     def _ending(self, verdict: Verdict) -> Ending:
         stop = self.request.stop
