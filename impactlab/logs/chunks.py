@@ -124,15 +124,15 @@ class ChunkWriter:
         chunk_at = self.stream.tell()
         self.stream.write(builder.end())  # type: ignore[no-untyped-call]
         index_at = position = self.stream.tell()
-        offsets = {}
+        offsets, message_indexes = {}, []
         for channel_id, pairs in index.items():
             body = channel_id.to_bytes(2, "little") + (16 * len(pairs)).to_bytes(4, "little")
             body += pairs.astype("<u8").tobytes()
-            self.stream.write(
-                bytes([Opcode.MESSAGE_INDEX]) + len(body).to_bytes(8, "little") + body
-            )
+            record = bytes([Opcode.MESSAGE_INDEX]) + len(body).to_bytes(8, "little") + body
+            message_indexes.append(record)
             offsets[channel_id] = position
             position += 9 + len(body)
+        self.stream.write(b"".join(message_indexes))
         self.chunk_indexes.append(
             ChunkIndex(
                 message_start_time=start,

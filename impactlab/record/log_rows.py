@@ -147,17 +147,18 @@ def log_rows(
 ) -> LogRows:
     """The log's arrays for logged rows of sensordata (n, nsensordata), the work done
     before each (n, kinds) and the contacts at those rows (`step`: the row)."""
-    n = sensordata.shape[0]
-    bodies = np.empty((n, len(inst.bodies), BODY_STATE_SIZE))
-    for i, b in enumerate(inst.bodies):
-        bodies[:, i] = sensordata[:, b.adr : b.adr + BODY_STATE_SIZE]
+    adr = np.array([b.adr for b in inst.bodies], np.int64).reshape(-1, 1)
+    bodies = sensordata[:, adr + np.arange(BODY_STATE_SIZE)]  # (n, nbody, 13)
     e = sensordata[:, inst.energy_adr : inst.energy_adr + 2]  # potential, kinetic
     energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
-    clearance = [
-        np.stack([sensordata[:, list(c.adrs)].min(axis=1) for c in inst.clearance_of(b.name)], 1)
-        for b in inst.bodies
-        if inst.clearance_of(b.name)
-    ]
+    channels = [inst.clearance_of(b.name) for b in inst.bodies]
+    columns = [c.adrs for body in channels for c in body]
+    clearance = []
+    if columns:  # each channel the min of its sensors, every channel at once
+        starts = np.cumsum([0] + [len(c) for c in columns[:-1]])
+        nearest = np.minimum.reduceat(sensordata[:, np.concatenate(columns)], starts, axis=1)
+        bounds = np.cumsum([len(body) for body in channels if body])
+        clearance = np.split(nearest, bounds[:-1], axis=1)
     joints = None
     if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
         rotor, spring = sensordata[:, -2], sensordata[:, -1]
