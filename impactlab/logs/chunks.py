@@ -35,7 +35,8 @@ ZSTD_LEVEL = -1  # zstd's fast mode: on contact-heavy logs half level 1's time, 
 class Block:
     """Messages of one channel: times (n,) int64 ns and payloads, (n, L) uint8 or a list;
     or of several channels at the same times (`channel_id` an array (C,), payloads (n, C, L)),
-    written as C blocks one after the other would be, at a cost that does not grow with C."""
+    written as C blocks one after the other would be, at a cost that does not grow with C
+    (in a chunk of arrays only: a chunk with a list holds blocks of one channel)."""
 
     channel_id: int | np.ndarray
     log_time: np.ndarray
@@ -45,13 +46,6 @@ class Block:
     def channels(self) -> list[int]:
         """The block's channel ids, one per column of its payloads."""
         return [int(c) for c in np.atleast_1d(self.channel_id)]
-
-    def split(self) -> list[Block]:
-        """One block per channel."""
-        if isinstance(self.channel_id, int):
-            return [self]
-        assert isinstance(self.payloads, np.ndarray)
-        return [Block(c, self.log_time, self.payloads[:, i]) for i, c in enumerate(self.channels)]
 
 
 class ChunkWriter:
@@ -107,7 +101,7 @@ class ChunkWriter:
         if not blocks:
             return
         dense = all(isinstance(b.payloads, np.ndarray) for b in blocks)
-        records, index = _dense(blocks) if dense else _loose([s for b in blocks for s in b.split()])
+        records, index = _dense(blocks) if dense else _loose(blocks)
         times = np.concatenate([b.log_time for b in blocks])
         start, end = int(times.min()), int(times.max())
         compressed = self._compressor.compress(records.data)
@@ -184,7 +178,7 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     record = [HEAD.itemsize + p.shape[2] for p in payloads]  # one message's
     sizes = [r * len(b.channels) for r, b in zip(record, blocks, strict=True)]
     out = np.empty(int(present.sum(axis=1) @ np.array(sizes)), np.uint8)
-    index: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # channel, time, offset
+    index_channel, index_time, index_offset = [], [], []  # each record's
     position = 0
     for lo, hi in itertools.pairwise([0, *change.tolist(), times.size]):
         members = np.flatnonzero(present[:, lo]).tolist()
@@ -200,16 +194,13 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
             mine[:, :, HEAD.itemsize :] = payloads[i][first : first + hi - lo]
             starts = position + column + row * np.arange(hi - lo)
             channels = np.atleast_1d(b.channel_id)  # (C,): a row of records per time
-            index.append(
-                (
-                    np.repeat(channels[None], t.size, axis=0).ravel(),
-                    np.repeat(t, channels.size),
-                    (starts[:, None] + size * np.arange(channels.size)).ravel(),
-                )
-            )
+            index_channel.append(np.tile(channels, t.size))
+            index_time.append(np.repeat(t, channels.size))
+            index_offset.append((starts[:, None] + size * np.arange(channels.size)).ravel())
             column += sizes[i]
         position += (hi - lo) * row
-    return out, _by_channel(*(np.concatenate(column) for column in zip(*index, strict=True)))
+    index = (np.concatenate(c) for c in (index_channel, index_time, index_offset))
+    return out, _by_channel(*index)
 
 
 def _by_channel(
@@ -224,8 +215,8 @@ def _by_channel(
 
 
 def _loose(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
-    """The records of blocks of payloads of any length, time-sorted (block order within a
-    time), and per channel its index (log_time, offset) rows."""
+    """The records of blocks of one channel each with payloads of any length, time-sorted
+    (block order within a time), and per channel its index (log_time, offset) rows."""
     times = np.concatenate([b.log_time for b in blocks])
     payloads = [bytes(p) for b in blocks for p in b.payloads]
     channel = np.concatenate([np.full(len(b.log_time), b.channel_id) for b in blocks])

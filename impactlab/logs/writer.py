@@ -100,10 +100,7 @@ class LogRows:
         if len(parts) == 1:
             return parts[0]
         offsets = np.cumsum([0] + [len(p) for p in parts[:-1]])
-
-        def cat(arrays: Sequence[np.ndarray]) -> np.ndarray:
-            return np.concatenate(arrays)
-
+        cat = np.concatenate
         return LogRows(
             cat([p.t_ns for p in parts]),
             cat([p.bodies for p in parts]),
@@ -115,7 +112,7 @@ class LogRows:
                 cat([p.contacts[2] for p in parts]),
             ),
             [cat([p.clearance[i] for p in parts]) for i in range(len(parts[0].clearance))],
-            None if parts[0].joint_energy is None else cat([p.joint_energy for p in parts]),  # type: ignore[misc]
+            None if parts[0].joint_energy is None else cat([p.joint_energy for p in parts]),
         )
 
 
@@ -330,12 +327,6 @@ def remove_stale_partials(path: Path) -> None:
         pid = tmp.name.removesuffix(PARTIAL_SUFFIX).rpartition(".")[2]
         if pid.isdigit() and (int(pid) == os.getpid() or _alive(int(pid))):
             continue
-        tmp.unlink(missing_ok=True)
-
-
-def remove_partials_of(folder: Path, pid: int) -> None:
-    """Remove the temporary files process `pid`, which no longer runs, left in `folder`."""
-    for tmp in folder.glob(f"*.{pid}{PARTIAL_SUFFIX}"):
         tmp.unlink(missing_ok=True)
 
 

@@ -88,15 +88,16 @@ class ContactTape:
         """Copy the contacts and constraint rows MuJoCo has for step `step` (its start
         state's, as `mj_step` leaves them for every integrator but RK4), and with `after`
         J v' for the velocity after the step; without (RK4, whose stages leave another
-        state's Jacobian), the Jacobian is kept for `after_step` to apply. Called once per
-        step with constraint rows: every operation here is paid per simulated step."""
+        state's Jacobian), the Jacobian is kept for `after_step` to apply."""
         data = self.data
         ncon, nefc = data.ncon, data.nefc
         self.nefc[step] = nefc
         r = self.nrow
         end = self.nrow = r + nefc
         if end > self.force.size:
-            self._grow_rows(end)
+            self.force, self.vel = _grow(self.force, end), _grow(self.vel, end)
+            self.vel_after, self.type = _grow(self.vel_after, end), _grow(self.type, end)
+            self.arrive = _grow(self.arrive, end)
         self.force[r:end] = data.efc_force
         self.vel[r:end] = data.efc_vel
         if after:
@@ -114,15 +115,6 @@ class ContactTape:
                 self.contact = _grow(self.contact, k + ncon)
             self.contact[k : k + ncon] = self._contacts[:ncon]
             self.ncontact = k + ncon
-
-    def _grow_rows(self, need: int) -> None:
-        self.force, self.vel = _grow(self.force, need), _grow(self.vel, need)
-        self.vel_after, self.type = _grow(self.vel_after, need), _grow(self.type, need)
-        self.arrive = _grow(self.arrive, need)
-
-    def row_step(self) -> np.ndarray:
-        """The chunk's local step of each constraint row."""
-        return np.repeat(np.arange(self.nefc.size), self.nefc)
 
     def _jacobian_rows(self) -> tuple[np.ndarray, ...]:
         """A copy of the constraint Jacobian (dense rows, or MuJoCo's sparse rows)."""

@@ -142,8 +142,7 @@ class _Run:
         self._steps(n)
         self.tape.check()
         v_start = np.vstack([self.v_last[None], self.vel[: n - 1]])
-        work = self._work(n, v_start)
-        contacts, _, _ = self._decoded
+        contacts, work = self._work(n, v_start)
         saved = self.episodes.snapshot()
         released = self.episodes.update(contacts, self.rows[:n], self.step0)
         warning = self._warning(start, warned, n)
@@ -169,8 +168,7 @@ class _Run:
         return piece
 
     def _steps(self, n: int) -> None:
-        """Step n times, copying what MuJoCo computed for each step (hot loop: every
-        operation in it is paid at every simulated step)."""
+        """Step n times, copying what MuJoCo computed for each step (hot loop)."""
         model, data, tape = self.model, self.data, self.tape
         rows, times, vel, qpos = self.rows, self.times, self.vel, self.qpos
         sensordata, qvel, qacc, smooth = data.sensordata, data.qvel, data.qacc, data.qfrc_smooth
@@ -195,35 +193,28 @@ class _Run:
                 mujoco.mj_checkVel(model, data)
                 mujoco.mj_forward(model, data)
                 mujoco.mj_checkAcc(model, data)
-                for buf, src in copies:
-                    buf[i] = src
-                nefc = data.nefc
-                if nefc:
-                    tape.add(i, after=False)
-                    mul_m(model, data, mass_acc[i], qacc)
-                    smooth_force[i] = smooth
+            else:  # mj_step leaves the forces of its start state
+                step(model, data)
+            for buf, src in copies:
+                buf[i] = src
+            nefc = data.nefc
+            if nefc:
+                tape.add(i, after=not rk4)
+                mul_m(model, data, mass_acc[i], qacc)
+                smooth_force[i] = smooth
+            if rk4:
                 start = qvel.copy()
                 mujoco.mj_RungeKutta(model, data, 4)
                 if nefc:
                     tape.after_step(qvel, before)
                 before = start
-            else:
-                step(model, data)
-                for buf, src in copies:
-                    buf[i] = src
-                if data.nefc:
-                    tape.add(i)
-                    mul_m(model, data, mass_acc[i], qacc)
-                    smooth_force[i] = smooth
             rows[i] = sensordata
             vel[i] = qvel
         self.v_before = before
 
-    def _work(self, n: int, v_start: np.ndarray) -> np.ndarray:
-        """Work of each kind of force during each step of the chunk, (n, kinds) J.
-
-        The solver's is what its forces leave unbalanced, M qacc - smooth forces - constraint
-        forces; the constraint forces' power is their rows' (J^T f . v = f . J v)."""
+    def _work(self, n: int, v_start: np.ndarray) -> tuple[StepContacts, np.ndarray]:
+        """The chunk's contacts, and the work of each kind of force during each of its steps,
+        (n, kinds) J; the solver's is that of M qacc - qfrc_smooth - J^T f (power f . J v)."""
         dt = self.dt
         v_mid = 0.5 * (v_start + self.vel[:n])
         work = np.zeros((n, len(budget.WORK_KINDS)))
@@ -231,9 +222,8 @@ class _Run:
             force = buf[:n] if dofs is None else buf[:n] * dofs
             work[:, kind] = dt * np.einsum("ij,ij->i", force, v_mid)
         contacts, power, in_contact = decode(self.tape, self.pyramidal)
-        self._decoded = (contacts, power, in_contact)
         tape = self.tape
-        row_step = tape.row_step()
+        row_step = np.repeat(np.arange(tape.nefc.size), tape.nefc)
         unbalanced = self.mass_acc[:n] - self.smooth_force[:n]
         work[:, budget.KIND["solver"]] = dt * (
             np.einsum("ij,ij->i", unbalanced, v_mid) - np.bincount(row_step, power, n)
@@ -246,7 +236,7 @@ class _Run:
             work += budget.constraint_work(
                 power[rest], tape.type[: tape.nrow][rest], row_step[rest], n, dt
             )
-        return work
+        return contacts, work
 
     def _warning(self, start: np.ndarray, warned: list[int], n: int) -> Verdict | None:
         """The unstable verdict of a chunk in which MuJoCo raised a warning, else None."""
