@@ -80,20 +80,16 @@ class ChunkWriter:
     def attach(self, name: str, media_type: str, data: bytes) -> None:
         """Write an attachment as `Writer.add_attachment` does (times 0), its data written
         once and its CRC from isal: mcap's own copies a large model's data three times."""
-        head = bytearray(16)  # log time and create time
-        for text in (name, media_type):
-            head += len(text.encode()).to_bytes(4, "little") + text.encode()
-        head += len(data).to_bytes(8, "little")
-        crc = crc32(data, crc32(head))
+        texts = [len(t).to_bytes(4, "little") + t for t in (name.encode(), media_type.encode())]
+        head = bytes(16) + b"".join(texts) + len(data).to_bytes(8, "little")  # times 0
         length = len(head) + len(data) + 4
         at = self.stream.tell()
         self.stream.write(bytes([Opcode.ATTACHMENT]) + length.to_bytes(8, "little") + head)
         self.stream.write(data)
-        self.stream.write(crc.to_bytes(4, "little"))
+        self.stream.write(crc32(data, crc32(head)).to_bytes(4, "little"))
         self.statistics.attachment_count += 1
-        self.attachment_indexes.append(
-            AttachmentIndex(at, 9 + length, 0, 0, len(data), name, media_type)
-        )
+        index = AttachmentIndex(at, 9 + length, 0, 0, len(data), name, media_type)
+        self.attachment_indexes.append(index)
 
     def write_chunk(self, blocks: Sequence[Block]) -> None:
         """Write one chunk holding every message of `blocks`, sorted by (time, block order)."""

@@ -167,7 +167,7 @@ def _grow(array: np.ndarray, need: int) -> np.ndarray:
 
 @dataclass(frozen=True)
 class StepContacts:
-    """A chunk's active contacts, one entry per contact and step (local step index).
+    """A chunk's active contacts, one entry per contact and step (local step, ascending).
 
     Forces in N and velocities in m/s along the contact frame (normal from side 1 to side
     2); `v_start`/`v_end` the relative normal velocity at the step's start and end (< 0:

@@ -163,24 +163,18 @@ def log_rows(
     if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
         rotor, spring = sensordata[:, -2], sensordata[:, -1]
         joints = np.stack([rotor, spring, rotor + spring], axis=1)
-    sides = np.stack(
-        [
-            np.where(contacts.geom1 >= 0, contacts.geom1, -1 - contacts.flex1),
-            np.where(contacts.geom2 >= 0, contacts.geom2, -1 - contacts.flex2),
-        ],
-        axis=1,
-    )
+    geoms = np.stack([contacts.geom1, contacts.geom2], axis=1)
+    sides = np.where(geoms >= 0, geoms, -1 - np.stack([contacts.flex1, contacts.flex2], axis=1))
     normal, t1, t2 = contacts.frame[:, 0:3], contacts.frame[:, 3:6], contacts.frame[:, 6:9]
     f = contacts.force
     world = f[:, :1] * normal + f[:, 1:2] * t1 + f[:, 2:3] * t2
     points = np.hstack([contacts.pos, normal, contacts.penetration[:, None], f, world])
-    order = np.argsort(contacts.step, kind="stable")
     return LogRows(
         t_ns,
         bodies,
         energy,
         work,
-        (contacts.step[order], sides[order], points[order]),
+        (contacts.step, sides, points),
         clearance,
         joints,
     )

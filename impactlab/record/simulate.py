@@ -272,12 +272,8 @@ class _Run:
             rows = np.hstack([rows, joints.terms(states, rows)])
         # the work done before each logged step: the run's so far and the chunk's steps before
         done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, axis=0)])
-        row = np.searchsorted(keep, contacts.step)  # steps and `keep` ascending
-        logged = row < keep.size
-        logged[logged] = keep[row[logged]] == contacts.step[logged]
-        if not logged.all():
-            contacts, row = contacts.take(logged), row[logged]
-        contacts = dataclasses.replace(contacts, step=row)
+        contacts = contacts.take(np.isin(contacts.step, keep))
+        contacts = dataclasses.replace(contacts, step=np.searchsorted(keep, contacts.step))
         t_ns = (self.step0 + keep) * self.dt_ns
         if t_ns.size:
             self.logged += t_ns.size
