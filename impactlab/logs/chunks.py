@@ -199,13 +199,11 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     return out, _by_channel(*index)
 
 
-def _by_channel(
-    channel: np.ndarray, log_time: np.ndarray, offset: np.ndarray
-) -> dict[int, np.ndarray]:
+def _by_channel(channel: np.ndarray, time: np.ndarray, offset: np.ndarray) -> dict[int, np.ndarray]:
     """Each channel's index rows (log_time, offset), in the order given."""
     order = np.argsort(channel, kind="stable")
     channel = channel[order]
-    pairs = np.stack([log_time[order], offset[order]], axis=1)
+    pairs = np.stack([time[order], offset[order]], axis=1)
     bounds = np.flatnonzero(np.r_[True, channel[1:] != channel[:-1], True])
     return {int(channel[a]): pairs[a:b] for a, b in itertools.pairwise(bounds.tolist())}
 

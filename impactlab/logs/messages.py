@@ -199,10 +199,9 @@ POINT_RECORD = _point_record()
 def contact_payloads(
     row: np.ndarray, sides: np.ndarray, values: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """`Contacts` payloads, one per logged row with contacts, of the points' rows (m,)
-    ascending, sides (m, 2) int (a geom id, or -1 - a flex id) and values (m, 13); grouped
-    by their number of points, (the rows, payloads (k, L) uint8) per group: fixed-size
-    payloads, written as dense blocks."""
+    """`Contacts` payloads of points (rows (m,) ascending, sides (m, 2): a geom id or -1 - a
+    flex id, values (m, 13)), one per row with points, grouped by their number of points:
+    (the rows, payloads (k, L) uint8) per group, each group a dense block."""
     flat = _points(row, sides, values, POINT_RECORD).view(np.uint8).reshape(row.size, -1)
     starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
     counts = np.diff(np.r_[starts, row.size])

@@ -47,33 +47,27 @@ class ContactTape:
     Per step: its numbers of contacts and rows (`ncon`, `nefc`). Per constraint row:
     MuJoCo's force, its velocity J v at the step's start and J v' after the step
     (`mj_mulJacVec` with the new velocity), with `types` its constraint type, and for RK4
-    J v before any contact force acted (`arrive`: at the previous step's start, whose later
-    stages already meet a contact the start state shows first; for the other integrators
-    it is J v at the step's start).
+    J v before any contact force acted (`arrive`, the other integrators' is J v: at the
+    previous step's start, whose later stages already meet a contact the start state shows).
     """
 
-    def __init__(
-        self, model: mujoco.MjModel, data: mujoco.MjData, nstep: int, *, types: bool
-    ) -> None:
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, *, types: bool) -> None:
         self.model, self.data, self.types = model, data, types
         self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
         self._contacts: np.ndarray | None = None
         self._jacobian: tuple[int, int, tuple[np.ndarray, ...]] = (0, 0, ())
-        self.ncon = np.zeros(nstep, np.int64)
-        self.nefc = np.zeros(nstep, np.int64)
         self.contact = np.empty((64, CONTACT_DTYPE.itemsize), np.uint8)  # mjContact bytes
         self.force = np.empty(256)
         self.vel = np.empty(256)
         self.vel_after = np.empty(256)
         self.arrive = np.empty(256)  # RK4's (`after_step`)
         self.type = np.empty(256, np.int32)
-        self.reset()
+        self.reset(0)
 
-    def reset(self) -> None:
-        """Empty the buffers for the next chunk (they keep the room they grew to)."""
+    def reset(self, nstep: int) -> None:
+        """Empty the buffers for a chunk of `nstep` steps (they keep the room they grew to)."""
         self.ncontact = self.nrow = 0
-        self.ncon[:] = 0
-        self.nefc[:] = 0
+        self.ncon, self.nefc = np.zeros(nstep, np.int64), np.zeros(nstep, np.int64)
 
     def _view(self) -> np.ndarray:
         """The contact array of `data` as rows of bytes, one per mjContact (a plain copy of

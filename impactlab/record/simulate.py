@@ -114,7 +114,7 @@ class _Run:
         self.chunk = chunk_steps(self.dt, values)
         self.rk4 = int(model.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
         self.pyramidal = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_PYRAMIDAL)
-        self.tape = ContactTape(model, self.data, self.chunk, types=budget.other_constraints(model))
+        self.tape = ContactTape(model, self.data, types=budget.other_constraints(model))
         self.episodes = Episodes(inst, self.dt)
         self.monitor = StopMonitor(inst, request.stop, timestep=self.dt)
         self.work_done = np.zeros(len(budget.WORK_KINDS))
@@ -180,7 +180,7 @@ class _Run:
             (buf, getattr(data, name))
             for buf, (_, name) in zip(self.generalised, self.forces, strict=True)
         ]
-        tape.reset()
+        tape.reset(n)
         step = mujoco.mj_step
         before = self.v_before  # RK4: the velocity at the previous step's start
         rk4 = self.rk4
