@@ -130,8 +130,9 @@ class _Run:
         self.vel = np.empty((n, nv))
         self.qpos = np.empty((n, model.nq)) if inst.joints is not None else None
         self.generalised = [np.empty((n, nv)) for _ in self.forces]
-        self.mass_acc = np.zeros((n, nv))  # M qacc, per step with constraints
-        self.smooth_force = np.zeros((n, nv))  # qfrc_smooth, per step with constraints
+        # M qacc, qfrc_smooth and qfrc_constraint, per step with constraints (copies are the
+        # cheapest operations per step: `_work` subtracts them per chunk)
+        self.unbalanced = [np.zeros((n, nv)) for _ in range(3)]
 
     def next_piece(self) -> Piece:
         """Simulate the next chunk and return what it logs (the last one with the ending)."""
@@ -171,10 +172,11 @@ class _Run:
         """Step n times, copying what MuJoCo computed for each step (hot loop)."""
         model, data, tape = self.model, self.data, self.tape
         rows, times, vel, qpos = self.rows, self.times, self.vel, self.qpos
-        sensordata, qvel, qacc, smooth = data.sensordata, data.qvel, data.qacc, data.qfrc_smooth
-        mass_acc, smooth_force = self.mass_acc, self.smooth_force
-        mass_acc[:n] = 0.0
-        smooth_force[:n] = 0.0
+        sensordata, qvel, qacc = data.sensordata, data.qvel, data.qacc
+        smooth, constraint = data.qfrc_smooth, data.qfrc_constraint
+        mass_acc, smooth_force, constraint_force = self.unbalanced
+        for buf in self.unbalanced:
+            buf[:n] = 0.0
         mul_m = mujoco.mj_mulM
         copies = [
             (buf, getattr(data, name))
@@ -202,6 +204,7 @@ class _Run:
                 tape.add(i, after=not rk4)
                 mul_m(model, data, mass_acc[i], qacc)
                 smooth_force[i] = smooth
+                constraint_force[i] = constraint
             if rk4:
                 start = qvel.copy()
                 mujoco.mj_RungeKutta(model, data, 4)
@@ -214,7 +217,7 @@ class _Run:
 
     def _work(self, n: int, v_start: np.ndarray) -> tuple[StepContacts, np.ndarray]:
         """The chunk's contacts, and the work of each kind of force during each of its steps,
-        (n, kinds) J; the solver's is that of M qacc - qfrc_smooth - J^T f (power f . J v)."""
+        (n, kinds) J; the solver's is that of M qacc - qfrc_smooth - qfrc_constraint."""
         dt = self.dt
         v_mid = 0.5 * (v_start + self.vel[:n])
         work = np.zeros((n, len(budget.WORK_KINDS)))
@@ -224,9 +227,9 @@ class _Run:
         contacts, power, in_contact = decode(self.tape, self.pyramidal)
         tape = self.tape
         row_step = np.repeat(np.arange(tape.nefc.size), tape.nefc)
-        unbalanced = self.mass_acc[:n] - self.smooth_force[:n]
-        work[:, budget.KIND["solver"]] = dt * (
-            np.einsum("ij,ij->i", unbalanced, v_mid) - np.bincount(row_step, power, n)
+        mass_acc, smooth, constraint = (buf[:n] for buf in self.unbalanced)
+        work[:, budget.KIND["solver"]] = dt * np.einsum(
+            "ij,ij->i", mass_acc - smooth - constraint, v_mid
         )
         normal, friction = budget.KIND["contact_normal"], budget.KIND["contact_friction"]
         work[:, normal] = dt * np.bincount(contacts.step, contacts.power_normal, n)
