@@ -121,13 +121,15 @@ def e_note(episode: dict[str, Any], t: np.ndarray, cumulative: dict[str, np.ndar
     start, end = int(episode["start_t_ns"]), int(episode["end_t_ns"])
     first = max(int(np.searchsorted(t, start, side="right")) - 1, 0)
     last = min(int(np.searchsorted(t, end, side="left")), t.size - 1)
-    done = {k: float(v[last] - v[first]) if t.size else 0.0 for k, v in cumulative.items()}
+    done = {k: float(v[last] - v[first]) if t.size else np.nan for k, v in cumulative.items()}
     work_c, work_r = episode["work_c_J"], episode["work_r_J"]
     own = work_c + work_r
     contacts = done.pop("contact_normal") + done.pop("contact_friction")
     works = {"other contacts": contacts - own - episode["work_f_J"]}
-    works |= {k.replace("_", " "): w for k, w in done.items() if np.isfinite(w)}
-    tolerance = 1e-9 + 1e-6 * max(abs(own), *(abs(w) for w in works.values()))
+    works |= {k.replace("_", " "): w for k, w in done.items()}
+    unknown = [k for k, w in works.items() if not np.isfinite(w)]  # damaged: not quoted
+    works = {k: w for k, w in works.items() if k not in unknown}
+    tolerance = 1e-9 + 1e-6 * max([abs(own), *(abs(w) for w in works.values())])
     acting = sorted((k for k in works if abs(works[k]) > tolerance), key=lambda k: -abs(works[k]))
     listed = ", ".join(f"{k} {works[k]:+.3g} J" for k in acting) or "none did work"
     inputs = {"this contact": own} | {k: works[k] for k in acting}
@@ -138,11 +140,15 @@ def e_note(episode: dict[str, Any], t: np.ndarray, cumulative: dict[str, np.ndar
         else "no force put energy in: the speed came from the bodies' own motion (their "
         "rotation, or momentum passed along their joints)"
     )
+    if not works:  # no budget logged around it: nothing to quote
+        listed, source = "not in the log", "where the energy came from is unknown"
+    elif unknown and inputs[fed] <= tolerance:
+        source = f"no force quoted put energy in; unknown: {', '.join(unknown)}"
     e = physics.e_velocity(episode["v_in_mps"], episode["v_out_mps"])
-    span = f"{t[first] / 1e9:.6g} to {t[last] / 1e9:.6g} s" if t.size else "the contact"
+    span = f"From {t[first] / 1e9:.6g} to {t[last] / 1e9:.6g} s" if t.size else "Over the contact"
     return (
         f"e_velocity {e:.3g} is outside [0, 1]: a ratio of the contact point's speeds, not a "
-        f"restitution. From {span} this contact's normal force did {own:+.3g} J"
+        f"restitution. {span} this contact's normal force did {own:+.3g} J"
         + (f" (e_energy {np.sqrt(work_r / -work_c):.3g})" if work_c < 0 <= work_r else "")
         + f"; the model's other forces: {listed}; {source}"
     )

@@ -11,12 +11,15 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import polars as pl
 import pytest
 
 from impactlab.analyze.measure.analysis import analyze_run
+from impactlab.analyze.measure.episodes import e_note
 from impactlab.cli import main
 from impactlab.logs.load import load_log
+from impactlab.logs.messages import WORK_FIELDS
 
 PUSH_N = 30.0
 PADDLE = f"""<mujoco>
@@ -85,3 +88,70 @@ def test_a_paddle_driven_into_a_ball_gets_its_e_above_one_from_the_actuator(tmp_
     assert _number(note, "normal force did") == pytest.approx(own, rel=5e-3)
     assert "other contacts" not in note  # nothing else touches either body
     assert note.endswith("the largest input: actuators")
+
+
+EPISODE = {
+    "start_t_ns": 2_000_000,
+    "end_t_ns": 4_000_000,
+    "v_in_mps": -0.5,
+    "v_out_mps": 0.25,
+    "work_c_J": -0.2,
+    "work_r_J": 0.05,
+    "work_f_J": -0.01,
+}
+
+
+def _budget(**works: list[float]) -> dict[str, np.ndarray]:
+    zero = [0.0] * 5
+    every = {k: works.get(k, zero) for k in (*WORK_FIELDS, "gravity")}
+    return {k: np.array(v, dtype=float) for k, v in every.items()}
+
+
+T_NS = np.arange(5) * 1_000_000
+
+
+def test_the_note_quotes_each_kinds_work_over_the_contact_and_the_largest_input():
+    episode = EPISODE | {"v_out_mps": -0.1}  # still approaching at the release: e < 0
+    budget = _budget(
+        contact_normal=[0, 0, 0, -0.15, -0.05],  # this contact's -0.15 J and another's +0.1 J
+        contact_friction=[0, 0, 0, 0, -0.01],
+        actuators=[0, 0, 1.0, 1.5, 2.0],
+        damping=[0, 0, 0, -0.2, -0.3],
+        gravity=[0, 0, 0, 0, float("nan")],  # a damaged value is not quoted as a work
+    )
+    note = e_note(episode, T_NS, budget)
+    assert note == (
+        "e_velocity -0.2 is outside [0, 1]: a ratio of the contact point's speeds, not a "
+        "restitution. From 0.002 to 0.004 s this contact's normal force did -0.15 J "
+        "(e_energy 0.5); the model's other forces: actuators +1 J, damping -0.3 J, "
+        "other contacts +0.1 J; the largest input: actuators"
+    )
+
+
+def test_without_work_from_any_other_force_the_note_says_no_energy_came_in():
+    note = e_note(
+        EPISODE | {"v_out_mps": 0.75},
+        T_NS,
+        _budget(contact_normal=[0, 0, 0, -0.15, -0.15], contact_friction=[0, 0, 0, 0, -0.01]),
+    )
+    assert "the model's other forces: none did work; no force put energy in" in note
+    assert note.startswith("e_velocity 1.5 is outside [0, 1]")
+
+
+def test_a_log_without_a_budget_still_gets_a_note_without_numbers_it_lacks():
+    empty = {k: np.empty(0) for k in (*WORK_FIELDS, "gravity")}
+    note = e_note(EPISODE | {"v_out_mps": 0.75}, np.empty(0, np.int64), empty)
+    assert "Over the contact this contact's normal force did -0.15 J" in note
+    assert note.endswith(
+        "the model's other forces: not in the log; where the energy came from is unknown"
+    )
+
+
+def test_a_damaged_work_is_named_unknown_not_ruled_out():
+    budget = _budget(
+        contact_normal=[0, 0, 0, -0.15, -0.15],
+        contact_friction=[0, 0, 0, 0, -0.01],
+        actuators=[0, 0, 0, 0, float("nan")],
+    )
+    note = e_note(EPISODE | {"v_out_mps": 0.75}, T_NS, budget)
+    assert note.endswith("none did work; no force quoted put energy in; unknown: actuators")
