@@ -221,13 +221,13 @@ def _oracle_names(model_path: Path) -> dict[str, str]:
 
 
 def _notes(analysis: Any) -> dict[tuple[str, str, float], str]:
-    """The analysis' note of each bounce and collision, by its sides and onset (s)."""
-    out = {}
-    for row in analysis.bounces.drop_nulls("impact_t_s").iter_rows(named=True):
-        out[(row["body"], row["surface"], round(row["impact_t_s"], 9))] = row["note"] or ""
-    for row in analysis.collisions.drop_nulls("impact_t_s").iter_rows(named=True):
-        out[(row["body1"], row["body2"], round(row["impact_t_s"], 9))] = row["note"] or ""
-    return out
+    """The analysis' note on each contact episode's e outside [0, 1] (every episode, a bounce
+    or a collision or neither: slower than an impact), by its sides and onset (s)."""
+    return {
+        (row["body"], row["other"], round(row["impact_t_s"], 9)): row["e_note"]
+        for row in analysis.intervals.iter_rows(named=True)
+        if row["e_note"]
+    }
 
 
 # ---- the comparison ----------------------------------------------------------------------

@@ -51,10 +51,6 @@ ARTICULATED = (
     "an articulated body (moved by its joints between contacts, not ballistic): no apex "
     "heights; v_in, v_out and e are the contact point's, measured at every step"
 )
-E_ABOVE_ONE = (
-    "e_velocity > 1: the contact point leaves faster than it arrived, fed by the body's "
-    "rotation or its joints; a velocity ratio, not a restitution (e_energy is the contact's)"
-)
 
 
 def bounces(
@@ -182,8 +178,8 @@ def note() -> pl.Expr:
     return (
         pl.when(pl.col("open"))
         .then(pl.format("still in contact with {} at the end of the run", pl.col("other")))
-        .when(e_velocity() > 1)
-        .then(pl.lit(E_ABOVE_ONE))
+        .when(pl.col("e_note") != "")
+        .then(pl.col("e_note"))
         .when(pl.col("articulated"))
         .then(pl.lit(ARTICULATED))
         .when(pl.col("turning_after").fill_null(False))

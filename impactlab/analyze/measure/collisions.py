@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.bounces import E_ABOVE_ONE
 from impactlab.analyze.measure.episodes import e_energy, e_velocity
 from impactlab.analyze.measure.states import state_at
 from impactlab.logs.load import BodyInfo
@@ -214,8 +213,8 @@ def from_pair_states(hits: pl.DataFrame) -> pl.DataFrame:
         .then(pl.lit("the bodies touch from the start: no impact, no 'before'"))
         .when(pl.col("open"))
         .then(pl.lit("contact still open at the end of the run"))
-        .when(pl.col("e_velocity") > 1)
-        .then(pl.lit(E_ABOVE_ONE))
+        .when(pl.col("e_note") != "")
+        .then(pl.col("e_note"))
         .when(~central)
         .then(pl.lit("eccentric impact: the 1D formulas for the outcome do not apply"))
         .otherwise(pl.lit(""))
@@ -325,6 +324,7 @@ def no_collision_rows(
         pl.lit(None, dtype=pl.Float64).alias("max_penetration_m"),
         pl.lit(False).alias("open"),
         pl.lit(False).alias("initial"),
+        pl.lit("").alias("e_note"),
         *[pl.lit(None, dtype=pl.Float64).alias(c) for c in NO_EPISODE],
     )
     hits = pair_states(states, hits, "row_b", "_before")
