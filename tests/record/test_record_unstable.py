@@ -106,6 +106,17 @@ def test_other_runs_of_the_batch_complete(tmp_path, capsys):
 
 # ---- what is not an instability ----------------------------------------------------------------
 
+
+def _record_model(tmp_path, capsys, xml: str, duration: str):
+    """Record the MJCF text `xml` for `duration` s (the command must exit 0); its one log."""
+    model = tmp_path / "model.xml"
+    model.write_text(xml)
+    assert main(["record", str(model), "--duration", duration, "-o", str(tmp_path / "logs")]) == 0
+    capsys.readouterr()
+    (path,) = (tmp_path / "logs").glob("*.mcap")
+    return load_log(path)
+
+
 COARSE_PENDULUM = """<mujoco><option timestep="0.02"/><worldbody>
   <body name="l1"><joint type="hinge" axis="1 0 0"/><geom pos="0 .5 0" size=".15" mass="1"/>
     <body pos="0 .5 0"><joint type="hinge" axis="1 0 0"/><geom pos="0 .5 0" size=".15" mass="1"/>
@@ -118,12 +129,7 @@ def test_the_bounded_drift_of_a_coarse_step_is_not_an_instability(tmp_path, caps
     """A triple pendulum released level with semi-implicit Euler at 20 ms (brax's): the
     energy no force explains swings to a tenth of what the pendulum holds and back, by a
     small part of it per step; the run goes on to its end, as MuJoCo's does."""
-    model = tmp_path / "pendulum.xml"
-    model.write_text(COARSE_PENDULUM)
-    assert main(["record", str(model), "--duration", "1", "-o", str(tmp_path / "logs")]) == 0
-    capsys.readouterr()
-    (path,) = (tmp_path / "logs").glob("*.mcap")
-    log = load_log(path)
+    log = _record_model(tmp_path, capsys, COARSE_PENDULUM, "1")
     assert log.outcome == "completed" and log.meta["reason"] == "time limit 1 s"
     kinetic = log.energy["kinetic"].to_numpy()
     total = log.energy["total"].to_numpy()  # no force but gravity does work
@@ -143,12 +149,7 @@ def test_bodies_overlapping_at_the_start_are_not_an_instability(tmp_path, capsys
     """Three spheres built in one place (mujoco_warp's actuation test model): the first and
     the third touch, 0.2 m deep (a whole radius past stop.max_penetration's bound) from
     step 0. MuJoCo runs it; so does the recorder, whose bound counts from that depth."""
-    model = tmp_path / "overlap.xml"
-    model.write_text(OVERLAPPING)
-    assert main(["record", str(model), "--duration", "0.2", "-o", str(tmp_path / "logs")]) == 0
-    capsys.readouterr()
-    (path,) = (tmp_path / "logs").glob("*.mcap")
-    log = load_log(path)
+    log = _record_model(tmp_path, capsys, OVERLAPPING, "0.2")
     assert log.outcome == "completed"
     deepest = log.contacts["penetration"].max()
     assert deepest == pytest.approx(0.2, abs=1e-6)
