@@ -92,8 +92,9 @@ def episodes(runs: Sequence[RunLog], rows: pl.DataFrame) -> pl.DataFrame:
     notes = np.full(out.height, "", dtype=object)
     by_id = {run.run_id: run for run in runs}
     budgets: dict[str, tuple[np.ndarray, dict[str, np.ndarray]]] = {}
+    energetic = out.select(e_energy()).to_series()
     for i in out.select(odd).to_series().arg_true().to_list():
-        row = out.row(i, named=True)
+        row = out.row(i, named=True) | {"e_energy": energetic[i]}
         if row["run_id"] not in budgets:
             budgets[row["run_id"]] = cumulative_works(by_id[row["run_id"]])
         notes[i] = e_note(row, *budgets[row["run_id"]])
@@ -115,15 +116,14 @@ def cumulative_works(run: RunLog) -> tuple[np.ndarray, dict[str, np.ndarray]]:
 
 def e_note(episode: dict[str, Any], t: np.ndarray, cumulative: dict[str, np.ndarray]) -> str:
     """Why a closed episode's e_velocity is outside [0, 1], from the budget (`cumulative_works`)
-    over the logged rows around it: this contact's normal work (and e_energy), then the work of
-    every other kind of force then, largest first (other contacts: the run's contact work less
-    this one's), and the largest input of energy, if any."""
+    over the logged rows around it: this contact's normal work (and its `e_energy`, None where
+    undefined), then the work of every other kind of force then, largest first (other
+    contacts: the run's contact work less this one's), and the largest input of energy."""
     start, end = int(episode["start_t_ns"]), int(episode["end_t_ns"])
     first = max(int(np.searchsorted(t, start, side="right")) - 1, 0)
     last = min(int(np.searchsorted(t, end, side="left")), t.size - 1)
     done = {k: float(v[last] - v[first]) if t.size else np.nan for k, v in cumulative.items()}
-    work_c, work_r = episode["work_c_J"], episode["work_r_J"]
-    own = work_c + work_r
+    own = episode["work_c_J"] + episode["work_r_J"]
     contacts = done.pop("contact_normal") + done.pop("contact_friction")
     works = {"other contacts": contacts - own - episode["work_f_J"]}
     works |= {k.replace("_", " "): w for k, w in done.items()}
@@ -149,7 +149,7 @@ def e_note(episode: dict[str, Any], t: np.ndarray, cumulative: dict[str, np.ndar
     return (
         f"e_velocity {e:.3g} is outside [0, 1]: a ratio of the contact point's speeds, not a "
         f"restitution. {span} this contact's normal force did {own:+.3g} J"
-        + (f" (e_energy {np.sqrt(work_r / -work_c):.3g})" if work_c < 0 <= work_r else "")
+        + (f" (e_energy {episode['e_energy']:.3g})" if episode["e_energy"] is not None else "")
         + f"; the model's other forces: {listed}; {source}"
     )
 

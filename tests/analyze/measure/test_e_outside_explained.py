@@ -98,6 +98,7 @@ EPISODE = {
     "work_c_J": -0.2,
     "work_r_J": 0.05,
     "work_f_J": -0.01,
+    "e_energy": 0.5,  # sqrt(0.05 / 0.2)
 }
 
 
