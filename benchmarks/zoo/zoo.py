@@ -88,6 +88,14 @@ class ImpactlabSide:
 SPRINGS_BOOKED_AS_WORK = True
 
 
+class StoppedAtWarning(Exception):
+    """impactlab ended the run as unstable at a MuJoCo warning (`warning`, e.g. mjWARN_INERTIA)."""
+
+    def __init__(self, warning: str, reason: str) -> None:
+        super().__init__(reason)
+        self.warning, self.reason = warning, reason
+
+
 def impactlab_side(
     model_path: Path, duration: float, every: int, out_dir: Path, *, publish: bool = True
 ) -> ImpactlabSide:
@@ -115,6 +123,9 @@ def impactlab_side(
     if recorded.failed:
         raise RuntimeError(f"impactlab record: {recorded.reason}")
     log = load_log(recorded.path)
+    warned = re.search(r"\bmjWARN_\w+", str(log.meta.get("reason", "")))
+    if log.outcome != "completed" and warned:
+        raise StoppedAtWarning(warned.group(0), str(log.meta["reason"]))
     analysis = analyze_run(log)
     impactlab.analyze([recorded.path], out=out / "results", figures=publish, report=publish)
     if publish:
@@ -626,6 +637,11 @@ def _adapter_checks(model: ZooModel, row: dict[str, Any], runs: Mapping[int, ora
                 side = impactlab_side(model.path, truth.nsteps * truth.timestep, every, Path(tmp))
             except NotImplementedError:
                 return "adapter not written"
+            except StoppedAtWarning as stop:
+                if not truth.warnings.get(stop.warning):
+                    raise
+                row["refused"] = f"impactlab stops where MuJoCo warns: {stop.reason}"
+                return None
             checks = compare(
                 truth, side, row["bare_seconds"], max_ratio=MAX_RECORD_RATIO if large else None
             )
