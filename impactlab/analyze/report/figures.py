@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.collections import Collection
 
-MAX_LEGEND_RUNS = 12  # beyond this, runs are coloured along the sweep instead of labelled
+MAX_LEGEND_LINES = 12  # beyond this, lines go unlabelled (runs coloured along the sweep)
 MAX_SPEED_LABELS = 8  # a study figure writes the impact speed of at most this many runs
 
 
@@ -60,11 +60,12 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     """
     heights, energies = _energy_lines(energy)
     fig, (ax_h, ax_e) = subplots(2, 1, figsize=(9, 7), sharex=True)
+    named = len(heights) <= MAX_LEGEND_LINES
     for body, t, h in heights:
-        ax_h.plot(t, h, label=plain(body))
+        ax_h.plot(t, h, label=plain(body) if named else None)
     _shade_contacts(ax_h, contacts)
     ax_h.set_ylabel("lowest point above the ground (m)")
-    ax_h.set_title(plain(title))
+    ax_h.set_title(plain(title if named else f"{title}\n{len(heights)} bodies, one line each"))
     ax_h.legend(loc="upper right")
     styles: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         ((), {"label": "kinetic", "alpha": 0.8}),
@@ -104,7 +105,7 @@ def bounce_decay_figure(
     groups = rows.partition_by("run_id", "body", "surface", maintain_order=True, as_dict=True)
     keys = [(str(r), str(b), str(s)) for r, b, s in groups]
     several = len({(b, s) for _, b, s in keys}) > 1
-    legend = len(keys) <= MAX_LEGEND_RUNS
+    legend = len(keys) <= MAX_LEGEND_LINES
     colors = matplotlib.colormaps["viridis"](np.linspace(0, 1, max(len(keys), 1)))
     drawn = set()
     for i, ((run_id, body, surface), mine) in enumerate(zip(keys, groups.values(), strict=True)):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 
 import matplotlib.colors
 import numpy as np
@@ -135,3 +136,30 @@ def test_drawing_leaves_the_users_matplotlib_as_it_was():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
+
+
+def test_energy_figure_of_many_bodies_labels_none_and_lays_out(tmp_path):
+    """A legend entry per body would outgrow the figure (100 boxes: tight_layout gave up and the
+    legend covered the energy plot): beyond MAX_LEGEND_LINES the title counts the bodies."""
+    t = np.linspace(0.0, 0.5, 50)
+    bodies = [f"box{i:03d}" for i in range(100)]
+    energy = pl.DataFrame(
+        {
+            "body": [b for b in bodies for _ in t] + ["total"] * t.size,
+            "is_total": [False] * (t.size * len(bodies)) + [True] * t.size,
+            "t_s": np.tile(t, len(bodies) + 1),
+            "height_m": np.tile(1.0 - t, len(bodies) + 1),
+            "ke_trans_J": np.tile(t, len(bodies) + 1),
+            "ke_rot_J": 0.0,
+            "pe_J": np.tile(1.0 - t, len(bodies) + 1),
+            "total_J": 1.0,
+            "mujoco_total_J": None,
+        },
+        schema_overrides={"mujoco_total_J": pl.Float64},
+    )
+    contacts = pl.DataFrame({"start_t_s": [0.1], "end_t_s": [0.5]})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # matplotlib's "Tight layout not applied" among them
+        png = figures.energy_figure(energy, contacts, title="pile", path=tmp_path / "e.png")
+    assert png.stat().st_size > 0
+    assert len(bodies) > figures.MAX_LEGEND_LINES
