@@ -5,6 +5,7 @@ from __future__ import annotations
 import collections
 import functools
 import threading
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
@@ -92,6 +93,24 @@ def _read(path: Path, parse: Callable[[], T]) -> T:
     if nan is not None:
         raise SpecError(str(path), "", f"invalid MJCF: a number is NaN ({nan})")
     return result
+
+
+def compile_spec(spec: mujoco.MjSpec, source: str) -> mujoco.MjModel:
+    """Compile a parsed model, MuJoCo's compiler warnings (Python warnings) kept in `MESSAGES`
+    instead of printed with this file's line.
+
+    Raises:
+        SpecError: MuJoCo cannot compile it.
+    """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            model: mujoco.MjModel = spec.compile()
+        except Exception as exc:
+            raise SpecError(source, "", f"invalid MJCF: {one_line(exc)}") from None
+    for warning in caught:
+        _keep(str(warning.message))
+    return model
 
 
 def check_names(model: mujoco.MjModel, source: str) -> None:

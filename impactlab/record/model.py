@@ -14,7 +14,7 @@ from impactlab.errors import SpecError
 from impactlab.logs.checks import PLANE_GEOM
 from impactlab.logs.geoms import FlexShape, GeomShape
 from impactlab.logs.metadata import Surface
-from impactlab.mjcf.load import one_line, parse_mjcf
+from impactlab.mjcf.load import compile_spec, parse_mjcf
 from impactlab.record import geometry
 from impactlab.record.contact_pairs import CalibratedPair, calibrated_pairs
 from impactlab.record.geoms import describe as describe_geoms
@@ -207,10 +207,7 @@ def instrument(
     """
     name_unnamed(spec)
     prefix = sensor_prefix(spec)
-    try:
-        plain = spec.compile()
-    except Exception as exc:
-        raise SpecError(source, "", f"invalid MJCF: {one_line(exc)}") from None
+    plain = compile_spec(spec, source)
     data = mujoco.MjData(plain)
     mujoco.mj_kinematics(plain, data)
     rigid = geometry.rigid_bodies(plain, data)
@@ -259,7 +256,7 @@ def instrument(
             )
         between = [(a, names[b], lone[b]) for a, b in itertools.combinations(lone, 2)]
         gap_plan = _distance_sensors(spec, plain, own, between, prefix)
-    model = spec.compile()
+    model = compile_spec(spec, source)
     # With the energy flag on, MuJoCo's energy sensors read d.energy, which mj_forward
     # computes after the sensors: one step late. Off, they compute it themselves, at the
     # step. The flag changes no dynamics.

@@ -3,6 +3,8 @@ the job exits 1, the log keeps only the rows before it, and no MUJOCO_LOG.TXT ap
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from specs import drop, toml
@@ -178,3 +180,22 @@ def test_a_residual_that_comes_back_is_not_growth_one_above_its_highest_is():
     assert verdict is not None and verdict.last_step == 9 and verdict.outcome == "unstable"
     assert verdict.reason.startswith("energy grew by 40 J in one step that no force explains")
     assert "(bound 0.1 x 306 J, the energy in play) at t = 0.09 s" in verdict.reason
+
+
+def test_a_compiler_warning_is_the_outcomes_not_a_python_warning(tmp_path, capsys):
+    """Three slide joints in one plane: MuJoCo's compiler warns of a singular inertia (as a
+    Python warning) and its first step raises mjWARN_INERTIA. The run is unstable at step 0
+    naming it; no Python warning, printed with a source line of impactlab's, leaks out."""
+    xml = tmp_path / "slides.xml"
+    xml.write_text(
+        '<mujoco><worldbody><body><joint type="slide" axis="1 0 0"/>'
+        '<joint type="slide" axis="0 1 0"/><joint type="slide" axis="1 1 0"/>'
+        '<geom type="box" size=".05 .05 .05" mass="1"/>'
+        "</body></worldbody></mujoco>"
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main(["record", str(xml), "-o", str(tmp_path / "logs"), "--duration", "0.1"])
+    assert code == 1
+    assert [str(w.message) for w in caught] == []
+    assert "(step 0): mjWARN_INERTIA" in capsys.readouterr().out
