@@ -2,17 +2,23 @@
 
 from __future__ import annotations
 
+import decimal
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import Evaluation, Request, evaluate, shift_speeds
-from impactlab.contact.closed_form import ContactModelError
+from impactlab.contact.calibration import (
+    Request,
+    resolved,
+    shift_speeds,
+    try_evaluate,
+    w0dt_max,
+)
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
-from impactlab.contact.timestep import largest_passing
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -56,20 +62,16 @@ class ContactDesign:
     """A designed contact and how well it meets its target (`design_contact`).
 
     Attributes:
-        evaluation: its stiffness evaluated for the request (zeta, the predicted errors).
+        params: the designed contact (for the given timestep, even when too coarse), with its
+            predicted errors.
         problem: why the timestep does not resolve it, or None.
         timestep_max_s: the largest timestep at which this contact meets the target (None
             when the timestep is fine or no timestep helps).
     """
 
-    evaluation: Evaluation
+    params: ContactParams
     problem: str | None = None
     timestep_max_s: float | None = None
-
-    @functools.cached_property
-    def params(self) -> ContactParams:
-        """The designed contact (for the given timestep, even when too coarse)."""
-        return self.evaluation.params
 
     @property
     def ok(self) -> bool:
@@ -82,13 +84,9 @@ class ContactDesign:
         return predict(self.params)
 
     @functools.cached_property
-    def _best_evaluation(self) -> Evaluation | None:
-        return None if self.ok else _best(self.evaluation)
-
-    @property
     def best(self) -> ContactParams | None:
         """The most accurate contact at the given timestep (None when ok)."""
-        return None if self._best_evaluation is None else self._best_evaluation.params
+        return None if self.ok else _best(self.params)
 
     @functools.cached_property
     def best_prediction(self) -> Prediction | None:
@@ -99,19 +97,23 @@ class ContactDesign:
     def softer(self) -> ContactParams | None:
         """The stiffest contact that meets the target at the given timestep (more
         penetration than asked for), or None."""
-        best = self._best_evaluation
-        if best is None or not best.resolved or best.w0 >= self.evaluation.w0:
+        best = self.best
+        if best is None or not resolved(best) or best.stiffness >= self.params.stiffness:
             return None
+        request, w_best = Request.of(best), math.sqrt(best.stiffness)
         edge = largest_passing(
-            lambda w0: _resolved(best.request, w0), best.w0, self.evaluation.w0, ratio=1.002
+            lambda w0: resolved(try_evaluate(request, w0)),
+            w_best,
+            math.sqrt(self.params.stiffness),
+            ratio=1.002,
         )
         # a little softer than the edge: the designer asked for that penetration makes the
         # contact 0.5 % stiffer than the bound needs
-        for w0 in (max(best.w0, 0.97 * edge), edge):
-            ev = _try(best.request, w0)
-            if ev is not None and ev.resolved:
-                return ev.params
-        return best.params
+        for w0 in (max(w_best, 0.97 * edge), edge):
+            found = try_evaluate(request, w0)
+            if resolved(found):
+                return found
+        return best
 
     @property
     def notes(self) -> tuple[str, ...]:
@@ -148,31 +150,19 @@ def predict(params: ContactParams) -> Prediction:
     )
 
 
-def _try(request: Request, w0: float) -> Evaluation | None:
-    try:
-        return evaluate(request, w0)
-    except ContactModelError:
-        return None
-
-
-def _resolved(request: Request, w0: float) -> bool:
-    ev = _try(request, w0)
-    return ev is not None and ev.resolved
-
-
-def _best(designed: Evaluation) -> Evaluation | None:
+def _best(designed: ContactParams) -> ContactParams | None:
     """The stiffness with the smallest predicted error at dt (golden section in log w0, up to
     four times the designed one)."""
-    asked = designed.request
+    asked = Request.of(designed)
     dt, g, speeds = asked.timestep_s, asked.gravity_mps2, asked.speeds
-    w_hi = min(designed.w0 * 4.0, designed.w0dt_max / dt)
+    w_hi = min(math.sqrt(designed.stiffness) * 4.0, w0dt_max(asked.integrator) / dt)
     w_lo = w_hi * 1e-4 if g <= 0.0 else max(g / (0.3 * float(speeds.min())), w_hi * 1e-4)
     if w_lo >= w_hi:
         return None
 
     def cost(lw: float) -> float:
-        ev = _try(asked, math.exp(lw))
-        return math.inf if ev is None else ev.error
+        found = try_evaluate(asked, math.exp(lw))
+        return math.inf if found is None else found.predicted_error
 
     a, b = math.log(w_lo), math.log(w_hi)
     r = (math.sqrt(5.0) - 1.0) / 2.0
@@ -187,4 +177,21 @@ def _best(designed: Evaluation) -> Evaluation | None:
             a, c, fc = c, d, fd
             d = a + r * (b - a)
             fd = cost(d)
-    return _try(asked, math.exp(c if fc <= fd else d))
+    return try_evaluate(asked, math.exp(c if fc <= fd else d))
+
+
+def largest_passing(ok: Callable[[float], bool], lo: float, hi: float, *, ratio: float) -> float:
+    """The largest x found with ok(x) between lo (ok) and hi (not ok): bisected geometrically
+    until hi / lo < ratio."""
+    while hi / lo >= ratio:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if ok(mid) else (lo, mid)
+    return lo
+
+
+def significant(value: float, rounding: str, digits: int = 3) -> float:
+    """`value` to `digits` significant digits of its printed form, rounded as `rounding`
+    says (``decimal.ROUND_FLOOR``: never above `value`, ``ROUND_CEILING``: never below)."""
+    exact = decimal.Decimal(repr(value))
+    unit = decimal.Decimal(f"1e{exact.adjusted() - digits + 1}")
+    return float(exact.quantize(unit, rounding=rounding))

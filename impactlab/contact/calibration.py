@@ -32,57 +32,12 @@ class Request:
         """Where gravity's shift is evaluated (`shift_speeds`), m/s."""
         return shift_speeds(*self.speed_range_mps)
 
-
-@dataclass(frozen=True)
-class Evaluation:
-    """One stiffness evaluated for a request: calibrated zeta and the predicted errors (units
-    of e)."""
-
-    request: Request
-    w0: float
-    zeta: float
-    shift: float  # centre of gravity's shift over the range, calibrated out
-    spread: float  # half the change of e by gravity across the range
-    phase: float  # worst-case phase error at this w0 * dt
-    pen: float  # worst-case penetration factor w0 x_max / v_in
-    w0dt_max: float  # the table's coarsest step
-
-    @property
-    def w0dt(self) -> float:
-        return self.w0 * self.request.timestep_s
-
-    @property
-    def error(self) -> float:
-        """Predicted worst |e - target| over the range and over step phases."""
-        return self.phase + self.spread
-
-    @property
-    def resolved(self) -> bool:
-        """The timestep resolves this contact: the predicted worst case within PHASE_BUDGET
-        (the tolerance minus 0.001 for the table's interpolation), inside the table."""
-        return self.w0dt <= self.w0dt_max * (1.0 + 1e-9) and self.error <= PHASE_BUDGET + 1e-6
-
-    @property
-    def params(self) -> ContactParams:
-        """The contact parameters of this stiffness."""
-        r, w0, k = self.request, self.w0, self.w0 * self.w0
-        return ContactParams(
-            solref=(-k, -2.0 * self.zeta * w0),
-            solimp=SOLIMP,
-            stiffness=k,
-            damping=2.0 * self.zeta * w0,
-            zeta=self.zeta,
-            duration_s=contact_time_factor(self.zeta) / w0,
-            max_penetration_m=r.speed_range_mps[1] * self.pen / w0,
-            restitution=r.e,
-            speed_range_mps=r.speed_range_mps,
-            timestep_s=r.timestep_s,
-            integrator=r.integrator,
-            gravity_mps2=r.gravity_mps2,
-            gravity_shift=self.shift,
-            gravity_spread=self.spread,
-            phase_error=self.phase,
-        )
+    @classmethod
+    def of(cls, params: ContactParams, timestep_s: float | None = None) -> Request:
+        """The request a contact was designed for (at another timestep when given)."""
+        dt = params.timestep_s if timestep_s is None else timestep_s
+        rng, g = params.speed_range_mps, params.gravity_mps2
+        return cls(params.restitution, rng, dt, params.integrator, g)
 
 
 def shift_speeds(lo: float, hi: float) -> np.ndarray:
@@ -96,8 +51,8 @@ def shift_speeds(lo: float, hi: float) -> np.ndarray:
     return np.geomspace(lo, hi, n)
 
 
-def evaluate(request: Request, w0: float) -> Evaluation:
-    """Calibrate zeta at stiffness w0**2 for the request and predict the errors.
+def evaluate(request: Request, w0: float) -> ContactParams:
+    """Calibrate zeta at stiffness w0**2 for the request: the contact and its predicted errors.
 
     zeta and gravity's shift depend on each other: a few fixed-point iterations. The shift is
     piecewise constant in zeta (the step in which the ball is back at the surface jumps by one
@@ -109,7 +64,7 @@ def evaluate(request: Request, w0: float) -> Evaluation:
     e, g, integrator = request.e, request.gravity_mps2, request.integrator
     speeds = request.speeds
     scheme = scheme_of(integrator)
-    cap = table(scheme).w0dt_max
+    cap = w0dt_max(integrator)
     h = min(w0 * request.timestep_s, cap)
     ratios = g / (w0 * speeds) if g > 0.0 else np.zeros(speeds.size)
     shift, spread, step = 0.0, 0.0, 0.0
@@ -130,7 +85,48 @@ def evaluate(request: Request, w0: float) -> Evaluation:
         )
     zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
     _, phase, pen = discrete(zeta, h, scheme)
-    return Evaluation(request, w0, zeta, shift, spread, phase, pen, cap)
+    return ContactParams(
+        solref=(-w0 * w0, -2.0 * zeta * w0),
+        solimp=SOLIMP,
+        stiffness=w0 * w0,
+        damping=2.0 * zeta * w0,
+        zeta=zeta,
+        duration_s=contact_time_factor(zeta) / w0,
+        max_penetration_m=request.speed_range_mps[1] * pen / w0,
+        restitution=e,
+        speed_range_mps=request.speed_range_mps,
+        timestep_s=request.timestep_s,
+        integrator=integrator,
+        gravity_mps2=g,
+        gravity_shift=shift,
+        gravity_spread=spread,
+        phase_error=phase,
+    )
+
+
+def try_evaluate(request: Request, w0: float) -> ContactParams | None:
+    """:func:`evaluate`, or None where gravity's shift cannot be calibrated out."""
+    try:
+        return evaluate(request, w0)
+    except ContactModelError:
+        return None
+
+
+def resolved(params: ContactParams | None) -> bool:
+    """The timestep resolves this contact: the predicted worst case within PHASE_BUDGET (the
+    tolerance minus 0.001 for the table's interpolation), inside the table."""
+    if params is None:
+        return False
+    w0dt = math.sqrt(params.stiffness) * params.timestep_s
+    return (
+        w0dt <= w0dt_max(params.integrator) * (1.0 + 1e-9)
+        and params.predicted_error <= PHASE_BUDGET + 1e-6
+    )
+
+
+def w0dt_max(integrator: str) -> float:
+    """The coarsest step (w0 * dt) of the integrator's table."""
+    return table(scheme_of(integrator)).w0dt_max
 
 
 def _shifted(e: float, shift: float, ratios: np.ndarray) -> float:

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-import dataclasses
+import decimal
+import math
 import warnings
 from collections.abc import Sequence
 from typing import Required, TypedDict, Unpack
 
-from impactlab.contact.advice import ContactDesign
-from impactlab.contact.calibration import Evaluation, Request, evaluate
+from impactlab.contact.advice import ContactDesign, largest_passing, significant
+from impactlab.contact.calibration import Request, evaluate, resolved, try_evaluate, w0dt_max
 from impactlab.contact.closed_form import (
     ContactModelError,
     check_restitution,
@@ -19,8 +20,7 @@ from impactlab.contact.closed_form import (
 )
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
-from impactlab.contact.table import PHASE_BUDGET
-from impactlab.contact.timestep import accepted_timestep, largest_timestep, timestep_problem
+from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
 
 SPEED_FLOOR_MPS = 0.5
 """Lowest impact speed of a default speed range, in m/s (specs and ``impactlab contact MODEL``):
@@ -67,8 +67,12 @@ def speed_range(
 
 def design_stiffness(
     request: Request, *, bound_m: float | None, duration_s: float | None
-) -> Evaluation:
-    """The stiffness rule (module docstring) and the calibrated contact it gives."""
+) -> ContactParams:
+    """The stiffness rule (module docstring) and the calibrated contact it gives.
+
+    Raises:
+        ContactModelError: gravity's shift cannot be calibrated out at the stiffness found.
+    """
     e, g, speeds = request.e, request.gravity_mps2, request.speeds
     v_hi = float(speeds.max())
     if duration_s is not None:
@@ -81,14 +85,13 @@ def design_stiffness(
     if g > 0.0:  # start where gravity's effect is small: the iteration softens if it may
         w0 = max(w0, g / (GRAVITY_RATIO_START * float(speeds.min())))
     for _ in range(16):
-        try:
-            ev = evaluate(request, w0)
-        except ContactModelError:  # gravity's shift too large to calibrate out: stiffer
+        found = try_evaluate(request, w0)
+        if found is None:  # gravity's shift too large to calibrate out: stiffer
             w0 *= 4.0
             continue
-        w0_pen = v_hi * ev.pen / (0.995 * bound_m)
+        w0_pen = w0 * found.max_penetration_m / (0.995 * bound_m)
         # the half spread falls as 1 / w0 (to first order in g / (w0 v))
-        w0_g = w0 * ev.spread / (0.99 * SPREAD_BUDGET)
+        w0_g = w0 * found.gravity_spread / (0.99 * SPREAD_BUDGET)
         new = min(max(w0_pen, w0_g), 100.0 * w0)
         if abs(new - w0) <= 1e-4 * w0:
             break
@@ -172,13 +175,13 @@ def design_contact(
         raise ContactModelError("give a radius, a max penetration or a contact duration")
     else:
         bound = PENETRATION_FRACTION * checked("radius_m", radius_m)
-    ev = design_stiffness(request, bound_m=bound, duration_s=duration)
-    if ev.resolved:
-        return ContactDesign(ev)
+    params = design_stiffness(request, bound_m=bound, duration_s=duration)
+    if resolved(params):
+        return ContactDesign(params)
     dt_max = None
-    if ev.spread < PHASE_BUDGET:  # the bound as printed is accepted when used
-        dt_max = accepted_largest_timestep(ev, bound, duration)
-    return ContactDesign(ev, timestep_problem(ev.params, dt_max), dt_max)
+    if params.gravity_spread < PHASE_BUDGET:  # the bound as printed is accepted when used
+        dt_max = largest_timestep(params, bound, duration)
+    return ContactDesign(params, timestep_problem(params, dt_max), dt_max)
 
 
 def contact_params(
@@ -199,18 +202,66 @@ def contact_params(
     return found.params
 
 
-def accepted_largest_timestep(
-    designed: Evaluation, bound_m: float | None, duration_s: float | None
+def largest_timestep(
+    designed: ContactParams, bound_m: float | None, duration_s: float | None
 ) -> float:
     """The largest timestep (three significant digits, as messages print it) at which the
     same request (target, speeds, penetration bound or duration) is met by the design made
-    for that timestep: a timestep named as the bound is accepted when used as printed."""
+    for that timestep: a timestep named as the bound is accepted when used as printed.
 
-    def passes(dt: float) -> bool:
-        request = dataclasses.replace(designed.request, timestep_s=dt)
+    First the largest at which the designed stiffness meets the tolerance (about 1 %): halved
+    from the table's coarsest step until it does, then bisected. From there down one unit of
+    the last digit at a time until the design made for the timestep passes (its stiffness
+    depends on the timestep, so the estimate may be a little too large); the last one tried
+    when none passes in 40 steps.
+    """
+    w0 = math.sqrt(designed.stiffness)
+
+    def stiffness_passes(dt: float) -> bool:
+        return resolved(try_evaluate(Request.of(designed, timestep_s=dt), w0))
+
+    def design_passes(dt: float) -> bool:
+        request = Request.of(designed, timestep_s=dt)
         try:
-            return design_stiffness(request, bound_m=bound_m, duration_s=duration_s).resolved
+            return resolved(design_stiffness(request, bound_m=bound_m, duration_s=duration_s))
         except ContactModelError:
             return False
 
-    return accepted_timestep(largest_timestep(designed), passes)
+    hi = estimate = w0dt_max(designed.integrator) / w0
+    if not stiffness_passes(hi):
+        lo = estimate = hi / 2.0
+        for _ in range(40):
+            if stiffness_passes(lo):
+                estimate = largest_passing(stiffness_passes, lo, hi, ratio=1.0002)
+                break
+            hi, lo = lo, lo / 2.0
+            estimate = lo
+    dt = significant(estimate, decimal.ROUND_FLOOR)
+    for _ in range(40):
+        if dt <= 0 or design_passes(dt):
+            return dt
+        last = decimal.Decimal(repr(dt))
+        dt = float(last - decimal.Decimal(f"1e{last.adjusted() - 2}"))
+    return dt
+
+
+def timestep_problem(params: ContactParams, timestep_max_s: float | None) -> str:
+    """Why the contact's timestep does not resolve it: gravity's spread over the speed range
+    alone is beyond the budget, or the steps per contact and those needed, with the largest
+    timestep that works (`timestep_max_s`)."""
+    dt, e, (lo, hi) = params.timestep_s, params.restitution, params.speed_range_mps
+    where = f"at {hi:g} m/s" if lo == hi else f"over {lo:g}..{hi:g} m/s"
+    if params.gravity_spread >= PHASE_BUDGET or timestep_max_s is None:
+        return (
+            f"gravity changes e by +-{params.gravity_spread:.4f} {where} with this contact "
+            f"(duration {params.duration_s:.3g} s): e = {e:.4g} within "
+            f"{RESTITUTION_TOLERANCE} needs a shorter contact or a narrower speed range"
+        )
+    w0dt = math.sqrt(params.stiffness) * dt
+    return (
+        f"timestep {dt:.3g} s gives {int(params.duration_s / dt)} steps per contact (w0*dt = "
+        f"{w0dt:.3g}); e = {e:.4g} within {RESTITUTION_TOLERANCE} {where} needs >= "
+        f"{math.ceil(params.duration_s / timestep_max_s)} steps, i.e. timestep <= "
+        f"{timestep_max_s:.3g} s for stiffness {params.stiffness:.4g} (or a softer contact: "
+        "larger max penetration, longer duration, or a narrower speed range)"
+    )

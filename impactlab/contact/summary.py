@@ -7,10 +7,9 @@ import decimal
 import math
 from typing import Any
 
-from impactlab.contact.advice import ContactDesign, Prediction
+from impactlab.contact.advice import ContactDesign, Prediction, significant
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import RESTITUTION_TOLERANCE
-from impactlab.contact.timestep import significant
 
 
 def _range(p: ContactParams) -> str:
