@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import json
 import math
 
 import mujoco
@@ -66,8 +67,21 @@ def test_unreachable_targets_raise_with_floor(bad: object) -> None:
 
 
 @pytest.mark.slow
-def test_table_is_up_to_date(capsys: pytest.CaptureFixture[str]) -> None:
-    assert table.main(["--check"]) == 0
+@pytest.mark.parametrize("scheme", sorted(table.TABLE_PATHS))
+def test_table_is_up_to_date(scheme: str) -> None:
+    """The committed table is what `python -m impactlab.contact.table` writes, within a
+    tolerance: numpy's vectorised kernels round the last bit differently on different CPUs
+    (e.g. with and without AVX-512), and the tables store 10 decimals, so a value on a
+    rounding boundary may move by one unit of 1e-10. Far below what matters: the accuracy
+    promised for e is 5e-3."""
+    committed = json.loads(table.TABLE_PATHS[scheme].read_text())
+    fresh = table.generate_table(scheme)
+    assert set(committed) == set(fresh)
+    for key, value in fresh.items():
+        if isinstance(value, list):
+            np.testing.assert_allclose(committed[key], value, rtol=1e-12, atol=2e-10, err_msg=key)
+        else:
+            assert committed[key] == value, key
 
 
 @pytest.mark.parametrize(
