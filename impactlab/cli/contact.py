@@ -146,10 +146,7 @@ def _model(args: argparse.Namespace) -> int:
         max_penetration_m=args.max_penetration,
         duration_s=args.duration,
     )
-    lines = [
-        f"{args.model}: timestep {tuned.options.timestep_s:g} s, integrator "
-        f"{tuned.options.integrator}"
-    ]
+    lines = [f"{args.model}: timestep {tuned.timestep_s:g} s, integrator {tuned.integrator}"]
     for t in tuned.pairs:
         lines += design_lines(t.design, radius_m=t.pair.radius_m, pair_element=t.element)
         lines += [f"  note: {n}" for n in t.pair.notes]
@@ -161,8 +158,8 @@ def _model(args: argparse.Namespace) -> int:
         lines.append(f"nothing written to {args.out}: a pair misses its target")
     document = {
         "model": str(args.model),
-        "timestep_s": tuned.options.timestep_s,
-        "integrator": tuned.options.integrator,
+        "timestep_s": tuned.timestep_s,
+        "integrator": tuned.integrator,
         "ok": tuned.ok,
         "written": written,
         "pairs": [

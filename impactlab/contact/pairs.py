@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from impactlab.contact.closed_form import ContactModelError
+from impactlab.contact.emulation import SCHEMES
 from impactlab.contact.params import ContactParams
 from impactlab.mjcf.load import load_model
 
@@ -45,21 +46,12 @@ class ModelPair:
     notes: tuple[str, ...] = ()
 
 
-@dataclass(frozen=True)
-class ModelOptions:
-    """The model's simulation options the calibration is for."""
-
-    timestep_s: float
-    integrator: str
-
-
-def model_options(model: mujoco.MjModel) -> ModelOptions:
-    """Timestep and integrator of a compiled model."""
+def model_integrator(model: mujoco.MjModel) -> str:
+    """The integrator of a compiled model, as MJCF names it."""
     import mujoco
 
-    integrator = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
-    names = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
-    return ModelOptions(float(model.opt.timestep), names.get(integrator, integrator))
+    name: str = mujoco.mjtIntegrator(int(model.opt.integrator)).name.removeprefix("mjINT_")
+    return {n.upper(): n for n in SCHEMES}.get(name, name)
 
 
 def model_pairs(model: mujoco.MjModel, names: Sequence[tuple[str, str]]) -> list[ModelPair]:
@@ -130,7 +122,8 @@ def _describe(
             notes.append("the static geom is not a plane: impacts are taken along gravity")
     if not radii:
         notes.append("no sphere in the pair: the contact is designed for one contact point")
-    friction = np.maximum(model.geom_friction[ids[0]], model.geom_friction[ids[1]])
+    mixed = np.maximum(model.geom_friction[ids[0]], model.geom_friction[ids[1]])
+    slide, spin, roll = (float(x) for x in mixed)
     return ModelPair(
         geom1=names[0],
         geom2=names[1],
@@ -138,13 +131,7 @@ def _describe(
         gravity_mps2=g_normal,
         first_impact_mps=first,
         condim=int(max(model.geom_condim[ids[0]], model.geom_condim[ids[1]])),
-        friction=(
-            float(friction[0]),
-            float(friction[0]),
-            float(friction[1]),
-            float(friction[2]),
-            float(friction[2]),
-        ),
+        friction=(slide, slide, spin, roll, roll),
         margin=float(max(model.geom_margin[ids[0]], model.geom_margin[ids[1]])),
         gap=float(max(model.geom_gap[ids[0]], model.geom_gap[ids[1]])),
         notes=tuple(notes),

@@ -10,10 +10,9 @@ from impactlab.contact.advice import ContactDesign
 from impactlab.contact.closed_form import ContactModelError
 from impactlab.contact.design import SPEED_FLOOR_MPS, design_contact
 from impactlab.contact.pairs import (
-    ModelOptions,
     ModelPair,
     check_tuned,
-    model_options,
+    model_integrator,
     model_pairs,
     pair_element,
 )
@@ -48,7 +47,8 @@ class TunedModel:
     """A model's calibrated pairs; ``ok`` when every pair meets its target."""
 
     path: Path
-    options: ModelOptions
+    timestep_s: float
+    integrator: str
     pairs: tuple[TunedPair, ...]
 
     @property
@@ -84,7 +84,7 @@ def tune_model(
                 f"{first.geom1}/{first.geom2}: give each pair once"
             )
     model = load_model(path)
-    options = model_options(model)
+    timestep_s, integrator = float(model.opt.timestep), model_integrator(model)
     described = model_pairs(model, [(r.geom1, r.geom2) for r in requests])
     tuned = []
     for request, pair in zip(requests, described, strict=True):
@@ -102,9 +102,9 @@ def tune_model(
             design = design_contact(
                 e,
                 radius_m=pair.radius_m,
-                timestep_s=options.timestep_s,
+                timestep_s=timestep_s,
                 speed_range_mps=rng,
-                integrator=options.integrator,
+                integrator=integrator,
                 gravity_mps2=pair.gravity_mps2 if gravity_mps2 is None else gravity_mps2,
                 max_penetration_m=max_penetration_m,
                 duration_s=duration_s,
@@ -112,7 +112,7 @@ def tune_model(
         except ContactModelError as exc:
             raise ContactModelError(f"{name}: {exc}") from None
         tuned.append(TunedPair(pair, design, pair_element(pair, design.params)))
-    return TunedModel(path, options, tuple(tuned))
+    return TunedModel(path, timestep_s, integrator, tuple(tuned))
 
 
 def _default_speeds(pair: ModelPair) -> tuple[float, float]:
