@@ -84,7 +84,7 @@ def evaluate(request: Request, w0: float) -> ContactParams:
             f"(g / (w0 v) up to {ratios.max():.3g}): use a stiffer contact or a higher v_lo"
         )
     zeta = calibrated_zeta(_shifted(e, shift, ratios), h, scheme)
-    _, phase, pen = discrete(zeta, h, scheme)
+    phase, pen = discrete(zeta, h, scheme)
     return ContactParams(
         solref=(-w0 * w0, -2.0 * zeta * w0),
         solimp=SOLIMP,

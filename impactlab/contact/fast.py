@@ -45,11 +45,6 @@ def _matrices(h: float, b: float, scheme: str) -> tuple[np.ndarray, list[np.ndar
     return m, [i, i + hj / 2.0, i + hj / 2.0 + hj2 / 4.0, i + hj + hj2 / 2.0 + hj3 / 4.0]
 
 
-def _pushes(y: np.ndarray, u: np.ndarray, b: float, gr: np.ndarray) -> np.ndarray:
-    pushes: np.ndarray = (y < 0.0) & (b * u + y < IMPEDANCE * gr)
-    return pushes
-
-
 def impact_fast(
     zeta: float,
     w0dt: float,
@@ -84,7 +79,7 @@ def impact_fast(
     pushes = np.ones((n, ph.size), bool)
     for s in stages:
         x = np.einsum("ij,kjn->kin", s, rel) + fixed[None]
-        pushes &= _pushes(x[:, 0], x[:, 1], b, gr)
+        pushes &= (x[:, 0] < 0.0) & (b * x[:, 1] + x[:, 0] < d * gr)
     ok = pushes[0] & ~pushes.all(axis=0)
     r = np.argmin(pushes, axis=0)
     cols = np.arange(ph.size)

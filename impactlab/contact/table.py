@@ -125,25 +125,15 @@ class Table:
 def table(scheme: str = "euler") -> Table:
     """The committed table of a stepping scheme ("euler" or "rk4")."""
     raw = json.loads(TABLE_PATHS[scheme].read_text())
-    zeta = np.asarray(raw["zeta"], float)
-    return Table(
-        zeta=zeta,
-        log_w0dt=np.log(np.asarray(raw["w0dt"], float)),
-        delta=np.asarray(raw["delta"], float),
-        half=np.asarray(raw["half"], float),
-        pen=np.asarray(raw["pen"], float),
-    )
+    grids = {k: np.asarray(raw[k], float) for k in ("zeta", "w0dt", "delta", "half", "pen")}
+    return Table(log_w0dt=np.log(grids.pop("w0dt")), **grids)
 
 
-def discrete(zeta: float, w0dt: float, scheme: str = "euler") -> tuple[float, float, float]:
-    """Return (midrange e, worst phase error, worst penetration factor) at (zeta, w0dt)."""
+def discrete(zeta: float, w0dt: float, scheme: str = "euler") -> tuple[float, float]:
+    """Return (worst phase error, worst penetration factor) at (zeta, w0dt)."""
     tab = table(scheme)
-    delta, half, pen = tab.columns(w0dt)
-    return (
-        restitution_closed_form(zeta) + float(np.interp(zeta, tab.zeta, delta)),
-        float(np.interp(zeta, tab.zeta, half)),
-        float(np.interp(zeta, tab.zeta, pen)),
-    )
+    _, half, pen = tab.columns(w0dt)
+    return float(np.interp(zeta, tab.zeta, half)), float(np.interp(zeta, tab.zeta, pen))
 
 
 def calibrated_zeta(e: float, w0dt: float, scheme: str = "euler") -> float:
