@@ -10,13 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.calibration import (
-    Request,
-    resolved,
-    shift_speeds,
-    try_evaluate,
-    w0dt_max,
-)
+from impactlab.contact.calibration import Request, resolved, shift_speeds, try_evaluate, w0dt_max
 from impactlab.contact.gravity import restitution_spread
 from impactlab.contact.params import ContactParams
 

@@ -68,7 +68,8 @@ def speed_range(
 def design_stiffness(
     request: Request, *, bound_m: float | None, duration_s: float | None
 ) -> ContactParams:
-    """The stiffness rule (module docstring) and the calibrated contact it gives.
+    """The stiffness rule (docs/contact-model.md, "The designer") and the calibrated contact
+    it gives.
 
     Raises:
         ContactModelError: gravity's shift cannot be calibrated out at the stiffness found.
