@@ -15,8 +15,7 @@ from impactlab.contact.design import (
     contact_params,
     design_contact,
 )
-from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP
-from impactlab.contact.gravity import restitution_spread
+from impactlab.contact.emulation import IMPEDANCE, SCHEMES, SOLIMP, restitution_spread
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import RESTITUTION_TOLERANCE
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from impactlab.contact.calibration import Request, resolved, shift_speeds, try_evaluate, w0dt_max
-from impactlab.contact.gravity import restitution_spread
+from impactlab.contact.emulation import restitution_spread
 from impactlab.contact.params import ContactParams
 
 MIN_EMULATED_W0DT = 0.002

@@ -10,7 +10,7 @@ import numpy as np
 
 from impactlab.contact.closed_form import RESTITUTION_FLOOR, ContactModelError, contact_time_factor
 from impactlab.contact.emulation import SOLIMP, scheme_of
-from impactlab.contact.gravity import gravity_shift
+from impactlab.contact.fast import gravity_shift
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, calibrated_zeta, discrete, table
 

@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+
 import numpy as np
 
-from impactlab.contact.closed_form import ContactModelError
+from impactlab.contact.closed_form import ContactModelError, checked
+from impactlab.contact.params import ContactParams
 
 IMPEDANCE = 0.9999
 """solimp dmin = dmax: MuJoCo's largest impedance (mjMAXIMP). With the direct solref, MuJoCo
@@ -158,3 +162,39 @@ def emulate_surface(
             break
     release = np.where(released, release, u)
     return release, surface, pen
+
+
+def restitution_spread(
+    params: ContactParams,
+    *,
+    impact_speed_mps: float | Sequence[float] | np.ndarray,
+    gravity_mps2: float,
+    timestep_s: float,
+    phases: int = 64,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """e at impact speeds by the mj_step emulation: mean, lowest and highest over phases.
+
+    Emulates MuJoCo's step (with the integrator of ``params``) for this contact and continues
+    after the force lets go until the ball is back at the surface: e = -v_out / v_in as the
+    recorder measures them, for `phases` contact-onset phases; the lowest and highest are
+    what single impacts at that speed may give, depending on where in a step the contact
+    begins. 0 when the ball does not leave within 40 / w0.
+
+    Returns:
+        (mean, lowest, highest), each one value per speed.
+
+    Raises:
+        ContactModelError: a speed is not positive, or gravity negative or not a number.
+    """
+    speeds = np.atleast_1d(np.asarray(impact_speed_mps, float))
+    if not np.all(speeds > 0.0):
+        raise ContactModelError(f"impact speeds must be positive, got {impact_speed_mps!r}")
+    g = checked("gravity_mps2", gravity_mps2)
+    w0 = math.sqrt(params.stiffness)
+    zeta = params.damping / (2.0 * w0)
+    h = w0 * checked("timestep_s", timestep_s)
+    ph = (np.arange(phases) + 0.5) / phases
+    gr = (g / (w0 * speeds))[:, None]
+    _, surface, _ = emulate_surface(zeta, h, ph[None, :], gr, integrator=params.integrator)
+    e = surface / speed_in(h, gr, scheme_of(params.integrator))
+    return e.mean(axis=1), e.min(axis=1), e.max(axis=1)

@@ -16,7 +16,7 @@ import plain_mujoco as measure
 import pytest
 
 from impactlab import contact as C
-from impactlab.contact import calibration, design, emulation, fast, gravity, table
+from impactlab.contact import calibration, design, emulation, fast, table
 
 TOL = C.RESTITUTION_TOLERANCE
 LADDER = (5e-5, 2e-5, 1e-5, 5e-6, 2e-6, 1e-6)
@@ -210,9 +210,8 @@ def test_contact_params_over_a_range_converges_in_a_few_evaluations_without_simu
 
     monkeypatch.setattr(mujoco, "mj_step", forbidden)
     monkeypatch.setattr(table, "emulate_surface", forbidden)
-    monkeypatch.setattr(gravity, "emulate_surface", forbidden)
     monkeypatch.setattr(fast, "emulate_surface", forbidden)  # no column falls back to stepping
-    calls = count_calls((calibration, "evaluate"), (design, "evaluate"), (gravity, "impact_fast"))
+    calls = count_calls((calibration, "evaluate"), (design, "evaluate"), (fast, "impact_fast"))
     for i in range(12):
         calls.clear()
         C.contact_params(

@@ -12,7 +12,7 @@ import plain_mujoco as measure
 import pytest
 
 from impactlab import contact as R
-from impactlab.contact import design, emulation, fast, gravity, table
+from impactlab.contact import calibration, design, emulation, fast, table
 
 # Schwager-Poeschel column of the table in shared/notes/physics.md
 NOTES_TABLE = {0.02: 0.9398, 0.10: 0.7441, 0.30: 0.4510, 0.50: 0.2984, 0.80: 0.1798}
@@ -251,10 +251,9 @@ def test_contact_params_converges_in_a_few_evaluations_without_simulating(
         raise AssertionError("contact_params must not simulate")
 
     monkeypatch.setattr(mujoco, "mj_step", forbidden)
-    for module in (table, gravity):  # the closed form is used instead
-        monkeypatch.setattr(module, "emulate_surface", forbidden)
+    monkeypatch.setattr(table, "emulate_surface", forbidden)  # the closed form is used instead
     monkeypatch.setattr(fast, "emulate_surface", forbidden)  # no column falls back to stepping
-    calls = count_calls((design, "evaluate"), (gravity, "impact_fast"))
+    calls = count_calls((calibration, "evaluate"), (design, "evaluate"), (fast, "impact_fast"))
     for i in range(20):
         calls.clear()
         R.contact_params(0.2 + 0.04 * i, radius_m=0.1, impact_speed_mps=1.0, timestep_s=1e-5)
