@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any, ParamSpec, TypeVar
 
 import matplotlib
+import matplotlib.style
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -17,10 +18,6 @@ from matplotlib.figure import Figure
 from impactlab.files import atomic_path
 
 DPI = 110
-DEFAULTS = {
-    k: v for k, v in matplotlib.rcParamsDefault.items() if k not in ("backend", "interactive")
-}
-"""Matplotlib's own style: the figures look the same whatever style the user has set."""
 
 _PNG_TEXT: ContextVar[dict[str, str] | None] = ContextVar("png_text", default=None)
 P = ParamSpec("P")
@@ -28,12 +25,12 @@ R = TypeVar("R")
 
 
 def styled(draw: Callable[P, R]) -> Callable[P, R]:
-    """Decorate a drawing function: it draws in matplotlib's default style (`DEFAULTS`),
-    whatever the user's, which is left as it was."""
+    """Decorate a drawing function: it draws in matplotlib's default style, whatever the
+    user's, which is left as it was (the figures look the same whatever style is set)."""
 
     @wraps(draw)
     def drawing(*args: P.args, **kwargs: P.kwargs) -> R:
-        with matplotlib.rc_context(DEFAULTS):
+        with matplotlib.style.context("default"):
             return draw(*args, **kwargs)
 
     return drawing

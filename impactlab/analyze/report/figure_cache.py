@@ -106,14 +106,6 @@ def draw_named(name: str, *args: Any, **kwargs: Any) -> Path:
     return path
 
 
-def drawn(path: Path, key: str, draw: Callable[[], Path]) -> Path:
-    """The figure at `path`: copied from the last analysis' (`published`) when it has the
-    same key, else drawn by `draw` with the key."""
-    if not copied(path, key):
-        draw_with_key((key, draw))
-    return path
-
-
 def published(path: Path) -> Path | None:
     """Where the last analysis into the same folder published the figure staged at `path`
     (`OUT/.impactlab-staging-*/figures/NAME` -> `OUT/figures/NAME`; None: not staged)."""
@@ -145,8 +137,10 @@ def draw_with_key(job: tuple[str, Callable[[], Path]]) -> Path:
 
 
 def draw_all(jobs: Sequence[FigureJob], executor: Executor | None = None) -> list[Path]:
-    """`drawn` of each (path, key, draw), in order; the figures to draw go to the executor's
-    workers when it has some (each draws at its own path, which must be one they see)."""
+    """The figure of each (path, key, draw), in order: copied from the last analysis'
+    (`published`) when it has the same key, else drawn by `draw` with the key; the figures to
+    draw go to the executor's workers when it has some (each draws at its own path, which must
+    be one they see)."""
     todo = [(path, key, draw) for path, key, draw in jobs if not copied(path, key)]
     if executor is None or executor.name == "local" or len(todo) < 2:
         for _, key, draw in todo:

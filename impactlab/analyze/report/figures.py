@@ -176,31 +176,22 @@ def collision_figure(
     axes[2].plot(*thinned(t, p @ n), label="total momentum along n", color="k")
     axes[2].axhline(p0 @ n, color="tab:red", ls="--", label="before the collision")
     for key, style, lab in (
-        ("v1n_after_elastic_mps", ":", "elastic"),
-        ("v1n_after_e_mps", "--", "analytic, measured e"),
+        ("after_elastic", ":", "elastic"),
+        ("after_e", "--", "analytic, measured e"),
     ):
-        if row.get(key) is not None:
-            axes[1].axhline(
-                row[key], color="tab:blue", ls=style, lw=1, label=plain(f"{row['body1']} {lab}")
-            )
-            axes[1].axhline(
-                row[key.replace("v1n", "v2n")],
-                color="tab:orange",
-                ls=style,
-                lw=1,
-                label=plain(f"{row['body2']} {lab}"),
-            )
+        for k, color in (("1", "tab:blue"), ("2", "tab:orange")):
+            if row.get(f"v{k}n_{key}_mps") is not None:
+                label = plain(f"{row['body' + k]} {lab}")
+                axes[1].axhline(row[f"v{k}n_{key}_mps"], color=color, ls=style, lw=1, label=label)
     for ax in axes:
         _shade_contacts(ax, contacts)
         ax.grid(True, alpha=0.3)
         ax.legend(loc="best", fontsize=8)
-    axes[0].set_ylabel("position along n (m)")
+    axes[0].set(ylabel="position along n (m)", title=plain(title))
     axes[1].set_ylabel("velocity along n (m/s)")
-    axes[2].set_ylabel("momentum along n (kg m/s)")
     span = max(1e-9, abs(p0 @ n)) * 1e-6
+    axes[2].set(ylabel="momentum along n (kg m/s)", xlabel="time (s)")
     axes[2].set_ylim(p0 @ n - max(span, 0.05), p0 @ n + max(span, 0.05))
-    axes[2].set_xlabel("time (s)")
-    axes[0].set_title(plain(title))
     return save_figure(fig, path)
 
 
@@ -272,12 +263,12 @@ def collision_study_figure(
     v1, v2 = rows["v1n_before_mps"][0], rows["v2n_before_mps"][0]
     e = np.linspace(0, 1, 101)
     v1e, v2e = collision_after(m1, m2, v1, v2, e)
-    ax.plot(e, v1e, color="tab:blue", label="analytic v1'(e)")
-    ax.plot(e, v2e, color="tab:orange", label="analytic v2'(e)")
-    ax.plot(rows["e_collision"], rows["v1n_after_mps"], "o", color="tab:blue", label="measured v1'")
-    ax.plot(
-        rows["e_collision"], rows["v2n_after_mps"], "o", color="tab:orange", label="measured v2'"
-    )
+    colors = {"1": "tab:blue", "2": "tab:orange"}
+    for (k, color), curve in zip(colors.items(), (v1e, v2e), strict=True):
+        ax.plot(e, curve, color=color, label=f"analytic v{k}'(e)")
+    for k, color in colors.items():
+        measured = rows[f"v{k}n_after_mps"]
+        ax.plot(rows["e_collision"], measured, "o", color=color, label=f"measured v{k}'")
     ax.plot(
         [1, 1],
         [rows["v1n_after_elastic_mps"][0], rows["v2n_after_elastic_mps"][0]],
@@ -286,21 +277,20 @@ def collision_study_figure(
         color="k",
         label="elastic answer (e = 1)",
     )
-    ax.set_xlabel("coefficient of restitution e")
-    ax.set_ylabel("velocity after, along the line of centres (m/s)")
+    ax.set(
+        xlabel="coefficient of restitution e",
+        ylabel="velocity after, along the line of centres (m/s)",
+    )
     ax.set_title(
         plain(f"{title}\nm1 = {m1:g} kg, m2 = {m2:g} kg, v1 = {v1:g} m/s, v2 = {v2:g} m/s")
     )
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
     ax_p.plot(rows[param], rows["e_collision"], "o-", label="measured e")
     ax_p.axhline(1.0, color="k", ls=":", label="elastic (e = 1)")
-    ax_p.set_ylim(0, 1.05)
-    ax_p.set_xlabel(plain(param))
-    ax_p.set_ylabel("measured e")
+    ax_p.set(ylim=(0, 1.05), xlabel=plain(param), ylabel="measured e")
     ax_p.set_title(plain(f"e against the swept {param}"))
-    ax_p.grid(True, alpha=0.3)
-    ax_p.legend(fontsize=8)
+    for a in (ax, ax_p):
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=8)
     return save_figure(fig, path)
 
 

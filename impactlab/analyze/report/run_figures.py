@@ -51,11 +51,11 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
 
     In a sweep of many runs only `FIGURE_RUNS_PER_SWEEP` evenly spread points get them;
     the sweep's summary figures cover every run. A figure whose inputs did not change since
-    the last analysis into the same folder is copied (`figure_cache.drawn`).
+    the last analysis into the same folder is copied (`figure_cache.draw_all`).
     """
     if not draws_own_figures(*a.run.sweep_point):
         return []
-    from impactlab.analyze.report.figure_cache import drawn, figure_job
+    from impactlab.analyze.report.figure_cache import draw_all, figure_job
 
     contacts = a.phases.filter(pl.col("kind") == "contact")
     title = run_title(a)
@@ -65,8 +65,10 @@ def run_figures(a: RunAnalysis, fig_dir: Path) -> list[tuple[str, Path]]:
     impacts = a.collisions.filter(pl.col("px_before_Ns").is_not_null())  # a state before
     for row in impacts.head(1).iter_rows(named=True):
         jobs.append(("collision", "collision_figure", (a.states, row, contacts)))
-    paths = [fig_dir / f"{kind}-{file_part(a.run.run_id)}.png" for kind, _, _ in jobs]
-    return [
-        (kind, drawn(*figure_job(path, name, *data, title=title)))
-        for path, (kind, name, data) in zip(paths, jobs, strict=True)
-    ]
+    paths = draw_all(
+        [
+            figure_job(fig_dir / f"{kind}-{file_part(a.run.run_id)}.png", name, *data, title=title)
+            for kind, name, data in jobs
+        ]
+    )
+    return [(kind, path) for (kind, _, _), path in zip(jobs, paths, strict=True)]
