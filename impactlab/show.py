@@ -28,11 +28,6 @@ def where(path: Path | str | None) -> str:
     return plain(f"{p}/" if p.suffix == "" else str(p))
 
 
-def cell(value: Any) -> str:
-    """A notebook table cell's text: `number` to 4 significant digits, one printable line."""
-    return plain(number(value, 4))
-
-
 NOTHING = "\u2013"  # an en dash: no value
 TIMES = "\u00d7"
 _SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
@@ -77,11 +72,12 @@ def html_table(
     unit: str = "rows",
 ) -> str:
     """A small HTML table: the first MAX_ROWS rows, then `… and N more <unit>` when `total`
-    (or len(rows)) is larger. Every caption, header and cell is escaped."""
+    (or len(rows)) is larger. Every caption, header and cell is escaped; a cell's number reads
+    to 4 significant digits."""
     total = len(rows) if total is None else total
     head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
     body = [
-        "<tr>" + "".join(f"<td>{html.escape(cell(v))}</td>" for v in row) + "</tr>"
+        "<tr>" + "".join(f"<td>{html.escape(plain(number(v, 4)))}</td>" for v in row) + "</tr>"
         for row in rows[:MAX_ROWS]
     ]
     shown = min(len(rows), MAX_ROWS)

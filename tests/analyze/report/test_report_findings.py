@@ -145,9 +145,7 @@ def test_a_small_change_of_a_pair_something_else_touches_is_not_a_test():
 
 def test_an_isolated_pair_below_the_threshold_conserves_momentum():
     col = _collision(momentum_rel_change=1.5e-16)
-    assert F.momentum_finding(col, _run("c1")).startswith(
-        "Momentum is conserved: it changes by 1.5"
-    )
+    assert F.momentum_kind(col, _run("c1")) == "conserved"
     lead = _lead(questions.collision(_tables(_runs(_run("c1")), _collisions(col))))
     assert lead.startswith("Yes, momentum is conserved in 1 collision (relative change at most")
     assert "but that check is circular" in lead  # the 1D loss from the measured e
@@ -212,7 +210,6 @@ def test_a_drift_within_the_factor_is_the_integrators(integrator):
         flight_drift_predicted_J=predicted,
     )
     assert F.drift_kind(row) == "integrator"
-    assert f"is {integrator}'s semi-implicit drift" in F.drift_finding(row)
     assert _lead(questions.energy(_tables(_runs(row)))).startswith(
         "Yes: in flight only the integrator changes the energy"
     )

@@ -31,7 +31,7 @@ from impactlab.analyze.report.blocks import (
     footnoted,
 )
 from impactlab.analyze.report.document import append_report_sections, write_document
-from impactlab.show import NOTHING, TIMES, cell, number
+from impactlab.show import NOTHING, TIMES, html_table, number
 
 NAMES = [
     "a|b",
@@ -144,8 +144,13 @@ def test_numbers_read_at_sensible_precision_in_the_report_and_in_a_notebook():
     assert blocks.percent(0.8319) == "83.2 %" and blocks.span([0.801, 0.799]) == "0.799 to 0.801"
     for x in np.geomspace(1e-20, 1e20, 81):
         assert not re.search(r"\de[-+]?\d", number(float(x)))
-    assert cell(7.105427357601002e-15) == f"7.105 {TIMES} 10⁻¹⁵" and cell(None) == NOTHING
-    assert cell(0.123456) == "0.1235" and cell("\x1b[31m") == "\\x1b[31m"
+    cells = html_table(["x"], [[7.105427357601002e-15], [None], [0.123456], ["\x1b[31m"]])
+    assert re.findall("<td>(.*?)</td>", cells) == [
+        f"7.105 {TIMES} 10⁻¹⁵",
+        NOTHING,
+        "0.1235",
+        "\\x1b[31m",
+    ]
 
 
 def test_a_long_table_is_cut_with_its_count_and_file(tmp_path, monkeypatch):
