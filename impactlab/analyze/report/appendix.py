@@ -12,7 +12,6 @@ from impactlab.analyze.report.blocks import (
     Column,
     Contents,
     Document,
-    Figure,
     Heading,
     Link,
     Paragraph,
@@ -73,11 +72,6 @@ def appendix(t: Tables, budget: Table | None = None) -> Document:
     return doc
 
 
-def _figures(t: Tables, kind: str, captions: dict[str, str]) -> list[Block]:
-    """The figures of `kind` that `captions` names (by their file's stem), each captioned."""
-    return [Figure(p, captions[p.stem]) for p in t.figures.get(kind, []) if p.stem in captions]
-
-
 def _run_captions(t: Tables, kind: str) -> dict[str, str]:
     """figure stem -> the run's label, for the runs reported."""
     return {
@@ -128,7 +122,7 @@ def _energy(t: Tables, budget: Table | None) -> list[Block]:
         ]
     if len(out) == 1:
         return []
-    return out + _figures(t, "energy", _run_captions(t, "energy"))
+    return out + t.figures_of("energy", _run_captions(t, "energy"))
 
 
 def _bounces(t: Tables) -> list[Block]:
@@ -163,8 +157,8 @@ def _bounces(t: Tables) -> list[Block]:
             ("Speeds are of the contact point along the normal; heights of the lowest point.",)
         ),
         Table(frame, cols, notes, "bounces.parquet"),
-        *_figures(t, "decay", decay),
-        *_figures(t, "restitution", {"restitution-vs-speed": "e against impact speed"}),
+        *t.figures_of("decay", decay),
+        *t.figures_of("restitution", {"restitution-vs-speed": "e against impact speed"}),
     ]
 
 
@@ -190,7 +184,7 @@ def _collisions(t: Tables) -> list[Block]:
         Heading("Collisions"),
         Paragraph(("Velocities of the contact points along the contact normal:",)),
         Table(frame, cols, notes, "collisions.parquet"),
-        *_figures(t, "collision", _run_captions(t, "collision")),
+        *t.figures_of("collision", _run_captions(t, "collision")),
     ]
 
 
@@ -210,4 +204,4 @@ def _studies(t: Tables) -> list[Block]:
     if not out:
         return []
     studies = {f"study-{file_part(n)}": f"Parameter study: {n}" for n in t.studies}
-    return [Heading("Parameter studies"), *out, *_figures(t, "study", studies)]
+    return [Heading("Parameter studies"), *out, *t.figures_of("study", studies)]

@@ -9,7 +9,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.analysis import RunAnalysis
-from impactlab.analyze.report.blocks import Column
+from impactlab.analyze.report.blocks import Column, Figure
 from impactlab.analyze.report.run_figures import contact_words
 from impactlab.logs.format import NOTHING_MOVES
 from impactlab.logs.labels import run_label, run_labels
@@ -162,9 +162,11 @@ class Tables:
         bodies = self.runs.get_column("n_bodies", default=None)
         return bodies is not None and not bodies.is_empty() and bodies.max() == 0
 
-    def figure(self, kind: str, name: str) -> Path | None:
-        """The figure of `kind` whose file is `name`, if drawn."""
-        return next((p for p in self.figures.get(kind, []) if p.name == name), None)
+    def figures_of(self, kind: str, captions: dict[str, str]) -> list[Figure]:
+        """The figures of `kind` drawn that `captions` names (by their file's stem), captioned."""
+        return [
+            Figure(p, captions[p.stem]) for p in self.figures.get(kind, []) if p.stem in captions
+        ]
 
 
 IDENTITY_IGNORES = ("run_id", "experiment", "description", "file", "sweep", "note")

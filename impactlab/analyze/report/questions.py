@@ -14,7 +14,6 @@ from impactlab.analyze.report.blocks import (
     Block,
     Bullets,
     Column,
-    Figure,
     Link,
     Paragraph,
     Span,
@@ -58,11 +57,6 @@ class Answer:
 
 def not_answered(why: str) -> Answer:
     return Answer([Strong(f"Not answered: {why}.")])
-
-
-def _figure(t: Tables, kind: str, name: str, caption: str) -> list[Block]:
-    shown = t.figure(kind, name)
-    return [] if shown is None else [Figure(shown, caption)]
 
 
 def _who(row: dict[str, Any]) -> str:
@@ -174,7 +168,7 @@ def energy(t: Tables) -> Answer:
     order = ["n_bounces_complete", "drop_height_m"]
     best = frame.sort(order, descending=True, nulls_last=True).row(0, named=True)
     caption = f"{_who(best)}: the ball's height and energy against time; contacts shaded."
-    evidence += _figure(t, "energy", f"energy-{file_part(best['run_id'])}.png", caption)
+    evidence += t.figures_of("energy", {f"energy-{file_part(best['run_id'])}": caption})
     return Answer([Strong(lead)], evidence, whole)
 
 
@@ -255,7 +249,7 @@ def restitution(t: Tables) -> Answer:
         cols += (Column("target", "Target e"),)
         evidence.append(Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS))
     caption = "e against impact speed: every bounce and every collision, one colour per experiment."
-    evidence += _figure(t, "restitution", "restitution-vs-speed.png", caption)
+    evidence += t.figures_of("restitution", {"restitution-vs-speed": caption})
     return Answer([Strong(lead)], evidence)
 
 
@@ -308,7 +302,7 @@ def collision(t: Tables) -> Answer:
     evidence: list[Block] = [Bullets(tuple((s,) for s in odd[:3]))] if odd else []
     evidence += _outcomes(main)
     caption = f"{_who(main)}: positions, velocities and momentum along the line of centres."
-    evidence += _figure(t, "collision", f"collision-{file_part(main['run_id'])}.png", caption)
+    evidence += t.figures_of("collision", {f"collision-{file_part(main['run_id'])}": caption})
     return Answer(lead, evidence)
 
 
@@ -401,5 +395,5 @@ def study(t: Tables) -> Answer:
     pick = (near or sweeps)[0][0]
     caption = f"{pick}: velocities after against e, on the analytic curves; e against the sweep."
     evidence: list[Block] = [Table(table, cols, source=IN_APPENDIX, limit=MAIN_ROWS)]
-    evidence += _figure(t, "study", f"study-{file_part(pick)}.png", caption)
+    evidence += t.figures_of("study", {f"study-{file_part(pick)}": caption})
     return Answer([Strong(lead + "."), more], evidence)
