@@ -78,7 +78,7 @@ def report(t: Tables, replies: Sequence[questions.Answer]) -> Document:
     doc.blocks += _problems(t)
     doc.blocks += [Contents(), Heading("Experiments"), *_experiments(t)]
     for (title, _), answer in zip(STEPS, replies, strict=True):
-        doc.blocks += [Heading(title), *answer.blocks]
+        doc.blocks += [Heading(title), Paragraph(tuple(answer.lead)), *answer.evidence]
     doc.blocks += as_written(t)
     steps = [
         (Strong(title.split(":")[0] + ":"), " " + a.finding)

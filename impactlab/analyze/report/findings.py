@@ -162,7 +162,8 @@ def momentum_words(done: pl.DataFrame, runs: pl.DataFrame) -> tuple[str, list[st
     """Whether the complete collisions `done` conserve momentum, in words ("momentum is
     conserved in all 4 collisions (relative change at most ...)"), and why for each that
     does not show it (`momentum_finding`)."""
-    by_run = run_rows(runs, done["run_id"])
+    mine = runs.filter(pl.col("run_id").is_in(done["run_id"].unique().implode()))
+    by_run = {r["run_id"]: r for r in mine.iter_rows(named=True)}  # what momentum_kind reads
     rows = list(done.iter_rows(named=True))
     kinds = each(rows, lambda c: momentum_kind(c, by_run.get(c["run_id"])))
     top = done.select(pl.col("momentum_rel_change").max()).item()
@@ -178,12 +179,6 @@ def momentum_words(done: pl.DataFrame, runs: pl.DataFrame) -> tuple[str, list[st
         if k != "conserved"
     ]
     return f"momentum is conserved in {kept} of {n} collisions{up_to}", odd
-
-
-def run_rows(runs: pl.DataFrame, ids: pl.Series) -> dict[str, dict[str, Any]]:
-    """The runs-table rows of `ids`, by run id (what `momentum_kind` reads of a run)."""
-    mine = runs.filter(pl.col("run_id").is_in(ids.unique().implode()))
-    return {r["run_id"]: r for r in mine.iter_rows(named=True)}
 
 
 def elastic_gap(v1_after: Iterable[Any], v1_elastic: Any) -> float | None:

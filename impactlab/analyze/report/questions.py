@@ -50,10 +50,6 @@ class Answer:
         first = self.lead[0]
         return first if isinstance(first, str) else first.text
 
-    @property
-    def blocks(self) -> list[Block]:
-        return [Paragraph(tuple(self.lead)), *self.evidence]
-
 
 def not_answered(why: str) -> Answer:
     return Answer([Strong(f"Not answered: {why}.")])
