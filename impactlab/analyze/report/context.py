@@ -235,15 +235,8 @@ def labelled(t: Tables) -> Tables:
             pl.col("run_id").replace_strict(t.same).alias("kept"), pl.col("run").alias("also")
         )
         extra = alias.group_by("kept", maintain_order=True).agg(pl.col("also").str.join(", "))
-        labels = (
-            labels.join(extra, left_on="run_id", right_on="kept", how="left")
-            .with_columns(
-                pl.when(pl.col("also").is_not_null())
-                .then(pl.col("run") + " = " + pl.col("also"))
-                .otherwise(pl.col("run"))
-                .alias("run")
-            )
-            .drop("also")
+        labels = labels.join(extra, left_on="run_id", right_on="kept", how="left").select(
+            "run_id", pl.concat_str("run", "also", separator=" = ", ignore_nulls=True).alias("run")
         )
     t.runs, t.bounces, t.collisions, t.phases = (
         with_labels(once(f, t.same), labels) for f in (t.runs, t.bounces, t.collisions, t.phases)

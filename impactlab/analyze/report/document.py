@@ -196,12 +196,9 @@ def summary_answers(replies: Sequence[questions.Answer]) -> dict[str, str]:
     }
 
 
-def write_reports(
-    t: Tables, folder: Path, replies: Sequence[questions.Answer] | None = None
-) -> list[Path]:
+def write_reports(t: Tables, folder: Path, replies: Sequence[questions.Answer]) -> list[Path]:
     """Write report.md, report.html, report-appendix.md and report-appendix.html
-    (`replies`: the answers, when made already)."""
-    replies = answers(t) if replies is None else replies
+    (`replies`: the answers, `answers(t)`)."""
     files = write_document(report(t, replies), folder / "report.md")
     budget = replies[0].whole
     return files + write_document(appendix(t, budget), folder / questions.APPENDIX)

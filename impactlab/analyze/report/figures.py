@@ -76,8 +76,7 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     for (t, y), (fmt, style) in zip(energies, styles, strict=False):
         ax_e.plot(t, y, *fmt, **style)
     _shade_contacts(ax_e, contacts)
-    ax_e.set_xlabel("time (s)")
-    ax_e.set_ylabel("energy (J)")
+    ax_e.set(xlabel="time (s)", ylabel="energy (J)")
     ax_e.legend(loc="center right")
     times = energy["t_s"]
     if times.len():
@@ -239,8 +238,7 @@ def restitution_figure(
         ):
             ax.plot([], [], marker, color="0.3", label=f"{marker}: {words}")
     ax.set_xlabel("impact (closing) speed of the contact point along the normal (m/s)")
-    ax.set_ylabel("coefficient of restitution e")
-    ax.set_ylim(0, 1.05)
+    ax.set(ylabel="coefficient of restitution e", ylim=(0, 1.05))
     ax.set_title("Restitution against impact speed")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
@@ -337,8 +335,7 @@ def bounce_study_figure(study: pl.DataFrame, param: str, *, title: str, path: Pa
                 fontsize=8,
                 color="0.3",
             )
-    ax.set_xlabel(x_label)
-    ax.set_ylabel("coefficient of restitution e")
+    ax.set(xlabel=x_label, ylabel="coefficient of restitution e")
     top = float(rows.select(pl.col("e_velocity_first").max()).item() or 0)
     ax.set_ylim(-0.03 * max(0.2, top * 1.5), max(0.2, top * 1.5))
     ax.set_title(plain(f"{title}\n(grey: impact speed at the first contact{shown})"))
