@@ -12,6 +12,7 @@ from pathlib import Path
 
 import polars as pl
 
+from impactlab.logs.format import WORK_TOPIC
 from impactlab.logs.load import RunLog, load_log
 from impactlab.record import plan, record_runs
 from impactlab.tools.diff import LogDiff, Tolerance, channel_tables, diff_logs
@@ -41,9 +42,9 @@ FIELD_UNITS = {
     **dict.fromkeys(("work_compression_J", "work_restitution_J"), "J"),
     **dict.fromkeys(("v_in_mps", "v_out_mps"), "m/s"),
 }
-FIELD_RTOL = dict.fromkeys(("work_compression_J", "work_restitution_J"), 1e-9)
-"""Looser agreement for sums over every step of a contact (a contact's work): a last-bit
-difference of each step adds up; a physical change still moves them by about 1e-3."""
+SUMMED_RTOL = 1e-9
+"""Looser agreement for sums over every step (a contact's work, every field of WORK_TOPIC): a
+last-bit difference of each step adds up; a physical change still moves them by about 1e-3."""
 # columns of the analysis tables that name where the files were, not what they hold
 RESULT_MACHINE_COLUMNS = ("file",)
 
@@ -109,19 +110,27 @@ def golden_tolerance(golden: RunLog) -> Tolerance:
     """
     fields: dict[str, float] = {}
     for topic, (frame, _, names) in channel_tables(golden).items():
-        units = {n: unit_of(n) for n in names if unit_of(n)}
+        units = {n: unit_of(n, topic) for n in names if unit_of(n, topic)}
         largest = {n: float(frame.select(pl.col(n).abs().max()).item() or 0.0) for n in units}
         channel_scale = max(largest.values(), default=0.0)
         for unit in set(units.values()):
             same = [n for n in units if units[n] == unit]
             scale = max(largest[n] for n in same) or channel_scale  # all zero: the channel's
-            fields |= {f"{topic}:{n}": FIELD_RTOL.get(n, GOLDEN_RTOL) * scale for n in same}
+            fields |= {f"{topic}:{n}": _rtol(topic, n) * scale for n in same}
     return Tolerance(atol=0.0, rtol=GOLDEN_RTOL, fields=fields)
 
 
-def unit_of(field: str) -> str:
-    """The unit of a logged field ("" for text); a clearance's `distance[<surface>]` is m."""
+def unit_of(field: str, topic: str = "") -> str:
+    """The unit of a logged field ("" for text); a clearance's `distance[<surface>]` is m, every
+    field of WORK_TOPIC (the work of a kind of force so far) J."""
+    if topic == WORK_TOPIC:
+        return "J"
     return FIELD_UNITS.get(field, "m" if field.startswith("distance[") else "")
+
+
+def _rtol(topic: str, field: str) -> float:
+    summed = topic == WORK_TOPIC or field in ("work_compression_J", "work_restitution_J")
+    return SUMMED_RTOL if summed else GOLDEN_RTOL
 
 
 def compare_golden(golden_log: Path, new_log: Path) -> LogDiff:
