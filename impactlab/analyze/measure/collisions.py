@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import numpy as np
+import itertools
+
 import polars as pl
 
 from impactlab.analyze.measure.episodes import e_energy, e_velocity
@@ -135,14 +136,6 @@ def collisions(episodes: pl.DataFrame, infos: dict[str, BodyInfo]) -> pl.DataFra
     return from_pair_states(hits)
 
 
-def pair_states(states: pl.DataFrame, frame: pl.DataFrame, row: str, tag: str) -> pl.DataFrame:
-    """Attach body1's and body2's logged states at the row number in column `row` as
-    `<col>1<tag>`, `<col>2<tag>`."""
-    for k in ("1", "2"):
-        frame = state_at(states, frame, body=f"body{k}", row=row, suffix=f"{k}{tag}")
-    return frame
-
-
 def _cross(a: list[pl.Expr], b: list[pl.Expr]) -> list[pl.Expr]:
     return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 
@@ -271,14 +264,13 @@ def with_surroundings(
             if e > lo and s < hi and {x, y} != {a, b} and ({x, y} & {a, b}):
                 names.update({x, y} - {a, b})
         touched.append(", ".join(sorted(names)))
-    v = [np.sqrt(sum(col[f"v{k}{c}_before_mps"].to_numpy() ** 2 for c in "xyz")) for k in "12"]
-    m1, m2 = col["m1_kg"].to_numpy(), col["m2_kg"].to_numpy()
-    dt = col["duration_s"].to_numpy()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = (m1 + m2) * gravity * dt / (m1 * v[0] + m2 * v[1])
+    m1, m2 = pl.col("m1_kg"), pl.col("m2_kg")
+    p = m1 * _norm(_vec("v1", "_before_mps")) + m2 * _norm(_vec("v2", "_before_mps"))
     return col.with_columns(
         pl.Series("touched_by", touched, dtype=pl.String),
-        pl.Series("gravity_impulse_rel", rel, dtype=pl.Float64, nan_to_null=True),
+        ((m1 + m2) * gravity * pl.col("duration_s") / p)
+        .fill_nan(None)
+        .alias("gravity_impulse_rel"),
     )
 
 
@@ -314,10 +306,8 @@ def no_collision_rows(
     ]
     hits = pl.DataFrame(rows).with_columns(
         pl.lit(None, dtype=pl.Int64).alias("collision"),
-        pl.lit(None, dtype=pl.Int64).alias("start_t_ns"),
         pl.lit(first).alias("row_b"),
         pl.lit(last).alias("row_a"),
-        pl.lit(None, dtype=pl.Int64).alias("t_a_ns"),
         pl.lit(None, dtype=pl.Float64).alias("duration_s"),
         pl.lit(None, dtype=pl.Float64).alias("peak_force_N"),
         pl.lit(None, dtype=pl.Float64).alias("impulse_Ns"),
@@ -327,8 +317,8 @@ def no_collision_rows(
         pl.lit("").alias("e_note"),
         *[pl.lit(None, dtype=pl.Float64).alias(c) for c in NO_EPISODE],
     )
-    hits = pair_states(states, hits, "row_b", "_before")
-    hits = pair_states(states, hits, "row_a", "_after")
+    for k, (at, tag) in itertools.product("12", (("row_b", "_before"), ("row_a", "_after"))):
+        hits = state_at(states, hits, body=f"body{k}", row=at, suffix=f"{k}{tag}")
     d = [pl.col(f"{c}2_before") - pl.col(f"{c}1_before") for c in "xyz"]
     n = [d[i] / _norm(d) for i in range(3)]
     hits = hits.with_columns(
@@ -339,15 +329,7 @@ def no_collision_rows(
             for w in ("before", "after")
         ],
     )
-    out = from_pair_states(hits)
-    return out.with_columns(
-        pl.lit(None, dtype=pl.Float64).alias("e_velocity"),
-        pl.lit(None, dtype=pl.Float64).alias("e_energy"),
-        pl.lit(None, dtype=pl.Float64).alias("ke_loss_predicted_J"),
-        pl.lit(None, dtype=pl.Float64).alias("v1n_after_e_mps"),
-        pl.lit(None, dtype=pl.Float64).alias("v2n_after_e_mps"),
-        pl.lit(None, dtype=pl.Float64).alias("impact_t_s"),
-        pl.lit(None, dtype=pl.Float64).alias("release_t_s"),
-        pl.lit(False).alias("complete"),
-        pl.lit(reason).alias("note"),
+    # no episode: e, its predictions and the times are null already
+    return from_pair_states(hits).with_columns(
+        pl.lit(False).alias("complete"), pl.lit(reason).alias("note")
     )
