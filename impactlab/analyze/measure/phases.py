@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import polars as pl
 
 from impactlab.logs.messages import WORK_FIELDS
@@ -30,10 +29,19 @@ def energy_phases(budget: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
         |residual| within the phase), open (the last phase, in contact)); phases numbered
         from 0 in each run.
     """
-    phase, local = _phase_ids(budget["run_id"], in_contact)
     done = sum(pl.col(c) for c in WORK_COLUMNS)
-    frame = budget.hstack([in_contact.alias("in_contact"), phase, local]).with_columns(
-        (pl.col("energy_J") - done).alias("_unexplained")
+    # a new phase where the run or the contact state changes (each run's rows together)
+    frame = (
+        budget.hstack([in_contact.alias("in_contact")])
+        .with_columns(
+            pl.struct("run_id", "in_contact").rle_id().alias("_phase"),
+            (pl.col("energy_J") - done).alias("_unexplained"),
+        )
+        .with_columns(
+            (pl.col("_phase") - pl.col("_phase").min().over(pl.col("run_id").rle_id())).alias(
+                "phase"
+            )
+        )
     )
     first = frame.group_by("_phase", maintain_order=True).agg(
         pl.col("run_id").first(),
@@ -91,18 +99,3 @@ def energy_phases(budget: pl.DataFrame, in_contact: pl.Series) -> pl.DataFrame:
             "open",
         )
     )
-
-
-def _phase_ids(run_id: pl.Series, in_contact: pl.Series) -> list[pl.Series]:
-    """Each row's phase over all runs (`_phase`) and within its run (`phase`, from 0): a
-    new phase where the run or the contact state changes (each run's rows together)."""
-    inside = in_contact.to_numpy().astype(bool)
-    n = inside.size
-    change = np.ones(n, dtype=bool)
-    change[1:] = inside[1:] != inside[:-1]
-    lengths = run_id.rle().struct.field("len").to_numpy() if n else np.zeros(0, np.int64)
-    starts = np.cumsum(lengths) - lengths
-    change[starts] = True
-    every = np.cumsum(change) - 1
-    first = np.repeat(every[starts], lengths)
-    return [pl.Series("_phase", every), pl.Series("phase", every - first, dtype=pl.UInt32)]
