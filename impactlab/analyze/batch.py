@@ -35,7 +35,7 @@ class AnalyzedLog:
     """One log's analysis: the run's tables and its own figures, or why not.
 
     Attributes:
-        analysis: the run's analysis (without the bulky frames when it came from a task).
+        analysis: the run's analysis, without the bulky frames (`slim`).
         figures: (kind, path) of the run's own figures drawn with it.
         error: (path, problem) of an unreadable log.
     """
@@ -80,7 +80,7 @@ def analyze_some(
     fig_dir: Path | None,
 ) -> list[AnalyzedLog]:
     """Analyze some logs together and draw each run's own figures into `fig_dir` (None: no
-    figures); one result per log, in order.
+    figures); one result per log, in order, its analysis `slim` (the body of a task).
 
     Each item is the log's path to read and its path as the user gave it (what the tables
     and messages show).
@@ -106,7 +106,7 @@ def analyze_some(
             if fig_dir is not None:
                 fig_dir.mkdir(parents=True, exist_ok=True)
                 figures = run_figures(a, fig_dir)
-            out[i] = AnalyzedLog(a, figures)
+            out[i] = AnalyzedLog(slim(a), figures)
     return [r for r in out if r is not None]
 
 
@@ -147,16 +147,6 @@ def slim(a: RunAnalysis) -> RunAnalysis:
     )
 
 
-def _task(items: list[tuple[str, str]], fig_dir: Path | None) -> list[AnalyzedLog]:
-    """The body of one executor task: as `analyze_some`, returning small tables only."""
-    results = analyze_some(items, fig_dir)
-    done = [r.analysis for r in results if r.analysis is not None]
-    slimmed = iter([slim(a) for a in done])  # slim decimates each run's energy table
-    return [
-        r if r.analysis is None else dataclasses.replace(r, analysis=next(slimmed)) for r in results
-    ]
-
-
 def analyze_logs(
     paths: Sequence[str | Path],
     *,
@@ -189,12 +179,14 @@ def analyze_logs(
 
     if executor is None or executor.name == "local":
         for group in batches(items):
-            for i, result in zip(group, _task([items[i] for i in group], fig_dir), strict=True):
-                done(i, result)  # slim at once
+            for i, result in zip(
+                group, analyze_some([items[i] for i in group], fig_dir), strict=True
+            ):
+                done(i, result)
         return
     # tasks get absolute paths (a worker's working folder is not the driver's); the
     # figures they return are named again under `fig_dir` as given
-    task = functools.partial(_task, fig_dir=None if fig_dir is None else fig_dir.absolute())
+    task = functools.partial(analyze_some, fig_dir=None if fig_dir is None else fig_dir.absolute())
     parts = max(4 * executor.slots, PROCESS_MIN_ITEMS)
     if fig_dir is not None:  # a run's own figures cost more than its analysis: finer tasks
         parts = max(parts, 8 * executor.slots)
