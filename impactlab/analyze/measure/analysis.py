@@ -294,12 +294,10 @@ def _inside(run: RunLog, eps: pl.DataFrame, total: pl.DataFrame) -> np.ndarray:
 
 def _first_positions(states: pl.DataFrame) -> dict[str, dict[str, tuple[float, float, float]]]:
     """Per run and body, its first logged position (x, y, z)."""
-    blocks = state_blocks(states)
-    at = np.array([first for _, _, first, _ in blocks], dtype=np.int64)
-    xyz = [states[c].to_numpy()[at] if at.size else np.empty(0) for c in ("x", "y", "z")]
+    at = [first for _, _, first, _ in state_blocks(states)]
     out: dict[str, dict[str, tuple[float, float, float]]] = {}
-    for i, (r, b, _, _) in enumerate(blocks):
-        out.setdefault(r, {})[b] = (float(xyz[0][i]), float(xyz[1][i]), float(xyz[2][i]))
+    for r, b, x, y, z in states[at].select("run_id", "body", "x", "y", "z").iter_rows():
+        out.setdefault(r, {})[b] = (x, y, z)
     return out
 
 
