@@ -1,15 +1,4 @@
-"""Analyze: logs -> bounces, restitution, energy budgets, collisions, studies (polars).
-
-Owns: the quantities of one run (`ground`, `contacts`, `impacts` with `kinematics`,
-`flights`, `bounces`, `collisions`, `energy`, `analysis`, `summary`; see docs/analysis.md),
-the tables over many runs (`tables`, `studies`), the analysis job (`job`, `batch`) and what it
-writes (`write`, `report`: figures, and the report and its appendix as blocks written to
-Markdown and to self-contained HTML pages; tools add sections with `append_report_sections`).
-
-May import: `impactlab.logs` (to read logs), `impactlab.executors`, `impactlab.physics`,
-polars, matplotlib. Must not import: MuJoCo, `impactlab.record`, `impactlab.contact`,
-`impactlab.replay`, `impactlab.calibrate`: the analysis reads only the logs.
-"""
+"""Analyze: logs -> bounces, restitution, energy budgets, collisions, studies (docs/analysis.md)."""
 
 from __future__ import annotations
 

@@ -1,15 +1,5 @@
-"""Energy of each body and of the run: kinetic (translational, rotational), potential, total.
-
-Potential energy is measured from a reference height per body (`impactlab.analyze.measure.ground`):
-with a ground, the level of the surface the body lands on first plus the body's rest height
-(a ball resting on a plane has zero potential energy; a box resting on its largest face
-too); without one, the body's initial position. MuJoCo's own potential energy is m g z of
-the centre (relative to the world origin) of every body, static ones included (the log's
-`static_potential_J`), so `mujoco_total_J` is shifted by that and sum(-m g . r_ref) before it
-is compared. `height_m` is the body's clearance above its
-reference surface (its lowest point), or, without a clearance, its centre's height above
-the reference. The energy budget over flights and contacts: `impactlab.analyze.measure.phases`.
-"""
+"""Energy of each body and of the run: kinetic (translational, rotational), potential, total
+(the references and MuJoCo's shift: docs/analysis.md)."""
 
 from __future__ import annotations
 

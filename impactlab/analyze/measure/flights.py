@@ -1,18 +1,4 @@
-"""Free flights of each body between its ground contacts, and their apexes.
-
-Flight j of a body is the run of logged rows after its j-th contact with any ground surface
-(flight 0: before the first) and before the next. Its apex is the logged row where the
-centre of mass is highest along -gravity, refined ballistically: the height above a surface
-at the true apex is c + w^2 / (2 g), c the clearance at that row and w = v_up - g h its
-velocity along -gravity (h as in `impactlab.analyze.measure.impacts`), unless the flight begins
-descending (a release at rest: the apex is its first row). It is measured above the
-surface the body left (`apex_after_m`) and the one it lands on next (`apex_before_m`).
-
-A height above a surface is the apex of the body only when the body does not turn in
-flight: the lowest point must keep its place below the centre of mass. `turning_*` says the
-offset (centre height minus clearance) changed by more than APEX_TURN_FRACTION of the apex
-height over the flight; such apexes are left empty by the bounce table, with the reason.
-"""
+"""Free flights of each body between its ground contacts, and their apexes (docs/analysis.md)."""
 
 from __future__ import annotations
 
@@ -110,7 +96,7 @@ def flight_rows(
 ) -> pl.DataFrame | None:
     """The logged rows of each body of each run outside its ground contacts, by run, body
     and row: (run_id, body, flight, row, t_s, z_up (centre height along -gravity), w
-    (velocity along -gravity minus g h, h as in `impactlab.analyze.measure.impacts`),
+    (velocity along -gravity minus g h, h the half step `RunLog.half_step_s`),
     surface_before, c_before, surface_after, c_after (the surfaces around the flight and the
     clearances to them), g (|gravity|)); None when there are none.
 

@@ -1,19 +1,5 @@
-"""The ground of a run as its log describes it: surfaces, each body's clearance, energy references.
-
-Ground surfaces are the static geoms of the model that a free body can land on (the log's
-`ground` metadata, written by the recorder from the model). A body's clearance to a surface
-is MuJoCo's own geom distance from the body's collision geoms to it (the log's
-`/bodies/<body>/clearance` channels): the height of the body's lowest point above that
-surface, whatever the shapes. A body's energy reference is the surface it lands on first
-(else the nearest one at the start): zero potential energy when its centre of mass is at the
-surface's level plus the body's rest height (its lowest possible centre height on a flat
-surface: a sphere's radius, a box's smallest half size).
-
-Logs written before surfaces and clearances were recorded describe at most one plane
-(`plane_z`) and spheres with a radius; for them the plane is the only surface and a
-sphere's clearance is its centre's height above the plane minus its radius, which is what
-MuJoCo's distance reports for a sphere on a plane.
-"""
+"""The ground of a run as its log describes it: surfaces, each body's clearance, energy references
+(docs/analysis.md; older logs with `plane_z` only: its limits)."""
 
 from __future__ import annotations
 
@@ -117,7 +103,7 @@ def up_vector(gravity: np.ndarray) -> np.ndarray:
 
 
 def run_ground(run: RunLog) -> Ground:
-    """The run's surfaces and clearances (see the module docstring for older logs)."""
+    """The run's surfaces and clearances (older logs: docs/analysis.md)."""
     up = up_vector(run.gravity)
     surfaces = run.surfaces
     if surfaces is not None:
@@ -162,7 +148,7 @@ def references(
     first_surface: dict[str, str],
     start: dict[str, tuple[float, float, float]],
 ) -> dict[str, Reference]:
-    """Per body, its energy reference (see the module docstring).
+    """Per body, its energy reference (docs/analysis.md).
 
     Args:
         first_surface: per body, the surface of its first ground contact (if any).

@@ -1,10 +1,5 @@
-"""Every body's state of a batch of runs in one frame, numbered by logged row, and per-run
-numbers as expressions.
-
-Rows are numbered over each run's distinct logged times (`row`), so a log written every N
-steps, or with its last (stop) step off that grid, is read the same way; the contact intervals
-(`impactlab.analyze.measure.contact_intervals`) and every later measurement use these numbers.
-"""
+"""Every body's state of a batch of runs in one frame, numbered by logged row (each run's
+distinct logged times: a log written every N steps is read the same way), and per-run numbers."""
 
 from __future__ import annotations
 
