@@ -103,24 +103,6 @@ def energy_rows(frame: pl.DataFrame) -> pl.DataFrame:
     )
 
 
-def body_energy(
-    states: pl.DataFrame, info: BodyInfo, *, gravity: np.ndarray, ref: np.ndarray
-) -> pl.DataFrame:
-    """Energy of one body at each logged step (`energy_rows`).
-
-    Args:
-        states: the body's states (run_id, t_ns, t_s, x .. wz), world frame.
-        info: mass (kg) and principal inertia (kg m^2, body frame).
-        gravity: (3,) m/s^2.
-        ref: (3,) position of zero potential energy, m.
-    """
-    values = constants(info, gravity, ref)
-    n = states.height
-    extra = [pl.Series("body", [info.name] * n, dtype=pl.String)]
-    extra += [pl.Series(k, np.full(n, v)) for k, v in zip(CONSTANTS, values, strict=True)]
-    return energy_rows(states.drop("body", strict=False).hstack(extra))
-
-
 def run_energies(
     states: pl.DataFrame,
     runs: Sequence[RunLog],
@@ -272,13 +254,8 @@ def _with_heights(
         first, end = int(starts[i]), int(starts[i]) + kept[i][3] - kept[i][2]
         surface = refs[r][b].surface
         height[first:end], found[first:end] = grounds[r].clearance_at(b, surface, t_ns[first:end])
-    return bodies.with_columns(with_nulls("height_m", height, found))
-
-
-def with_nulls(name: str, values: np.ndarray, found: np.ndarray) -> pl.Series:
-    """`values` as a Float64 column, null where not `found`."""
-    column = pl.Series(name, values, dtype=pl.Float64)
-    return column.scatter(np.flatnonzero(~found), None) if not found.all() else column
+    column = pl.Series("height_m", height, dtype=pl.Float64)
+    return bodies.with_columns(column.scatter(np.flatnonzero(~found), None))
 
 
 def empty_energy() -> pl.DataFrame:

@@ -10,7 +10,7 @@ import pytest
 from known import DROP_SPEC, DT, RADIUS, Z0, G
 
 from impactlab.analyze.measure.analysis import analyze_run
-from impactlab.analyze.measure.energy import body_energy
+from impactlab.analyze.measure.energy import CONSTANTS, constants, energy_rows
 from impactlab.analyze.measure.phases import WORK_COLUMNS
 from impactlab.logs.load import BodyInfo, load_log
 
@@ -30,7 +30,10 @@ def test_rotational_energy_uses_body_frame():
     s = math.sqrt(0.5)
     state = _state(qw=s, qz=s, wx=2.0, z=1.5)
     info = BodyInfo("b", 1.0, (1.0, 2.0, 3.0), 0.1)
-    e = body_energy(state, info, gravity=np.array([0, 0, -G]), ref=np.array([0, 0, 1.0]))
+    values = constants(info, np.array([0, 0, -G]), np.array([0, 0, 1.0]))
+    e = energy_rows(
+        state.with_columns(body=pl.lit("b"), **dict(zip(CONSTANTS, values, strict=True)))
+    )
     assert e["ke_rot_J"][0] == pytest.approx(4.0, rel=1e-12)
     assert e["pe_J"][0] == pytest.approx(0.5 * G, rel=1e-12)
     assert e["height_m"][0] == pytest.approx(0.5, rel=1e-12)
