@@ -353,6 +353,7 @@ def test_a_body_named_total_keeps_its_energy_rows(tmp_path, capsys):
     total = energy.filter(pl.col("is_total"))
     assert body["body"].unique().to_list() == ["total"] == total["body"].unique().to_list()
     assert body.height == total.height == 21
+    assert energy["is_total"].to_list() == [True] * 21 + [False] * 21  # "total" sorts first
     # one body: the sum is the body's own energy, and the body's rows carry its height
     assert body["total_J"].to_numpy() == pytest.approx(total["total_J"].to_numpy(), abs=1e-12)
     assert body["height_m"].null_count() == 0 and total["height_m"].null_count() == 21

@@ -216,22 +216,15 @@ def _by_run(
     and of each run's sums, with their columns set once."""
     no_mujoco = [pl.lit(None, dtype=pl.Float64).alias(c) for c in ENERGY_ORDER[-2:]]
     every = bodies.with_columns(_NOT_TOTAL, *no_mujoco).select(ENERGY_ORDER)
-    sums = pl.concat(totals, rechunk=False) if totals else every.clear()
-    sums = sums.with_columns(pl.lit(True).alias(TOTAL_FLAG)).select(ENERGY_ORDER)
+    sums = pl.concat(totals, rechunk=False).with_columns(pl.lit(True).alias(TOTAL_FLAG))
+    sums = sums.select(ENERGY_ORDER)
     at = np.cumsum([0, *(t.height for t in totals)])
     out = {}
     for i, (r, mine) in enumerate(spans.items()):
-        total: pl.DataFrame | None = sums.slice(int(at[i]), totals[i].height)
-        frames = []
-        for b in sorted(mine):
-            if b >= "total" and total is not None:  # the sum's rows before a body named total
-                frames.append(total)
-                total = None
-            first, end = mine[b]
-            frames.append(every.slice(first, end - first))
-        if total is not None:
-            frames.append(total)
-        out[r] = pl.concat(frames, rechunk=False)
+        # by name, the sum's rows before a body named "total"
+        parts = {(b, True): every.slice(first, end - first) for b, (first, end) in mine.items()}
+        parts["total", False] = sums.slice(int(at[i]), totals[i].height)
+        out[r] = pl.concat([parts[k] for k in sorted(parts)], rechunk=False)
     return out
 
 
