@@ -192,12 +192,10 @@ def summary_figure_jobs(
 
 def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
     """Whether any of the runs has two complete bounces: a decay needs two heights."""
-    if bounces.is_empty() or "complete" not in bounces.columns:
+    if "complete" not in bounces.columns:
         return False
     done = bounces.filter(pl.col("complete") & pl.col("run_id").is_in(run_ids))
-    if done.is_empty():
-        return False
-    return int(done.group_by("run_id", "body").len()["len"].to_numpy().max()) >= 2
+    return bool((done.group_by("run_id", "body").len()["len"] >= 2).any())
 
 
 def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float]]:
