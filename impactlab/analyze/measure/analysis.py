@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.bounces import TARGET_SCHEMA, bounces, no_bounce_rows
+from impactlab.analyze.measure.bounces import TARGET_SCHEMA, bounces
 from impactlab.analyze.measure.collisions import (
     COLLISION_SCHEMA,
     collisions,
@@ -334,7 +334,9 @@ def _with_no_bounce_rows(
         )
         for run, name in missing
     ]
-    return pl.concat([bnc, no_bounce_rows(reasons)]).sort("run_id", maintain_order=True)
+    rows = pl.DataFrame(reasons, schema=["run_id", "body", "note"], orient="row")
+    rows = rows.with_columns(complete=pl.lit(False))  # body and reason only
+    return pl.concat([bnc, rows], how="diagonal").sort("run_id", maintain_order=True)
 
 
 def no_bounce_reason(first: dict[str, Any] | None, states: pl.DataFrame) -> str:

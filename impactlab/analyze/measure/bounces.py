@@ -190,13 +190,3 @@ def note() -> pl.Expr:
         .then(pl.lit("the log ends before the apex after this bounce"))
         .otherwise(pl.lit(""))
     )
-
-
-def no_bounce_rows(reasons: list[tuple[str, str, str]]) -> pl.DataFrame:
-    """Rows for bodies without any bounce, from (run_id, body, reason): body and reason only."""
-    rows = [
-        {k: None for k in BOUNCE_SCHEMA}
-        | {"run_id": run_id, "body": body, "complete": False, "note": why}
-        for run_id, body, why in reasons
-    ]
-    return pl.DataFrame(rows, schema=BOUNCE_SCHEMA)
