@@ -35,7 +35,9 @@ def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
     """
     if a.energy_logged != (0, 0) or not a.energy.height:
         return a
-    blocks = _body_key(a.energy).rle()
+    # each row's body, null on the rows of the run's sum (a body may be named "total")
+    body = a.energy.select(pl.when(pl.col("is_total")).then(None).otherwise(pl.col("body")))
+    blocks = body.to_series().rle()
     lengths = blocks.struct.field("len").to_numpy().astype(np.int64)
     if len(set(blocks.struct.field("value").to_list())) != lengths.size:  # not by body
         longest = int(a.energy.group_by("body", "is_total").len()["len"].to_numpy().max())
@@ -49,8 +51,3 @@ def with_decimated_energy(a: RunAnalysis) -> RunAnalysis:
         keep = (at % np.repeat(k, lengths) == 0) | (at == np.repeat(lengths, lengths) - 1)
         energy = a.energy.filter(pl.Series(keep))
     return dataclasses.replace(a, energy=energy, energy_logged=(a.energy.height, longest))
-
-
-def _body_key(energy: pl.DataFrame) -> pl.Series:
-    """Each row's body, null on the rows of the run's sum (a body may be named "total")."""
-    return energy.select(pl.when(pl.col("is_total")).then(None).otherwise(pl.col("body")))[:, 0]
