@@ -1,12 +1,5 @@
-"""Analyze many logs: in batches here, or one task per batch of logs on an executor.
-
-The logs of a batch are analyzed together (`analysis.analyze_runs`: the small tables of
-all its runs in one set of frame operations). Each log gives its `RunAnalysis` (tables and
-metadata; on an executor without the bulky frames, see `slim`) or the reason it could not
-be read. The driver reduces the results
-into the output tables either way, so the results do not depend on where the logs were
-analyzed.
-"""
+"""Analyze many logs in batches (`analysis.analyze_runs`), here or one task per batch on an
+executor: each log gives its `RunAnalysis`, slim, or why not; the results do not depend on where."""
 
 from __future__ import annotations
 

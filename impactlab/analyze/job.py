@@ -1,10 +1,5 @@
-"""The analysis job: logs -> every run analyzed -> tables (and, when asked, files).
-
-Each unreadable input is reported (a progress line at level "error") and the others are
-still analyzed. The files are written into a staging folder and published as a set when all
-are written (`publish`): an interrupted analysis leaves the previous results as they were,
-and a new one removes the files of the previous one that it does not write again.
-"""
+"""The analysis job: logs -> every run analyzed -> tables (and, when asked, files published as
+one set: `publish`, docs/reliability.md)."""
 
 from __future__ import annotations
 
