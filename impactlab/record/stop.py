@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -42,11 +43,6 @@ class Verdict:
     reason: str
 
 
-class _Rule:
-    def update(self, chunk: Chunk) -> Verdict | None:
-        raise NotImplementedError
-
-
 def _first(mask: np.ndarray) -> int | None:
     idx = np.flatnonzero(mask)
     return int(idx[0]) if idx.size else None
@@ -59,20 +55,17 @@ def _touching(chunk: Chunk, contacts: np.ndarray) -> np.ndarray:
     return touching
 
 
-@dataclass
-class _Finite(_Rule):
-    def update(self, chunk: Chunk) -> Verdict | None:
-        rows, step0 = chunk.rows, chunk.step0
-        bad = _first(~np.isfinite(rows).all(axis=1))
-        if bad is None:
-            return None
-        return Verdict(
-            step0 + bad - 1, "unstable", f"state became non-finite at step {step0 + bad}"
-        )
+def _finite(chunk: Chunk) -> Verdict | None:
+    """Unstable when a row holds a non-finite value: the step before it is the last kept."""
+    bad = _first(~np.isfinite(chunk.rows).all(axis=1))
+    if bad is None:
+        return None
+    step = chunk.step0 + bad
+    return Verdict(step - 1, "unstable", f"state became non-finite at step {step}")
 
 
 @dataclass
-class _Bounces(_Rule):
+class _Bounces:
     """Stop at the apex after the N-th bounce of every free body that lands on the ground.
 
     A bounce is an episode of the body with a ground surface that arrived at an impact speed
@@ -119,7 +112,7 @@ class _Bounces(_Rule):
 
 
 @dataclass
-class _AtRest(_Rule):
+class _AtRest:
     """Stop once every body is slower than `speed` for `steps` consecutive steps."""
 
     speed: float
@@ -149,7 +142,7 @@ class _AtRest(_Rule):
 
 
 @dataclass
-class _Separated(_Rule):
+class _Separated:
     """Stop once two bodies have touched and their surfaces are `gap_m` apart again.
 
     `gap_cols`: per pair of bodies, the columns of MuJoCo's distance sensors between their
@@ -176,7 +169,7 @@ class _Separated(_Rule):
 
 
 @dataclass
-class _Residual(_Rule):
+class _Residual:
     """Unstable when the integrator makes energy: in one step, the residual (the change of
     the budget's energy, MuJoCo's kinetic energy plus the bodies' gravitational potential
     energy, minus the work of every other force, `impactlab.record.budget`) rises above its
@@ -234,7 +227,7 @@ class _Residual(_Rule):
 
 
 @dataclass
-class _Penetration(_Rule):
+class _Penetration:
     """Unstable when a contact of a ball penetrates deeper than a fraction of its radius
     (`bounds_m`: per party, the bound; inf for parties without a radius) beyond the depth
     its two parties had at the start (a model may start with bodies overlapping: MuJoCo
@@ -273,64 +266,49 @@ class StopMonitor:
 
     def __init__(self, inst: InstrumentedModel, stop: Stop | None, *, timestep: float) -> None:
         stop = Stop.model_construct() if stop is None else stop  # none: the default bounds
-        self.rules: list[_Rule] = [_Finite()]
-        model = inst.model
+        model, nbody = inst.model, len(inst.bodies)
         g = gravity(model)
         mass = float(sum(b.mass for b in inst.bodies))
-        self.rules.append(
-            _Residual(
-                kinetic_adr=inst.energy_adr + 1,
-                pos_adr=[b.adr for b in inst.bodies],
-                weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
-                fraction=stop.max_energy_gain,
-                timestep=timestep,
-                in_play=max(0.1 * mass * math.hypot(*g), 1e-6),  # 0.1 m of weight; no overflow
-            )
+        residual = _Residual(
+            kinetic_adr=inst.energy_adr + 1,
+            pos_adr=[b.adr for b in inst.bodies],
+            weights=np.array([-b.mass * g for b in inst.bodies]).reshape(-1, 3),
+            fraction=stop.max_energy_gain,
+            timestep=timestep,
+            in_play=max(0.1 * mass * math.hypot(*g), 1e-6),  # 0.1 m of weight; no overflow
         )
+        self.rules: list[Callable[[Chunk], Verdict | None]] = [_finite, residual.update]
         bounds = np.full(len(inst.party_names), np.inf)
-        for i, b in enumerate(inst.bodies):
-            if b.radius:
-                bounds[i] = stop.max_penetration * b.radius
+        bounds[:nbody] = [
+            stop.max_penetration * b.radius if b.radius else np.inf for b in inst.bodies
+        ]
         if np.isfinite(bounds).any():
-            self.rules.append(_Penetration(bounds, timestep))
-        nbody = len(inst.bodies)
+            self.rules.append(_Penetration(bounds, timestep).update)
         ground = [g for g in range(model.ngeom) if inst.party[g] >= nbody]  # static geoms
         if stop.bounces is not None:
+            own = [np.flatnonzero(inst.party[: model.ngeom] == i).tolist() for i in range(nbody)]
             free = [
                 i
                 for i, b in enumerate(inst.bodies)
                 if b.motion == "free"
-                and any(
-                    can_collide(model, g, s)
-                    for g in range(model.ngeom)
-                    if inst.party[g] == i
-                    for s in ground
-                )
+                and any(can_collide(model, a, s) for a in own[i] for s in ground)
             ]
-            self.rules.append(
-                _Bounces(
-                    n=stop.bounces,
-                    bodies=free,
-                    vel_adr=[inst.bodies[i].adr + 7 for i in free],
-                    surfaces={nbody + g for g in ground},  # their parties
-                    up=up_vector(model),
-                    v_min=min_impact_speed(float(np.linalg.norm(g)), timestep),
-                )
+            bounces = _Bounces(
+                n=stop.bounces,
+                bodies=free,
+                vel_adr=[inst.bodies[i].adr + 7 for i in free],
+                surfaces={nbody + g for g in ground},  # their parties
+                up=up_vector(model),
+                v_min=min_impact_speed(float(np.linalg.norm(g)), timestep),
             )
+            self.rules.append(bounces.update)
         if stop.at_rest:
-            self.rules.append(
-                _AtRest(
-                    speed=stop.rest_speed,
-                    steps=max(1, round(stop.rest_time / timestep)),
-                    vel_cols=[b.adr + 7 for b in inst.bodies],
-                )
-            )
+            steps = max(1, round(stop.rest_time / timestep))
+            at_rest = _AtRest(stop.rest_speed, steps, vel_cols=[b.adr + 7 for b in inst.bodies])
+            self.rules.append(at_rest.update)
         if stop.separation is not None and inst.gaps:
-            self.rules.append(
-                _Separated(
-                    gap_m=stop.separation, gap_cols=[list(g.adrs) for g in inst.gaps], nbody=nbody
-                )
-            )
+            gap_cols = [list(c.adrs) for c in inst.gaps]
+            self.rules.append(_Separated(stop.separation, gap_cols, nbody).update)
 
     def update(
         self,
@@ -345,5 +323,5 @@ class StopMonitor:
         return the earliest verdict, if any rule fired."""
         inside = contacts.take(contacts.step < rows.shape[0])
         chunk = Chunk(rows, step0, inside, episodes.sides(inside), released, work)
-        verdicts = [v for rule in self.rules if (v := rule.update(chunk)) is not None]
+        verdicts = [v for rule in self.rules if (v := rule(chunk)) is not None]
         return min(verdicts, key=lambda v: v.last_step) if verdicts else None
