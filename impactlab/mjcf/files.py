@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     import mujoco
 
 MAX_INCLUDES = 1000  # files of one model: more is a loop or not a model
+_TAG = re.compile(rb"""<(?:[^>"']|"[^"]*"|'[^']*')*>""")  # a tag, quoted values skipped
 _DECLARED = re.compile(rb"^\s*<\?xml[^>]*encoding\s*=\s*[\"']([A-Za-z0-9._-]+)[\"']")
 
 
@@ -41,9 +42,8 @@ def encoding(raw: bytes, source: str = "") -> str:
     """
     if raw.startswith(codecs.BOM_UTF8):
         return "utf-8-sig"
-    for bom, name in ((codecs.BOM_UTF16_LE, "utf-16"), (codecs.BOM_UTF16_BE, "utf-16")):
-        if raw.startswith(bom):
-            return name
+    if raw.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE)):
+        return "utf-16"
     m = _DECLARED.match(raw)
     if m is None:
         return "utf-8"
@@ -94,7 +94,8 @@ def elements(raw: bytes, source: str) -> list[Element]:
     def end(name: str) -> None:
         _, begin, attrs = stack.pop()
         here = parser.CurrentByteIndex  # the end tag, or what follows an empty element
-        head = tag_end(raw, begin)
+        tag = _TAG.match(raw, begin)  # expat read the tag: it matches
+        head = tag.end() if tag else len(raw)
         empty = raw[head - 2 : head] == b"/>"
         stop = head if empty else raw.index(b">", here) + 1
         parent = stack[-1][0] if stack else ""
@@ -144,20 +145,6 @@ def _lenient(raw: bytes) -> list[tuple[str, dict[str, str]]] | None:
         ("include", {"file": m.group(2).decode("utf-8", "replace")})
         for m in _INCLUDE.finditer(text)
     ]
-
-
-def tag_end(raw: bytes, begin: int) -> int:
-    """End (exclusive) of the tag starting at `begin`, skipping quoted attribute values."""
-    quote = None
-    for i in range(begin, len(raw)):
-        c = raw[i : i + 1]
-        if quote:
-            quote = None if c == quote else quote
-        elif c in (b'"', b"'"):
-            quote = c
-        elif c == b">":
-            return i + 1
-    raise ValueError("the XML ends inside a tag")  # expat read the tag: never
 
 
 def included_files(path: Path) -> list[Path]:
