@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 from impactlab.errors import SpecError
 from impactlab.mjcf.files import elements, encoding
@@ -22,37 +21,13 @@ def quoteattr(value: str) -> str:
     return '"' + text.replace('"', "&quot;") + '"'
 
 
-@dataclass
-class _Layout:
-    """Where things are in the model's bytes: the root's end tag (None when it has none), the
-    first top-level ``<contact>`` (start, end, empty), each ``<pair>`` in a ``<contact>``."""
-
-    root_end: int | None = None
-    contact: tuple[int, int, bool] | None = None
-    pairs: list[tuple[frozenset[str], int, int, dict[str, str]]] = field(default_factory=list)
-
-
-def _layout(raw: bytes, source: str) -> _Layout:
-    layout = _Layout()
-    found = elements(raw, source)
-    for e in found:
-        if e.name == "mujoco" and not e.parent and not e.empty:
-            layout.root_end = e.close
-        elif e.name == "contact" and e.parent == "mujoco" and layout.contact is None:
-            layout.contact = (e.start, e.stop if e.empty else e.close, e.empty)
-        elif e.name == "pair" and e.parent == "contact":
-            geoms = frozenset((e.attrs.get("geom1", ""), e.attrs.get("geom2", "")))
-            layout.pairs.append((geoms, e.start, e.stop, e.attrs))
-    return layout
-
-
 def _indent(raw: bytes, pos: int) -> bytes:
     line_start = raw.rfind(b"\n", 0, pos) + 1
     prefix = raw[line_start:pos]
     return prefix if not prefix.strip() else b""
 
 
-def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]], source: str) -> bytes:
+def with_pairs(raw: bytes, new_pairs: Sequence[tuple[str, str, str]], source: str) -> bytes:
     """The model's bytes with a ``<pair>`` element per (geom1, geom2, element) added (each
     pair of geoms given once).
 
@@ -68,35 +43,40 @@ def with_pairs(raw: bytes, elements: Sequence[tuple[str, str, str]], source: str
     if "<".encode(charset, errors="replace") != b"<":
         raise SpecError(source, "", f"the model is {charset} text: save it as UTF-8")
     nl = b"\r\n" if b"\r\n" in raw else b"\n"
-    layout = _layout(raw, source)
-    if layout.root_end is None:
+    found = elements(raw, source)
+    root = next((e for e in found if e.name == "mujoco" and not e.parent and not e.empty), None)
+    contact = next((e for e in found if e.name == "contact" and e.parent == "mujoco"), None)
+    pairs = [e for e in found if e.name == "pair" and e.parent == "contact"]
+    if root is None:
         raise SpecError(source, "", "the model has no <mujoco> root element with an end tag")
     edits: list[tuple[int, int, bytes]] = []
     new: list[bytes] = []
-    for g1, g2, element in elements:
-        match = [p for p in layout.pairs if p[0] == frozenset((g1, g2))]
+    for g1, g2, element in new_pairs:
+        match = [
+            p for p in pairs if {p.attrs.get("geom1", ""), p.attrs.get("geom2", "")} == {g1, g2}
+        ]
         if match:
-            _, start, stop, attrs = match[0]
+            start, stop, attrs = match[0].start, match[0].stop, match[0].attrs
             if attrs.get("geom1") == g2:  # keep the pair's order (the normal's direction)
                 names = f"geom1={quoteattr(g1)} geom2={quoteattr(g2)}"
                 element = element.replace(names, f"geom1={quoteattr(g2)} geom2={quoteattr(g1)}")
             if "name" in attrs:  # keep the pair's name: other elements may refer to it
                 element = element.replace("<pair ", f"<pair name={quoteattr(attrs['name'])} ", 1)
             edits += [(start, stop, _encode(element, charset, source))]
-            edits += [(start, stop, b"") for _, start, stop, _ in match[1:]]
+            edits += [(p.start, p.stop, b"") for p in match[1:]]
         else:
             new.append(_encode(element, charset, source))
     if new:
-        if layout.contact is not None:
-            start, end, empty = layout.contact
-            indent = _indent(raw, start)
+        if contact is not None:
+            indent = _indent(raw, contact.start)
             body = b"".join(nl + indent + b"  " + e for e in new)
-            if empty:
-                edits.append((start, end, b"<contact>" + body + nl + indent + b"</contact>"))
+            if contact.empty:
+                end_tag = nl + indent + b"</contact>"
+                edits.append((contact.start, contact.stop, b"<contact>" + body + end_tag))
             else:
-                edits.append(_insert_before(raw, end, new, nl))
+                edits.append(_insert_before(raw, contact.close, new, nl))
         else:
-            end = layout.root_end
+            end = root.close
             inner = b"  "
             block = b"<contact>" + b"".join(nl + inner * 2 + e for e in new)
             block += nl + inner + b"</contact>" + nl
