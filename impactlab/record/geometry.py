@@ -72,16 +72,12 @@ def rigid_bodies(model: mujoco.MjModel, data: mujoco.MjData) -> list[RigidBody]:
             members.setdefault(root, []).append(b)
     out = []
     for root, bodies in members.items():
-        mass = np.array([model.body_mass[b] for b in bodies])
+        mass, xs = model.body_mass[bodies], data.xipos[bodies]
         total = float(mass.sum())
-        xs = np.array([data.xipos[b] for b in bodies])
         com = mass @ xs / total if total > 0 else data.xipos[root].copy()
-        tensor = np.zeros((3, 3))
-        for b, m, x in zip(bodies, mass, xs, strict=True):
-            rot = data.ximat[b].reshape(3, 3)
-            r = x - com
-            tensor += rot @ np.diag(model.body_inertia[b]) @ rot.T
-            tensor += m * (r @ r * np.eye(3) - np.outer(r, r))
+        rot, r = data.ximat[bodies].reshape(-1, 3, 3), xs - com
+        tensor = np.einsum("bij,bj,bkj->ik", rot, model.body_inertia[bodies], rot)  # own
+        tensor += (mass @ (r * r).sum(axis=1)) * np.eye(3) - np.einsum("b,bi,bj->ij", mass, r, r)
         moments, axes = np.linalg.eigh(tensor)
         if len(bodies) == 1:  # MuJoCo's own principal frame, exactly
             moments, axes = model.body_inertia[root].copy(), data.ximat[root].reshape(3, 3)

@@ -48,7 +48,6 @@ class BodyChannel:
     """
 
     name: str
-    body_id: int
     adr: int
     radius: float | None
     shape: str = "sphere"
@@ -278,7 +277,6 @@ def instrument(
         bodies.append(
             BodyChannel(
                 name,
-                r.root,
                 adr(f"{name}:framepos"),
                 geometry.sphere_radius(plain, data, com, mine),
                 geometry.shape_name(plain, mine),

@@ -278,8 +278,6 @@ def checked(schema: type[S], doc: Mapping[str, Any], source: str) -> S:
 
 def plain_copy(value: Any) -> Any:
     """A copy of a document of tables, lists and scalars (much faster than `copy.deepcopy`)."""
-    if isinstance(value, dict):
-        return {k: plain_copy(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
         return [plain_copy(v) for v in value]
     if isinstance(value, Mapping):

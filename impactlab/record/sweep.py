@@ -127,10 +127,8 @@ WORK_FIELDS = ("options.timestep", "stop.max_time", "logging.every")
 
 
 def _get(doc: Mapping[str, Any], path: str) -> Any:
-    node: Any = doc
-    for key in path.split("."):
-        node = node.get(key) if isinstance(node, Mapping) else None
-    return node
+    section, key = path.split(".")  # a section of a merged document is a table
+    return doc[section].get(key)
 
 
 def _positive(value: Any) -> bool:
