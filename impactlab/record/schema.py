@@ -369,10 +369,6 @@ SECTIONS: Mapping[str, type[Section]] = {
 def defaults(section: type[Section]) -> dict[str, Any]:
     """A section's default values as a spec document holds them (lists, not tuples);
     required fields are left out."""
-    out = {}
-    for name, info in section.model_fields.items():
-        if info.is_required():
-            continue
-        value = info.get_default(call_default_factory=True)
-        out[name] = list(value) if isinstance(value, tuple) else value
-    return out
+    fields = section.model_fields.items()
+    values = {k: f.get_default(call_default_factory=True) for k, f in fields if not f.is_required()}
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}

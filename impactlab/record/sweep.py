@@ -49,7 +49,7 @@ def parse_override(text: str, source: str = "--set") -> tuple[str, Any]:
 
 def load_runs(path: Path, overrides: Sequence[str] = ()) -> list[RunSpec]:
     """Read a spec file and return its runs, validated, with overrides applied."""
-    return SpecSweep.read(path, overrides).runs()
+    return list(SpecSweep.read(path, overrides).iter_runs())
 
 
 @dataclass(frozen=True)
@@ -98,10 +98,6 @@ class SpecSweep:
             steps = run_steps(float(max_time), float(dt))
             total += Work.of_runs(others, steps, int(every), len(self.doc["bodies"]))
         return total
-
-    def runs(self) -> list[RunSpec]:
-        """Every run of the sweep, validated."""
-        return list(self.iter_runs())
 
     def iter_runs(self) -> Iterator[RunSpec]:
         """Every run of the sweep, validated one at a time (a large sweep is never held)."""

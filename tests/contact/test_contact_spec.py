@@ -54,7 +54,7 @@ def doc(base: dict, **changes) -> dict:
 
 
 def pairs(document: dict):
-    (run,) = SpecSweep.of(document, "<test>").runs()
+    (run,) = SpecSweep.of(document, "<test>").iter_runs()
     return {f"{p.geom1}/{p.geom2}": p.params for p in calibrated_pairs(run)}
 
 

@@ -57,7 +57,7 @@ def test_runs_read_by_index_equal_the_runs_in_order(tmp_path):
     path = _spec(tmp_path, 4)
     runs = plan(path)
     listed = list(runs)
-    assert [r.spec for r in listed] == SpecSweep.read(path).runs()  # the grid's order
+    assert [r.spec for r in listed] == list(SpecSweep.read(path).iter_runs())  # the grid's order
     assert [runs[i] for i in range(len(runs))] == listed
     assert runs[-1] == listed[-1] and runs[2:5] == listed[2:5]
     assert len({r.info.run_id for r in listed}) == 12
