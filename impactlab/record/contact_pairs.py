@@ -39,7 +39,6 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
             timestep does not resolve the contact.
     """
     con = run.contact
-    per_pair = dict(con.pairs or {})
     g_down = max(-float(run.options.gravity[2]), 0.0)  # the plane's normal is +z
     out = []
     candidates: list[tuple[str, Body, Body | None]] = []
@@ -48,17 +47,17 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     candidates += [(a.name, b, a) for a, b in itertools.combinations(run.bodies, 2)]
     for geom1, body, other in candidates:
         key = "/".join(sorted((geom1, body.name)))
-        own = per_pair.get(key, ContactTarget())
+        own = con.pairs.get(key, ContactTarget())
         e = con.restitution if own.restitution is None else own.restitution
         if e is None:
-            if key in per_pair:
+            if key in con.pairs:
                 raise SpecError(
                     run.source,
                     f"contact.pairs.{key}",
                     "no restitution for this pair (give it here or in [contact])",
                 )
             continue
-        where = f"contact.pairs.{key}" if key in per_pair else "contact"
+        where = f"contact.pairs.{key}" if key in con.pairs else "contact"
         field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
         if other is None:
             radius, g_normal, speed = body.radius, g_down, _plane_impact(body, g_down)
@@ -76,10 +75,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
             )
         else:
             speeds = default_speed_range(speed, e, g_normal, run.stop, body)
-        if own.duration is not None or own.max_penetration is not None:
-            duration, max_pen = own.duration, own.max_penetration
-        else:
-            duration, max_pen = con.duration, con.max_penetration
+        stiffness = own if own.duration is not None or own.max_penetration is not None else con
         try:
             params = _calibrated(
                 e,
@@ -87,8 +83,8 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 tuple(speeds),
                 run.options.timestep,
                 run.options.integrator,
-                duration,
-                max_pen,
+                stiffness.duration,
+                stiffness.max_penetration,
                 g_normal,
                 con.allow_coarse_timestep,
             )
