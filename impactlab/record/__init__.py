@@ -117,25 +117,17 @@ def record(
     from impactlab.executors.choose import executor_for
     from impactlab.files import OutputError
     from impactlab.progress import reporter
-    from impactlab.record.planner import PlannedRun
-    from impactlab.record.planner import plan as plan_runs
+    from impactlab.record.planner import PlannedRun, PlannedRuns
     from impactlab.record.recorder import record_runs
 
     if not str(out).strip():
         raise OutputError(str(out), "the output folder must not be empty (for this folder: '.')")
-    from impactlab.record.planner import PlannedRuns
-
     items = [] if isinstance(inputs, PlannedRuns) else _items(inputs)
-    runs: Sequence[PlannedRun] | None = inputs if isinstance(inputs, PlannedRuns) else None
-    if items and all(isinstance(r, PlannedRun) for r in items):
-        runs = items
-    if runs is None:
-        runs = plan_runs(
-            items,
-            overrides=overrides,
-            duration=duration,
-            allow_large=allow_large,
-        )
+    runs: Sequence[PlannedRun] = items
+    if isinstance(inputs, PlannedRuns):
+        runs = inputs
+    elif not items or not all(isinstance(r, PlannedRun) for r in items):
+        runs = plan(items, overrides=overrides, duration=duration, allow_large=allow_large)
     with executor_for(executor) as chosen, reporter(progress, verbose) as shown:
         return record_runs(
             runs,
