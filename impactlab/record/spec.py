@@ -152,24 +152,18 @@ def value_fields(doc: Mapping[str, Any], schema: type[Section] = SpecDocument) -
     return dict(walk(schema, ""))
 
 
-def resolve_path(doc: Mapping[str, Any], path: str) -> list[str]:
-    """Split a dotted path and resolve the body shorthand (`ball.mass` -> `bodies.ball.mass`)."""
-    keys = path.split(".")
-    if keys[0] not in doc and keys[0] in doc.get("bodies", {}):
-        keys = ["bodies", *keys]
-    return keys
-
-
 def check_path(
     doc: Mapping[str, Any], path: str, source: str, schema: type[Section] = SpecDocument
 ) -> tuple[list[str], Any]:
     """The resolved keys of a dotted path that names a value of `doc` (of `schema`), and its
-    type.
+    type (`ball.mass` resolves to `bodies.ball.mass`).
 
     Raises:
         SpecError: the path names nothing, or a table (set its fields instead).
     """
-    keys = resolve_path(doc, path)
+    keys = path.split(".")
+    if keys[0] not in doc and keys[0] in doc.get("bodies", {}):  # `ball.mass`: a body's
+        keys = ["bodies", *keys]
     bodies = list(doc.get("bodies", {}))
     if keys[0] == "bodies" and len(keys) > 1 and keys[1] not in bodies:
         hint = did_you_mean(keys[1], bodies)
