@@ -7,6 +7,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+from impactlab.show import count, html_table, where
+
 
 @dataclass(frozen=True, slots=True)
 class RecordedRun:
@@ -101,15 +103,32 @@ class RecordResult(list[RecordedRun]):
         return 1 if self.failed or self.unstable else 0
 
     def __repr__(self) -> str:
-        from impactlab.record.view import record_repr
-
-        return record_repr(self)
+        """`<RecordResult 3 runs: 2 recorded, 1 reused, logs/>` (unstable and failed counted)."""
+        kinds = ("recorded", "reused", "unstable", "failed")
+        parts = [f"{len(getattr(self, k)):,} {k}" for k in kinds if getattr(self, k)]
+        folders = {r.path.parent for r in self}
+        head = count(len(self), "run") + (f": {', '.join(parts)}" if parts else "")
+        folder = f", {where(next(iter(folders))) if len(folders) == 1 else 'several folders'}"
+        return f"<RecordResult {head}{folder if folders else ''}>"
 
     def _repr_html_(self) -> str:
-        """A small table for notebooks: one row per run (`impactlab.record.view`)."""
-        from impactlab.record.view import record_html
-
-        return record_html(self)
+        """A small table for notebooks, one row per run: its status, outcome and why,
+        simulated time, steps, log file."""
+        rows = [
+            [
+                r.run_id,
+                r.status,
+                r.outcome,
+                r.reason,
+                r.t_end_s or None,
+                r.steps or None,
+                r.path.name,
+            ]
+            for r in self[:30]
+        ]
+        headers = ["run", "status", "outcome", "why", "t end (s)", "steps", "log"]
+        caption = repr(self).strip("<>")
+        return html_table(headers, rows, caption=caption, total=len(self), unit="runs")
 
     def summary(self, out_dir: Path) -> str:
         """One line for people: how many runs were written, unstable, failed."""

@@ -81,9 +81,9 @@ class SpecSweep:
     def work(self) -> Work:
         """The work its runs ask for at most, without expanding the sweep."""
         varied = [k for k in WORK_FIELDS if k in self.sweep]
-        if len(self) > MAX_RUNS or math.prod(len(self.sweep[k]) for k in varied) > MAX_RUNS:
+        if len(self) > MAX_RUNS:  # every list of values holds one at least (`check_sweep`)
             return Work(runs=len(self))  # refused on its count alone
-        others = len(self) // max(1, math.prod(len(self.sweep[k]) for k in varied))
+        others = len(self) // math.prod(len(self.sweep[k]) for k in varied)
         total = Work()
         for point in itertools.product(*(self.sweep[k] for k in varied)):
             values = dict(zip(varied, point, strict=True))
