@@ -126,13 +126,8 @@ class _AtRest:
         for c in self.vel_cols:
             slow &= np.linalg.norm(rows[:, c : c + 3], axis=1) < self.speed
         # length of the run of slow steps ending at each row, continuing the previous chunk's
-        breaks = np.flatnonzero(~slow)
         idx = np.arange(slow.size)
-        last_break = np.full(slow.size, -1 - self.run)
-        if breaks.size:
-            marks = np.full(slow.size, -1 - self.run)
-            marks[breaks] = breaks
-            last_break = np.maximum.accumulate(marks)
+        last_break = np.maximum.accumulate(np.where(slow, -1 - self.run, idx))
         length = idx - last_break
         hit = _first(length >= self.steps)
         self.run = int(length[-1])
