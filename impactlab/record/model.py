@@ -94,10 +94,8 @@ class InstrumentedModel:
 
     def initial_state(self) -> np.ndarray:
         """Full physics state at the start of the run (the `initial` keyframe if any), (nstate,)."""
-        data = mujoco.MjData(self.model)
-        if self.keyframe is None:
-            mujoco.mj_resetData(self.model, data)
-        else:
+        data = mujoco.MjData(self.model)  # reset: the model's default pose
+        if self.keyframe is not None:
             mujoco.mj_resetDataKeyframe(self.model, data, self.keyframe)
         kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
         state = np.empty(mujoco.mj_stateSize(self.model, kind))
