@@ -43,14 +43,7 @@ def unit(symbol: str) -> Any:
     return Field(json_schema_extra={"unit": symbol})
 
 
-def _finite_number(value: Any) -> Any:
-    # bool is an int subclass: TOML's true is not a number here
-    if isinstance(value, bool):
-        raise problem(f"must be a number, got {value!r}")
-    return value
-
-
-Number = Annotated[float, Field(strict=True, allow_inf_nan=False), BeforeValidator(_finite_number)]
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]  # strict: true is no number
 Positive = Annotated[Number, Field(gt=0)]
 NonNegative = Annotated[Number, Field(ge=0)]
 Fraction = Annotated[Number, Field(ge=0, le=1)]
