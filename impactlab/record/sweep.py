@@ -28,10 +28,9 @@ from impactlab.record.work import MAX_RUNS, Work, run_steps
 def parse_override(text: str, source: str = "--set") -> tuple[str, Any]:
     """Parse `PATH=VALUE` where VALUE is a TOML value (bare words are taken as strings)."""
     if "\n" in text or "\r" in text:
-        shown = text.splitlines()[0] if text.splitlines() else ""
         raise SpecError(
             source,
-            shown,
+            text.splitlines()[0],  # a text with a line break has one line at least
             "holds a line break: give one PATH=VALUE per --set (a TOML value on one line)",
         )
     path, sep, raw = text.partition("=")
