@@ -66,22 +66,20 @@ def with_pairs(raw: bytes, new_pairs: Sequence[tuple[str, str, str]], source: st
             edits += [(p.start, p.stop, b"") for p in match[1:]]
         else:
             new.append(_encode(element, charset, source))
-    if new:
-        if contact is not None:
-            indent = _indent(raw, contact.start)
-            body = b"".join(nl + indent + b"  " + e for e in new)
-            if contact.empty:
-                end_tag = nl + indent + b"</contact>"
-                edits.append((contact.start, contact.stop, b"<contact>" + body + end_tag))
-            else:
-                edits.append(_insert_before(raw, contact.close, new, nl))
-        else:
-            end = root.close
-            inner = b"  "
-            block = b"<contact>" + b"".join(nl + inner * 2 + e for e in new)
-            block += nl + inner + b"</contact>" + nl
-            lead = b"" if _indent(raw, end) or raw[end - 1 : end] == b"\n" else nl
-            edits.append((end, end, lead + inner + block))
+    if new and contact is not None and contact.empty:
+        indent = _indent(raw, contact.start)
+        body = b"".join(nl + indent + b"  " + e for e in new)
+        edits.append(
+            (contact.start, contact.stop, b"<contact>" + body + nl + indent + b"</contact>")
+        )
+    elif new:  # before the end tag of the <contact>, or of the root in a new <contact>
+        at = root.close if contact is None else contact.close
+        lead = b"" if _indent(raw, at) or raw[at - 1 : at] == b"\n" else nl  # a line of its own
+        if contact is None:
+            lines, indent = [b"  <contact>", *(b"    " + e for e in new), b"  </contact>"], b""
+        else:  # one step deeper than the end tag's line
+            lines, indent = [b"  " + e for e in new], _indent(raw, at)
+        edits.append((at, at, lead + b"".join(line + nl + indent for line in lines)))
     out = raw
     for start, stop, data in sorted(edits, reverse=True):
         out = out[:start] + data + out[stop:]
@@ -95,15 +93,3 @@ def _encode(element: str, charset: str, source: str) -> bytes:
         raise SpecError(
             source, "", f"{element[:60]}...: a geom name cannot be written as {charset} text"
         ) from None
-
-
-def _insert_before(
-    raw: bytes, end: int, elements: list[bytes], nl: bytes
-) -> tuple[int, int, bytes]:
-    """Insert elements before a ``</contact>`` end tag, indented like the tag's line."""
-    line_start = raw.rfind(b"\n", 0, end) + 1
-    indent = raw[line_start:end]
-    if indent.strip():  # the end tag follows other content on its line
-        return end, end, b"".join(nl + b"  " + e for e in elements) + nl
-    inner = indent + b"  "
-    return line_start, line_start, b"".join(inner + e + nl for e in elements)
