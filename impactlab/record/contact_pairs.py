@@ -79,14 +79,14 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         try:
             params = _calibrated(
                 e,
-                radius,
-                tuple(speeds),
-                run.options.timestep,
-                run.options.integrator,
-                stiffness.duration,
-                stiffness.max_penetration,
-                g_normal,
-                con.allow_coarse_timestep,
+                radius_m=radius,
+                speed_range_mps=tuple(speeds),
+                timestep_s=run.options.timestep,
+                integrator=run.options.integrator,
+                duration_s=stiffness.duration,
+                max_penetration_m=stiffness.max_penetration,
+                gravity_mps2=g_normal,
+                allow_coarse=con.allow_coarse_timestep,
             )
         except ContactModelError as exc:
             raise SpecError(run.source, field, str(exc)) from None
@@ -94,32 +94,10 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
     return out
 
 
-@functools.lru_cache(maxsize=1024)
-def _calibrated(
-    e: float,
-    radius: float,
-    speeds: tuple[float, ...],
-    timestep: float,
-    integrator: str,
-    duration: float | None,
-    max_pen: float | None,
-    g_normal: float,
-    allow_coarse: bool,
-) -> ContactParams:
-    """`contact_params` once per process for the same arguments: a run's pairs are calibrated
-    when it is planned, again when the recorder reads the plan and when its model is built
-    (in a forked worker, which inherits what the parent calibrated)."""
-    return contact_params(
-        e,
-        radius_m=radius,
-        speed_range_mps=speeds,
-        timestep_s=timestep,
-        integrator=integrator,
-        duration_s=duration,
-        max_penetration_m=max_pen,
-        gravity_mps2=g_normal,
-        allow_coarse=allow_coarse,
-    )
+_calibrated = functools.lru_cache(maxsize=1024)(contact_params)
+"""`contact_params` once per process for the same arguments: a run's pairs are calibrated when
+it is planned, again when the recorder reads the plan and when its model is built (in a forked
+worker, which inherits what the parent calibrated)."""
 
 
 def default_speed_range(
