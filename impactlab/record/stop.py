@@ -230,21 +230,19 @@ class _Penetration:
 
     bounds_m: np.ndarray
     timestep: float
-    start: dict[tuple[int, int], float] | None = None  # deepest at step 0, per pair of parties
+    start: dict[int, float] | None = None  # deepest at step 0, per pair of parties (its key)
 
     def update(self, chunk: Chunk) -> Verdict | None:
         p1, p2 = chunk.sides
         depth, step = chunk.contacts.penetration, chunk.contacts.step
+        pairs = np.minimum(p1, p2) * len(self.bounds_m) + np.maximum(p1, p2)  # a key per pair
         if self.start is None:
             self.start = {}
-            for i in np.flatnonzero(step == 0) if chunk.step0 == 0 else []:
-                pair = (int(min(p1[i], p2[i])), int(max(p1[i], p2[i])))
-                self.start[pair] = max(self.start.get(pair, 0.0), float(depth[i]))
+            for i in np.flatnonzero((step == 0) & (chunk.step0 == 0)):
+                self.start[pairs[i]] = max(self.start.get(pairs[i], 0.0), float(depth[i]))
         bound = np.minimum(self.bounds_m[p1], self.bounds_m[p2])
         over = depth > bound
-        for i in np.flatnonzero(over):
-            pair = (int(min(p1[i], p2[i])), int(max(p1[i], p2[i])))
-            bound[i] += self.start.get(pair, 0.0)
+        bound[over] += [self.start.get(pair, 0.0) for pair in pairs[over]]
         over &= depth > bound
         if not over.any():
             return None
