@@ -188,25 +188,9 @@ def asset_files(spec: mujoco.MjSpec, path: Path) -> list[Path]:
     """The mesh, texture, height-field and skin files a parsed model (`MjSpec`) reads, in
     the order MuJoCo lists them, each once (paths as MuJoCo resolves them; they may be
     missing)."""
-    base = path.parent
-    out: list[Path] = []
-
-    def add(folder: str, file: str) -> None:
-        if file:
-            target = base / folder / file
-            if target not in out:
-                out.append(target)
-
-    for mesh in spec.meshes:
-        add(spec.meshdir, mesh.file)
-    for skin in spec.skins:
-        add(spec.meshdir, skin.file)
-    for hfield in spec.hfields:
-        add(spec.meshdir, hfield.file)
-    for texture in spec.textures:
-        for file in (texture.file, *texture.cubefiles):
-            add(spec.texturedir, file)
-    return out
+    files = [(spec.meshdir, e.file) for e in [*spec.meshes, *spec.skins, *spec.hfields]]
+    files += [(spec.texturedir, f) for t in spec.textures for f in (t.file, *t.cubefiles)]
+    return list(dict.fromkeys(path.parent / folder / file for folder, file in files if file))
 
 
 def check_not_input(out: Path, model: Path, spec: mujoco.MjSpec) -> None:
