@@ -92,9 +92,3 @@ class LocalExecutor:
 
     def close(self) -> None:
         pass
-
-    def __enter__(self) -> LocalExecutor:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
