@@ -69,6 +69,9 @@ MAIN_GUARD_HINT = (
     "script starts the work when imported: put the call under "
     '`if __name__ == "__main__":` (or use executor="local")'
 )
+NO_WORKERS = (
+    "impactlab: warning: cannot start worker processes (%s); running the tasks here, in one process"
+)
 TEST_SIGKILL_TASK = "IMPACTLAB_TEST_SIGKILL_TASK"
 """For tests only: the worker given the task of this index kills itself (SIGKILL)."""
 
@@ -165,10 +168,11 @@ class ProcessExecutor:
                 todo or any(w.task is not None or not w.ready for w in pool) or (mine and mine.busy)
             ):
                 self._grow(size, todo, _modules(fn))
-                if not pool:  # no worker can start: the rest here
+                if not pool:  # no worker can start: say so once, run the rest here from now
                     if mine is not None and mine.busy:
                         yield mine.finish()
-                    self._give_up()
+                    log.warning(NO_WORKERS, self._problem)
+                    self._failed_starts = MAX_FAILED_STARTS
                     yield from _here(fn, items, todo)
                     return
                 yield from self._feed(todo, fn, items)
@@ -216,15 +220,6 @@ class ProcessExecutor:
     def _failed_start(self, problem: str) -> None:
         self._failed_starts += 1
         self._problem = problem
-
-    def _give_up(self) -> None:
-        """No worker could start: say so; this executor runs its tasks here from now."""
-        self._failed_starts = MAX_FAILED_STARTS
-        log.warning(
-            "impactlab: warning: cannot start worker processes (%s); running the tasks here, "
-            "in one process",
-            self._problem,
-        )
 
     def _feed(
         self, todo: deque[int], fn: Callable[[Any], R], items: Sequence[Any]
