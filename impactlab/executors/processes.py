@@ -185,7 +185,7 @@ class ProcessExecutor:
                     continue  # every send failed: those workers are gone, start others
                 ready = wait(waiting)
                 news = [w for w in pool if w.conn in ready or w.process.sentinel in ready]
-                done = [o for worker in news for o in self._hear(worker, todo)]
+                done = [o for worker in news for o in self._hear(worker)]
                 done.extend(self._feed(todo, fn, items))  # before the caller takes the outcomes
                 if mine is not None and mine.reader in ready:
                     done.append(mine.finish())
@@ -242,7 +242,7 @@ class ProcessExecutor:
                     break
                 worker.task = index
 
-    def _hear(self, worker: _Worker, todo: deque[int]) -> Iterator[TaskOutcome[Any]]:
+    def _hear(self, worker: _Worker) -> Iterator[TaskOutcome[Any]]:
         """Take one message from a worker whose pipe or process has news."""
         try:
             message = worker.conn.recv() if worker.conn.poll() else None

@@ -8,7 +8,6 @@ import json
 import logging
 import os
 import shutil
-from collections import deque
 
 import paths
 import polars as pl
@@ -33,7 +32,7 @@ def warm(ex: ProcessExecutor) -> None:
     for worker in ex._pool:
         while not worker.ready:
             assert worker.conn.poll(120), "the worker did not start"
-            list(ex._hear(worker, deque()))
+            list(ex._hear(worker))
 
 
 def test_this_process_works_while_the_workers_start():
