@@ -173,7 +173,7 @@ class ProcessExecutor:
                         yield mine.finish()
                     log.warning(NO_WORKERS, self._problem)
                     self._failed_starts = MAX_FAILED_STARTS
-                    yield from _here(fn, items, todo)
+                    yield from (run_task(fn, items[i], i) for i in todo)
                     return
                 yield from self._feed(todo, fn, items)
                 if mine is not None and not mine.busy:
@@ -381,15 +381,6 @@ def _stop(process: BaseProcess, *, terminate: bool = True) -> None:
     if process.is_alive():
         process.kill()
         process.join()
-
-
-def _here(
-    fn: Callable[[Any], R], items: Sequence[Any], todo: deque[int]
-) -> Iterator[TaskOutcome[R]]:
-    """The tasks left in `todo` run in this process."""
-    while todo:
-        index = todo.popleft()
-        yield run_task(fn, items[index], index)
 
 
 def _modules(fn: Callable[..., Any]) -> tuple[str, ...]:
