@@ -44,12 +44,9 @@ def diff(
     Returns an `impactlab.tools.diff.LogDiff` (`.equal`, `.report()`, `.to_dict()`).
     """
     from impactlab.logs.load import RunLog, load_log
-    from impactlab.tools import DEFAULT_ATOL, DEFAULT_IGNORED_META, DEFAULT_RTOL
+    from impactlab.tools import DEFAULT_ATOL, DEFAULT_RTOL
     from impactlab.tools.diff import Tolerance, diff_logs
 
-    la = a if isinstance(a, RunLog) else load_log(a)
-    lb = b if isinstance(b, RunLog) else load_log(b)
-    tolerance = Tolerance(
-        atol=DEFAULT_ATOL if atol is None else atol, rtol=DEFAULT_RTOL if rtol is None else rtol
-    )
-    return diff_logs(la, lb, tolerance=tolerance, ignore_meta=DEFAULT_IGNORED_META)
+    la, lb = (log if isinstance(log, RunLog) else load_log(log) for log in (a, b))
+    atol, rtol = (DEFAULT_ATOL if atol is None else atol), (DEFAULT_RTOL if rtol is None else rtol)
+    return diff_logs(la, lb, tolerance=Tolerance(atol=atol, rtol=rtol))

@@ -17,7 +17,7 @@ def die_on(item: str) -> tuple[str, int]:
     return item, os.getpid()
 
 
-def serve_after_a_failed_start(conn, parent, inherited=None) -> None:
+def serve_after_a_failed_start(*args) -> None:
     """A worker's start that dies (SIGKILL) before the worker is up: the first time only when
     the environment names a marker file (made then), else every time."""
     marker = os.environ.get(MARKER)
@@ -25,6 +25,6 @@ def serve_after_a_failed_start(conn, parent, inherited=None) -> None:
         if marker is not None:
             Path(marker).touch()
         os.kill(os.getpid(), signal.SIGKILL)
-    from impactlab.executors.workers import serve
+    from impactlab.executors.processes import serve
 
-    serve(conn, parent, inherited)
+    serve(*args)

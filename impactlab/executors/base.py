@@ -71,6 +71,15 @@ def describe_error(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
+def run_task(fn: Callable[[Any], R], item: Any, index: int) -> TaskOutcome[R]:
+    """`fn(item)`'s outcome: its value, or the exception it raised (one failed item never
+    stops the others)."""
+    try:
+        return TaskOutcome(index, value=fn(item))
+    except Exception as exc:
+        return TaskOutcome(index, error=describe_error(exc), exception=exc)
+
+
 class LocalExecutor:
     """Items one after the other in this process (the functions use threads themselves)."""
 
@@ -79,18 +88,7 @@ class LocalExecutor:
 
     def map(self, fn: Callable[[Any], R], items: Sequence[Any]) -> Iterator[TaskOutcome[R]]:
         for i, item in enumerate(items):
-            try:
-                value = fn(item)
-            except Exception as exc:  # one failed item never stops the others
-                yield TaskOutcome(i, error=describe_error(exc), exception=exc)
-            else:
-                yield TaskOutcome(i, value=value)
+            yield run_task(fn, item, i)
 
     def close(self) -> None:
         pass
-
-    def __enter__(self) -> LocalExecutor:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -71,7 +71,7 @@ def log_run(
     scene = model_scene(run)
     logged = LoggedRun(run.run_id, prefix, list(run.bodies), label, bounds=scene_bounds(run, scene))
     rec.log(f"{prefix}/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    log_model(rec, run, scene, prefix, logged.bounds, body_colors(run))
+    log_model(rec, run, scene, prefix, logged.bounds)
     _log_bodies(rec, run, prefix, t_ns)
     _log_flexes(rec, run, scene, prefix, t_ns)
     _log_contacts(rec, run, prefix, t_ns)

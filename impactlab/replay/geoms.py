@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
@@ -13,6 +13,7 @@ from impactlab.logs.geoms import (
     PLANE_THICKNESS_M,
     GeomShape,
     ModelScene,
+    body_rgba,
     old_plane,
     read_scene,
 )
@@ -60,46 +61,28 @@ def log_model(
     scene: ModelScene,
     prefix: str,
     bounds: tuple[np.ndarray, np.ndarray],
-    colors: dict[str, tuple[int, int, int]],
 ) -> None:
-    """Every visible geom of the log's table (or, for older logs, each ball's sphere and the
-    plane its spec gave it), and each ball's spin marker; all static."""
+    """Every visible geom of the log's table (`old_geoms` for a log written before it), and
+    each ball's spin marker; all static."""
     info = run.body_info
     balls = {n: r for n in run.bodies if n in info and (r := info[n].radius)}
-    if scene.geoms:
-        for geom in scene.geoms:
-            if not geom.visible or (geom.body != "world" and geom.body not in run.bodies):
-                continue
-            if geom.body == "world":
-                path = f"{prefix}/world/static/{rr.escape_entity_path_part(geom.name)}"
-            else:
-                path = (
-                    f"{body_path(prefix, geom.body)}/geoms/{rr.escape_entity_path_part(geom.name)}"
-                )
-            w, x, y, z = geom.quat
-            rec.log(
-                path,
-                rr.Transform3D(translation=geom.pos, quaternion=rr.Quaternion(xyzw=[x, y, z, w])),
-                static=True,
-            )
-            ball = geom.type == "sphere" and geom.body in balls and not any(geom.pos)
-            shape = _shape(geom, scene, bounds, wireframe=ball)
-            if shape is not None:
-                rec.log(path, shape, static=True)
-    else:
-        _log_old_plane(rec, run, prefix, bounds)
-        for name, radius in balls.items():
-            rec.log(
-                f"{body_path(prefix, name)}/sphere",
-                rr.Ellipsoids3D(
-                    half_sizes=[[radius] * 3],
-                    colors=[colors[name]],
-                    fill_mode="densewireframe",
-                    labels=[name],
-                    show_labels=False,
-                ),
-                static=True,
-            )
+    for geom in scene.geoms or old_geoms(run, balls):
+        if not geom.visible or (geom.body != "world" and geom.body not in run.bodies):
+            continue
+        if geom.body == "world":
+            path = f"{prefix}/world/static/{rr.escape_entity_path_part(geom.name)}"
+        else:
+            path = f"{body_path(prefix, geom.body)}/geoms/{rr.escape_entity_path_part(geom.name)}"
+        w, x, y, z = geom.quat
+        rec.log(
+            path,
+            rr.Transform3D(translation=geom.pos, quaternion=rr.Quaternion(xyzw=[x, y, z, w])),
+            static=True,
+        )
+        ball = geom.type == "sphere" and geom.body in balls and not any(geom.pos)
+        shape = _shape(geom, scene, bounds, wireframe=ball)
+        if shape is not None:
+            rec.log(path, shape, static=True)
     for name, radius in balls.items():  # a solid dot on the surface and a spoke: the spin
         body = body_path(prefix, name)
         rec.log(
@@ -162,22 +145,13 @@ def _shape(
     return None
 
 
-def _log_old_plane(
-    rec: rr.RecordingStream, run: RunLog, prefix: str, bounds: tuple[np.ndarray, np.ndarray]
-) -> None:
-    """The plane of a log without a geom table (`impactlab.logs.geoms.old_plane`)."""
-    plane, z = old_plane(run), run.plane_z
-    if plane is None or z is None:
-        return
-    reach = np.max(np.abs(np.concatenate([bounds[0][:2], bounds[1][:2]])))
-    sx, sy = np.minimum(plane.half_size_m, reach + PLANE_MARGIN_M)
-    rec.log(
-        f"{prefix}/world/plane",
-        rr.Boxes3D(
-            half_sizes=[[sx, sy, PLANE_THICKNESS_M / 2]],
-            centers=[[0.0, 0.0, z - PLANE_THICKNESS_M / 2]],
-            colors=[rgba255(plane.rgba)[:3]],
-            fill_mode="solid",
-        ),
-        static=True,
-    )
+def old_geoms(run: RunLog, balls: Mapping[str, float]) -> list[GeomShape]:
+    """The geoms of a log written before the geom table: each ball's sphere in its colour
+    (`body_rgba`) and the plane its spec gave it (`old_plane`)."""
+    rgba, plane, origin = body_rgba(run), old_plane(run), (0.0, 0.0, 0.0)
+    # the colours and the plane's half sizes are tuples of 4 and 2 numbers: pydantic checks
+    geoms = [GeomShape(n, n, "sphere", (r, 0, 0), origin, rgba[n]) for n, r in balls.items()]  # type: ignore[arg-type]
+    if plane is not None and run.plane_z is not None:
+        size, at = (*plane.half_size_m, 0.0), (0.0, 0.0, run.plane_z)
+        geoms.append(GeomShape("plane", "world", "plane", size, at, plane.rgba))  # type: ignore[arg-type]
+    return geoms

@@ -26,8 +26,7 @@ from waiting import wait_until
 
 from impactlab.analyze.batch import batches
 from impactlab.executors import processes
-from impactlab.executors.processes import ProcessExecutor
-from impactlab.executors.workers import TEST_SIGKILL_TASK
+from impactlab.executors.processes import TEST_SIGKILL_TASK, ProcessExecutor
 from impactlab.logs.inputs import require_logs
 
 pytestmark = pytest.mark.slow  # workers and parents killed (SIGKILL)
@@ -172,7 +171,7 @@ def test_workers_die_with_a_killed_parent(logs, tmp_path):
 
 ASK_DEATH_SIGNAL = """
 import ctypes, os, sys
-from impactlab.executors.workers import die_with_parent
+from impactlab.executors.processes import die_with_parent
 die_with_parent(os.getppid() if sys.argv[1] == "right" else os.getppid() + 1)
 got = ctypes.c_int()
 ctypes.CDLL(None).prctl(2, ctypes.byref(got))  # PR_GET_PDEATHSIG

@@ -30,7 +30,7 @@ def test_forked_workers_read_unpicklable_functions_and_items_from_their_memory()
         outcomes = sorted(
             ex.map(lambda x: (x.n + offset, os.getpid()), items), key=lambda o: o.index
         )
-        assert ex._pool is None  # the map's workers are stopped with it
+        assert ex._pool == []  # the map's workers are stopped with it
         again = list(ex.map(lambda x: x.n * 2, items[:2]))  # new workers, this map's items
     assert [o.value[0] for o in outcomes] == [100 + i for i in range(6)]
     assert os.getpid() not in {o.value[1] for o in outcomes}

@@ -8,7 +8,6 @@ import json
 import logging
 import os
 import shutil
-from collections import deque
 
 import paths
 import polars as pl
@@ -29,11 +28,11 @@ def worker_pid(item: int) -> tuple[int, int]:
 
 
 def warm(ex: ProcessExecutor) -> None:
-    """Wait until every prestarted worker has said it imported its modules (PRELOADED)."""
-    for worker in ex._pool or []:
-        while not worker.warm:
+    """Wait until every prestarted worker has said it imported its modules (READY)."""
+    for worker in ex._pool:
+        while not worker.ready:
             assert worker.conn.poll(120), "the worker did not start"
-            list(ex._hear(worker, deque()))
+            list(ex._hear(worker))
 
 
 def test_this_process_works_while_the_workers_start():
@@ -41,7 +40,7 @@ def test_this_process_works_while_the_workers_start():
     outcome is there once, with its index."""
     with ProcessExecutor(workers=2, min_items=1) as ex:
         outcomes = list(ex.map(worker_pid, list(range(6)), here=True))
-        assert len(ex._pool or []) == 1  # one worker: this process is the other slot
+        assert len(ex._pool) == 1  # one worker: this process is the other slot
     assert outcomes[0].index == 0 and outcomes[0].value == (0, os.getpid())
     assert sorted(o.value[0] for o in outcomes) == list(range(6))
     assert all(o.ok and o.index == o.value[0] for o in outcomes)

@@ -41,7 +41,7 @@ def test_a_small_batch_runs_here_without_workers():
     ex = ProcessExecutor(workers=2)  # default: batches under 8 items run in this process
     outcomes = list(ex.map(worker_pid, [1, 2, 3]))
     assert [o.value for o in outcomes] == [(1, os.getpid()), (2, os.getpid()), (3, os.getpid())]
-    assert ex._pool is None
+    assert ex._pool == []
 
 
 def test_processes_analysis_equals_the_local_one(tmp_path, capsys):

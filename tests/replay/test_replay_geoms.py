@@ -739,7 +739,7 @@ def test_tf_stamps_of_every_varint_length_decode_as_their_log_time():
 
 def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):
     """Logs written before the geom table (the golden logs): each ball a sphere of its radius
-    and colour, the spec's plane, as before."""
+    and colour, the spec's plane, drawn as the geoms of a table are."""
     log = GOLDEN / "format1" / "drop_restitution.mcap"
     run = load_log(log)
     assert not run.scene  # written before the table
@@ -748,7 +748,7 @@ def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):
     static = _static_chunks(rrd)
     prefix = f"{run_prefix(run.run_id)}/world"
     (ball,) = run.bodies
-    sphere = static[f"{prefix}/bodies/{ball}/sphere"]
+    sphere = static[f"{prefix}/bodies/{ball}/geoms/{ball}"]
     radius = run.body_info[ball].radius
     np.testing.assert_allclose(sphere["Ellipsoids3D:half_sizes"], [[radius] * 3], rtol=1e-6)
     from impactlab.logs.geoms import BODY_PALETTE
@@ -756,7 +756,11 @@ def test_a_log_without_a_geom_table_still_shows_its_balls_and_plane(tmp_path):
     rgba = run.spec["bodies"][ball].get("rgba") or BODY_PALETTE[0]  # the spec's default
     (color,) = sphere["Ellipsoids3D:colors"]
     _same_color(_unpack(color)[:3], tuple(round(255 * c) for c in rgba[:3]))
-    plane = static[f"{prefix}/plane"]
-    assert plane["Boxes3D:centers"][0][2] == pytest.approx(run.plane_z - 0.0005)
+    plane = static[f"{prefix}/static/plane"]  # its top at the spec's plane
+    assert plane["Transform3D:translation"][0][2] == pytest.approx(run.plane_z)
+    assert plane["Boxes3D:centers"][0][2] == pytest.approx(-0.0005)
     assert f"{prefix}/bodies/{ball}/marker" in static
-    assert not any("/geoms/" in p or "/static/" in p for p in static)
+    assert sorted(p for p in static if "/geoms/" in p or "/static/" in p) == [
+        f"{prefix}/bodies/{ball}/geoms/{ball}",
+        f"{prefix}/static/plane",
+    ]
