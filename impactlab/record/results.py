@@ -58,9 +58,11 @@ class RecordedRun:
     def reused(cls, run_id: str, path: Path, outcome: Mapping[str, str]) -> RecordedRun:
         """A run whose complete log exists, from the log's outcome record."""
         try:
-            warnings = tuple(json.loads(outcome.get("warnings", "[]")))
+            warnings = json.loads(outcome.get("warnings", "[]"))
         except ValueError:
-            warnings = ()
+            warnings = []
+        if not isinstance(warnings, list):  # a damaged log's: a number, a text, an object
+            warnings = []
         steps = outcome.get("steps", "0")
         return cls(
             run_id,

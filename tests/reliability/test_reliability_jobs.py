@@ -313,3 +313,13 @@ def test_disk_full_while_writing(tmp_path, capsys, monkeypatch):
     assert main(["record", str(spec), "-o", str(out)]) == 0
     assert f"reused {len(logs)} complete log(s)" in capsys.readouterr().out
     assert len(list(out.glob("*.mcap"))) == 4
+
+
+@pytest.mark.parametrize("warnings", ["5", '"text"', '{"a": 1}', "null", "[1, "])
+def test_a_reused_logs_odd_warnings_are_none(warnings):
+    """A complete log's outcome record names its warnings as a JSON list; a damaged one (a
+    number, a text, an object, broken JSON) reuses the log with no warning, never a TypeError."""
+    from impactlab.record.results import RecordedRun
+
+    run = RecordedRun.reused("r", Path("r.mcap"), {"outcome": "completed", "warnings": warnings})
+    assert run.status == "reused" and run.warnings == ()
