@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Literal, TypeVar, get_args
 
 if TYPE_CHECKING:
+    import numpy as np
     import polars as pl
 
 X = TypeVar("X")
@@ -76,3 +77,14 @@ def min_impact_speed(gravity_mps2: float, timestep_s: float) -> float:
     """The slowest arrival (m/s) that is an impact: a body released against gravity at this
     speed flies `MIN_FLIGHT_STEPS` steps; slower arrivals are a contact at rest."""
     return 0.5 * MIN_FLIGHT_STEPS * abs(gravity_mps2) * timestep_s
+
+
+def up_vector(gravity: np.ndarray) -> np.ndarray:
+    """Unit vector against gravity, (3,); +z without gravity (or one no float holds)."""
+    import numpy as np
+
+    scale = float(np.abs(gravity).max())
+    if not 0 < scale < np.inf:
+        return np.array([0.0, 0.0, 1.0])
+    g = gravity / scale  # a huge gravity (1e300) would overflow the norm to inf
+    return -g / np.linalg.norm(g)

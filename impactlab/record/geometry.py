@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from impactlab import physics
 from impactlab.logs.metadata import Surface
 
 SPREAD_DIRECTIONS = 2000
@@ -135,13 +136,8 @@ def ground_geoms(model: mujoco.MjModel, free_geoms: list[int]) -> list[int]:
 
 
 def up_vector(model: mujoco.MjModel) -> np.ndarray:
-    """Unit vector against gravity, (3,); +z without gravity."""
-    g = gravity(model)
-    scale = float(np.abs(g).max())
-    if not 0 < scale < np.inf:
-        return np.array([0.0, 0.0, 1.0])
-    g = g / scale  # a huge gravity (1e300) would overflow the norm to inf
-    return -g / np.linalg.norm(g)
+    """Unit vector against the model's gravity (`physics.up_vector`)."""
+    return physics.up_vector(gravity(model))
 
 
 def support(

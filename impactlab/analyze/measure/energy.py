@@ -8,9 +8,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.ground import Ground, Reference, up_vector
+from impactlab.analyze.measure.ground import Ground, Reference
 from impactlab.analyze.measure.states import at_times, by_run, state_blocks
 from impactlab.logs.load import BodyInfo, RunLog
+from impactlab.physics import up_vector
 
 ENERGY_COLUMNS = ("ke_trans_J", "ke_rot_J", "pe_J", "total_J")
 TOTAL_FLAG = "is_total"

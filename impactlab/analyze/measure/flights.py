@@ -7,9 +7,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.ground import Ground, up_vector
+from impactlab.analyze.measure.ground import Ground
 from impactlab.analyze.measure.states import state_blocks
 from impactlab.logs.load import RunLog
+from impactlab.physics import up_vector
 
 APEX_TURN_FRACTION = 1e-3
 """A flight whose lowest point moves relative to the centre of mass by more than this

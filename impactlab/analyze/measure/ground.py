@@ -10,6 +10,7 @@ import numpy as np
 import polars as pl
 
 from impactlab.logs.load import RunLog, SurfaceInfo
+from impactlab.physics import up_vector
 
 CLEARANCE_SCHEMA = pl.Schema(
     {
@@ -94,12 +95,6 @@ class Ground:
         found = (t[spot] == t_ns) & set_[spot]
         values[found] = c[spot[found]]
         return values, found
-
-
-def up_vector(gravity: np.ndarray) -> np.ndarray:
-    """Unit vector against gravity, (3,); +z without gravity."""
-    g = float(np.linalg.norm(gravity))
-    return -gravity / g if g > 0 else np.array([0.0, 0.0, 1.0])
 
 
 def run_ground(run: RunLog) -> Ground:
