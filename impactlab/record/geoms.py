@@ -33,10 +33,12 @@ def describe(
         data_id, mesh, size = int(model.geom_dataid[g]), None, model.geom_size[g]
         if kind in ("mesh", "sdf") and data_id >= 0:
             mesh = mesh_attachment(model.mesh(data_id).name or f"mesh{data_id}")
-            meshes.setdefault(mesh, mesh_triangles(model, data_id))
+            if mesh not in meshes:  # geoms share a mesh: its triangles are built once
+                meshes[mesh] = mesh_triangles(model, data_id)
         elif kind == "hfield" and data_id >= 0:
             mesh = mesh_attachment(model.hfield(data_id).name or f"hfield{data_id}", hfield=True)
-            meshes.setdefault(mesh, hfield_triangles(model, data_id))
+            if mesh not in meshes:
+                meshes[mesh] = hfield_triangles(model, data_id)
             size = model.hfield_size[data_id][:3]
         sx, sy, sz = (float(x) for x in size)
         shapes.append(
