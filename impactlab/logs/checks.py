@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import math
 from collections.abc import Mapping
 from typing import Annotated, Any
@@ -15,7 +14,7 @@ from pydantic import TypeAdapter, ValidationError
 from impactlab.logs import format as logformat
 from impactlab.logs.metadata import (
     ANALYSIS_KEYS,
-    KEYS,
+    HOLDS,
     RECORDS,
     TEXT,
 )
@@ -76,8 +75,11 @@ def check_metadata(
                     problems[key] = f"missing from the {name} record"
                 continue
             text = stored[key]
-            try:
-                values[key] = validator.validate_python(_parse(key, text))
+            try:  # text as is, "" as None, the rest as JSON
+                if key in TEXT or not text:
+                    values[key] = validator.validate_python(text if key in TEXT else None)
+                else:
+                    values[key] = validator.validate_json(text)
             except ValidationError as exc:
                 problems[key] = _problem(key, text, exc.errors()[0])
     for name in RECORDS:
@@ -88,22 +90,9 @@ def check_metadata(
     return MetadataCheck(values, problems)
 
 
-def _parse(key: str, text: str) -> Any:
-    """A stored value as its model takes it: text as is, "" as None, the rest as JSON."""
-    if key in TEXT:
-        return text
-    if text == "":
-        return None
-    try:
-        return json.loads(text)
-    except (ValueError, RecursionError):
-        error = {"type": "json_invalid", "loc": (), "input": text, "ctx": {"error": ""}}
-        raise ValidationError.from_exception_data(key, [error]) from None  # type: ignore[list-item]
-
-
 def _problem(key: str, text: str, error: Any) -> str:
     """`'<stored value>' <what is wrong> (expected: <what it holds>)`."""
-    holds = KEYS[key].holds
+    holds = HOLDS[key]
     if not error["loc"] and error["type"] in ("json_invalid", "float_type", "int_type"):
         words = "is not a " + ("whole number" if holds.startswith("whole") else "number")
         words = "is not valid JSON" if holds.startswith("JSON") else words

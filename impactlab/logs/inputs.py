@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -9,7 +10,7 @@ from pathlib import Path
 from impactlab.errors import LogError
 from impactlab.files import NOT_TEXT, UnreadableInput, is_text, open_regular
 
-MAGIC = b"\x89MCAP0\r\n"  # every MCAP file starts with it (`impactlab.logs.reader.MAGIC`)
+MAGIC = b"\x89MCAP0\r\n"  # every MCAP file starts with it
 
 
 class NoLogs(LogError):
@@ -124,16 +125,30 @@ def _problem(path: Path) -> tuple[str, str] | None:
         empty: list[tuple[str, str]] = []  # a folder or pattern: does it find a log?
         return None if log_names([path], empty=empty) else empty[0]
     try:
-        with open_regular(path) as stream:  # never waits: a pipe is refused
+        with log_errors(path), open_regular(path) as stream:  # never waits: a pipe is refused
             magic = stream.read(len(MAGIC))
-    except FileNotFoundError:
-        return str(path), "file not found"
-    except UnreadableInput as exc:
-        return str(path), f"{exc}: not a log"
-    except OSError as exc:
-        return str(path), f"cannot read: {exc.strerror or exc}"
+    except LogError as exc:
+        return exc.path, exc.problem
     if magic != MAGIC:
         spec = path.suffix in (".toml", ".xml")
         hint = "; `impactlab record` records a spec or model" if spec else ""
         return str(path), f"not an MCAP file (bad magic bytes){hint}"
     return None
+
+
+@contextlib.contextmanager
+def log_errors(path: str | os.PathLike[str]) -> Iterator[None]:
+    """Failures to read `path` as LogError, one sentence each (missing, a folder, not a
+    regular file, unreadable, too large or not MCAP)."""
+    try:
+        yield
+    except FileNotFoundError:
+        raise LogError(str(path), "file not found") from None
+    except IsADirectoryError:
+        raise LogError(str(path), "is a folder, not a log") from None
+    except UnreadableInput as exc:
+        raise LogError(str(path), f"{exc}: not a log") from None
+    except OSError as exc:
+        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
+    except ValueError as exc:  # not a regular file, too large, not MCAP
+        raise LogError(str(path), str(exc)) from None

@@ -14,9 +14,10 @@ from impactlab.errors import LogError
 from impactlab.logs import decode, messages
 from impactlab.logs import format as logformat
 from impactlab.logs.checks import MetadataCheck, check_channels, check_metadata, optional_keys
+from impactlab.logs.inputs import log_errors
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, WORK_FIELDS
 from impactlab.logs.metadata import ANALYSIS_KEYS, Body, GeomContact, PairTarget, Surface
-from impactlab.logs.reader import log_errors, read_mcap
+from impactlab.logs.reader import read_mcap
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.show import count, html_table, plain
 

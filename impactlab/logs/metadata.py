@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 import json
 from collections.abc import Mapping, Sequence
-from typing import Annotated, Any, NamedTuple
+from typing import Annotated, Any
 
 from pydantic import AfterValidator, Field, TypeAdapter
 from pydantic.dataclasses import dataclass
@@ -193,24 +193,9 @@ def _store(record: RunMeta | Outcome, keys: Mapping[str, str]) -> dict[str, str]
     return {k: stored(k, dumped[k]) for k in keys}
 
 
-class Key(NamedTuple):
-    """One declared key: the record it belongs to and what it holds."""
-
-    name: str
-    record: str
-    holds: str
-
-
 RECORDS = {logformat.RUN_METADATA: RunMeta, logformat.OUTCOME_METADATA: Outcome}
-KEYS = {
-    k: Key(k, name, holds)
-    for name, keys in (
-        (logformat.RUN_METADATA, logformat.RUN_KEYS),
-        (logformat.OUTCOME_METADATA, logformat.OUTCOME_KEYS),
-    )
-    for k, holds in keys.items()
-}
-"""Every key of the two records (docs/log-format.md's table)."""
-TEXT = {k for k, holds in KEYS.items() if not holds.holds.startswith(("JSON", "number", "whole"))}
+HOLDS = logformat.RUN_KEYS | logformat.OUTCOME_KEYS
+"""What each key of the two records holds (docs/log-format.md's table)."""
+TEXT = {k for k, holds in HOLDS.items() if not holds.startswith(("JSON", "number", "whole"))}
 """The keys stored as text as it is; the others are JSON, "" for none."""
 SORTED = ("spec", "sweep")  # JSON objects stored with their keys sorted

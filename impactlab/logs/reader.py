@@ -9,7 +9,6 @@ import os
 import struct
 import threading
 from collections import defaultdict
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import compress
 from pathlib import Path
@@ -23,10 +22,9 @@ from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Channel, Header, Metadata, Schema
 
-from impactlab.errors import LogError
 from impactlab.files import UnreadableInput, open_regular
+from impactlab.logs.inputs import MAGIC
 
-MAGIC = b"\x89MCAP0\r\n"
 OP_MESSAGE, OP_INDEX, OP_CHUNK = int(Opcode.MESSAGE), int(Opcode.MESSAGE_INDEX), int(Opcode.CHUNK)
 FOOTER_SIZE = 1 + 8 + 8 + 8 + 4  # opcode, length, summary start, summary offset start, CRC
 HEAD = 1 + 8 + 2 + 4 + 8 + 8  # a message record: opcode, length, channel, sequence, two times
@@ -206,24 +204,6 @@ def add_metadata(
             conflicts.setdefault(name, {})[key] = (
                 f"two {name} records disagree ({first.get(key)!r}, then {record.get(key)!r})"
             )
-
-
-@contextlib.contextmanager
-def log_errors(path: str | os.PathLike[str]) -> Iterator[None]:
-    """Failures to read `path` as LogError, one sentence each (missing, a folder, not a
-    regular file, unreadable, too large or not MCAP)."""
-    try:
-        yield
-    except FileNotFoundError:
-        raise LogError(str(path), "file not found") from None
-    except IsADirectoryError:
-        raise LogError(str(path), "is a folder, not a log") from None
-    except UnreadableInput as exc:
-        raise LogError(str(path), f"{exc}: not a log") from None
-    except OSError as exc:
-        raise LogError(str(path), f"cannot read: {exc.strerror or exc}") from None
-    except ValueError as exc:  # not a regular file, too large, not MCAP
-        raise LogError(str(path), str(exc)) from None
 
 
 def read_attachments(path: Path) -> dict[str, bytes]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -39,14 +40,14 @@ def pytest_terminal_summary(terminalreporter: Any, exitstatus: int, config: pyte
             terminalreporter.line(line)
 
 
+@dataclass(kw_only=True)
 class GoldenCheck:
     """What the `impactlab_golden` fixture gives a test (see `check`)."""
 
-    def __init__(self, *, root: Path, work: Path, update: bool, written: list[str]) -> None:
-        self.root = root
-        self.work = work
-        self.update = update
-        self.written = written
+    root: Path
+    work: Path
+    update: bool
+    written: list[str]
 
     def check(
         self,

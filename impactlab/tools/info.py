@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import json
 from collections import defaultdict
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from mcap.reader import make_reader
@@ -15,7 +13,8 @@ from impactlab.errors import LogError
 from impactlab.files import open_regular
 from impactlab.logs import format as logformat
 from impactlab.logs.checks import check_channels, check_metadata
-from impactlab.logs.reader import MAGIC, add_metadata, log_errors, read_mcap
+from impactlab.logs.inputs import MAGIC, log_errors
+from impactlab.logs.reader import add_metadata, read_mcap
 from impactlab.text import one_line
 
 
@@ -155,7 +154,7 @@ def render(path: Path, o: Overview) -> str:
         run = defaultdict(
             lambda: "?", {**run, **o.metadata.get(logformat.OUTCOME_METADATA, ending)}
         )
-        sweep, warnings = _json(run["sweep"], {}), _json(run["warnings"], [])
+        sweep, warnings = checked.values.get("sweep", {}), checked.values.get("warnings", ())
         lines += [
             f"experiment: {run['experiment']} ({run['source']})",
             f"run:        {run['run_id']}",
@@ -186,12 +185,3 @@ def render(path: Path, o: Overview) -> str:
     width = max((len(topic) for topic, *_ in o.channels), default=0)
     lines += [f"  {t:<{width}}  {n:>8} msgs  {s or '(no schema)'}" for t, n, s, _ in o.channels]
     return "\n".join(one_line(line) for line in lines)
-
-
-def _json(text: str, default: Any) -> Any:
-    """A JSON metadata value, or `default` when it does not parse to the same type (damaged)."""
-    try:
-        value = json.loads(text)
-    except (ValueError, RecursionError):
-        return default
-    return value if isinstance(value, type(default)) else default

@@ -28,8 +28,8 @@ from specs import drop, toml
 from impactlab.analyze.measure.analysis import analyze_run
 from impactlab.cli import main
 from impactlab.errors import LogError
+from impactlab.logs.inputs import MAGIC
 from impactlab.logs.load import RunLog, load_log
-from impactlab.logs.reader import MAGIC
 from impactlab.proto import impactlab_pb2 as pb
 from impactlab.tools.info import describe
 
