@@ -9,7 +9,9 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import polars as pl
+from numpy.typing import ArrayLike
 
 from impactlab.tools import DEFAULT_ATOL, DEFAULT_RTOL
 
@@ -34,12 +36,14 @@ class Tolerance:
         """The absolute tolerance of one field of one channel."""
         return self.fields.get(f"{channel}:{name}", self.fields.get(name, self.atol))
 
-    def close(self, a: float, b: float) -> bool:
-        """Equal within the tolerance (NaN equals NaN; an infinity only itself)."""
-        if a == b or (math.isnan(a) and math.isnan(b)):
-            return True
-        finite = math.isfinite(a) and math.isfinite(b)
-        return finite and abs(a - b) <= self.atol + self.rtol * max(abs(a), abs(b))
+    def close(self, a: ArrayLike, b: ArrayLike) -> bool:
+        """Every number of `a` equal to `b`'s within the tolerance (NaN equals NaN; an
+        infinity only itself)."""
+        x, y = np.asarray(a, np.float64), np.asarray(b, np.float64)
+        with np.errstate(all="ignore"):  # inf - inf, overflow: not finite, never within
+            within = np.abs(x - y) <= self.atol + self.rtol * np.maximum(np.abs(x), np.abs(y))
+        finite = np.isfinite(x) & np.isfinite(y)
+        return bool(np.all((x == y) | (np.isnan(x) & np.isnan(y)) | (within & finite)))
 
 
 EXACT = Tolerance(atol=0.0, rtol=0.0)
@@ -93,11 +97,9 @@ def flatten(value: Any, prefix: str = "") -> dict[str, Any]:
 
 def same_text(a: str, b: str, tolerance: Tolerance = EXACT) -> bool:
     """Equal texts, the numbers in them within the tolerance and the rest exactly."""
-    na, nb = NUMBER.findall(a), NUMBER.findall(b)
     return a == b or (
         NUMBER.split(a) == NUMBER.split(b)
-        and len(na) == len(nb)
-        and all(tolerance.close(float(x), float(y)) for x, y in zip(na, nb, strict=True))
+        and tolerance.close(*(list(map(float, NUMBER.findall(t))) for t in (a, b)))
     )
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -536,6 +536,5 @@ def _same_stl(a: bytes, b: bytes, tolerance: Tolerance) -> bool:
         ta, tb = decode_stl(a), decode_stl(b)
     except ValueError:
         return False
-    rtol = max(tolerance.rtol, 2.0**-22)
-    bound = tolerance.atol + rtol * np.maximum(np.abs(ta), np.abs(tb))
-    return ta.shape == tb.shape and bool(np.all(np.abs(ta - tb) <= bound))
+    widened = replace(tolerance, rtol=max(tolerance.rtol, 2.0**-22))
+    return ta.shape == tb.shape and widened.close(ta, tb)

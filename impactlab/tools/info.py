@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Sized
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,22 +58,12 @@ def from_summary(path: Path) -> Overview | None:
             reader = make_reader(stream)
             summary = reader.get_summary()
             stats = summary.statistics if summary is not None else None
-            if (
-                summary is None
-                or stats is None
-                or (
-                    len(summary.metadata_indexes),
-                    len(summary.attachment_indexes),
-                    len(summary.channels),
-                    len(summary.schemas),
-                )
-                != (
-                    stats.metadata_count,
-                    stats.attachment_count,
-                    stats.channel_count,
-                    stats.schema_count,
-                )
-            ):
+            if summary is None or stats is None:
+                return None
+            held: tuple[Sized, ...] = (summary.metadata_indexes, summary.attachment_indexes)
+            held += (summary.channels, summary.schemas)
+            counted = (stats.metadata_count, stats.attachment_count, stats.channel_count)
+            if tuple(map(len, held)) != (*counted, stats.schema_count):
                 return None
             metadata: dict[str, dict[str, str]] = {}
             conflicts: dict[str, dict[str, str]] = {}
