@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import shutil
 import sys
 import tempfile
@@ -194,7 +195,7 @@ def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = pri
         )
         return 2
     LOGS_DIR.mkdir(parents=True, exist_ok=True)
-    changed: list[str] = []
+    writes: dict[str, Callable[[], object]] = {}  # what changed, and how to write it
     with tempfile.TemporaryDirectory(prefix="impactlab-golden-") as tmp:
         new_dir = Path(tmp) / "logs"
         new_dir.mkdir()
@@ -202,48 +203,37 @@ def main(argv: Sequence[str] | None = None, *, echo: Callable[[str], None] = pri
             new = record_golden(golden, new_dir)
             if not golden.log_path.exists():
                 echo(f"{golden.name}: new golden log ({new.stat().st_size} bytes)")
-                changed.append(golden.name)
-                continue
-            diff = compare_golden(golden.log_path, new)
-            if diff.equal:
+            elif (diff := compare_golden(golden.log_path, new)).equal:
                 echo(f"{golden.name}: unchanged")
                 shutil.copyfile(golden.log_path, new)  # keep the committed bytes
+                continue
             else:
                 echo(f"{golden.name}: changed")
                 echo(diff.report())
-                changed.append(golden.name)
+            writes[golden.name] = functools.partial(shutil.copyfile, new, golden.log_path)
         names = {f"{g.name}.mcap" for g in GOLDENS}
         stale = sorted(p for p in LOGS_DIR.glob("*.mcap") if p.name not in names)
         for path in stale:
             echo(
                 f"{path.stem}: no golden spec any more: {'would be ' if args.check else ''}removed"
             )
-        tables = analysis_tables(new_dir, Path(tmp) / "results")
-        for name, frame in tables.items():
+        for name, frame in analysis_tables(new_dir, Path(tmp) / "results").items():
             old = RESULTS_DIR / f"{name}.parquet"
             change = table_change(frame, pl.read_parquet(old)) if old.exists() else "new"
             if change is not None:
                 echo(f"results/{name}.parquet: {change}")
-                changed.append(f"results/{name}")
+                writes[f"results/{name}"] = functools.partial(frame.write_parquet, old)
         if args.check:
-            if changed or stale:
-                echo(f"golden data out of date: {', '.join(changed + [p.stem for p in stale])}")
-                return 1
-            echo("golden data up to date")
-            return 0
-        for golden in GOLDENS:
-            if golden.name in changed:
-                shutil.copyfile(new_dir / f"{golden.name}.mcap", golden.log_path)
-        for path in stale:
-            path.unlink()
+            out = [*writes, *(p.stem for p in stale)]
+            echo(f"golden data out of date: {', '.join(out)}" if out else "golden data up to date")
+            return 1 if out else 0
         RESULTS_DIR.mkdir(parents=True, exist_ok=True)
-        for name, frame in tables.items():
-            if f"results/{name}" in changed:
-                frame.write_parquet(RESULTS_DIR / f"{name}.parquet")
+        for write in [*writes.values(), *(p.unlink for p in stale)]:
+            write()
     total = sum(p.stat().st_size for p in GOLDEN_DIR.rglob("*") if p.is_file())
     echo(
-        f"{len(changed)} golden file(s) written; tests/golden holds {total / 1e6:.2f} MB"
-        if changed
+        f"{len(writes)} golden file(s) written; tests/golden holds {total / 1e6:.2f} MB"
+        if writes
         else "nothing changed"
     )
     return 0
