@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import itertools
-import json
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -14,6 +13,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from impactlab.logs import format as logformat
 from impactlab.logs import messages
 from impactlab.logs.messages import BODY_FIELDS, POINT_FIELDS, POINT_RECORD, Template
+from impactlab.logs.metadata import Text, adapter
 from impactlab.logs.reader import ChannelData
 from impactlab.proto import impactlab_pb2 as pb
 
@@ -132,10 +132,7 @@ def clearance(run_id: str, channel: ChannelData) -> pl.DataFrame:
     Raises:
         ValueError: the metadata does not name them, or a message holds another count.
     """
-    body, surfaces = (
-        channel.metadata.get("body", ""),
-        _names(channel.metadata.get("surfaces"), None),
-    )
+    body, surfaces = channel.metadata.get("body", ""), _names(channel.metadata.get("surfaces"))
     if not body or surfaces is None:
         raise ValueError("the channel's metadata does not name its body and surfaces")
     k = len(surfaces)
@@ -158,14 +155,13 @@ def clearance(run_id: str, channel: ChannelData) -> pl.DataFrame:
     )
 
 
-def _names(value: str | None, default: list[str] | None = None) -> list[str] | None:
-    """A JSON list of names in a channel's metadata (`default` when it is not one)."""
+def _names(value: str | None) -> list[str] | None:
+    """A JSON list of names in a channel's metadata (None when it is not one)."""
     try:
-        names = json.loads(value or "")
+        names: list[str] = adapter(list[Text]).validate_json(value or "")
     except ValueError:
-        return default
-    ok = isinstance(names, list) and all(isinstance(n, str) for n in names)
-    return names if ok else default
+        return None
+    return names
 
 
 def contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
@@ -175,9 +171,7 @@ def contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
     if channel.schema == logformat.CONTACTS_SCHEMA:
         found = messages.contact_points(data) or _library_points(data)
         records, counts = found
-        names = {
-            k: _names(channel.metadata.get(k), []) or [] for k in ("geoms", "bodies", "flexes")
-        }
+        names = {k: _names(channel.metadata.get(k)) or [] for k in ("geoms", "bodies", "flexes")}
         text = {
             f"{kind}{k}": _side_names(records[f"geom{k}"], names[table], names["flexes"])
             for k in (1, 2)

@@ -142,14 +142,12 @@ def decode_stl(data: bytes) -> np.ndarray:
 def read_scene(record: Mapping[str, str] | None, attachments: Mapping[str, bytes]) -> ModelScene:
     """The geoms and meshes a log describes; a geom that cannot be read is left out, with one
     problem (a log without the record has no geoms and no problem)."""
-    scene = ModelScene([], {}, [])
+    scene, record = ModelScene([], {}, []), record or {}
     try:
-        table = json.loads((record or {}).get("geoms", "[]"))
-        assert isinstance(table, list), "not a list"
-    except (ValueError, AssertionError) as exc:
-        scene.problems.append(
-            f"{SCENE_METADATA} geoms: {'not JSON' if isinstance(exc, ValueError) else exc}"
-        )
+        table = adapter(list[Any]).validate_json(record.get("geoms", "[]"))
+    except ValidationError as exc:
+        wrong = "not JSON" if exc.errors()[0]["type"] == "json_invalid" else "not a list"
+        scene.problems.append(f"{SCENE_METADATA} geoms: {wrong}")
         return scene
     for i, item in enumerate(table):
         try:
@@ -166,8 +164,7 @@ def read_scene(record: Mapping[str, str] | None, attachments: Mapping[str, bytes
             replace(geom, quat=tuple(np.array(geom.quat) / np.linalg.norm(geom.quat)))
         )
     try:
-        flexes = json.loads((record or {}).get("flexes", "[]"))
-        scene.flexes = adapter(list[FlexShape]).validate_python(flexes)
+        scene.flexes = adapter(list[FlexShape]).validate_json(record.get("flexes", "[]"))
     except ValueError as exc:
         scene.problems.append(f"{SCENE_METADATA} flexes: {_said(exc)}")
     return scene
