@@ -169,13 +169,12 @@ def contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
     by the channel's metadata, a flex's name on both) or one pair's `/contacts/<g1>/<g2>`."""
     t, data = payloads(channel)
     if channel.schema == logformat.CONTACTS_SCHEMA:
-        found = messages.contact_points(data) or _library_points(data)
-        records, counts = found
+        records, counts = messages.contact_points(data) or _library_points(data)
         names = {k: _names(channel.metadata.get(k)) or [] for k in ("geoms", "bodies", "flexes")}
-        text = {
+        text = {  # geom1, geom2, body1, body2
             f"{kind}{k}": _side_names(records[f"geom{k}"], names[table], names["flexes"])
-            for k in (1, 2)
             for kind, table in (("geom", "geoms"), ("body", "bodies"))
+            for k in (1, 2)
         }
     else:  # formats 1, 2: one pair's `Contact`, its names in each message
         many = [pb.Contact.FromString(d) for d in data]
@@ -190,10 +189,7 @@ def contacts(run_id: str, channel: ChannelData) -> pl.DataFrame:
         run_id,
         np.repeat(t, counts),
         {
-            **{
-                key: pl.Series(text[key], dtype=pl.String)
-                for key in ("geom1", "geom2", "body1", "body2")
-            },
+            **text,
             "point": pl.Series(np.arange(start.size) - start, dtype=pl.Int32),
             **{f: records[f].astype(np.float64) for f in POINT_FIELDS},
         },
