@@ -114,13 +114,14 @@ def check_log_inputs(inputs: Sequence[str | Path]) -> None:
     Raises:
         NoLogs: no input names a log; the message names the first input and its problem.
     """
-    problems = [_problem(Path(item)) for item in inputs]
+    problems = [input_problem(Path(item)) for item in inputs]
     if problems and problems[0] is not None and all(problems):
         raise NoLogs(*problems[0])
 
 
-def _problem(path: Path) -> tuple[str, str] | None:
-    """What is wrong with one input, or None when it names a log."""
+def input_problem(path: Path) -> tuple[str, str] | None:
+    """What is wrong with one input, (input, problem), or None when it names a log: a file
+    that starts as an MCAP file does, or a folder or pattern that finds one."""
     if path.is_dir() or (not path.exists() and any(c in str(path) for c in "*?[")):
         empty: list[tuple[str, str]] = []  # a folder or pattern: does it find a log?
         return None if log_names([path], empty=empty) else empty[0]

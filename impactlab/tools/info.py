@@ -11,10 +11,9 @@ import numpy as np
 from mcap.reader import make_reader
 
 from impactlab.errors import LogError
-from impactlab.files import open_regular
 from impactlab.logs import format as logformat
 from impactlab.logs.checks import check_channels, check_metadata
-from impactlab.logs.inputs import MAGIC, log_errors
+from impactlab.logs.inputs import input_problem, log_errors
 from impactlab.logs.reader import add_metadata, read_mcap
 from impactlab.text import one_line
 
@@ -42,11 +41,9 @@ def describe(path: Path) -> str:
     Raises:
         LogError: the file cannot be read, is not MCAP, or is truncated or damaged.
     """
+    if (problem := input_problem(Path(path))) is not None:
+        raise LogError(*problem)
     with log_errors(path):
-        with open_regular(path) as stream:
-            head = stream.read(len(MAGIC))
-        if head != MAGIC:
-            raise LogError(str(path), "not an MCAP file (bad magic bytes)")
         return render(path, from_summary(path) or from_reading(path))
 
 

@@ -106,6 +106,11 @@ def test_bad_inputs_among_good_ones_are_one_line_each_and_the_rest_is_done(folde
     errors = [line for line in err.splitlines() if line.startswith("impactlab: error: ")]
     assert sorted(e.split(": ")[2] for e in errors) == ["empty", "nosuch.mcap", "spec.toml"], err
     assert "Traceback" not in err
+    if argv[0] == "info":  # the check of `impactlab analyze`'s inputs, with its hint
+        (spec,) = [e for e in errors if "spec.toml" in e]
+        assert spec.endswith(
+            "not an MCAP file (bad magic bytes); `impactlab record` records a spec or model"
+        ), spec
     done = {"analyze": "r/runs.parquet", "replay": "r/good.rrd", "info": None}[argv[0]]
     assert (folder / done).is_file() if done else "file:" in out
 
