@@ -8,7 +8,6 @@ from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, replace
 from typing import Any
 
-import numpy as np
 import polars as pl
 
 from impactlab.logs import format as logformat
@@ -391,11 +390,9 @@ def compare_channel(
             name = "number of points" if keys[1] == "point" else "number of events"
             counts = [f.group_by("t_ns").len(name) for f in (fa, fb)]
             exact = {name: (0.0, 0.0)}
-            fields += _fields(
-                topic, differences(counts[0], counts[1], ["t_ns"], exact), exact, keys
-            )
+            fields += _fields(topic, differences(counts[0], counts[1], ["t_ns"], exact), exact)
         columns = {n: (tolerance.atol_for(topic, n), tolerance.rtol) for n in names}
-        fields += _fields(topic, differences(fa, fb, list(keys), columns), columns, keys)
+        fields += _fields(topic, differences(fa, fb, list(keys), columns), columns)
     return ChannelDiff(
         topic, ta.height, tb.height, _missing(ta, tb), _missing(tb, ta), tuple(fields)
     )
@@ -407,41 +404,35 @@ def _missing(times: pl.DataFrame, other: pl.DataFrame) -> Missing | None:
 
 
 def _fields(
-    topic: str,
-    joined: pl.DataFrame,
-    columns: Mapping[str, tuple[float, float]],
-    keys: tuple[str, ...],
+    topic: str, joined: pl.DataFrame, columns: Mapping[str, tuple[float, float]]
 ) -> list[FieldDiff]:
-    """A `FieldDiff` for each compared column of `differences` whose values differ."""
+    """A `FieldDiff` for each compared column of `differences` whose values differ: its first
+    value beyond the tolerance and (numbers) its largest difference, each read from its row."""
     out = []
-    t = joined["t_ns"].to_numpy()
-    point = joined["point"].to_numpy() if "point" in joined.columns else None
     for name, (atol, rtol) in columns.items():
-        beyond = joined[f"{name}_beyond"].to_numpy()
+        beyond = joined[f"{name}_beyond"]
         text = f"{name}_d" not in joined.columns
         kind = "text" if text else "count" if name.startswith("number of") else "number"
-        cast = pl.String if text else pl.Int64 if kind == "count" else pl.Float64
-        a, b = (joined[c].cast(cast).to_list() for c in (name, f"{name}_b"))
-        d = beyond.astype(float) if text else joined[f"{name}_d"].to_numpy()
-        if not (d > 0).any():
+        d = beyond.cast(pl.Float64) if text else joined[f"{name}_d"]
+        if not (differing := int((d > 0).sum())):
             continue
+        cast = pl.String if text else pl.Int64 if kind == "count" else pl.Float64
+        a, b = (joined[c].cast(cast) for c in (name, f"{name}_b"))
         found: dict[str, Any] = {}
         if beyond.any():
-            i = int(np.argmax(beyond))
-            found = {"first_t_ns": int(t[i]), "first_a": a[i], "first_b": b[i]}
-            found["first_point"] = None if point is None else int(point[i])
+            i = beyond.arg_true()[0]
+            point = joined["point"][i] if "point" in joined.columns else None
+            found = {"first_t_ns": joined["t_ns"][i], "first_a": a[i], "first_b": b[i]}
+            found |= {"first_point": point}
             if not text:
-                found |= {"first_abs": float(d[i]), "first_tol": float(joined[f"{name}_tol"][i])}
+                found |= {"first_abs": d[i], "first_tol": joined[f"{name}_tol"][i]}
         if not text:
-            j = int(np.argmax(d))
-            found |= {"max_abs": float(d[j]), "max_t_ns": int(t[j]), "max_a": a[j], "max_b": b[j]}
+            j = d.arg_max() or 0  # d holds a value > 0: never None
+            found |= {"max_abs": d[j], "max_t_ns": joined["t_ns"][j], "max_a": a[j], "max_b": b[j]}
         if text or kind == "count":
             atol = rtol = 0.0
-        compared, differing = len(d), int((d > 0).sum())
         out.append(
-            FieldDiff(
-                topic, name, kind, compared, differing, int(beyond.sum()), atol, rtol, **found
-            )
+            FieldDiff(topic, name, kind, len(d), differing, int(beyond.sum()), atol, rtol, **found)
         )
     return out
 
