@@ -30,12 +30,15 @@ def parameter_words(key: str, value: object) -> str:
     return f"{key} = {shown}"
 
 
-def sweep_words(
-    sweep: Mapping[str, object], varying: Mapping[str, Collection[int]] | None = None
+def run_label(
+    experiment: str,
+    sweep: Mapping[str, object],
+    varying: Mapping[str, Collection[int]] | None = None,
 ) -> str:
-    """A sweep point in words and units ("ball released at z = 3 m"); "" for none. A swept
-    vector shows its components in `varying` (key -> indices), else those not zero (all of
-    them when every one is zero)."""
+    """A run's label: "experiment: its sweep point in words and units" ("drop: ball released
+    at z = 3 m"), or the experiment alone for a run not swept. A swept vector shows its
+    components in `varying` (key -> indices), else those not zero (all of them when every one
+    is zero)."""
     words = []
     for key, value in sweep.items():
         if isinstance(value, list | tuple):
@@ -44,18 +47,7 @@ def sweep_words(
             words += [parameter_words(f"{key}[{i}]", value[i]) for i in shown or range(len(value))]
         else:
             words.append(parameter_words(key, value))
-    return ", ".join(words)
-
-
-def run_label(
-    experiment: str,
-    sweep: Mapping[str, object],
-    varying: Mapping[str, Collection[int]] | None = None,
-) -> str:
-    """A run's label: "experiment: its sweep point in words" (`sweep_words`), or the
-    experiment alone for a run not swept."""
-    words = sweep_words(sweep, varying)
-    return f"{experiment}: {words}" if words else experiment
+    return f"{experiment}: {', '.join(words)}" if words else experiment
 
 
 def run_labels(runs: pl.DataFrame) -> pl.DataFrame:

@@ -90,7 +90,7 @@ def test_runs_at_rest_say_why_they_end_early_and_below_zero():
 @pytest.mark.slow
 def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     from impactlab.analyze.report.run_figures import contact_words
-    from impactlab.logs.labels import sweep_words
+    from impactlab.logs.labels import run_label
     from impactlab.logs.metadata import GeomContact, PairTarget
 
     raw = GeomContact((0.02, 1.0), (0.9, 0.95, 0.001))
@@ -100,9 +100,11 @@ def test_figure_titles_say_what_the_contact_is_and_the_sweep_point_in_words():
     pairs = [PairTarget("a", "plane", 0.42, None), PairTarget("b", "plane", 0.0, None)]
     assert contact_words(pairs, None) == "restitution a/plane = 0.42, b/plane = 0"
     assert contact_words([], None) == ""
-    assert sweep_words({"bodies.ball.pos": [0.0, 0.0, 3.0]}) == "ball released at z = 3 m"
-    assert sweep_words({"contact.restitution": 0.9}) == "restitution = 0.9"
-    assert sweep_words({}) == ""
+    assert (
+        run_label("drop", {"bodies.ball.pos": [0.0, 0.0, 3.0]}) == "drop: ball released at z = 3 m"
+    )
+    assert run_label("e", {"contact.restitution": 0.9}) == "e: restitution = 0.9"
+    assert run_label("drop", {}) == "drop"
 
 
 @pytest.mark.slow
