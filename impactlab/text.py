@@ -25,6 +25,11 @@ _MD_START = re.compile(r"( *)(?:([#=+\-])|(\d{1,9})([.)]))")
 """What makes a line a heading, a list item or a setext underline, at the text's start."""
 
 
+def clipped(text: str, limit: int) -> str:
+    """`text` cut to `limit` characters, "..." its last three when cut."""
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def visible(text: str, keep: str = "") -> str:
     """`text` with each control character shown as its escape (`\\n`, `\\x1b`, `\\u202e`),
     except the characters in `keep`."""

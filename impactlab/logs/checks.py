@@ -19,6 +19,7 @@ from impactlab.logs.metadata import (
     TEXT,
 )
 from impactlab.physics import half_step_s
+from impactlab.text import clipped
 
 MAX_STEP_NS = 1 << 62  # timestep x log_every must stay far from int64 overflow
 PLANE_GEOM = "plane"  # the plane of a spec's model, as its contact pairs name it
@@ -118,8 +119,7 @@ def construction_problem(exc: ValidationError) -> str:
 
 def _shown(value: Any) -> str:
     """A value as a problem quotes it, cut to 40 characters."""
-    text = value if isinstance(value, str) else repr(value)
-    return repr(text if len(text) <= 40 else text[:37] + "...")
+    return repr(clipped(value if isinstance(value, str) else repr(value), 40))
 
 
 def step_ns(timestep_s: float) -> int:

@@ -18,6 +18,7 @@ from pydantic_core import PydanticCustomError
 
 from impactlab.logs.checks import PLANE_GEOM
 from impactlab.physics import Integrator
+from impactlab.text import clipped
 
 CONDIMS = (1, 3, 4, 6)
 MIN_TIMESTEP_S = 1e-9  # log times are whole nanoseconds
@@ -83,8 +84,7 @@ Rgba = Annotated[tuple[Fraction, ...], _vector((4,))]
 
 def short(value: Any, limit: int = 60) -> str:
     """`repr(value)` cut to `limit` characters (a huge or deeply nested value stays readable)."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    return clipped(repr(value), limit)
 
 
 class Section(BaseModel):

@@ -15,6 +15,7 @@ from impactlab.logs.decode import IMPACT_SCHEMA
 from impactlab.logs.load import RunLog
 from impactlab.logs.messages import BODY_FIELDS, ENERGY_FIELDS, POINT_FIELDS, WORK_FIELDS
 from impactlab.logs.reader import read_attachments
+from impactlab.text import clipped
 from impactlab.tools import DEFAULT_IGNORED_META
 from impactlab.tools.compare import (
     ABSENT,
@@ -271,9 +272,7 @@ def topic_order(topic: str) -> tuple[int, str, bool]:
 
 def short(text: str | None) -> str:
     """A value as a report quotes it, cut to `WIDTH` characters."""
-    if text is None:
-        return "(absent)"
-    return text if len(text) <= WIDTH else text[: WIDTH - 3] + "..."
+    return "(absent)" if text is None else clipped(text, WIDTH)
 
 
 def _field_line(f: FieldDiff) -> str:
