@@ -10,6 +10,9 @@ scale, into `bench-quick.md`, which git ignores: the committed figures stay thos
 - record: a 64-run drop sweep with every step logged on every channel, against the same
   steps simulated by the handout's Python loop (mj_step, copy qpos/qvel, nothing logged),
   and on one pinned core: best of 3 each, run in turns;
+- large models: `zoo/models/boxes_100.xml` and `humanoids_10.xml` (issue 35), each recorded
+  with the API against a bare `mj_step` loop of the same steps, in turns, best of 3, wall and
+  CPU time; planning (compile, instrument, attachments) apart;
 - decode: logs into polars frames (messages per second, one process), against the official
   mcap reader iterating over the same files and zstd on their chunks (best of 3, in turns);
 - analyze: the whole analysis of the sweep, against the time it took to record it (best
@@ -31,7 +34,7 @@ import tempfile
 from pathlib import Path
 
 import cases
-from results import Results, machine
+from results import Results, load_average, machine
 
 IN_TURNS = 3  # what a ratio compares is measured in turns, best of 3 each
 
@@ -64,6 +67,7 @@ def main() -> int:
         spec = cases.write_spec(folder, runs, 3.0)
         print(f"machine: {machine()}")
         rec2 = _record(spec, folder, runs, results, turns)
+        _large(folder, results)
         logs = sorted((folder / "logs").glob("*.mcap"))
         _decode(logs, results, turns, official_logs=2 if args.quick else len(logs))
         _analyze(logs, folder, rec2["seconds"], results, turns)
@@ -130,6 +134,45 @@ def _record(spec: Path, folder: Path, runs: int, results: Results, turns: int) -
         "record", "two cores over one pinned core", f"{cores:.2f}x", ">= 1.8x", cores >= 1.8
     )
     return rec2
+
+
+LARGE_MODELS = (("boxes_100.xml", 6.0), ("humanoids_10.xml", 15.0))  # 3,000 steps each
+LARGE_GOAL = 2.0  # record / bare loop of the same steps (issue 35)
+
+
+def _large(folder: Path, results: Results) -> None:
+    models = Path(__file__).resolve().parent / "zoo" / "models"
+    print(
+        f"\nlarge models: recorded steps against a bare mj_step loop of them (best of {IN_TURNS})"
+    )
+    for name, duration in LARGE_MODELS:
+        load = load_average()
+        r = cases.large_model_case(models / name, duration, folder / "large", IN_TURNS)
+        wall, cpu = r["record_s"] / r["loop_s"], r["record_cpu"] / r["loop_cpu"]
+        _line(
+            f"{name} ({r['steps']:,} steps), loop",
+            f"{r['loop_s']:6.2f} s wall, {r['loop_cpu']:6.2f} s CPU",
+        )
+        _line(
+            "  impactlab record",
+            f"{r['record_s']:6.2f} s wall, {r['record_cpu']:6.2f} s CPU; ratio {wall:.2f} wall, "
+            f"{cpu:.2f} CPU (goal <= {LARGE_GOAL:g})",
+        )
+        _line("  planning it, apart", f"{r['plan_s']:6.2f} s wall, {r['plan_cpu']:6.2f} s CPU")
+        results.add(
+            "record",
+            f"`{name}` ({r['steps']:,} steps), every step logged, against a bare `mj_step` "
+            f"loop of the same steps (load {load} before)",
+            f"{r['record_s']:.2f} s wall, {r['record_cpu']:.2f} s CPU; ratio {wall:.2f} wall, "
+            f"{cpu:.2f} CPU",
+            f"loop {r['loop_s']:.2f} s wall, {r['loop_cpu']:.2f} s CPU; ratio <= {LARGE_GOAL:g}",
+            max(wall, cpu) <= LARGE_GOAL,
+        )
+        results.add(
+            "record",
+            f"planning `{name}` (compile, instrument, attachments), apart",
+            f"{r['plan_s']:.2f} s wall, {r['plan_cpu']:.2f} s CPU",
+        )
 
 
 def _seconds(result: dict) -> float:

@@ -96,6 +96,45 @@ def record_case(spec: Path, out: Path, threads: int, *, with_plan: bool = False)
     }
 
 
+def large_model_case(xml: Path, duration: float, out: Path, turns: int) -> dict:
+    """A large MJCF model recorded with impactlab's API against a bare `mj_step` loop of
+    the same steps (the model as MuJoCo loads it, nothing read), in one process, in turns
+    (loop, plan, record, loop, ...): the best wall and CPU seconds of each. Planning
+    (compile, instrument, attachments) is its own figure, recording the steps another."""
+    import mujoco
+
+    from impactlab.record import plan, record_runs
+    from impactlab.record.work import run_steps
+
+    best = dict.fromkeys(
+        ("loop_s", "loop_cpu", "plan_s", "plan_cpu", "record_s", "record_cpu"), float("inf")
+    )
+    steps = 0
+    for _ in range(turns):
+        model = mujoco.MjModel.from_xml_path(str(xml))
+        data = mujoco.MjData(model)
+        steps = run_steps(duration, float(model.opt.timestep))
+        start, cpu = time.perf_counter(), _cpu_seconds()
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+        _best(best, "loop", start, cpu)
+        start, cpu = time.perf_counter(), _cpu_seconds()
+        runs = plan([xml], duration=duration)
+        _best(best, "plan", start, cpu)
+        start, cpu = time.perf_counter(), _cpu_seconds()
+        (result,) = record_runs(runs, out, threads=1, overwrite=True)
+        _best(best, "record", start, cpu)
+        if result.failed or result.steps != steps:
+            raise RuntimeError(f"{xml.name}: {result.steps} steps recorded, not {steps}")
+    return best | {"steps": steps}
+
+
+def _best(best: dict, stage: str, start: float, cpu: float) -> None:
+    """Keep a stage's best wall (`STAGE_s`) and CPU (`STAGE_cpu`) seconds since start, cpu."""
+    best[f"{stage}_s"] = min(best[f"{stage}_s"], time.perf_counter() - start)
+    best[f"{stage}_cpu"] = min(best[f"{stage}_cpu"], _cpu_seconds() - cpu)
+
+
 def _cpu_seconds() -> float:
     """CPU seconds (user and system) of this process and of its children waited for (the
     workers, once a stage has closed them): a stage's cost, whatever else the machine runs."""
