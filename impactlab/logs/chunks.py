@@ -9,7 +9,10 @@ its summary is made from (`PRIVATE`, as of mcap `MCAP_VERSION`).
 from __future__ import annotations
 
 import itertools
+import struct
+from collections import deque
 from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import IO
 
@@ -28,6 +31,7 @@ PRIVATE = ("_Writer__statistics", "_Writer__chunk_indices", "_Writer__attachment
 HEAD = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
+PENDING = 2  # chunks built and not written yet at most (memory is bounded)
 ZSTD_LEVEL = -1  # zstd's fast mode: on contact-heavy logs half level 1's time, 2-5 % larger
 
 
@@ -51,7 +55,8 @@ class Block:
 class ChunkWriter:
     """mcap's Writer (`writer`), plus `write_chunk` and `attach`. Every schema and channel is
     registered (`channel`) before the first chunk, and the Writer's buffered records are
-    written out (by `add_metadata`, `add_attachment`) before each chunk."""
+    written out (by `add_metadata`, `add_attachment`) before each chunk. Chunks are written
+    by a thread of their own: `wait` before writing with `writer`, `close` at the end."""
 
     def __init__(self, stream: IO[bytes], *, library: str) -> None:
         self.stream = stream
@@ -68,10 +73,12 @@ class ChunkWriter:
         self.attachment_indexes: list[AttachmentIndex] = getattr(self.writer, PRIVATE[2])
         self._schemas: dict[str, int] = {}
         self._compressor = zstandard.ZstdCompressor(level=ZSTD_LEVEL)
+        self._thread: ThreadPoolExecutor | None = None  # started by the first chunk
+        self._pending: deque[Future[None]] = deque()
 
     def channel(self, topic: str, schema: str, data: bytes, metadata: dict[str, str]) -> int:
         """Register a protobuf channel (and its schema, once); its id."""
-        if self.statistics.chunk_count:
+        if self.statistics.chunk_count or self._pending:
             raise RuntimeError("channels are registered before the first chunk")
         if schema not in self._schemas:
             self._schemas[schema] = self.writer.register_schema(schema, "protobuf", data)
@@ -80,6 +87,7 @@ class ChunkWriter:
     def attach(self, name: str, media_type: str, data: bytes) -> None:
         """Write an attachment as `Writer.add_attachment` does (times 0), its data written
         once and its CRC from isal: mcap's own copies a large model's data three times."""
+        self.wait()
         texts = [len(t).to_bytes(4, "little") + t for t in (name.encode(), media_type.encode())]
         head = bytes(16) + b"".join(texts) + len(data).to_bytes(8, "little")  # times 0
         length = len(head) + len(data) + 4
@@ -92,14 +100,48 @@ class ChunkWriter:
         self.attachment_indexes.append(index)
 
     def write_chunk(self, blocks: Sequence[Block]) -> None:
-        """Write one chunk holding every message of `blocks`, sorted by (time, block order)."""
+        """Write one chunk holding every message of `blocks`, sorted by (time, block order):
+        its records are built here, compressed and written on the writer's thread (zstd and
+        the file release the GIL: the caller goes on meanwhile), in order; a failure of
+        that thread is raised by a later call or `wait`."""
         blocks = [b for b in blocks if len(b.log_time)]
         if not blocks:
             return
         dense = all(isinstance(b.payloads, np.ndarray) for b in blocks)
         records, index = _dense(blocks) if dense else _loose(blocks)
         times = np.concatenate([b.log_time for b in blocks])
-        start, end = int(times.min()), int(times.max())
+        counts: dict[int, int] = {}
+        for b in blocks:
+            for channel_id in b.channels:
+                counts[channel_id] = counts.get(channel_id, 0) + len(b.log_time)
+        if self._thread is None:
+            self._thread = ThreadPoolExecutor(1, thread_name_prefix="impactlab-chunks")
+        while self._pending and (self._pending[0].done() or len(self._pending) >= PENDING):
+            self._pending.popleft().result()  # at most PENDING chunks held
+        span = (int(times.min()), int(times.max()))
+        self._pending.append(self._thread.submit(self._write, records, index, span, counts))
+
+    def wait(self) -> None:
+        """Wait until every chunk given is written (raising the first failure)."""
+        while self._pending:
+            self._pending.popleft().result()
+
+    def close(self) -> None:
+        """End the writer's thread once the chunk it writes is written (drop the others)."""
+        if self._thread is not None:
+            self._thread.shutdown(wait=True, cancel_futures=True)
+            self._thread = None
+        self._pending.clear()
+
+    def _write(
+        self,
+        records: np.ndarray,
+        index: dict[int, np.ndarray],
+        span: tuple[int, int],
+        counts: dict[int, int],
+    ) -> None:
+        """Compress and write a chunk's records and its message indexes; sum them up."""
+        start, end = span
         compressed = self._compressor.compress(records.data)
         chunk = Chunk(
             compression="zstd",
@@ -124,7 +166,7 @@ class ChunkWriter:
             position += 9 + len(body)
         self.stream.write(b"".join(message_indexes))
         self.chunk_indexes.append(
-            ChunkIndex(
+            _ChunkIndex(
                 message_start_time=start,
                 message_end_time=end,
                 chunk_start_offset=chunk_at,
@@ -142,10 +184,28 @@ class ChunkWriter:
         )
         stats.message_end_time = max(stats.message_end_time, end)
         stats.chunk_count += 1
-        for b in blocks:
-            for channel_id in b.channels:
-                stats.channel_message_counts[channel_id] += len(b.log_time)
-                stats.message_count += len(b.log_time)
+        for channel_id, count in counts.items():
+            stats.channel_message_counts[channel_id] += count
+            stats.message_count += count
+
+
+class _ChunkIndex(ChunkIndex):
+    """mcap's ChunkIndex, written as its bytes at once: mcap writes an offset (one per
+    channel: hundreds for a model of hundreds of bodies) with a Python call per field."""
+
+    def write(self, stream: RecordBuilder) -> None:
+        offsets = np.empty(len(self.message_index_offsets), [("id", "<u2"), ("at", "<u8")])
+        offsets["id"] = list(self.message_index_offsets)
+        offsets["at"] = list(self.message_index_offsets.values())
+        times = (self.message_start_time, self.message_end_time)
+        head = struct.pack(
+            "<4QI", *times, self.chunk_start_offset, self.chunk_length, offsets.nbytes
+        )
+        stream.start_record(Opcode.CHUNK_INDEX)
+        stream.write(head + offsets.tobytes() + struct.pack("<Q", self.message_index_length))
+        stream.write_prefixed_string(self.compression)
+        stream.write(struct.pack("<2Q", self.compressed_size, self.uncompressed_size))
+        stream.finish_record()  # type: ignore[no-untyped-call]  # mcap has no hints
 
 
 def _headers(block: Block, times: np.ndarray, length: int) -> np.ndarray:

@@ -273,6 +273,7 @@ class LogWriter:
                 self._out.attach(name, media_type, data)
             writer.add_metadata(logformat.OUTCOME_METADATA, outcome.record())
             writer.finish()  # type: ignore[no-untyped-call]  # mcap: finish() has no hints
+            self._out.close()
             assert self._stream is not None
             self._stream.close()
             self._stream = None
@@ -285,6 +286,8 @@ class LogWriter:
     def abort(self) -> None:
         """Close and remove the temporary file (nothing is left behind, also when closing
         fails: a full disk refuses what was still buffered)."""
+        if hasattr(self, "_out"):  # the chunk being written, before the file is closed
+            self._out.close()
         if self._stream is not None:
             with contextlib.suppress(OSError):
                 self._stream.close()

@@ -11,7 +11,15 @@ import pytest
 from mcap.reader import make_reader
 
 from impactlab.logs import messages
-from impactlab.logs.chunks import MCAP_VERSION, PRIVATE, Block, ChunkWriter, _dense, _loose
+from impactlab.logs.chunks import (
+    MCAP_VERSION,
+    PRIVATE,
+    Block,
+    ChunkWriter,
+    _ChunkIndex,
+    _dense,
+    _loose,
+)
 
 
 def _blocks(rng: np.random.Generator, n: int, subset_times: bool) -> list[Block]:
@@ -67,7 +75,9 @@ def test_chunks_written_through_the_adapter_are_in_the_file_and_its_summary():
     out.write_chunk([Block(b, t + 100, payloads)])
     with pytest.raises(RuntimeError, match="before the first chunk"):
         out.channel("/late", "impactlab.Energy", b"", {})
+    out.wait()  # the adapter's thread writes the chunks: then the Writer's records
     out.writer.finish()
+    out.close()
     reader = make_reader(io.BytesIO(stream.getvalue()))
     summary = reader.get_summary()
     assert summary.statistics.message_count == 12 and summary.statistics.chunk_count == 2
@@ -98,3 +108,19 @@ def test_an_attachment_is_the_bytes_mcaps_writer_writes_and_in_the_summary(data)
         "application/xml",
         data,
     )
+
+
+@pytest.mark.parametrize("offsets", [{}, {1: 0}, {2: 2**40, 1: 5, 65535: 2**64 - 1}])
+def test_a_chunk_index_is_the_bytes_mcaps_record_writes(offsets):
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import ChunkIndex
+
+    fields = dict(
+        message_start_time=3, message_end_time=2**63, chunk_start_offset=99,
+        chunk_length=12_345, message_index_offsets=offsets, message_index_length=77,
+        compression="zstd", compressed_size=5, uncompressed_size=2**33,
+    )  # fmt: skip
+    ours, theirs = RecordBuilder(), RecordBuilder()
+    _ChunkIndex(**fields).write(ours)
+    ChunkIndex(**fields).write(theirs)
+    assert ours.end() == theirs.end()
