@@ -167,7 +167,7 @@ def model_from_mjcf(
     MuJoCo reads the model and every file it names; the log keeps its text and, when the text
     alone does not reproduce it, the compiled model (`impactlab.record.model_files`).
     """
-    from impactlab.record.model_files import BINARY_ATTACHMENT, binary, model_files
+    from impactlab.record.model_files import binary_attachment, model_files
 
     spec = parse_mjcf(path)
     files = model_files(spec, path)
@@ -178,7 +178,7 @@ def model_from_mjcf(
             str(path), "", "a name in the model is not UTF-8 text: save the model as UTF-8"
         ) from None
     if files.needs_binary:
-        inst.attachments = ((BINARY_ATTACHMENT, "application/octet-stream", binary(inst.model)),)
+        inst.attachments = (binary_attachment(inst.model),)
     return inst
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+import zstandard
 from specs import drop, toml
 
 from impactlab.cli import main
@@ -234,8 +235,8 @@ def test_a_log_of_a_model_with_a_mesh_carries_the_compiled_model(tmp_path, capsy
     (tmp_path / "m.xml").write_text(MESH)
     (tmp_path / "tet.obj").write_text(TET.format(s=0.2))
     _, logs = record(capsys, tmp_path / "m.xml", tmp_path / "logs")
-    binary = tmp_path / "model.mjb"
-    binary.write_bytes(attachments(logs[0])["model.mjb"])
+    binary = tmp_path / "model.mjb"  # as `zstd -d model.mjb.zst` writes it
+    binary.write_bytes(zstandard.decompress(attachments(logs[0])["model.mjb.zst"]))
     model = mujoco.MjModel.from_binary_path(str(binary))
     source = mujoco.MjModel.from_xml_path(str(tmp_path / "m.xml"))
     assert model.nmeshvert == source.nmeshvert
