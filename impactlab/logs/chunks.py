@@ -208,13 +208,20 @@ class _ChunkIndex(ChunkIndex):
         stream.finish_record()  # type: ignore[no-untyped-call]  # mcap has no hints
 
 
-def _headers(block: Block, times: np.ndarray, length: int) -> np.ndarray:
-    """The message records' headers of `block` at `times`, (n, C, HEAD.itemsize) uint8."""
+def _fill(
+    out: np.ndarray, at: int, row: int, block: Block, times: np.ndarray, payloads: np.ndarray
+) -> None:
+    """Write `block`'s message records at `times` (payloads (n, C, L)) into `out`, the first
+    at byte `at`, a row of C records every `row` bytes: header fields and payloads in place."""
     channels = np.atleast_1d(block.channel_id)
-    head = np.zeros((len(times), channels.size), HEAD)
-    head["op"], head["len"], head["ch"] = Opcode.MESSAGE, length + HEAD.itemsize - 9, channels
+    record = np.dtype([("head", HEAD), ("data", np.uint8, payloads.shape[2:])])
+    shape, strides = (len(times), channels.size), (row, record.itemsize)
+    records = np.ndarray(shape, record, out, at, strides)
+    head = records["head"]
+    head["op"], head["len"], head["ch"] = Opcode.MESSAGE, record.itemsize - 9, channels
+    head["seq"] = 0
     head["lt"] = head["pt"] = times[:, None]
-    return head.view(np.uint8).reshape(len(times), channels.size, -1)
+    records["data"] = payloads
 
 
 def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
@@ -239,15 +246,12 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     for lo, hi in itertools.pairwise([0, *change.tolist(), times.size]):
         members = np.flatnonzero(present[:, lo]).tolist()
         row = sum(sizes[i] for i in members)
-        segment = out[position : position + (hi - lo) * row].reshape(hi - lo, row)
         column = 0
         for i in members:
             b, size = blocks[i], record[i]
             first = int(np.searchsorted(b.log_time, times[lo]))
             t = b.log_time[first : first + hi - lo]
-            mine = segment[:, column : column + sizes[i]].reshape(hi - lo, -1, size)
-            mine[:, :, : HEAD.itemsize] = _headers(b, t, size - HEAD.itemsize)
-            mine[:, :, HEAD.itemsize :] = payloads[i][first : first + hi - lo]
+            _fill(out, position + column, row, b, t, payloads[i][first : first + hi - lo])
             starts = position + column + row * np.arange(hi - lo)
             channels = np.atleast_1d(b.channel_id)  # (C,): a row of records per time
             index_channel.append(np.tile(channels, t.size))

@@ -67,14 +67,15 @@ class LogRows:
     `RunMeta.bodies` order and `messages.BODY_FIELDS` order; `energy` (n, 3) J; `work` (n, k)
     J since the start, `messages.WORK_FIELDS`; `contacts`, one entry per point: its row (m,),
     sides (m, 2) (a geom id, or -1 - a flex id) and values (m, 13) in `POINT_FIELDS` order;
-    `clearance` per body of `LogHeader.clearance` (n, k) m; `joint_energy` (n, 3) J or None."""
+    `clearance` (n, m) m, the distances of every body of `LogHeader.clearance` side by side, in
+    its order (each body's surfaces in theirs); `joint_energy` (n, 3) J or None."""
 
     t_ns: np.ndarray
     bodies: np.ndarray
     energy: np.ndarray
     work: np.ndarray
     contacts: tuple[np.ndarray, np.ndarray, np.ndarray]
-    clearance: list[np.ndarray] = field(default_factory=list)
+    clearance: np.ndarray = field(default_factory=lambda: np.empty((0, 0)))
     joint_energy: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -90,7 +91,7 @@ class LogRows:
             self.energy[lo:hi],
             self.work[lo:hi],
             (row[mine] - lo, sides[mine], values[mine]),
-            [c[lo:hi] for c in self.clearance],
+            self.clearance[lo:hi],
             None if self.joint_energy is None else self.joint_energy[lo:hi],
         )
 
@@ -111,7 +112,7 @@ class LogRows:
                 cat([p.contacts[1] for p in parts]),
                 cat([p.contacts[2] for p in parts]),
             ),
-            [cat([p.clearance[i] for p in parts]) for i in range(len(parts[0].clearance))],
+            cat([p.clearance for p in parts]),
             None if parts[0].joint_energy is None else cat([p.joint_energy for p in parts]),
         )
 
@@ -179,6 +180,15 @@ class LogWriter:
         for name, triangles in header.meshes.items():  # first: a cut log still draws the model
             out.attach(name, STL_MEDIA_TYPE, encode_stl(triangles))
         self._tf_bodies = bodies
+        # per number of surfaces: the channels, and their columns of `LogRows.clearance`
+        first = np.cumsum([0] + [len(s) for _, s in header.clearance])
+        layouts: dict[int, list[int]] = {}
+        for i, (_, surfaces) in enumerate(header.clearance):
+            layouts.setdefault(len(surfaces), []).append(i)
+        self._clearance_layouts = {
+            width: (np.array(self._clearance)[at], (first[at, None] + np.arange(width)).ravel())
+            for width, at in layouts.items()
+        }
         row_bytes = (
             len(bodies) * messages.body_state().size
             + messages.energy().size * (2 if header.joint_energy else 1)
@@ -226,14 +236,10 @@ class LogWriter:
             blocks.append(
                 Block(np.array(self._bodies), t, states.reshape(len(t), len(self._bodies), -1))
             )
-        widths: dict[int, list[tuple[int, np.ndarray]]] = {}  # a block per clearance layout
-        for channel_id, values in zip(self._clearance, rows.clearance, strict=True):
-            widths.setdefault(values.shape[1], []).append((channel_id, values))
-        for width, group in widths.items():
-            values = np.stack([v for _, v in group], axis=1)  # (n, channels, width)
-            payloads = messages.clearance(width).encode(values.reshape(-1, width))
-            ids = np.array([c for c, _ in group])
-            blocks.append(Block(ids, t, payloads.reshape(len(t), len(group), -1)))
+        for width, (ids, columns) in self._clearance_layouts.items():  # a block per layout
+            values = rows.clearance[:, columns].reshape(-1, width)
+            payloads = messages.clearance(width).encode(values)
+            blocks.append(Block(ids, t, payloads.reshape(len(t), len(ids), -1)))
         blocks.append(Block(self._energy, t, messages.energy().encode(rows.energy)))
         blocks.append(Block(self._work, t, messages.work().encode(rows.work)))
         if self._joints is not None and rows.joint_energy is not None:

@@ -153,12 +153,10 @@ def log_rows(
     energy = np.stack([e[:, 1], e[:, 0], e[:, 0] + e[:, 1]], axis=1)
     channels = [inst.clearance_of(b.name) for b in inst.bodies]
     columns = [c.adrs for body in channels for c in body]
-    clearance = []
+    clearance = np.empty((len(t_ns), 0))
     if columns:  # each channel the min of its sensors, every channel at once
         starts = np.cumsum([0] + [len(c) for c in columns[:-1]])
-        nearest = np.minimum.reduceat(sensordata[:, np.concatenate(columns)], starts, axis=1)
-        bounds = np.cumsum([len(body) for body in channels if body])
-        clearance = np.split(nearest, bounds[:-1], axis=1)
+        clearance = np.minimum.reduceat(sensordata[:, np.concatenate(columns)], starts, axis=1)
     joints = None
     if inst.joints is not None:  # the last two columns (`impactlab.record.simulate`)
         rotor, spring = sensordata[:, -2], sensordata[:, -1]

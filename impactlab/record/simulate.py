@@ -139,7 +139,7 @@ class _Run:
         n = min(self.chunk, self.total - self.step0)
         start = np.empty(mujoco.mj_stateSize(self.model, STATE))
         mujoco.mj_getState(self.model, self.data, start, STATE)
-        warned = [int(w.number) for w in self.data.warning]
+        warned = self.data.warning.number.tolist()
         self._steps(n)
         self.tape.check()
         v_start = np.vstack([self.v_last[None], self.vel[: n - 1]])
@@ -243,7 +243,7 @@ class _Run:
 
     def _warning(self, start: np.ndarray, warned: list[int], n: int) -> Verdict | None:
         """The unstable verdict of a chunk in which MuJoCo raised a warning, else None."""
-        if [int(w.number) for w in self.data.warning] == warned:
+        if self.data.warning.number.tolist() == warned:
             return None
         found = first_warning(self.model, start, n)
         if found is None:
