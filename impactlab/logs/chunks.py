@@ -32,6 +32,7 @@ HEAD = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
 PENDING = 2  # chunks built and not written yet at most (memory is bounded)
+THREADED_BYTES = 1 << 18  # smaller chunks are compressed and written by the caller
 ZSTD_LEVEL = -1  # zstd's fast mode: on contact-heavy logs half level 1's time, 2-5 % larger
 
 
@@ -102,8 +103,8 @@ class ChunkWriter:
     def write_chunk(self, blocks: Sequence[Block]) -> None:
         """Write one chunk holding every message of `blocks`, sorted by (time, block order):
         its records are built here, compressed and written on the writer's thread (zstd and
-        the file release the GIL: the caller goes on meanwhile), in order; a failure of
-        that thread is raised by a later call or `wait`."""
+        the file release the GIL: the caller goes on meanwhile), in order, unless it is
+        small; a failure of that thread is raised by a later call or `wait`."""
         blocks = [b for b in blocks if len(b.log_time)]
         if not blocks:
             return
@@ -112,13 +113,18 @@ class ChunkWriter:
         times = np.concatenate([b.log_time for b in blocks])
         counts: dict[int, int] = {}
         for b in blocks:
+            n = len(b.log_time)
             for channel_id in b.channels:
-                counts[channel_id] = counts.get(channel_id, 0) + len(b.log_time)
+                counts[channel_id] = counts.get(channel_id, 0) + n
+        span = (int(times.min()), int(times.max()))
+        if len(records) < THREADED_BYTES:  # a thread would cost more than it saves
+            self.wait()
+            self._write(records, index, span, counts)
+            return
         if self._thread is None:
             self._thread = ThreadPoolExecutor(1, thread_name_prefix="impactlab-chunks")
         while self._pending and (self._pending[0].done() or len(self._pending) >= PENDING):
             self._pending.popleft().result()  # at most PENDING chunks held
-        span = (int(times.min()), int(times.max()))
         self._pending.append(self._thread.submit(self._write, records, index, span, counts))
 
     def wait(self) -> None:

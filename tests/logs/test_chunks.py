@@ -124,3 +124,47 @@ def test_a_chunk_index_is_the_bytes_mcaps_record_writes(offsets):
     _ChunkIndex(**fields).write(ours)
     ChunkIndex(**fields).write(theirs)
     assert ours.end() == theirs.end()
+
+
+def _energy_block(channel: int, t0: int, n: int) -> Block:
+    t = t0 + np.arange(n, dtype=np.int64)
+    return Block(channel, t, messages.energy().encode(np.arange(3.0 * n).reshape(n, 3)))
+
+
+def test_large_chunks_written_by_the_thread_keep_their_order_with_small_ones():
+    stream = io.BytesIO()
+    out = ChunkWriter(stream, library="test")
+    a = out.channel("/a", "impactlab.Energy", b"", {})
+    out.writer.add_metadata("m", {})
+    sizes = [20_000, 3, 20_000, 20_000, 5]  # a chunk of 20,000 is 1.2 MB: the thread's
+    t0 = np.cumsum([0, *sizes[:-1]])
+    for start, n in zip(t0.tolist(), sizes, strict=True):
+        out.write_chunk([_energy_block(a, start, n)])
+    out.attach("model.xml", "application/xml", b"<mujoco/>")  # after every chunk
+    out.writer.finish()
+    out.close()
+    reader = make_reader(io.BytesIO(stream.getvalue()))
+    summary = reader.get_summary()
+    assert summary.statistics.chunk_count == len(sizes)
+    assert summary.statistics.message_count == sum(sizes)
+    times = [m.log_time for _, _, m in reader.iter_messages(log_time_order=False)]
+    assert times == list(range(sum(sizes)))
+    assert [x.name for x in reader.iter_attachments()] == ["model.xml"]
+
+
+class _FullDisk(io.BytesIO):
+    def write(self, data) -> int:  # type: ignore[no-untyped-def, override]
+        if self.tell() > 1 << 20:
+            raise OSError(28, "No space left on device")
+        return super().write(data)
+
+
+def test_a_failure_of_the_thread_is_raised_to_the_caller():
+    out = ChunkWriter(_FullDisk(), library="test")
+    a = out.channel("/a", "impactlab.Energy", b"", {})
+    out.writer.add_metadata("m", {})
+    with pytest.raises(OSError, match="No space left"):
+        for i in range(10):
+            out.write_chunk([_energy_block(a, i * 20_000, 20_000)])
+        out.wait()
+    out.close()
