@@ -111,21 +111,16 @@ class ChunkWriter:
         dense = all(isinstance(b.payloads, np.ndarray) for b in blocks)
         records, index = _dense(blocks) if dense else _loose(blocks)
         times = np.concatenate([b.log_time for b in blocks])
-        counts: dict[int, int] = {}
-        for b in blocks:
-            n = len(b.log_time)
-            for channel_id in b.channels:
-                counts[channel_id] = counts.get(channel_id, 0) + n
         span = (int(times.min()), int(times.max()))
         if len(records) < THREADED_BYTES:  # a thread would cost more than it saves
             self.wait()
-            self._write(records, index, span, counts)
+            self._write(records, index, span)
             return
         if self._thread is None:
             self._thread = ThreadPoolExecutor(1, thread_name_prefix="impactlab-chunks")
         while self._pending and (self._pending[0].done() or len(self._pending) >= PENDING):
             self._pending.popleft().result()  # at most PENDING chunks held
-        self._pending.append(self._thread.submit(self._write, records, index, span, counts))
+        self._pending.append(self._thread.submit(self._write, records, index, span))
 
     def wait(self) -> None:
         """Wait until every chunk given is written (raising the first failure)."""
@@ -140,13 +135,10 @@ class ChunkWriter:
         self._pending.clear()
 
     def _write(
-        self,
-        records: np.ndarray,
-        index: dict[int, np.ndarray],
-        span: tuple[int, int],
-        counts: dict[int, int],
+        self, records: np.ndarray, index: dict[int, np.ndarray], span: tuple[int, int]
     ) -> None:
-        """Compress and write a chunk's records and its message indexes; sum them up."""
+        """Compress and write a chunk's records and its message indexes (per channel its
+        messages' (log_time, offset)); count them in the summary."""
         start, end = span
         compressed = self._compressor.compress(records.data)
         chunk = Chunk(
@@ -162,6 +154,12 @@ class ChunkWriter:
         chunk_at = self.stream.tell()
         self.stream.write(builder.end())  # type: ignore[no-untyped-call]
         index_at = position = self.stream.tell()
+        stats = self.statistics
+        stats.message_start_time = (
+            min(stats.message_start_time, start) if stats.chunk_count else start
+        )
+        stats.message_end_time = max(stats.message_end_time, end)
+        stats.chunk_count += 1
         offsets, message_indexes = {}, []
         for channel_id, pairs in index.items():
             body = channel_id.to_bytes(2, "little") + (16 * len(pairs)).to_bytes(4, "little")
@@ -170,6 +168,8 @@ class ChunkWriter:
             message_indexes.append(record)
             offsets[channel_id] = position
             position += 9 + len(body)
+            stats.channel_message_counts[channel_id] += len(pairs)
+            stats.message_count += len(pairs)
         self.stream.write(b"".join(message_indexes))
         self.chunk_indexes.append(
             _ChunkIndex(
@@ -184,15 +184,6 @@ class ChunkWriter:
                 uncompressed_size=len(records),
             )
         )
-        stats = self.statistics
-        stats.message_start_time = (
-            min(stats.message_start_time, start) if stats.message_count else start
-        )
-        stats.message_end_time = max(stats.message_end_time, end)
-        stats.chunk_count += 1
-        for channel_id, count in counts.items():
-            stats.channel_message_counts[channel_id] += count
-            stats.message_count += count
 
 
 class _ChunkIndex(ChunkIndex):
