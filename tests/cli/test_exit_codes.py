@@ -94,7 +94,10 @@ def test_the_wrong_input_is_named(folder, capsys):
 @pytest.mark.parametrize(
     "argv",
     [
-        ["analyze", "good.mcap", "nosuch.mcap", "spec.toml", "empty", "-o", "r"],
+        pytest.param(  # the analysis's workers start: about 3 s
+            ["analyze", "good.mcap", "nosuch.mcap", "spec.toml", "empty", "-o", "r"],
+            marks=pytest.mark.slow,
+        ),
         ["replay", "good.mcap", "nosuch.mcap", "spec.toml", "empty", "-o", "r"],
         ["info", "good.mcap", "nosuch.mcap", "spec.toml", "empty"],
     ],

@@ -72,6 +72,7 @@ def test_a_bad_point_fails_at_plan_time(tmp_path):
         plan(path)
 
 
+@pytest.mark.slow  # six runs recorded by forked workers: over 2 s
 def test_recording_holds_no_planned_run_in_the_driver(tmp_path):
     """While forked workers record a sweep, the driver holds its runs as indices: when each
     run's result arrives, at most one planned run (the last one read, with its resolved

@@ -297,13 +297,18 @@ def test_info_describes_every_valid_file(conformance):
         assert ("counted by reading it" in text) == (not needed <= variant.features), name
 
 
-def test_every_command_answers_every_conformance_file(tmp_path, capsys, conformance):
-    """analyze, diff and replay say in one line that a file is not an impactlab log (all 416
-    through the reader they share, a sample through each command line); info describes it."""
+def test_the_reader_answers_every_conformance_file(conformance):
+    """analyze, diff and replay share this reader: all 416 files are not an impactlab log."""
     for name, (_, path) in conformance.items():
         with pytest.raises(LogError, match="not an impactlab log") as err:
             load_log(path)
         assert err.value.path == str(path), name
+
+
+@pytest.mark.slow  # 36 commands, the analysis's workers started for each (over 10 s)
+def test_every_command_answers_every_conformance_file(tmp_path, capsys, conformance):
+    """analyze, diff and replay say in one line that a file is not an impactlab log (a sample
+    of every input through each command line); info describes it."""
     sample = [
         p for n, (v, p) in conformance.items() if v.features in (frozenset(), {"ch", "mx", "pad"})
     ]

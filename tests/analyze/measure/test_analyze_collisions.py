@@ -57,6 +57,7 @@ def test_no_collision_gives_a_row_with_the_reason(record_spec):
     assert a.summary["note"]
 
 
+@pytest.mark.slow  # records a calibrated drop and collision per integrator: about 3 s each
 @pytest.mark.parametrize("integrator", ["Euler", "RK4"])
 def test_calibrated_impacts_carry_their_target_in_its_range(record_spec, integrator):
     """A drop's first impact, at the top of the range its contact was designed for (measured

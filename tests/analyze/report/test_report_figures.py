@@ -11,6 +11,7 @@ import warnings
 import matplotlib.colors
 import numpy as np
 import polars as pl
+import pytest
 from matplotlib import image
 
 from impactlab.analyze.report import figures
@@ -113,6 +114,7 @@ def test_energy_figure_time_axis_ends_with_the_data(tmp_path):
     assert right - blue.max() < 0.03 * (right - left)  # the line reaches the right spine
 
 
+@pytest.mark.slow  # a fresh interpreter imports matplotlib and the analysis: over 2 s
 def test_drawing_leaves_the_users_matplotlib_as_it_was():
     code = (
         "import matplotlib, sys\n"
