@@ -1,6 +1,6 @@
 """The README's and docs' images and local links name files of the repository; the benchmark
 tables of docs/performance.md are the results files'; the README stays short; the lock it
-installs from holds only pins."""
+installs from holds only pins, one for every declared dependency."""
 
 from __future__ import annotations
 
@@ -54,6 +54,24 @@ def test_the_lock_holds_only_pins():
     odd = [line for line in odd if not pin.fullmatch(line)]
     assert odd == []
     assert sum(bool(pin.fullmatch(line)) for line in lines) > 50
+
+
+def test_the_lock_pins_every_declared_dependency():
+    """`just lock` compiles every extra: a dependency added to pyproject.toml without it (the
+    zoo extra was) is missing here, and `pip install -c requirements.lock` leaves it free."""
+    import tomllib
+
+    from packaging.requirements import Requirement
+    from packaging.utils import canonicalize_name
+
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    declared = [*project["dependencies"]]
+    declared += [r for extra in project["optional-dependencies"].values() for r in extra]
+    text = (ROOT / "requirements.lock").read_text(encoding="utf-8")
+    pinned = {canonicalize_name(m) for m in re.findall(r"(?m)^([A-Za-z0-9][\w.-]*)==", text)}
+    names = {canonicalize_name(Requirement(r).name) for r in declared} - {"impactlab"}
+    assert len(names) > 20
+    assert sorted(names - pinned) == []
 
 
 def test_the_experiments_page_lists_every_spec():
