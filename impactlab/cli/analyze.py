@@ -42,13 +42,17 @@ def run(args: argparse.Namespace) -> int:
 
     from impactlab.executors.choose import make_executor
     from impactlab.executors.processes import ProcessExecutor
-    from impactlab.logs.inputs import check_log_inputs
+    from impactlab.logs.inputs import check_log_inputs, log_names
     from impactlab.progress import ConsoleProgress
 
     executor = make_executor(args.executor, args.address)  # a wrong option first (starts nothing)
     check_log_inputs(args.logs)
     with closing(executor), ConsoleProgress() as progress:
-        if isinstance(executor, ProcessExecutor):  # the workers import while this process does
+        # the workers import while this process does; a batch below min_items runs here
+        if (
+            isinstance(executor, ProcessExecutor)
+            and len(log_names(args.logs)) >= executor.min_items
+        ):
             executor.prestart([ANALYSIS_TASKS])
         from impactlab.analyze.job import run_analysis
 

@@ -163,3 +163,24 @@ def test_no_figures_writes_the_tables_and_no_figure(logs, tmp_path, capsys):
     report = (out / "report.md").read_text()
     assert "![" not in report  # no image link (in-page links stay)
     assert "No figures were drawn (--no-figures)." in report
+
+
+@pytest.mark.parametrize(("copies", "started"), [(1, False), (7, False), (8, True)])
+def test_workers_are_prestarted_only_for_a_batch_they_will_run(
+    tmp_path, monkeypatch, copies, started
+):
+    """A batch below the processes executor's `min_items` (8) runs in this process: starting
+    workers for it (one log: 1-2 s of a spawned interpreter's imports) only delays the end."""
+    import shutil
+
+    from impactlab.analyze import job
+    from impactlab.executors.processes import ProcessExecutor
+
+    golden = Path(__file__).parents[1] / "golden" / "logs" / "drop_bounces.mcap"
+    for i in range(copies):
+        shutil.copy(golden, tmp_path / f"run{i}.mcap")
+    calls: list[object] = []
+    monkeypatch.setattr(ProcessExecutor, "prestart", lambda self, modules: calls.append(modules))
+    monkeypatch.setattr(job, "run_analysis", lambda *a, **k: type("R", (), {"exit_code": 0})())
+    assert main(["analyze", str(tmp_path), "-o", str(tmp_path / "out")]) == 0
+    assert bool(calls) is started
