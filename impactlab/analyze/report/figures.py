@@ -66,7 +66,8 @@ def energy_figure(energy: pl.DataFrame, contacts: pl.DataFrame, *, title: str, p
     _shade_contacts(ax_h, contacts)
     ax_h.set_ylabel("lowest point above the ground (m)")
     ax_h.set_title(plain(title if named else f"{title}\n{len(heights)} bodies, one line each"))
-    ax_h.legend(loc="upper right")
+    if ax_h.get_legend_handles_labels()[0]:  # many bodies and no contact: nothing to name
+        ax_h.legend(loc="upper right")
     styles: list[tuple[tuple[str, ...], dict[str, Any]]] = [
         ((), {"label": "kinetic", "alpha": 0.8}),
         ((), {"label": "potential (zero at rest on the ground)", "alpha": 0.8}),

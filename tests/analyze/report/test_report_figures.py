@@ -159,9 +159,15 @@ def test_energy_figure_of_many_bodies_labels_none_and_lays_out(tmp_path):
         },
         schema_overrides={"mujoco_total_J": pl.Float64},
     )
-    contacts = pl.DataFrame({"start_t_s": [0.1], "end_t_s": [0.5]})
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # matplotlib's "Tight layout not applied" among them
-        png = figures.energy_figure(energy, contacts, title="pile", path=tmp_path / "e.png")
-    assert png.stat().st_size > 0
+    for contacts in (  # with a contact to shade, and none (no legend at all)
+        pl.DataFrame({"start_t_s": [0.1], "end_t_s": [0.5]}),
+        pl.DataFrame(
+            {"start_t_s": [], "end_t_s": []},
+            schema={"start_t_s": pl.Float64, "end_t_s": pl.Float64},
+        ),
+    ):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # "Tight layout not applied", "No artists with labels"
+            png = figures.energy_figure(energy, contacts, title="pile", path=tmp_path / "e.png")
+        assert png.stat().st_size > 0
     assert len(bodies) > figures.MAX_LEGEND_LINES
