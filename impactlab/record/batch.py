@@ -9,13 +9,14 @@ from pathlib import Path
 from impactlab.errors import ImpactlabError
 from impactlab.executors.base import describe_error
 from impactlab.files import FULL
+from impactlab.logs.checks import step_ns
 from impactlab.logs.writer import LogWriter
 from impactlab.record.folder import log_path, reusable
 from impactlab.record.log_rows import impacts, log_header, log_rows, outcome
 from impactlab.record.model import InstrumentedModel
 from impactlab.record.planner import PlannedRun
 from impactlab.record.results import RecordedRun
-from impactlab.record.simulate import Piece, RunRequest, simulate, timestep_ns
+from impactlab.record.simulate import Piece, RunRequest, simulate
 
 
 class LogWriteError(ImpactlabError):
@@ -76,7 +77,7 @@ class _OpenLog:
         if piece.ending is None:
             return None
         end = piece.ending
-        dt_ns = timestep_ns(float(self.inst.model.opt.timestep))
+        dt_ns = step_ns(float(self.inst.model.opt.timestep))
         self.writer.finish(outcome(end), impacts(self.inst, end, dt_ns))
         v = end.verdict
         return RecordedRun(

@@ -11,6 +11,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from impactlab.logs.checks import step_ns
 from impactlab.logs.format import NOTHING_MOVES
 from impactlab.record import budget
 from impactlab.record.contacts import ContactTape, StepContacts, decode
@@ -26,11 +27,6 @@ CHUNK_VALUES = 200_000  # per-step values a chunk holds (its buffers stay in the
 MIN_CHUNK_STEPS = 50
 MAX_CHUNK_STEPS = 5_000
 STATE = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-
-def timestep_ns(timestep_s: float) -> int:
-    """The timestep in integer nanoseconds (log times are step index times this)."""
-    return max(1, round(timestep_s * 1e9))
 
 
 def chunk_steps(timestep_s: float, values_per_step: int) -> int:
@@ -106,7 +102,7 @@ class _Run:
         self.data = mujoco.MjData(model)
         mujoco.mj_setState(model, self.data, inst.initial_state(), STATE)
         self.dt = float(model.opt.timestep)
-        self.dt_ns = timestep_ns(self.dt)
+        self.dt_ns = step_ns(self.dt)
         self.total = run_steps(request.max_time, self.dt)
         self.forces = budget.generalised_forces(model)
         self.booked = [budget.booked_dofs(model, kind) for kind, _ in self.forces]
