@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import functools
 import threading
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
@@ -95,21 +96,28 @@ def _read(path: Path, parse: Callable[[], T]) -> T:
     return result
 
 
+@contextlib.contextmanager
+def kept_warnings() -> Iterator[None]:
+    """MuJoCo's Python warnings (MjSpec's compile, to_xml: a deprecated attribute, a singular
+    inertia) kept in `MESSAGES` instead of printed with a source line of impactlab's."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield
+    for warning in caught:
+        _keep(str(warning.message))
+
+
 def compile_spec(spec: mujoco.MjSpec, source: str) -> mujoco.MjModel:
-    """Compile a parsed model, MuJoCo's compiler warnings (Python warnings) kept in `MESSAGES`
-    instead of printed with this file's line.
+    """Compile a parsed model, its warnings kept (`kept_warnings`).
 
     Raises:
         SpecError: MuJoCo cannot compile it.
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with kept_warnings():
         try:
             model: mujoco.MjModel = spec.compile()
         except Exception as exc:
             raise SpecError(source, "", f"invalid MJCF: {one_line(exc)}") from None
-    for warning in caught:
-        _keep(str(warning.message))
     return model
 
 

@@ -13,6 +13,7 @@ import numpy as np
 import zstandard
 
 from impactlab.mjcf.files import asset_files, included_files, read_text
+from impactlab.mjcf.load import kept_warnings
 
 BINARY_ATTACHMENT = "model.mjb.zst"
 """The compiled model (`binary`) as one zstd frame: mostly texture pixels, it shrinks 20-fold."""
@@ -42,7 +43,8 @@ def model_files(spec: mujoco.MjSpec, path: Path) -> ModelFiles:
         SpecError: the model's file cannot be read or decoded.
     """
     whole = not included_files(path) and not [p for p in asset_files(spec, path) if p.exists()]
-    xml = _as_utf8(read_text(path)) if whole else spec.to_xml()
+    with kept_warnings():
+        xml = _as_utf8(read_text(path)) if whole else spec.to_xml()
     return ModelFiles(xml, needs_binary=not whole)
 
 

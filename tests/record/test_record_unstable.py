@@ -199,3 +199,20 @@ def test_a_compiler_warning_is_the_outcomes_not_a_python_warning(tmp_path, capsy
     assert code == 1
     assert [str(w.message) for w in caught] == []
     assert "(step 0): mjWARN_INERTIA" in capsys.readouterr().out
+
+
+def test_mujocos_python_warnings_on_saving_a_model_are_kept(tmp_path, capsys):
+    """A model with an include is kept in the log as MuJoCo saves it (`MjSpec.to_xml`), which
+    warns of a deprecated attribute (`settotalmass`, MuJoCo 4) as a Python warning: kept with
+    MuJoCo's messages, never printed with a source line of impactlab's."""
+    (tmp_path / "part.xml").write_text(
+        '<mujoco><worldbody><body pos="0 0 1"><freejoint/><geom type="sphere" size=".1"/>'
+        "</body></worldbody></mujoco>"
+    )
+    xml = tmp_path / "main.xml"
+    xml.write_text('<mujoco><compiler settotalmass="2"/><include file="part.xml"/></mujoco>')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = main(["record", str(xml), "-o", str(tmp_path / "logs"), "--duration", "0.01"])
+    assert code == 0, capsys.readouterr()
+    assert [str(w.message) for w in caught] == []
