@@ -88,3 +88,14 @@ def up_vector(gravity: np.ndarray) -> np.ndarray:
         return np.array([0.0, 0.0, 1.0])
     g = gravity / scale  # a huge gravity (1e300) would overflow the norm to inf
     return -g / np.linalg.norm(g)
+
+
+def restitution_on_curve(speed_mps: object, curve_speed_mps: object, curve_e: object) -> np.ndarray:
+    """A target e(v) at normal impact speeds (m/s): piecewise linear in speed between the
+    curve's points (ascending speeds), NaN outside them (no target is promised there)."""
+    import numpy as np  # not at the top: the command line imports this module
+
+    speeds = np.asarray(speed_mps, float)
+    xs, es = np.asarray(curve_speed_mps, float), np.asarray(curve_e, float)
+    inside = (speeds >= xs[0]) & (speeds <= xs[-1])
+    return np.where(inside, np.interp(speeds, xs, es), np.nan)

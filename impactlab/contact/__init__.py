@@ -9,6 +9,7 @@ from impactlab.contact.closed_form import (
     restitution_closed_form,
     zeta_for_restitution,
 )
+from impactlab.contact.curve import RestitutionCurve
 from impactlab.contact.design import (
     SPEED_FLOOR_MPS,
     SPREAD_BUDGET,
@@ -35,6 +36,7 @@ __all__ = [
     "ContactModelError",
     "ContactParams",
     "Prediction",
+    "RestitutionCurve",
     "contact_params",
     "contact_time_factor",
     "design_contact",

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from impactlab.contact.curve import RestitutionCurve
 from impactlab.mjcf.pairs import quoteattr
 
 
@@ -33,6 +34,8 @@ class ContactParams:
             (e is ``restitution - gravity_spread`` at the lowest speed and
             ``restitution + gravity_spread`` at the highest, on average over step phases).
         phase_error: worst-case change of e by where in a step the contact begins.
+        curve: the target e(v) when it depends on the impact speed (None: the constant
+            ``restitution``).
     """
 
     solref: tuple[float, float]
@@ -50,6 +53,7 @@ class ContactParams:
     gravity_shift: float = 0.0
     gravity_spread: float = 0.0
     phase_error: float = 0.0
+    curve: RestitutionCurve | None = None
 
     @property
     def predicted_error(self) -> float:
