@@ -10,9 +10,11 @@ from impactlab.contact.closed_form import (
     zeta_for_restitution,
 )
 from impactlab.contact.curve import RestitutionCurve
+from impactlab.contact.curvefit import CURVE_TOLERANCE, rest_sink_m
 from impactlab.contact.design import (
     SPEED_FLOOR_MPS,
     SPREAD_BUDGET,
+    CurveOutOfReach,
     contact_params,
     design_contact,
 )
@@ -25,6 +27,7 @@ INTEGRATORS = tuple(SCHEMES)
 Euler does)."""
 
 __all__ = [
+    "CURVE_TOLERANCE",
     "IMPEDANCE",
     "INTEGRATORS",
     "RESTITUTION_FLOOR",
@@ -35,6 +38,7 @@ __all__ = [
     "ContactDesign",
     "ContactModelError",
     "ContactParams",
+    "CurveOutOfReach",
     "Prediction",
     "RestitutionCurve",
     "contact_params",
@@ -42,6 +46,7 @@ __all__ = [
     "design_contact",
     "max_penetration_factor",
     "predict",
+    "rest_sink_m",
     "restitution_closed_form",
     "restitution_spread",
     "zeta_for_restitution",

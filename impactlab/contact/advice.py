@@ -10,9 +10,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from impactlab.contact import curvefit
 from impactlab.contact.calibration import Request, resolved, shift_speeds, try_evaluate, w0dt_max
+from impactlab.contact.curve import RestitutionCurve
 from impactlab.contact.emulation import restitution_spread
 from impactlab.contact.params import ContactParams
+from impactlab.contact.shaped import emulate
 
 MIN_EMULATED_W0DT = 0.002
 BELOW_RANGE = (0.25, 0.5)
@@ -36,11 +39,15 @@ class Prediction:
     highest: tuple[float, ...]
     in_range: tuple[bool, ...]
 
-    def worst_error(self, target: float) -> float:
+    def worst_error(self, target: float | RestitutionCurve) -> float:
         """Largest |e - target| of a single impact at a speed in the range."""
+        at = [
+            float(target.at(v)) if isinstance(target, RestitutionCurve) else target
+            for v in self.speeds_mps
+        ]
         errs = [
-            max(abs(lo - target), abs(hi - target))
-            for lo, hi, inside in zip(self.lowest, self.highest, self.in_range, strict=True)
+            max(abs(lo - t), abs(hi - t))
+            for lo, hi, t, inside in zip(self.lowest, self.highest, at, self.in_range, strict=True)
             if inside
         ]
         return max(errs, default=float("nan"))
@@ -80,7 +87,7 @@ class ContactDesign:
     @functools.cached_property
     def best(self) -> ContactParams | None:
         """The most accurate contact at the given timestep (None when ok)."""
-        return None if self.ok else _best(self.params)
+        return None if self.ok or self.params.curve is not None else _best(self.params)
 
     @functools.cached_property
     def best_prediction(self) -> Prediction | None:
@@ -125,6 +132,8 @@ def predict(params: ContactParams) -> Prediction:
     speeds included), at least 7 speeds.
     """
     lo, hi = params.speed_range_mps
+    if params.curve is not None:
+        return _predict_curve(params)
     n = max(7, 2 * len(shift_speeds(lo, hi)) - 1)
     inside = list(np.geomspace(lo, hi, n)) if hi > lo else [lo]
     outside = [lo * f for f in BELOW_RANGE] if params.gravity_mps2 > 0.0 else []
@@ -141,6 +150,32 @@ def predict(params: ContactParams) -> Prediction:
         lowest=tuple(float(x) for x in lowest),
         highest=tuple(float(x) for x in highest),
         in_range=tuple(bool(lo * (1 - 1e-12) <= v <= hi * (1 + 1e-12)) for v in speeds),
+    )
+
+
+def _predict_curve(params: ContactParams) -> Prediction:
+    """e of a curve's contact over its range (the curve's points and CHECK_SPEEDS between,
+    CHECK_PHASES step phases each), by the step emulation of its impedance."""
+    assert params.curve is not None
+    lo, hi = params.speed_range_mps
+    speeds = curvefit.fit_speeds(params.curve, lo, hi, curvefit.CHECK_SPEEDS)
+    phases = (np.arange(curvefit.CHECK_PHASES) + 0.5) / curvefit.CHECK_PHASES
+    found = emulate(
+        np.array(params.solref)[None, None, :],
+        np.array(params.solimp)[None, None, :],
+        speeds[:, None],
+        phases[None, :],
+        timestep_s=params.timestep_s,
+        gravity_mps2=params.gravity_mps2,
+        integrator=params.integrator,
+        max_time_s=40.0 / math.sqrt(params.stiffness) + 4.0 * params.solimp[2] / lo,
+    )
+    return Prediction(
+        speeds_mps=tuple(float(v) for v in speeds),
+        mean=tuple(float(x) for x in found.e.mean(1)),
+        lowest=tuple(float(x) for x in found.e.min(1)),
+        highest=tuple(float(x) for x in found.e.max(1)),
+        in_range=(True,) * speeds.size,
     )
 
 

@@ -8,6 +8,7 @@ import warnings
 from collections.abc import Sequence
 from typing import Required, TypedDict, Unpack
 
+from impactlab.contact import curvefit
 from impactlab.contact.advice import ContactDesign, largest_passing, significant
 from impactlab.contact.calibration import Request, evaluate, resolved, try_evaluate, w0dt_max
 from impactlab.contact.closed_form import (
@@ -18,6 +19,7 @@ from impactlab.contact.closed_form import (
     max_penetration_factor,
     zeta_for_restitution,
 )
+from impactlab.contact.curve import RestitutionCurve
 from impactlab.contact.emulation import scheme_of
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import PHASE_BUDGET, RESTITUTION_TOLERANCE
@@ -111,10 +113,158 @@ class DesignOptions(TypedDict, total=False):
     duration_s: float | None
     max_penetration_m: float | None
     gravity_mps2: float
+    reference_speed_mps: float | None
+
+
+def size_rule(
+    radius_m: float | None,
+    max_penetration_m: float | None,
+    duration_s: float | None,
+    fraction: float,
+) -> tuple[float | None, float | None]:
+    """(penetration bound, contact duration), one of them None: the duration or the max
+    penetration given, else `fraction` of the radius.
+
+    Raises:
+        ContactModelError: both given, or none of the three; a value outside LIMITS.
+    """
+    if duration_s is not None and max_penetration_m is not None:
+        raise ContactModelError("give duration_s or max_penetration_m, not both")
+    if duration_s is not None:
+        return None, checked("duration_s", duration_s)
+    if max_penetration_m is not None:
+        return checked("max_penetration_m", max_penetration_m), None
+    if radius_m is None:
+        raise ContactModelError("give a radius, a max penetration or a contact duration")
+    return fraction * checked("radius_m", radius_m), None
+
+
+class CurveOutOfReach(ContactModelError):
+    """A target e(v) the contact cannot follow within CURVE_TOLERANCE: `design` holds the
+    nearest reachable contact (its params' ``curve`` the target, ``phase_error`` its worst
+    error), ``design.problem`` says why, ``design.timestep_max_s`` a timestep that did better
+    when fitted at (None if none)."""
+
+    def __init__(self, design: ContactDesign) -> None:
+        super().__init__(design.problem)
+        self.design = design
+
+
+def design_for_curve(
+    curve: RestitutionCurve,
+    *,
+    radius_m: float | None,
+    timestep_s: float,
+    speed_range_mps: Sequence[float] | None,
+    impact_speed_mps: float | None,
+    integrator: str,
+    duration_s: float | None,
+    max_penetration_m: float | None,
+    gravity_mps2: float,
+    reference_speed_mps: float | None,
+) -> ContactDesign:
+    """:func:`design_contact` for a target e(v): direct-form solref and a rising impedance
+    fitted by the step emulation (docs/contact-model.md, "A target e(v)"), checked on a dense
+    grid of speeds and step phases.
+
+    Raises:
+        CurveOutOfReach: the worst error over the range is above CURVE_TOLERANCE.
+        ContactModelError: a range outside the curve's span, a reference speed outside the
+            range, and the errors of :func:`design_contact`.
+    """
+    span = curve.span_mps
+    if speed_range_mps is None and impact_speed_mps is None:
+        lo, hi = span
+    else:
+        lo, hi = speed_range(speed_range_mps, impact_speed_mps)
+        if lo < span[0] * (1 - 1e-12) or hi > span[1] * (1 + 1e-12):
+            raise ContactModelError(
+                f"the speeds {lo:g}..{hi:g} m/s reach outside the curve's points "
+                f"({span[0]:g}..{span[1]:g} m/s): a curve promises no e outside them"
+            )
+    ref = (
+        hi
+        if reference_speed_mps is None
+        else checked("reference_speed_mps", reference_speed_mps, "speed")
+    )
+    if not lo * (1 - 1e-12) <= ref <= hi * (1 + 1e-12):
+        raise ContactModelError(
+            f"reference_speed_mps = {ref:g} is outside the speeds {lo:g}..{hi:g} m/s"
+        )
+    bound, duration = size_rule(
+        radius_m, max_penetration_m, duration_s, curvefit.CURVE_PENETRATION_FRACTION
+    )
+    setting = curvefit.Setting(
+        (lo, hi),
+        checked("timestep_s", timestep_s),
+        integrator,
+        checked("gravity_mps2", gravity_mps2),
+    )
+    found = curvefit.cached_design(curve, setting, bound, duration, ref)
+    params = curve_params(curve, setting, found, ref)
+    if found.worst_error <= curvefit.CURVE_TOLERANCE:
+        return ContactDesign(params)
+    better = curvefit.better_timestep(
+        curve, setting, found, bound_m=bound, duration_s=duration, reference_mps=ref
+    )
+    raise CurveOutOfReach(
+        ContactDesign(
+            params, out_of_reach(params, found, better), None if better is None else better[0]
+        )
+    )
+
+
+def curve_params(
+    curve: RestitutionCurve, setting: curvefit.Setting, found: curvefit.Checked, ref: float
+) -> ContactParams:
+    """The ContactParams of a fitted curve (see ContactParams for what each field holds)."""
+    k, b = (-x for x in found.fit.solref)
+    return ContactParams(
+        solref=found.fit.solref,
+        solimp=found.fit.solimp,
+        stiffness=k,
+        damping=b,
+        zeta=b / (2.0 * math.sqrt(k)),
+        duration_s=found.contact_s,
+        max_penetration_m=found.penetration_m,
+        restitution=float(curve.at(ref)),
+        speed_range_mps=setting.speed_range_mps,
+        timestep_s=setting.timestep_s,
+        integrator=setting.integrator,
+        gravity_mps2=setting.gravity_mps2,
+        phase_error=found.worst_error,
+        curve=curve,
+        reference_speed_mps=ref,
+        curve_achieved=found.achieved,
+    )
+
+
+def out_of_reach(
+    params: ContactParams, found: curvefit.Checked, better: tuple[float, float] | None
+) -> str:
+    """Why a curve is refused: the nearest reachable curve, its worst error, and the timestep
+    that did better when fitted at."""
+    assert params.curve is not None
+    lo, hi = params.speed_range_mps
+    nearest = ", ".join(
+        f"{v:g}:{e:.3f}" for v, e in zip(params.curve.speed_mps, found.achieved, strict=True)
+    )
+    text = (
+        f"the contact cannot follow this e(v) within {curvefit.CURVE_TOLERANCE} over "
+        f"{lo:g}..{hi:g} m/s at timestep {params.timestep_s:g} s ({params.integrator}): the "
+        f"nearest reachable curve is e = {nearest} (speed:e, mean over step phases), worst "
+        f"|e - target| {found.worst_error:.4f} between and at the points"
+    )
+    if better is None:
+        return text + (
+            f"; fitting at {params.timestep_s / 8:g} s does not do better: the curve changes "
+            "too fast with speed for this contact model (a flatter curve or a narrower range)"
+        )
+    return text + f"; at timestep {better[0]:g} s the fit's worst error is {better[1]:.4f}"
 
 
 def design_contact(
-    restitution: float,
+    target: float | RestitutionCurve,
     *,
     radius_m: float | None,
     timestep_s: float,
@@ -124,6 +274,7 @@ def design_contact(
     duration_s: float | None = None,
     max_penetration_m: float | None = None,
     gravity_mps2: float = 9.81,
+    reference_speed_mps: float | None = None,
 ) -> ContactDesign:
     """Design a contact (solref, solimp) that makes MuJoCo deliver a restitution, and say how
     well it meets its target.
@@ -131,8 +282,10 @@ def design_contact(
     No simulation: the closed form, the discretisation table and a closed-form evaluation of
     the step emulation for gravity's shift (a few ms).
 
+    A curve is fitted instead (:func:`design_for_curve`, seconds).
+
     Args:
-        restitution: target e, RESTITUTION_FLOOR <= e <= 1.
+        target: target e, RESTITUTION_FLOOR <= e <= 1, or a target e(v).
         radius_m: smaller radius of the two bodies in m (the default penetration bound is
             PENETRATION_FRACTION of it); may be None when ``max_penetration_m`` or
             ``duration_s`` is given.
@@ -146,6 +299,8 @@ def design_contact(
         gravity_mps2: gravity along the contact normal in m/s^2 for a body on a fixed surface
             (0 for zero-gravity scenes and for two free bodies, whose relative motion gravity
             does not change).
+        reference_speed_mps: for a curve, the impact speed at which ``duration_s`` applies
+            (default: the top of the range).
 
     Returns:
         The :class:`ContactDesign`; ``ok`` is False (with the advice filled in when asked)
@@ -158,24 +313,31 @@ def design_contact(
             and duration.
     """
     scheme_of(integrator)
+    if isinstance(target, RestitutionCurve):
+        return design_for_curve(
+            target,
+            radius_m=radius_m,
+            timestep_s=timestep_s,
+            speed_range_mps=speed_range_mps,
+            impact_speed_mps=impact_speed_mps,
+            integrator=integrator,
+            duration_s=duration_s,
+            max_penetration_m=max_penetration_m,
+            gravity_mps2=gravity_mps2,
+            reference_speed_mps=reference_speed_mps,
+        )
+    if reference_speed_mps is not None:
+        raise ContactModelError(
+            "reference_speed_mps is for a target e(v): a constant e has one contact time"
+        )
     request = Request(
-        check_restitution(restitution),
+        check_restitution(target),
         speed_range(speed_range_mps, impact_speed_mps),
         checked("timestep_s", timestep_s),
         integrator,
         checked("gravity_mps2", gravity_mps2),
     )
-    bound = duration = None
-    if duration_s is not None and max_penetration_m is not None:
-        raise ContactModelError("give duration_s or max_penetration_m, not both")
-    if duration_s is not None:
-        duration = checked("duration_s", duration_s)
-    elif max_penetration_m is not None:
-        bound = checked("max_penetration_m", max_penetration_m)
-    elif radius_m is None:
-        raise ContactModelError("give a radius, a max penetration or a contact duration")
-    else:
-        bound = PENETRATION_FRACTION * checked("radius_m", radius_m)
+    bound, duration = size_rule(radius_m, max_penetration_m, duration_s, PENETRATION_FRACTION)
     params = design_stiffness(request, bound_m=bound, duration_s=duration)
     if resolved(params):
         return ContactDesign(params)
@@ -186,16 +348,25 @@ def design_contact(
 
 
 def contact_params(
-    restitution: float, *, allow_coarse: bool = False, **options: Unpack[DesignOptions]
+    target: float | RestitutionCurve,
+    *,
+    allow_coarse: bool = False,
+    **options: Unpack[DesignOptions],
 ) -> ContactParams:
     """The parameters of :func:`design_contact` (same arguments), or an error when the
-    timestep does not resolve the contact (a warning with ``allow_coarse``).
+    timestep does not resolve the contact or the curve is beyond reach (a warning with
+    ``allow_coarse``, and the contact as designed or the nearest curve's).
 
     Raises:
         ContactModelError: as :func:`design_contact`, and the design's ``problem`` when the
             timestep is too coarse.
     """
-    found = design_contact(restitution, **options)
+    try:
+        found = design_contact(target, **options)
+    except CurveOutOfReach as exc:
+        if not allow_coarse:
+            raise
+        found = exc.design
     if found.problem is not None:
         if not allow_coarse:
             raise ContactModelError(found.problem)

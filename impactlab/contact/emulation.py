@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -69,17 +69,29 @@ def step(
         (y, u, force): the next state, and whether the constraint pushed in some evaluation
         of the step (one for Euler, four stages for RK4).
     """
+    return advance(y, u, h, lambda y, u: _acceleration(y, u, b, gr), scheme)
+
+
+Acceleration = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+"""(distance, normal velocity) -> (acceleration, whether the constraint pushes)."""
+
+
+def advance(
+    y: np.ndarray, u: np.ndarray, h: float, acceleration: Acceleration, scheme: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One step of MuJoCo's integrator ("euler" or "rk4") of a contact's acceleration rule,
+    evaluated at every stage: (y, u, whether the constraint pushed at some stage)."""
     if scheme == "euler":
-        a, f = _acceleration(y, u, b, gr)
+        a, f = acceleration(y, u)
         u = u + h * a
         return y + h * u, u, f
-    a1, f1 = _acceleration(y, u, b, gr)
+    a1, f1 = acceleration(y, u)
     y2, u2 = y + 0.5 * h * u, u + 0.5 * h * a1
-    a2, f2 = _acceleration(y2, u2, b, gr)
+    a2, f2 = acceleration(y2, u2)
     y3, u3 = y + 0.5 * h * u2, u + 0.5 * h * a2
-    a3, f3 = _acceleration(y3, u3, b, gr)
+    a3, f3 = acceleration(y3, u3)
     y4, u4 = y + h * u3, u + h * a3
-    a4, f4 = _acceleration(y4, u4, b, gr)
+    a4, f4 = acceleration(y4, u4)
     y_new = y + h / 6.0 * (u + 2.0 * u2 + 2.0 * u3 + u4)
     u_new = u + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
     return y_new, u_new, f1 | f2 | f3 | f4

@@ -15,13 +15,16 @@ class ContactParams:
 
     Attributes:
         solref: ``(-stiffness, -damping)``, MuJoCo's direct form.
-        solimp: constant impedance ``(d, d, width, midpoint, power)``.
+        solimp: ``(dmin, dmax, width, midpoint, power)``: a constant impedance (dmin = dmax)
+            for a constant e, one rising with penetration for a curve.
         stiffness: k in 1/s^2 (acceleration per metre of penetration; mass independent).
         damping: b in 1/s (acceleration per m/s of normal velocity).
         zeta: damping ratio b / (2 sqrt(k)), calibrated for ``timestep_s``.
-        duration_s: predicted contact duration in s (independent of the impact speed).
+        duration_s: predicted contact duration in s (independent of the impact speed; for a
+            curve the time in contact at ``reference_speed_mps``, mean over step phases).
         max_penetration_m: predicted worst-case penetration in m at the top of the speed range.
-        restitution: the target e.
+        restitution: the target e (for a curve: its target at ``reference_speed_mps``; take
+            a curve's targets from ``curve.at(v)``).
         speed_range_mps: (lowest, highest) normal impact speed in m/s at which e is promised
             within the tolerance.
         timestep_s: the timestep in s the calibration is for.
@@ -33,9 +36,15 @@ class ContactParams:
         gravity_spread: half the change of e by gravity between the ends of the speed range
             (e is ``restitution - gravity_spread`` at the lowest speed and
             ``restitution + gravity_spread`` at the highest, on average over step phases).
-        phase_error: worst-case change of e by where in a step the contact begins.
+        phase_error: worst-case change of e by where in a step the contact begins (for a
+            curve: the worst |e - target| measured by the step emulation over the range,
+            between the points too, and over step phases).
         curve: the target e(v) when it depends on the impact speed (None: the constant
             ``restitution``).
+        reference_speed_mps: for a curve, the impact speed of ``duration_s`` and
+            ``restitution`` (None for a constant).
+        curve_achieved: for a curve, the e it delivers at the curve's points (mean over step
+            phases; empty for a constant).
     """
 
     solref: tuple[float, float]
@@ -54,6 +63,8 @@ class ContactParams:
     gravity_spread: float = 0.0
     phase_error: float = 0.0
     curve: RestitutionCurve | None = None
+    reference_speed_mps: float | None = None
+    curve_achieved: tuple[float, ...] = ()
 
     @property
     def predicted_error(self) -> float:

@@ -1,0 +1,268 @@
+"""The designer of a target e(v): solref and a rising impedance fitted by the step emulation."""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from impactlab.contact.closed_form import bisect, contact_time_factor
+from impactlab.contact.closed_form import zeta_for_restitution as _zeta
+from impactlab.contact.curve import RestitutionCurve
+from impactlab.contact.params import ContactParams
+from impactlab.contact.shaped import MAX_IMPEDANCE, emulate, impedance
+
+CURVE_TOLERANCE = 0.01
+"""Accuracy promised for |e - e_target(v)| of every impact whose normal speed lies in a
+curve's promised range, between its points too (issue 39); a constant keeps
+RESTITUTION_TOLERANCE."""
+
+CURVE_PENETRATION_FRACTION = 0.1
+"""The default penetration bound at the top speed of a curve, as a fraction of the smaller
+radius (a rising impedance lets the ball sink into a soft layer first)."""
+
+CHECK_SPEEDS, CHECK_PHASES = 41, 16
+"""The check of a fit: speeds spaced geometrically over the range (the curve's points
+added) and contact-onset phases at each."""
+
+_FIT_SPEEDS, _FIT_PHASES = 13, 6
+_LOWER = np.array([0.01, -5.0, -4.0, 0.02, 1.0])
+_UPPER = np.array([0.9, 4.0, math.log10(0.9), 0.98, 60.0])
+"""Bounds of the fitted parameters: zeta, log(w0 width / v_mid), log10 dmin, midpoint,
+power (dmax is MuJoCo's largest impedance)."""
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A fitted contact at one stiffness and timestep."""
+
+    theta: np.ndarray
+    w0: float
+    v_mid: float
+
+    @property
+    def solref(self) -> tuple[float, float]:
+        return (-self.w0 * self.w0, -2.0 * float(self.theta[0]) * self.w0)
+
+    @property
+    def solimp(self) -> tuple[float, float, float, float, float]:
+        _, log_width, log_dmin, mid, power = (float(x) for x in self.theta)
+        width = math.exp(log_width) * self.v_mid / self.w0
+        return (10.0**log_dmin, MAX_IMPEDANCE, width, mid, power)
+
+
+@dataclass(frozen=True)
+class Setting:
+    """Where a fit holds: range (m/s), timestep (s), integrator, gravity along the normal."""
+
+    speed_range_mps: tuple[float, float]
+    timestep_s: float
+    integrator: str
+    gravity_mps2: float
+
+    @property
+    def v_mid(self) -> float:
+        return math.sqrt(self.speed_range_mps[0] * self.speed_range_mps[1])
+
+    def impacts(
+        self, theta: np.ndarray, w0: float, speeds: np.ndarray, phases: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(e, penetration, contact time) of candidates `theta` (n, 5) at stiffness w0**2,
+        shape (n, speeds, phases)."""
+        theta = np.atleast_2d(theta)
+        zeta, log_width, log_dmin, mid, power = theta.T
+        n = len(theta)
+        solref = np.stack([np.full(n, -w0 * w0), -2.0 * zeta * w0], -1)
+        width = np.exp(log_width) * self.v_mid / w0
+        solimp = np.stack([10.0**log_dmin, np.full(n, MAX_IMPEDANCE), width, mid, power], -1)
+        lo = self.speed_range_mps[0]
+        found = emulate(
+            solref[:, None, None, :],
+            solimp[:, None, None, :],
+            np.asarray(speeds, float)[None, :, None],
+            ((np.arange(phases) + 0.5) / phases)[None, None, :],
+            timestep_s=self.timestep_s,
+            gravity_mps2=self.gravity_mps2,
+            integrator=self.integrator,
+            max_time_s=40.0 / w0 + 4.0 * float(width.max()) / lo,
+        )
+        return found.e, found.penetration_m, found.contact_s
+
+
+def fit_speeds(curve: RestitutionCurve, lo: float, hi: float, n: int) -> np.ndarray:
+    """n speeds spaced geometrically over lo..hi, and the curve's points inside it."""
+    inside = [v for v in curve.speed_mps if lo <= v <= hi]
+    grid = np.geomspace(lo, hi, n) if hi > lo else np.array([lo])
+    return np.unique(np.concatenate([grid, inside]))
+
+
+def fit_shape(
+    curve: RestitutionCurve, setting: Setting, w0: float, start: np.ndarray | None = None
+) -> np.ndarray:
+    """The parameters whose mean e over step phases is nearest the curve (least squares at
+    the fit speeds), from `start` or from the best of a seeded random batch."""
+    from scipy import optimize  # not at the top: 0.9 s to import, needed only here
+
+    speeds = fit_speeds(curve, *setting.speed_range_mps, _FIT_SPEEDS)
+    target = curve.at(speeds)
+
+    def mean_e(theta: np.ndarray) -> np.ndarray:
+        e, _, _ = setting.impacts(theta, w0, speeds, _FIT_PHASES)
+        mean: np.ndarray = e.mean(-1)
+        return mean
+
+    if start is None:
+        batch = _LOWER + (_UPPER - _LOWER) * np.random.default_rng(39).random((128, 5))
+        worst = np.abs(mean_e(batch) - target).max(-1)
+        starts = batch[np.argsort(worst)[:2]]
+    else:
+        starts = np.atleast_2d(start)
+    steps = 1e-3 * (_UPPER - _LOWER)
+
+    def jacobian(theta: np.ndarray) -> np.ndarray:
+        moved = np.minimum(theta + np.diag(steps), _UPPER)
+        moved = np.where(moved == theta, theta - np.diag(steps), moved)
+        e = mean_e(np.vstack([theta, moved]))
+        jac: np.ndarray = ((e[1:] - e[0]) / (moved - theta).sum(-1)[:, None]).T
+        return jac
+
+    best, best_cost = starts[0], math.inf
+    for theta0 in starts:
+        sol = optimize.least_squares(
+            lambda th: mean_e(th)[0] - target,
+            np.clip(theta0, _LOWER, _UPPER),
+            jac=jacobian,
+            bounds=(_LOWER, _UPPER),
+            x_scale=_UPPER - _LOWER,
+            max_nfev=40,
+        )
+        if sol.cost < best_cost:
+            best, best_cost = sol.x, sol.cost
+    return np.asarray(best, float)
+
+
+@dataclass(frozen=True)
+class Checked:
+    """A fit checked on the dense grid: the worst |e - target| over speeds and phases, the
+    mean e at the curve's points, the worst penetration at the top speed and the mean
+    contact time at the reference speed."""
+
+    fit: Fit
+    worst_error: float
+    achieved: tuple[float, ...]
+    penetration_m: float
+    contact_s: float
+
+
+def check(curve: RestitutionCurve, setting: Setting, fit: Fit, reference_mps: float) -> Checked:
+    """The fit's worst error on CHECK_SPEEDS x CHECK_PHASES, and its figures."""
+    lo, hi = setting.speed_range_mps
+    dense = fit_speeds(curve, lo, hi, CHECK_SPEEDS)
+    points = np.array(curve.speed_mps)
+    speeds = np.concatenate([dense, points, [hi, reference_mps]])
+    e, pen, time = setting.impacts(fit.theta, fit.w0, speeds, CHECK_PHASES)
+    e, pen, time = e[0], pen[0], time[0]
+    n, m = dense.size, points.size
+    worst = float(np.abs(e[:n] - curve.at(dense)[:, None]).max())
+    return Checked(
+        fit,
+        worst,
+        tuple(float(x) for x in e[n : n + m].mean(-1)),
+        float(pen[n + m].max()),
+        float(np.nanmean(time[n + m + 1])),
+    )
+
+
+def design_curve(
+    curve: RestitutionCurve,
+    setting: Setting,
+    *,
+    bound_m: float | None,
+    duration_s: float | None,
+    reference_mps: float,
+) -> Checked:
+    """Fit at a stiffness, then rescale the stiffness to meet the penetration bound at the
+    top speed (or the contact time at the reference speed) and fit again from there: at a
+    fixed shape (width in units of v_mid / w0) both scale as 1 / w0."""
+    e_ref = float(curve.at(reference_mps))
+    zeta = _zeta(min(max(e_ref, 0.14), 1.0))
+    hi = setting.speed_range_mps[1]
+    if duration_s is not None:
+        w0 = contact_time_factor(zeta) / duration_s
+    else:
+        assert bound_m is not None
+        w0 = 1.2 * hi / bound_m
+    theta: np.ndarray | None = None
+    checked_fit: Checked | None = None
+    for _ in range(4):
+        theta = fit_shape(curve, setting, w0, theta)
+        checked_fit = check(curve, setting, Fit(theta, w0, setting.v_mid), reference_mps)
+        if duration_s is not None:
+            ratio = checked_fit.contact_s / duration_s
+        else:
+            assert bound_m is not None
+            ratio = checked_fit.penetration_m / (0.99 * bound_m)
+        if not math.isfinite(ratio) or (abs(ratio - 1.0) < 0.02 and ratio <= 1.0 / 0.99):
+            break
+        w0 *= ratio
+    assert checked_fit is not None
+    return checked_fit
+
+
+def rest_sink_m(params: ContactParams) -> float:
+    """How deep a ball at rest sinks into the contact (m): where K d(p)^2 p = (1 - d(p)) g,
+    K = k / dmax^2 (0 without gravity)."""
+    g = params.gravity_mps2
+    if g <= 0.0:
+        return 0.0
+    solimp = np.array(params.solimp)
+    stiff = params.stiffness / min(max(params.solimp[1], 1e-4), MAX_IMPEDANCE) ** 2
+
+    def excess(p: float) -> float:
+        d = float(impedance(solimp, np.array(p)))
+        return stiff * d * d * p - (1.0 - d) * g
+
+    hi = 1e-9
+    while excess(hi) < 0.0 and hi < 1e3:
+        hi *= 2.0
+    return bisect(excess, 0.0, hi, tol=1e-12 * hi) if hi < 1e3 else math.inf
+
+
+@functools.lru_cache(maxsize=64)
+def cached_design(
+    curve: RestitutionCurve,
+    setting: Setting,
+    bound_m: float | None,
+    duration_s: float | None,
+    reference_mps: float,
+) -> Checked:
+    """:func:`design_curve`, once per process for the same arguments."""
+    return design_curve(
+        curve, setting, bound_m=bound_m, duration_s=duration_s, reference_mps=reference_mps
+    )
+
+
+def better_timestep(
+    curve: RestitutionCurve,
+    setting: Setting,
+    found: Checked,
+    *,
+    bound_m: float | None,
+    duration_s: float | None,
+    reference_mps: float,
+) -> tuple[float, float] | None:
+    """(timestep, worst error) measured by fitting at dt/2, dt/4, dt/8: the first that meets
+    CURVE_TOLERANCE, else the best if it beats `found` by a tenth; None when none does."""
+    dt, best = setting.timestep_s, None
+    for div in (2.0, 4.0, 8.0):
+        finer = Setting(setting.speed_range_mps, dt / div, setting.integrator, setting.gravity_mps2)
+        again = design_curve(
+            curve, finer, bound_m=bound_m, duration_s=duration_s, reference_mps=reference_mps
+        )
+        if again.worst_error <= CURVE_TOLERANCE:
+            return finer.timestep_s, again.worst_error
+        if again.worst_error < 0.9 * (found.worst_error if best is None else best[1]):
+            best = finer.timestep_s, again.worst_error
+    return best
