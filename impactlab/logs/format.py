@@ -57,7 +57,10 @@ RUN_KEYS = {  # key: what it holds (`impactlab.logs.metadata` declares each)
     "integrator": "one of Euler, RK4, implicit, implicitfast",
     "ground": "JSON [{name, type, level_m, distance}]",
     "static_potential_J": "number within ±1e+15 J",
-    "contact_targets": "JSON [{geom1, geom2, restitution, speed_range_mps: [lo, hi]}], m/s",
+    "contact_targets": (
+        "JSON [{geom1, geom2, restitution, speed_range_mps: [lo, hi], for an e(v) also "
+        "curve_speed_mps: [...], curve_e: [...]}], m/s"
+    ),
     "geom_contact": "JSON {solref: [2 numbers], solimp: [3 to 5]}, or empty: the geoms differ",
     "separation_m": "number > 0 m, or empty: no separation rule",
     "half_step_s": "number 0 .. 5 s: dt / 2, or 0 for RK4",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import itertools
 import json
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any
@@ -85,17 +86,37 @@ class Surface:
     distance: Annotated[bool, Field(strict=True)] = True
 
 
+Restitution = Annotated[Number, Field(ge=0, le=1)]
+
+
+def _curve(target: PairTarget) -> bool:
+    xs, es = target.curve_speed_mps, target.curve_e
+    if xs is None or es is None:
+        return xs is es
+    return 2 <= len(xs) == len(es) <= 64 and all(a < b for a, b in itertools.pairwise(xs))
+
+
 @dataclass(frozen=True)
 class PairTarget:
     """A geom pair calibrated to a target restitution over normal impact speeds (lo, hi) m/s
-    (None: a format-1 log that does not say)."""
+    (None: a format-1 log that does not say); a target e(v) is the curve through the points
+    (`curve_speed_mps` ascending, m/s; `curve_e`), piecewise linear, none outside them
+    (`impactlab.physics.restitution_on_curve`); None: the constant `restitution`."""
 
     geom1: Name
     geom2: Name
-    restitution: Annotated[Number, Field(ge=0, le=1)]
+    restitution: Restitution
     speed_range_mps: Annotated[
         tuple[Positive, Positive] | None, valid_if(lambda s: s is None or s[0] <= s[1], "lo > hi")
     ]
+    curve_speed_mps: tuple[Positive, ...] | None = None
+    curve_e: tuple[Restitution, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if not _curve(self):
+            raise ValueError(
+                "curve_speed_mps (ascending) and curve_e: both or neither, 2 to 64 points each"
+            )
 
     @property
     def pair(self) -> str:
@@ -183,6 +204,11 @@ def _store(record: RunMeta | Outcome, keys: Mapping[str, str]) -> dict[str, str]
     if "bodies" in dumped:  # a free body's motion is not written (logs before it had none)
         dumped["bodies"] = [
             {k: v for k, v in b.items() if (k, v) != ("motion", "free")} for b in dumped["bodies"]
+        ]
+    if "contact_targets" in dumped:  # a constant target is written as before curves existed
+        dumped["contact_targets"] = [
+            {k: v for k, v in t.items() if not (k.startswith("curve_") and v is None)}
+            for t in dumped["contact_targets"]
         ]
 
     def stored(k: str, v: Any) -> str:

@@ -14,6 +14,7 @@ from impactlab.contact import (
     SPEED_FLOOR_MPS,
     ContactModelError,
     ContactParams,
+    RestitutionCurve,
     contact_params,
 )
 from impactlab.errors import SpecError
@@ -76,6 +77,8 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
         else:
             speeds = default_speed_range(speed, e, g_normal, run.stop, body)
         stiffness = own if own.duration is not None or own.max_penetration is not None else con
+        # a curve's duration holds at one impact speed (none given: the designer's choice)
+        at_speed = {"reference_speed_mps": stiffness.duration_speed}
         try:
             params = _calibrated(
                 e,
@@ -87,6 +90,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 max_penetration_m=stiffness.max_penetration,
                 gravity_mps2=g_normal,
                 allow_coarse=con.allow_coarse_timestep,
+                **(at_speed if stiffness.duration_speed is not None else {}),
             )
         except ContactModelError as exc:
             raise SpecError(run.source, field, str(exc)) from None
@@ -101,13 +105,17 @@ worker, which inherits what the parent calibrated)."""
 
 
 def default_speed_range(
-    first_mps: float, e: float, g_normal: float, stop: Stop, body: Body
+    first_mps: float, e: float | RestitutionCurve, g_normal: float, stop: Stop, body: Body
 ) -> tuple[float, float]:
     """The impact speeds (m/s) a pair's contact must hold e over, from the experiment
     (docs/contact-model.md): `first_mps` the first impact speed, `g_normal` gravity along
-    the contact normal (0: one impact)."""
+    the contact normal (0: one impact). A curve promises no e below its slowest point: the
+    range stops there (each bounce taken at the curve's highest e, the slowest it gets)."""
     if g_normal <= 0.0:
         return first_mps, first_mps
+    if isinstance(e, RestitutionCurve):
+        low, high = default_speed_range(first_mps, max(e.e), g_normal, stop, body)
+        return min(max(low, e.span_mps[0]), high), high
     decay = max(e - RESTITUTION_TOLERANCE, 0.0)
     height = max(body.pos[2] - body.radius, 0.0)
     vz = body.vel[2]

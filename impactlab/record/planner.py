@@ -142,16 +142,20 @@ def _plan_spec(run: RunSpec) -> PlannedRun:
         log_every=run.log_every,
         sweep_index=run.sweep_index,
         sweep_size=run.sweep_size,
-        contact_targets=tuple(
-            PairTarget(p.geom1, p.geom2, p.params.restitution, p.params.speed_range_mps)
-            for p in pairs
-        ),
+        contact_targets=tuple(_target(p) for p in pairs),
         separation_m=run.stop.separation,
     )
     steps = run_steps(run.stop.max_time, run.options.timestep)
     work = Work.of_runs(1, steps, run.log_every, len(run.bodies))
     build = functools.partial(model_from_spec, run, pairs)
     return PlannedRun(info, build, run, run.stop, work, pairs)
+
+
+def _target(pair: CalibratedPair) -> PairTarget:
+    """What the log says of a calibrated pair: its target (with an e(v), the curve's points)."""
+    p, curve = pair.params, pair.params.curve
+    points = (curve.speed_mps, curve.e) if curve is not None else (None, None)
+    return PairTarget(pair.geom1, pair.geom2, p.restitution, p.speed_range_mps, *points)
 
 
 def _plan_mjcf(path: Path, *, overrides: Sequence[str], duration: float | None) -> PlannedRun:

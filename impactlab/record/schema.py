@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Annotated, Any
 
@@ -11,11 +12,14 @@ from pydantic import (
     BeforeValidator,
     ConfigDict,
     Field,
+    PlainValidator,
     field_validator,
     model_validator,
 )
 from pydantic_core import PydanticCustomError
 
+from impactlab.contact.closed_form import ContactModelError
+from impactlab.contact.curve import RestitutionCurve
 from impactlab.logs.checks import PLANE_GEOM
 from impactlab.physics import Integrator
 from impactlab.text import clipped
@@ -39,9 +43,11 @@ def problem(text: str, field: str = "") -> PydanticCustomError:
     return PydanticCustomError("impactlab", "{text}", {"text": text, "field": field})
 
 
-def unit(symbol: str) -> Any:
-    """The unit of a field, kept in its schema (JSON schema key `unit`)."""
-    return Field(json_schema_extra={"unit": symbol})
+def unit(symbol: str, *, filled: bool = True) -> Any:
+    """The unit of a field, kept in its schema (JSON schema key `unit`); `filled=False`: a
+    field added after specs were hashed, left out of a document that does not give it (every
+    older spec keeps its hash, see `defaults`)."""
+    return Field(json_schema_extra={"unit": symbol, "filled": filled})
 
 
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]  # strict: true is no number
@@ -123,23 +129,78 @@ def _speed_range(value: tuple[float, ...]) -> tuple[float, ...]:
 SpeedRange = Annotated[Vector2, AfterValidator(_speed_range), unit("m/s")]
 
 
+CURVE_KEYS = ("speed_mps", "e")
+
+
+def _restitution(value: Any) -> float | RestitutionCurve:
+    """A target e: a number, or a table of measured points `{speed_mps = [...], e = [...]}`
+    (a `RestitutionCurve`, checked by its own rules)."""
+    if isinstance(value, RestitutionCurve):
+        return value
+    if isinstance(value, Mapping):
+        shape = "a curve is {speed_mps = [...], e = [...]}"
+        unknown = [k for k in value if k not in CURVE_KEYS]
+        if unknown:
+            raise problem(f"unknown key: {shape}", clipped(str(unknown[0]), 60))
+        if len(value) != len(CURVE_KEYS):
+            raise problem(f"needs both speed_mps and e: {shape}")
+        for key in CURVE_KEYS:
+            items = value[key]
+            if not isinstance(items, list | tuple) or not all(_finite(x) for x in items):
+                raise problem(f"must be a list of finite numbers, got {short(items)}", key)
+        try:
+            return RestitutionCurve.of(value["speed_mps"], value["e"])
+        except ContactModelError as exc:
+            raise problem(str(exc)) from None
+    if not _finite(value):
+        raise problem(
+            "must be a number or a table {speed_mps = [...], e = [...]} of measured points, "
+            f"got {short(value)}"
+        )
+    return float(value)
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+class CurveTable(Section):
+    """A target e(v) as a spec writes it (its schema; `_restitution` checks it): measured
+    points, impact speeds in m/s and their e."""
+
+    speed_mps: tuple[Number, ...]
+    e: tuple[Number, ...]
+
+
+Restitution = Annotated[
+    float | RestitutionCurve,
+    PlainValidator(_restitution, json_schema_input_type=float | CurveTable),
+]
+"""A target e: a number, or an e(v) curve from a table of measured points."""
+
+
 class ContactTarget(Section):
     """What a calibrated contact must deliver; None means: as the global contact, or default.
 
-    `restitution`: target e. `speed_range`: (lowest, highest) normal impact speed in m/s at
-    which e is promised (default: from the experiment, see `impactlab.record.contact_pairs`).
-    `duration` in s or `max_penetration` in m: the stiffness (both optional, not both).
+    `restitution`: target e, a number or a table of measured points e(v) (a
+    `RestitutionCurve`). `speed_range`: (lowest, highest) normal impact speed in m/s at which
+    e is promised (default: from the experiment, see `impactlab.record.contact_pairs`).
+    `duration` in s or `max_penetration` in m: the stiffness (both optional, not both);
+    `duration_speed`: the impact speed in m/s a curve's `duration` holds at.
     """
 
-    restitution: Number | None = None
+    restitution: Restitution | None = None
     speed_range: SpeedRange | None = None
     duration: Annotated[Positive | None, unit("s")] = None
     max_penetration: Annotated[Positive | None, unit("m")] = None
+    duration_speed: Annotated[Positive | None, unit("m/s", filled=False)] = None
 
     @model_validator(mode="after")
     def _one_stiffness(self) -> ContactTarget:
         if self.duration is not None and self.max_penetration is not None:
             raise problem("give duration or max_penetration, not both", "duration")
+        if self.duration_speed is not None and self.duration is None:
+            raise problem("is the speed a duration holds at: give duration too", "duration_speed")
         return self
 
 
@@ -361,7 +422,11 @@ SECTIONS: Mapping[str, type[Section]] = {
 
 def defaults(section: type[Section]) -> dict[str, Any]:
     """A section's default values as a spec document holds them (lists, not tuples);
-    required fields are left out."""
-    fields = section.model_fields.items()
-    values = {k: f.get_default(call_default_factory=True) for k, f in fields if not f.is_required()}
+    required fields, and those not `filled` (see `unit`), are left out."""
+    fields = [(k, f) for k, f in section.model_fields.items() if not f.is_required()]
+    values = {
+        k: f.get_default(call_default_factory=True)
+        for k, f in fields
+        if not isinstance(f.json_schema_extra, dict) or f.json_schema_extra.get("filled", True)
+    }
     return {k: list(v) if isinstance(v, tuple) else v for k, v in values.items()}

@@ -70,7 +70,7 @@ WRONG_TYPES = [
 
 def test_the_generated_cases_cover_every_field():
     paths = {path for path, _ in WRONG_TYPES}
-    assert len(paths) == len(schema_fields()) == 33  # every field has a wrong type to try
+    assert len(paths) == len(schema_fields()) == 34  # every field has a wrong type to try
     assert {"options.gravity", "contact.pairs", "bodies.ball.rgba", "logging.every"} <= paths
     assert len(WRONG_TYPES) > 120
 
@@ -295,6 +295,7 @@ def test_pair_tables_are_checked_as_a_whole(tmp_path, capsys):
         "speed_range",
         "duration",
         "max_penetration",
+        "duration_speed",
     }
     cases = [
         (

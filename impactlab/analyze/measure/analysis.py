@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from impactlab.analyze.measure.bounces import TARGET_SCHEMA, bounces
+from impactlab.analyze.measure.bounces import TARGET_SCHEMA, bounces, target_e
 from impactlab.analyze.measure.collisions import (
     COLLISION_SCHEMA,
     collisions,
@@ -222,7 +222,7 @@ def _analyze(runs: list[RunLog], grounds: dict[str, Ground]) -> list[RunAnalysis
     return out
 
 
-def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]:
+def _target_rows(run: RunLog) -> list[tuple[Any, ...]]:
     """The run's calibrated pairs (`TARGET_SCHEMA` rows) by the parties their geoms belong
     to, as the log's contacts name them (both orders); a pair that never touched has none.
     Each speed range is widened by one step of gravity: the recorder takes the speed at a
@@ -240,8 +240,8 @@ def _target_rows(run: RunLog) -> list[tuple[str, str, str, float, float, float]]
         if a is None or b is None or t.speed_range_mps is None:
             continue
         low, high = t.speed_range_mps[0] - step, t.speed_range_mps[1] + step
-        rows += [(run.run_id, a, b, t.restitution, low, high)]
-        rows += [(run.run_id, b, a, t.restitution, low, high)]
+        target = (t.restitution, low, high, t.curve_speed_mps, t.curve_e)
+        rows += [(run.run_id, a, b, *target), (run.run_id, b, a, *target)]
     return rows
 
 
@@ -252,11 +252,7 @@ def _with_targets(col: pl.DataFrame, targets: pl.DataFrame) -> pl.DataFrame:
     return (
         col.drop("target_e")
         .join(pairs, on=["run_id", "body1", "body2"], how="left", maintain_order="left")
-        .with_columns(
-            pl.when(closing.is_between(pl.col("low_mps"), pl.col("high_mps")))
-            .then(pl.col("target"))
-            .alias("target_e")
-        )
+        .with_columns(target_e(closing).alias("target_e"))
         .select(col.columns)
     )
 

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 
 from impactlab.analyze.measure.episodes import e_energy, e_velocity
+from impactlab.physics import restitution_on_curve
 
 BOUNCE_SCHEMA = pl.Schema(
     {
@@ -34,15 +36,46 @@ BOUNCE_SCHEMA = pl.Schema(
 )
 TARGET_SCHEMA = pl.Schema(
     {
-        "run_id": pl.String,
-        "body": pl.String,
-        "other": pl.String,
-        "target": pl.Float64,
-        "low_mps": pl.Float64,
-        "high_mps": pl.Float64,
+        "run_id": pl.String(),
+        "body": pl.String(),
+        "other": pl.String(),
+        "target": pl.Float64(),
+        "low_mps": pl.Float64(),
+        "high_mps": pl.Float64(),
+        "curve_speed_mps": pl.List(pl.Float64),
+        "curve_e": pl.List(pl.Float64),
     }
 )
-"""A calibrated pair of a run: its target e over its speed range (the log's contact_targets)."""
+"""A calibrated pair of a run: its target e over its speed range, a constant or, with the
+curve's points, an e(v) (the log's contact_targets)."""
+
+
+def target_e(speed: pl.Expr) -> pl.Expr:
+    """The target e of an impact at a normal speed (m/s), over rows joined with its pair's
+    `TARGET_SCHEMA` columns: inside the pair's speed range, the constant target or the
+    curve's value (`physics.restitution_on_curve`; a range a step wider than the curve is
+    held at its ends); none outside, and for a pair without a target."""
+    points = pl.struct(speed.alias("v"), "curve_speed_mps", "curve_e")
+    on_curve = points.map_batches(_on_curves, return_dtype=pl.Float64)
+    return (
+        pl.when(~speed.is_between(pl.col("low_mps"), pl.col("high_mps")))
+        .then(None)
+        .when(pl.col("curve_e").is_not_null())
+        .then(on_curve)
+        .otherwise(pl.col("target"))
+    )
+
+
+def _on_curves(rows: pl.Series) -> pl.Series:
+    """Each row's curve (struct v, curve_speed_mps, curve_e) at its speed v, held at its ends."""
+    out = np.full(rows.len(), np.nan)
+    for i, row in enumerate(rows):
+        v, xs, es = row["v"], row["curve_speed_mps"], row["curve_e"]
+        if v is not None and xs and es:
+            out[i] = restitution_on_curve(min(max(v, xs[0]), xs[-1]), xs, es)
+    return pl.Series(out, dtype=pl.Float64).fill_nan(None)
+
+
 TURNING = (
     "the body turns in flight (its lowest point moves relative to its centre of mass), so "
     "apex heights do not measure e"
@@ -151,9 +184,7 @@ def bounces(
             .when(e_energy().is_not_null())
             .then(pl.lit("energy"))
             .alias("e_basis"),
-            pl.when((-pl.col("v_in_mps")).is_between(pl.col("low_mps"), pl.col("high_mps")))
-            .then(pl.col("target"))
-            .alias("target_e"),
+            target_e(-pl.col("v_in_mps")).alias("target_e"),
             pl.col("apex_b").alias("apex_before_m"),
             pl.col("apex").alias("apex_m"),
             pl.when(complete & ballistic & level & (pl.col("g_n") > 0))
