@@ -9,10 +9,11 @@ from typing import Any
 
 import polars as pl
 
-from impactlab.analyze.report.context import RunBrief, Tables, labelled, repeated_runs
+from impactlab.analyze.report.context import Curve, RunBrief, Tables, labelled, repeated_runs
 from impactlab.analyze.report.decimate_lines import LINE_BINS
 from impactlab.analyze.report.document import answers, summary_answers, write_reports
 from impactlab.analyze.report.figure_cache import FigureJob, draw_all, figure_job
+from impactlab.analyze.report.standards import balls, drop_tests
 from impactlab.analyze.tables.combine import TABLES, AnalysisResult
 from impactlab.analyze.tables.decimate import ENERGY_ROWS_PER_RUN
 from impactlab.analyze.tables.studies import study_parameters
@@ -169,6 +170,12 @@ def summary_figure_jobs(
             collisions,
             experiments,
             targets=_targets(briefs),
+            tests=[
+                (r["test"], r["speed_mps"], r["lo"], r["hi"])
+                for r in drop_tests(all_bounces, balls(briefs))
+                .unique("test", keep="first", maintain_order=True)
+                .iter_rows(named=True)
+            ],
         )
         jobs.append(("restitution", job))
     for name, study in studies.items():
@@ -198,10 +205,15 @@ def _has_decay(bounces: pl.DataFrame, run_ids: list[str]) -> bool:
     return bool((done.group_by("run_id", "body").len()["len"] >= 2).any())
 
 
-def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float]]:
-    """experiment -> the restitution targets of its calibrated pairs (none: not calibrated)."""
-    out: dict[str, set[float]] = {}
+def _targets(briefs: Sequence[RunBrief]) -> dict[str, list[float | Curve]]:
+    """experiment -> the restitution targets of its calibrated pairs, constants then e(v)
+    curves (none: not calibrated)."""
+    out: dict[str, list[float | Curve]] = {}
     for b in briefs:
-        if b.targets:
-            out.setdefault(b.experiment, set()).update(b.targets)
-    return {name: sorted(es) for name, es in out.items()}
+        if b.targets or b.curves:
+            out.setdefault(b.experiment, []).extend([*b.targets, *b.curves])
+    return {
+        name: sorted({t for t in ts if not isinstance(t, tuple)})
+        + list(dict.fromkeys(t for t in ts if isinstance(t, tuple)))
+        for name, ts in out.items()
+    }

@@ -75,8 +75,9 @@ def calibration_table(
     """Every impact of every calibrated pair of `runs`, measured by the analysis.
 
     An impact is in its pair's speed range when the analysis gives it the pair's target
-    (`target_e`); there it must be within RESTITUTION_TOLERANCE of the target with the
-    penetration within the designer's worst case. Outside the range the designer's step
+    (`target_e`, an e(v)'s value at the impact's speed); there it must be within
+    RESTITUTION_TOLERANCE of that target with the penetration within the designer's worst
+    case. Outside the range the designer's step
     emulation predicts e at that speed (`e_predicted`, the band `e_lowest`..`e_highest` over
     where in a step the contact begins): it must lie in the band, widened by BAND_MARGIN. A
     pair without a complete impact is a row of its own, not ok, its note saying so.
@@ -120,7 +121,7 @@ def _row(
 ) -> dict[str, Any]:
     """One impact's row: measured against the target (in range) or the prediction."""
     e, inside = hit["e"], hit["target_e"] is not None
-    error = e - base["target"]
+    error = e - (hit["target_e"] if inside else base["target"])  # an e(v): at this speed
     if inside:
         ok = abs(error) <= RESTITUTION_TOLERANCE
         note = "" if ok else f"|e - target| = {abs(error):.4f} > {RESTITUTION_TOLERANCE}"

@@ -15,6 +15,9 @@ from impactlab.logs.format import NOTHING_MOVES
 from impactlab.logs.labels import run_label, run_labels
 from impactlab.show import number
 
+Curve = tuple[tuple[float, ...], tuple[float, ...]]
+"""A target e(v): its points' normal impact speeds (m/s, ascending) and e."""
+
 
 @dataclass(frozen=True)
 class RunBrief:
@@ -30,11 +33,15 @@ class RunBrief:
     bodies: str
     contact: str
     gravity_mps2: float | None
+    curves: tuple[Curve, ...] = ()
+    """The target e(v) curves of its calibrated pairs (`targets`: the constant ones)."""
+    radii: tuple[float | None, ...] = ()
+    """Each body's radius in m, as `masses` (None: not one sphere)."""
 
 
 def brief(a: RunAnalysis) -> RunBrief:
     """The run's `RunBrief`."""
-    info = a.run.body_info.values()
+    info, targets = a.run.body_info.values(), a.run.contact_targets
     kinds: dict[str, list[str]] = {}  # bodies alike, named together
     for b in info:
         size = f", r = {number(b.radius, None)} m" if b.radius else ""
@@ -50,11 +57,17 @@ def brief(a: RunAnalysis) -> RunBrief:
         experiment=a.run.experiment,
         label=run_label(a.run.experiment, a.run.sweep),
         grounded=a.ground is not None and bool(a.ground.surfaces),
-        targets=tuple(sorted({t.restitution for t in a.run.contact_targets})),
+        targets=tuple(sorted({t.restitution for t in targets if t.curve_e is None})),
         masses=tuple(b.mass for b in info),
         bodies=bodies,
         contact=contact_words(a.run.contact_targets, a.run.geom_contact),
         gravity_mps2=gravity,
+        curves=tuple(
+            dict.fromkeys(
+                (t.curve_speed_mps, t.curve_e) for t in targets if t.curve_speed_mps and t.curve_e
+            )
+        ),
+        radii=tuple(b.radius for b in info),
     )
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -202,11 +203,14 @@ def restitution_figure(
     experiments: dict[str, str],
     *,
     path: Path,
-    targets: dict[str, list[float]] | None = None,
+    targets: dict[str, list[float | tuple[Sequence[float], Sequence[float]]]] | None = None,
+    tests: Sequence[tuple[str, float, float, float]] = (),
 ) -> Path:
     """e against impact speed, one colour per experiment (`experiments`: run_id -> name):
     o from velocities and x from apexes of each bounce, squares for two-body collisions (at
-    their closing speed), the experiment's target e (`targets`: name -> targets) dashed."""
+    their closing speed), the experiment's target e (`targets`: name -> constants, or e(v)
+    curves through their points) dashed, and the drop tests' pass bands (`tests`: name,
+    impact speed m/s, lowest and highest e) as black bars."""
     fig, ax = subplots(figsize=(8, 5))
     mine = pl.col("run_id").is_in(list(experiments))
     b = bounces.filter(pl.col("complete") & mine) if bounces.height else bounces
@@ -228,9 +232,14 @@ def restitution_figure(
                 speed, pairs["e_velocity"], "s", color=color, label=plain(f"{name} (collisions)")
             )
         for j, target in enumerate((targets or {}).get(name, [])):
-            ax.axhline(
-                target, ls="--", lw=1, color=color, label=None if j else plain(f"{name}: target")
-            )
+            label = None if j else plain(f"{name}: target")
+            if isinstance(target, tuple):
+                ax.plot(*target, ls="--", lw=1.2, color=color, label=label)
+            else:
+                ax.axhline(target, ls="--", lw=1, color=color, label=label)
+    for test, v, lo, hi in tests:
+        words = f"{test} drop test: e {lo:.3f}-{hi:.3f} at {v:.2f} m/s"
+        ax.plot([v, v], [lo, hi], "_-", color="k", lw=2.5, ms=14, label=plain(words))
     if names:
         for marker, words in (
             ("o", "e from velocities"),

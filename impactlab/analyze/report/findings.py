@@ -17,6 +17,9 @@ MOMENTUM_CONSERVED_REL = 1e-6
 """Relative momentum change |p' - p| / (|m1 v1| + |m2 v2|) below which it is conserved."""
 E_CONSTANT_SPREAD = 0.02
 """Spread (max - min) of e over bounces or drop heights below which e is constant."""
+E_TARGET_TOLERANCE = 0.01
+"""A measured e this close to its target e(v) at its speed follows it (the designer promises
+0.005 for a constant e, 0.01 for a curve: docs/contact-model.md)."""
 E_KNOB_SPREAD = 0.05
 """Spread of the collision e over a sweep below which e does not depend on the knob."""
 APPROACH_FRACTION = 0.1

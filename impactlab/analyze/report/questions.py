@@ -25,6 +25,7 @@ from impactlab.analyze.report.blocks import (
     span,
 )
 from impactlab.analyze.report.context import COLUMNS, Tables, columns
+from impactlab.analyze.report.standards import balls, drop_tests
 from impactlab.physics import collision_after
 from impactlab.show import number
 from impactlab.text import file_part
@@ -221,6 +222,10 @@ def restitution(t: Tables) -> Answer:
     said = []
     if studies:
         table = table.with_columns(_targets(t).alias("target"))
+        table = table.join(_first_targets(t), on="run_id", how="left", maintain_order="left")
+        table = table.with_columns(
+            pl.coalesce(pl.col("target_first"), pl.col("target")).alias("target")
+        )
         aimed = table.filter(pl.col("target") != "")
         off = (pl.col("e_velocity_first") - pl.col("target").cast(pl.Float64, strict=False)).abs()
         most_off = aimed.select(off.max()).item() if aimed.height else None
@@ -230,6 +235,8 @@ def restitution(t: Tables) -> Answer:
                 f"{number(most_off, 2)} of it: an independent check, the target being set before "
                 "the run."
             )
+    said += [_curve_words(t, name, rows) for name, rows in _curved(t, done).items()]
+    said += _drop_test_words(t)
     apex = done.filter(pl.col("e_apex").is_not_null()) if "e_apex" in done.columns else done.clear()
     if apex.height:
         gap = apex.select((pl.col("e_apex") - e).abs().max()).item()
@@ -247,6 +254,84 @@ def restitution(t: Tables) -> Answer:
     caption = "e against impact speed: every bounce and every collision, one colour per experiment."
     evidence += t.figures_of("restitution", {"restitution-vs-speed": caption})
     return Answer([Strong(lead)], evidence)
+
+
+def _first_targets(t: Tables) -> pl.DataFrame:
+    """run_id -> the target e (text) of the first bounce of each run whose contact has an
+    e(v) curve: the curve at that impact's speed ("" outside the curve's speeds)."""
+    curved = [r for r, b in t.briefs.items() if b.curves]
+    first = (
+        t.bounces.filter(pl.col("run_id").is_in(curved))
+        .sort("impact_t_s")
+        .group_by("run_id", maintain_order=True)
+        .agg(pl.col("target_e").first())
+        if "target_e" in t.bounces.columns
+        else pl.DataFrame(schema={"run_id": pl.String, "target_e": pl.Float64})
+    )
+    words = [number(e) if e is not None else "" for e in first["target_e"]]
+    return pl.DataFrame(
+        {"run_id": first["run_id"], "target_first": words},
+        schema={"run_id": pl.String, "target_first": pl.String},
+    )
+
+
+def _curved(t: Tables, done: pl.DataFrame) -> dict[str, pl.DataFrame]:
+    """experiment -> its complete bounces with a target, of each experiment whose contact
+    has a target e(v) curve."""
+    names = {b.experiment for b in t.briefs.values() if b.curves}
+    runs = {r: b.experiment for r, b in t.briefs.items() if b.experiment in names}
+    aimed = done.filter(pl.col("run_id").is_in(list(runs)) & pl.col("target_e").is_not_null())
+    aimed = aimed.with_columns(
+        pl.col("run_id").replace_strict(runs, return_dtype=pl.String).alias("experiment")
+    )
+    return {n: aimed.filter(pl.col("experiment") == n) for n in sorted(names)}
+
+
+def _curve_words(t: Tables, name: str, rows: pl.DataFrame) -> str:
+    """How e follows an experiment's target e(v): how much it falls (or rises) over the
+    impact speeds measured, and its worst distance from the target."""
+    if rows.is_empty():
+        return f"{name}'s contact has a target e(v), but no bounce was inside its speeds."
+    rows = rows.with_columns((-pl.col("v_in_mps")).alias("v")).sort("v")
+    slow, fast = rows.row(0, named=True), rows.row(-1, named=True)
+    off = rows.select((pl.col("e_velocity") - pl.col("target_e")).abs().max()).item()
+    follows = (
+        f"within {number(off, 2)} of the target at its speed"
+        if off <= F.E_TARGET_TOLERANCE
+        else f"up to {number(off, 2)} off the target at its speed, more than "
+        f"{F.E_TARGET_TOLERANCE:g}"
+    )
+    return (
+        f"{name}: the contact's target e {_change(fast['target_e'] - slow['target_e'])} over "
+        f"these speeds, and the measured e {_change(fast['e_velocity'] - slow['e_velocity'])}"
+        f", from {number(slow['e_velocity'])} at "
+        f"{quantity(slow['v'], 'm/s')} to {number(fast['e_velocity'])} at "
+        f"{quantity(fast['v'], 'm/s')}; its {rows.height} bounces are {follows}."
+    )
+
+
+def _change(d: float) -> str:
+    """How e changes by `d` from the slowest impact to the fastest."""
+    if abs(d) < F.E_CONSTANT_SPREAD:
+        return f"stays within {number(abs(d), 2)} of one value"
+    return f"{'falls' if d < 0 else 'rises'} by {number(abs(d), 2)}"
+
+
+def _drop_test_words(t: Tables) -> list[str]:
+    """Each drop test a run is (a rule's ball dropped from its height): pass or fail, by the
+    measured e of that impact."""
+    found = drop_tests(t.bounces, balls(t.briefs.values()))
+    out = []
+    for r in found.iter_rows(named=True):
+        verdict = "passes" if r["passed"] else "fails"
+        out.append(
+            f"{_who({'run_id': r['run_id'], 'run': t.briefs[r['run_id']].label})} is the "
+            f"{r['test']} drop test ({quantity(r['drop_m'], 'm')}, impact at "
+            f"{quantity(r['speed_mps'], 'm/s')}): measured e = {number(r['e'])}, the rule asks "
+            f"{number(r['lo'])} to {number(r['hi'])} (no air in MuJoCo: e = √(rebound / drop)), "
+            f"so it {verdict}."
+        )
+    return out
 
 
 def _height_words(study: pl.DataFrame) -> str:

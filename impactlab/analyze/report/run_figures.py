@@ -16,16 +16,27 @@ from impactlab.text import file_part
 
 
 def contact_words(targets: Sequence[PairTarget], shared: GeomContact | None) -> str:
-    """What the contact is: the calibrated pairs' target e (one number when they share it,
-    else per pair), or else the solref/solimp every geom shares; "" when neither is known."""
-    if len({t.restitution for t in targets}) == 1:
-        return f"restitution = {targets[0].restitution:g}"
+    """What the contact is: the calibrated pairs' target e (one when they share it, else per
+    pair; an e(v) by its ends), or else the solref/solimp every geom shares; "" when neither
+    is known."""
+    said = [_target_words(t) for t in targets]
+    if len(set(said)) == 1:
+        return f"restitution {said[0]}"
     if targets:
-        return "restitution " + ", ".join(f"{t.pair} = {t.restitution:g}" for t in targets)
+        return "restitution " + ", ".join(
+            f"{t.pair} {w}" for t, w in zip(targets, said, strict=True)
+        )
     if shared is not None:
         solref, solimp = (" ".join(f"{x:g}" for x in v) for v in (shared.solref, shared.solimp))
         return f"solref {solref}; solimp {solimp}"
     return ""
+
+
+def _target_words(t: PairTarget) -> str:
+    if t.curve_speed_mps and t.curve_e:
+        ends = ((t.curve_e[i], t.curve_speed_mps[i]) for i in (0, -1))
+        return "e(v) " + " to ".join(f"{e:g} at {v:g} m/s" for e, v in ends)
+    return f"= {t.restitution:g}"
 
 
 def run_title(a: RunAnalysis) -> str:
