@@ -96,6 +96,19 @@ BAD = {
         "{}",
         '[{"geom1": "plane"}]',
         '[{"geom1": "a", "geom2": "b", "restitution": 2, "speed_range_mps": [1, 2]}]',
+        *(  # a target e(v): points of a curve, both lists or neither, ascending, e in 0..1
+            '[{"geom1": "a", "geom2": "b", "restitution": 0.8, "speed_range_mps": [1, 2], '
+            f"{curve}}}]"
+            for curve in (
+                '"curve_speed_mps": [1, 2]',
+                '"curve_speed_mps": [2, 1], "curve_e": [0.8, 0.7]',
+                '"curve_speed_mps": [1, 2], "curve_e": [0.8, 1.5]',
+                '"curve_speed_mps": [1, 2, 3], "curve_e": [0.8, 0.7]',
+                '"curve_speed_mps": [1], "curve_e": [0.8]',
+                '"curve_speed_mps": "x", "curve_e": [0.8, 0.7]',
+                f'"curve_speed_mps": {list(range(1, 100))}, "curve_e": {[0.5] * 99}',
+            )
+        ),
     ],
     "geom_contact": ["x", "[]", '{"solref": [1]}', '{"solref": [1, 2], "solimp": [1]}'],
     "separation_m": ["x", "0", "-1", "nan"],
