@@ -239,7 +239,8 @@ def restitution_figure(
                 ax.axhline(target, ls="--", lw=1, color=color, label=label)
     for test, v, lo, hi in tests:
         words = f"{test} drop test: e {lo:.3f}-{hi:.3f} at {v:.2f} m/s"
-        ax.plot([v, v], [lo, hi], "_-", color="k", lw=2.5, ms=14, label=plain(words))
+        bar = {"color": "k", "lw": 2.5, "ms": 14, "alpha": 0.6, "zorder": 1.5}
+        ax.plot([v, v], [lo, hi], "_-", label=plain(words), **bar)
     if names:
         for marker, words in (
             ("o", "e from velocities"),
