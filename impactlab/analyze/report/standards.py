@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
 
 import polars as pl
 
@@ -80,45 +79,18 @@ def drop_tests(bounces: pl.DataFrame, balls: dict[str, tuple[float, float | None
         bounces: the bounces table (first falls: `bounce` 1 with `apex_before_m`).
         balls: run_id -> (mass kg, radius m) of a run with one body (`balls`).
     """
-    rows: list[dict[str, Any]] = []
-    if bounces.is_empty() or "apex_before_m" not in bounces.columns:
-        return pl.DataFrame(schema=SCHEMA)
-    first = bounces.filter(
-        (pl.col("bounce") == 1) & pl.col("complete") & pl.col("e_velocity").is_not_null()
-    )
-    for b in first.iter_rows(named=True):
-        mass, radius = balls.get(b["run_id"], (math.nan, None))
-        drop = b["apex_before_m"]
-        for test in DROP_TESTS:
-            if drop is None or radius is None or not test.fits(mass, radius):
-                continue
-            if abs(drop - test.drop_m) <= DROP_MATCH * test.drop_m:
-                lo, hi = test.band
-                e = b["e_velocity"]
-                rows.append(
-                    {
-                        "run_id": b["run_id"],
-                        "test": test.name,
-                        "drop_m": drop,
-                        "speed_mps": -b["v_in_mps"],
-                        "e": e,
-                        "lo": lo,
-                        "hi": hi,
-                        "passed": lo <= e <= hi,
-                    }
-                )
-    return pl.DataFrame(rows, schema=SCHEMA)
-
-
-SCHEMA = pl.Schema(
-    {
-        "run_id": pl.String(),
-        "test": pl.String(),
-        "drop_m": pl.Float64(),
-        "speed_mps": pl.Float64(),
-        "e": pl.Float64(),
-        "lo": pl.Float64(),
-        "hi": pl.Float64(),
-        "passed": pl.Boolean(),
-    }
-)
+    rows = []
+    needed = {"bounce", "complete", "e_velocity", "apex_before_m", "v_in_mps"}
+    if needed <= set(bounces.columns):
+        done = pl.col("complete") & pl.col("e_velocity").is_not_null()
+        for b in bounces.filter((pl.col("bounce") == 1) & done).iter_rows(named=True):
+            mass, radius = balls.get(b["run_id"], (math.nan, None))
+            e, drop = b["e_velocity"], b["apex_before_m"] or math.nan
+            rows += [
+                (b["run_id"], t.name, drop, -b["v_in_mps"], e, *t.band, t.band[0] <= e <= t.band[1])
+                for t in DROP_TESTS
+                if t.fits(mass, radius) and abs(drop - t.drop_m) <= DROP_MATCH * t.drop_m
+            ]
+    names = ("run_id", "test", "drop_m", "speed_mps", "e", "lo", "hi", "passed")
+    kinds = (pl.String, pl.String, *[pl.Float64] * 5, pl.Boolean)
+    return pl.DataFrame(rows, schema=dict(zip(names, kinds, strict=True)), orient="row")
