@@ -16,6 +16,7 @@ at 1 m/s: 0.02).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from types import SimpleNamespace
@@ -28,7 +29,7 @@ from specs import drop
 from impactlab.calibrate.job import run_calibration
 from impactlab.calibrate.table import calibration_table
 from impactlab.cli import main
-from impactlab.contact import contact_params
+from impactlab.contact import RestitutionCurve, contact_params
 from impactlab.errors import SpecError
 from impactlab.physics import collision_after
 from impactlab.record import plan
@@ -292,6 +293,29 @@ def test_each_impact_is_judged_by_its_bound():
     deep = bounces.head(1).with_columns(pl.lit(1.0).alias("max_penetration_m"))
     (row,) = calibration_table(runs[:1], deep, pl.DataFrame()).rows(named=True)
     assert not row["ok"] and row["note"].startswith("penetration 1 m")
+
+
+def test_an_impact_of_an_e_v_target_is_judged_at_its_speed():
+    """A pair whose target is a curve: the analysis' target_e (the curve at the impact's
+    speed) is what e is measured against, not one number (the params here are the constant
+    design with a curve attached: the table's wiring, not a design)."""
+    p = dataclasses.replace(_params(), curve=RestitutionCurve.of([1.0, 3.0], [0.85, 0.75]))
+    runs = [
+        SimpleNamespace(
+            info=SimpleNamespace(run_id="a"),
+            pairs=[SimpleNamespace(geom1="plane", geom2="ball", params=p)],
+        )
+    ]
+    bounces = _bounces(
+        [
+            ("a", "ball", "plane", 1, -1.0, 0.851, 0.85),  # 0.051 from 0.8, 0.001 from e(v)
+            ("a", "ball", "plane", 2, -2.0, 0.80, 0.80),
+            ("a", "ball", "plane", 3, -3.0, 0.80, 0.75),  # 0.05 off the curve
+        ]
+    )
+    table = calibration_table(runs, bounces, pl.DataFrame())
+    assert table["error"].to_list() == pytest.approx([0.001, 0.0, 0.05])
+    assert table["ok"].to_list() == [True, True, False]
 
 
 def test_command_line_options():
