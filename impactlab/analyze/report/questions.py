@@ -205,9 +205,11 @@ def restitution(t: Tables) -> Answer:
             across = f"Yes, e is constant across bounces (spread at most {most}, below {limit})"
         else:
             within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
+            brief = t.briefs.get(worst["run_id"])
+            asked = ", as its target e(v) asks" if brief is not None and brief.curves else ""
             across = (
                 f"No, e is not constant across bounces in every drop (spread up to {most} in "
-                f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
+                f"{worst['run']}{asked}, above {limit}; {within} of {spread.height} within it)"
             )
         if outside.height and spread.height:
             speeds = span((-outside["v_in_mps"]).to_list(), "m/s")

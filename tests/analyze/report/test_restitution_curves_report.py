@@ -123,6 +123,14 @@ def test_step_2_says_how_e_falls_against_its_target_and_judges_the_drop_test():
     bounces = _real_ball({1.0: 0.001, 3.0: -0.002, itf: 0.003, 9.0: -0.002})
     briefs = {r: _brief(r, "real_ball", curve=True) for r in bounces["run_id"]}
     said = _said(_tables(bounces, briefs))
+    # one run's bounces at two speeds: not constant, as its target asks
+    second = bounces.slice(3, 1).with_columns(
+        run_id=pl.lit("r0"), bounce=pl.lit(2, pl.Int64), run=pl.lit("real_ball: r0")
+    )
+    two = pl.concat([bounces.head(1), second])
+    lead = restitution(_tables(two, briefs)).finding
+    assert lead.startswith("No, e is not constant across bounces in every drop (spread up to")
+    assert "in real_ball: r0, as its target e(v) asks, above 0.02" in lead
     assert "real_ball: the contact's target e falls by 0.12 over these speeds" in said
     assert "the measured e falls by 0.13, from 0.851 at 1.00 m/s to 0.723 at 9.00 m/s" in said
     assert "its 4 bounces are within 0.0030 of the target at its speed" in said
