@@ -67,13 +67,20 @@ def target_e(speed: pl.Expr) -> pl.Expr:
 
 
 def _on_curves(rows: pl.Series) -> pl.Series:
-    """Each row's curve (struct v, curve_speed_mps, curve_e) at its speed v, held at its ends."""
+    """Each row's curve (struct v, curve_speed_mps, curve_e) at its speed v, held at its ends
+    (the rows of one curve at once)."""
     out = np.full(rows.len(), np.nan)
-    for i, row in enumerate(rows):
-        v, xs, es = row["v"], row["curve_speed_mps"], row["curve_e"]
-        if v is not None and xs and es:
-            out[i] = restitution_on_curve(min(max(v, xs[0]), xs[-1]), xs, es)
+    v = rows.struct.field("v").cast(pl.Float64).fill_null(np.nan).to_numpy()
+    curves: dict[tuple[tuple[float, ...], tuple[float, ...]], list[int]] = {}
+    for i, (xs, es) in enumerate(zip(*(rows.struct.field(f) for f in CURVE), strict=True)):
+        if xs is not None and es is not None and len(xs):
+            curves.setdefault((tuple(xs), tuple(es)), []).append(i)
+    for (xs, es), at in curves.items():
+        out[at] = restitution_on_curve(np.clip(v[at], xs[0], xs[-1]), xs, es)
     return pl.Series(out, dtype=pl.Float64).fill_nan(None)
+
+
+CURVE = ("curve_speed_mps", "curve_e")
 
 
 TURNING = (
