@@ -92,7 +92,7 @@ COLUMNS = {
         ("drop_height_m", "Drop height", "m"),
         ("first_impact_speed_mps", "Impact speed", "m/s"),
         ("e_velocity_first", "e, first bounce", ""),
-        ("e_apex_mean", "e from apexes", ""),
+        ("e_apex_mean", "mean e from apexes", ""),
         ("body", "Body", ""),
         ("surface", "Surface", ""),
         ("bounce", "Bounce", ""),
