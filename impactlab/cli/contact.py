@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from impactlab.contact import RestitutionCurve
     from impactlab.contact.tune import PairRequest
 
 INTEGRATORS = ("Euler", "implicit", "implicitfast", "RK4")  # checked against contact by a test
@@ -34,7 +35,27 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         "input. See docs/contact-model.md.",
     )
     p.add_argument("model", nargs="?", type=Path, metavar="MODEL.xml", help="an MJCF model")
-    p.add_argument("--restitution", type=number, metavar="E", help="target e (0.1354..1)")
+    p.add_argument(
+        "--restitution",
+        type=restitution,
+        metavar="E|V:E,...",
+        help="target e (0.1354..1), or a target e(v): measured points SPEED:E,... (m/s, "
+        "ascending; e is promised between the points, within 0.01)",
+    )
+    p.add_argument(
+        "--law",
+        type=law,
+        metavar="C1,C2",
+        help="a target e(v) = 1 - C1 v^(1/5) + C2 v^(2/5) (Ramirez et al. 1999, v in m/s) "
+        "over --speed LO..HI, instead of --restitution",
+    )
+    p.add_argument(
+        "--reference-speed",
+        type=number,
+        metavar="V",
+        help="for a target e(v): the impact speed in m/s at which --duration applies "
+        "(default the top speed)",
+    )
     p.add_argument(
         "--radius", type=number, metavar="M", help="smaller ball radius in m (without a model)"
     )
@@ -93,12 +114,16 @@ def _emit(args: argparse.Namespace, lines: list[str], document: object) -> None:
 
 
 def _alone(args: argparse.Namespace) -> int:
-    from impactlab.contact import ContactModelError, design_contact
+    from impactlab.contact import ContactModelError, RestitutionCurve, design_contact
     from impactlab.contact.summary import design_dict, design_lines
 
     for flag, given in (("--pair", args.pair), ("-o", args.out)):
         if given:
             raise ContactModelError(f"{flag} needs an MJCF model: impactlab contact MODEL.xml")
+    if args.law is not None or isinstance(args.restitution, RestitutionCurve):
+        return _curve(args)
+    if args.reference_speed is not None:
+        raise ContactModelError("--reference-speed is for a target e(v) (a table or --law)")
     if args.speed is None:
         raise ContactModelError("--speed LO..HI is required (normal impact speeds in m/s)")
     for flag in ("restitution", "timestep"):
@@ -118,14 +143,56 @@ def _alone(args: argparse.Namespace) -> int:
     return 0 if design.ok else 1
 
 
+def _curve(args: argparse.Namespace) -> int:
+    """A target e(v): 0 when the fit is within the tolerance, 1 (the nearest curve printed)
+    when not."""
+    from impactlab.contact import ContactModelError, CurveOutOfReach, design_contact
+    from impactlab.contact.curve import ramirez_curve
+    from impactlab.contact.summary import curve_dict, curve_lines
+
+    if args.law is not None:
+        if args.restitution is not None:
+            raise ContactModelError("give --restitution or --law, not both")
+        if args.speed is None:
+            raise ContactModelError("--law needs --speed LO..HI (normal impact speeds in m/s)")
+        target = ramirez_curve(args.law[0], args.law[1], args.speed)
+    else:
+        target = args.restitution
+    if args.timestep is None:
+        raise ContactModelError("--timestep is required")
+    try:
+        design = design_contact(
+            target,
+            radius_m=args.radius,
+            timestep_s=args.timestep,
+            speed_range_mps=None if args.law is not None else args.speed,
+            integrator=args.integrator or "Euler",
+            gravity_mps2=9.81 if args.gravity is None else args.gravity,
+            max_penetration_m=args.max_penetration,
+            duration_s=args.duration,
+            reference_speed_mps=args.reference_speed,
+        )
+    except CurveOutOfReach as exc:
+        design = exc.design
+    _emit(args, curve_lines(design, radius_m=args.radius), curve_dict(design, radius_m=args.radius))
+    return 0 if design.ok else 1
+
+
 def _model(args: argparse.Namespace) -> int:
-    from impactlab.contact import ContactModelError
+    from impactlab.contact import ContactModelError, RestitutionCurve
     from impactlab.contact.summary import design_dict, design_lines
     from impactlab.contact.tune import tune_model, write_tuned
     from impactlab.files import check_writable
     from impactlab.mjcf.files import check_not_input
     from impactlab.mjcf.load import parse_mjcf
 
+    if args.law is not None or isinstance(args.restitution, RestitutionCurve):
+        raise ContactModelError(
+            "a target e(v) is designed without a model: impactlab contact --restitution "
+            "V:E,... --radius M --timestep S"
+        )
+    if args.reference_speed is not None:
+        raise ContactModelError("--reference-speed is for a target e(v) (a table or --law)")
     for flag in ("radius", "timestep", "integrator"):
         if getattr(args, flag) is not None:
             raise ContactModelError(
@@ -189,6 +256,31 @@ def number(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
     return value
+
+
+def restitution(text: str) -> float | RestitutionCurve:
+    """An argument ``E`` or ``V:E,V:E,...`` (m/s and e) -> e or a checked curve."""
+    from impactlab.contact import ContactModelError, RestitutionCurve
+
+    if ":" not in text:
+        return number(text)
+    try:
+        points = [item.split(":") for item in text.split(",")]
+        if any(len(point) != 2 for point in points):
+            raise argparse.ArgumentTypeError(
+                f"must be E or SPEED:E,SPEED:E,... (m/s and e), got {text!r}"
+            )
+        return RestitutionCurve.of([number(v) for v, _ in points], [number(e) for _, e in points])
+    except ContactModelError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def law(text: str) -> tuple[float, float]:
+    """An argument ``C1,C2`` -> the two coefficients."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"must be C1,C2 (two numbers), got {text!r}")
+    return number(parts[0]), number(parts[1])
 
 
 def speeds(text: str) -> tuple[float, float]:

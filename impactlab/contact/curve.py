@@ -68,3 +68,34 @@ class RestitutionCurve:
     def at(self, speed_mps: float | Sequence[float] | np.ndarray) -> np.ndarray:
         """The target e at speeds in m/s (NaN outside the span)."""
         return restitution_on_curve(speed_mps, self.speed_mps, self.e)
+
+
+LAW_POINTS = 17
+"""Points a law is tabulated at (geometrically spaced): piecewise linear between them, the
+Ramirez law is followed to about 2e-4."""
+
+
+def ramirez_curve(c1: float, c2: float, speed_range_mps: Sequence[float]) -> RestitutionCurve:
+    """The viscoelastic spheres' e(v) = 1 - c1 v^(1/5) + c2 v^(2/5) (Ramirez, Poeschel,
+    Brilliantov and Schwager, Phys. Rev. E 60, 4465 (1999); v in m/s), tabulated at
+    LAW_POINTS speeds over (lo, hi).
+
+    Raises:
+        ContactModelError: coefficients not numbers, a range not 0 < lo < hi, or an e
+            outside RESTITUTION_FLOOR..1 in it.
+    """
+    try:
+        lo, hi = (float(v) for v in speed_range_mps)
+        a, b = float(c1), float(c2)
+    except (TypeError, ValueError):
+        raise ContactModelError(
+            f"a law needs two coefficients and a range lo..hi, got {c1!r}, {c2!r}, "
+            f"{speed_range_mps!r}"
+        ) from None
+    if not (math.isfinite(a) and math.isfinite(b) and 0.0 < lo < hi):
+        raise ContactModelError(
+            f"a law needs finite coefficients and 0 < lo < hi, got C1 {c1!r}, C2 {c2!r}, "
+            f"{lo:g}..{hi:g} m/s"
+        )
+    speeds = np.geomspace(lo, hi, LAW_POINTS)
+    return RestitutionCurve.of(speeds.tolist(), (1.0 - a * speeds**0.2 + b * speeds**0.4).tolist())

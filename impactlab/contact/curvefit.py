@@ -27,7 +27,10 @@ CHECK_SPEEDS, CHECK_PHASES = 41, 16
 """The check of a fit: speeds spaced geometrically over the range (the curve's points
 added) and contact-onset phases at each."""
 
-_FIT_SPEEDS, _FIT_PHASES = 13, 6
+_FIT_SPEEDS, _FIT_PHASES = 9, 4
+_BATCH_TIME = 100.0
+"""A candidate of the first batch still in contact after this many 1 / w0 is a bad one."""
+_STARTS, _NFEV, _NFEV_WARM = 1, 25, 10
 _LOWER = np.array([0.01, -5.0, -4.0, 0.02, 1.0])
 _UPPER = np.array([0.9, 4.0, math.log10(0.9), 0.98, 60.0])
 """Bounds of the fitted parameters: zeta, log(w0 width / v_mid), log10 dmin, midpoint,
@@ -67,10 +70,16 @@ class Setting:
         return math.sqrt(self.speed_range_mps[0] * self.speed_range_mps[1])
 
     def impacts(
-        self, theta: np.ndarray, w0: float, speeds: np.ndarray, phases: int
+        self,
+        theta: np.ndarray,
+        w0: float,
+        speeds: np.ndarray,
+        phases: int,
+        max_time_s: float | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(e, penetration, contact time) of candidates `theta` (n, 5) at stiffness w0**2,
-        shape (n, speeds, phases)."""
+        shape (n, speeds, phases); an impact not over after `max_time_s` (default: 40 / w0
+        plus four times the widest soft layer's crossing at the lowest speed) gets e = 0."""
         theta = np.atleast_2d(theta)
         zeta, log_width, log_dmin, mid, power = theta.T
         n = len(theta)
@@ -86,7 +95,7 @@ class Setting:
             timestep_s=self.timestep_s,
             gravity_mps2=self.gravity_mps2,
             integrator=self.integrator,
-            max_time_s=40.0 / w0 + 4.0 * float(width.max()) / lo,
+            max_time_s=max_time_s or 40.0 / w0 + 4.0 * float(width.max()) / lo,
         )
         return found.e, found.penetration_m, found.contact_s
 
@@ -108,15 +117,15 @@ def fit_shape(
     speeds = fit_speeds(curve, *setting.speed_range_mps, _FIT_SPEEDS)
     target = curve.at(speeds)
 
-    def mean_e(theta: np.ndarray) -> np.ndarray:
-        e, _, _ = setting.impacts(theta, w0, speeds, _FIT_PHASES)
+    def mean_e(theta: np.ndarray, max_time_s: float | None = None) -> np.ndarray:
+        e, _, _ = setting.impacts(theta, w0, speeds, _FIT_PHASES, max_time_s)
         mean: np.ndarray = e.mean(-1)
         return mean
 
     if start is None:
         batch = _LOWER + (_UPPER - _LOWER) * np.random.default_rng(39).random((128, 5))
-        worst = np.abs(mean_e(batch) - target).max(-1)
-        starts = batch[np.argsort(worst)[:2]]
+        worst = np.abs(mean_e(batch, _BATCH_TIME / w0) - target).max(-1)
+        starts = batch[np.argsort(worst)[:_STARTS]]
     else:
         starts = np.atleast_2d(start)
     steps = 1e-3 * (_UPPER - _LOWER)
@@ -136,7 +145,7 @@ def fit_shape(
             jac=jacobian,
             bounds=(_LOWER, _UPPER),
             x_scale=_UPPER - _LOWER,
-            max_nfev=40,
+            max_nfev=_NFEV if start is None else _NFEV_WARM,
         )
         if sol.cost < best_cost:
             best, best_cost = sol.x, sol.cost
@@ -182,33 +191,40 @@ def design_curve(
     bound_m: float | None,
     duration_s: float | None,
     reference_mps: float,
+    start: Fit | None = None,
 ) -> Checked:
-    """Fit at a stiffness, then rescale the stiffness to meet the penetration bound at the
-    top speed (or the contact time at the reference speed) and fit again from there: at a
-    fixed shape (width in units of v_mid / w0) both scale as 1 / w0."""
+    """Fit at a stiffness (from `start` when given), rescale the stiffness to meet the
+    penetration bound at the top speed (or the contact time at the reference speed), fit
+    again from there, rescale again: at a fixed shape (width in units of v_mid / w0) both
+    scale as 1 / w0, and e changes only through w0 dt and g / (w0 v)."""
     e_ref = float(curve.at(reference_mps))
-    zeta = _zeta(min(max(e_ref, 0.14), 1.0))
-    hi = setting.speed_range_mps[1]
     if duration_s is not None:
-        w0 = contact_time_factor(zeta) / duration_s
+        w0 = contact_time_factor(_zeta(min(max(e_ref, 0.14), 1.0))) / duration_s
     else:
         assert bound_m is not None
-        w0 = 1.2 * hi / bound_m
-    theta: np.ndarray | None = None
-    checked_fit: Checked | None = None
-    for _ in range(4):
-        theta = fit_shape(curve, setting, w0, theta)
-        checked_fit = check(curve, setting, Fit(theta, w0, setting.v_mid), reference_mps)
-        if duration_s is not None:
-            ratio = checked_fit.contact_s / duration_s
-        else:
-            assert bound_m is not None
-            ratio = checked_fit.penetration_m / (0.99 * bound_m)
-        if not math.isfinite(ratio) or (abs(ratio - 1.0) < 0.02 and ratio <= 1.0 / 0.99):
-            break
-        w0 *= ratio
-    assert checked_fit is not None
-    return checked_fit
+        w0 = 1.2 * setting.speed_range_mps[1] / bound_m
+
+    def rescaled(theta: np.ndarray, w0: float) -> Checked:
+        for _ in range(8):
+            found = check(curve, setting, Fit(theta, w0, setting.v_mid), reference_mps)
+            if duration_s is not None:
+                ratio = found.contact_s / duration_s
+                if not math.isfinite(ratio) or abs(ratio - 1.0) <= 0.01:
+                    break
+            else:
+                assert bound_m is not None
+                ratio = found.penetration_m / (0.995 * bound_m)
+                if 0.99 <= ratio <= 1.0:
+                    break
+            w0 *= ratio
+        return found
+
+    if start is None:
+        found = rescaled(fit_shape(curve, setting, w0), w0)
+    else:
+        found = rescaled(fit_shape(curve, setting, start.w0, start.theta), start.w0)
+    refit = fit_shape(curve, setting, found.fit.w0, found.fit.theta)
+    return rescaled(refit, found.fit.w0)
 
 
 def rest_sink_m(params: ContactParams) -> float:
@@ -253,16 +269,28 @@ def better_timestep(
     duration_s: float | None,
     reference_mps: float,
 ) -> tuple[float, float] | None:
-    """(timestep, worst error) measured by fitting at dt/2, dt/4, dt/8: the first that meets
-    CURVE_TOLERANCE, else the best if it beats `found` by a tenth; None when none does."""
-    dt, best = setting.timestep_s, None
-    for div in (2.0, 4.0, 8.0):
-        finer = Setting(setting.speed_range_mps, dt / div, setting.integrator, setting.gravity_mps2)
+    """(timestep, worst error) measured by fitting at dt/2, then dt/4 (from `found`'s fit):
+    the first that meets CURVE_TOLERANCE, else the better one if it beats `found` by a
+    tenth; None when neither does (the curve is beyond the contact model, not the step)."""
+    best = None
+    for div in (2.0, 4.0):
+        finer = Setting(
+            setting.speed_range_mps,
+            setting.timestep_s / div,
+            setting.integrator,
+            setting.gravity_mps2,
+        )
         again = design_curve(
-            curve, finer, bound_m=bound_m, duration_s=duration_s, reference_mps=reference_mps
+            curve,
+            finer,
+            bound_m=bound_m,
+            duration_s=duration_s,
+            reference_mps=reference_mps,
+            start=found.fit,
         )
         if again.worst_error <= CURVE_TOLERANCE:
             return finer.timestep_s, again.worst_error
-        if again.worst_error < 0.9 * (found.worst_error if best is None else best[1]):
-            best = finer.timestep_s, again.worst_error
+        if again.worst_error >= 0.9 * (found.worst_error if best is None else best[1]):
+            break
+        best = finer.timestep_s, again.worst_error
     return best

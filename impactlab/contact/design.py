@@ -257,10 +257,12 @@ def out_of_reach(
     )
     if better is None:
         return text + (
-            f"; fitting at {params.timestep_s / 8:g} s does not do better: the curve changes "
+            f"; fitting at {params.timestep_s / 2:g} s does not do better: the curve changes "
             "too fast with speed for this contact model (a flatter curve or a narrower range)"
         )
-    return text + f"; at timestep {better[0]:g} s the fit's worst error is {better[1]:.4f}"
+    return text + (
+        f"; fitted at timestep {better[0]:g} s the worst error is {better[1]:.4f} (measured)"
+    )
 
 
 def design_contact(

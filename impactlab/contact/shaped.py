@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,14 +18,26 @@ def impedance(solimp: np.ndarray, depth: np.ndarray) -> np.ndarray:
     midpoint, power) along the last axis of length 5 broadcastable with `depth` (the
     engine's getimpedance: a power law to the midpoint, its mirror image beyond, flat
     outside the width; clamped to MIN_IMPEDANCE..MAX_IMPEDANCE)."""
+    return _impedance_of(solimp)(depth)
+
+
+def _impedance_of(solimp: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """:func:`impedance` with the shape's constants computed once."""
     dmin, dmax, width, mid, power = (solimp[..., i] for i in range(5))
-    x = np.clip(depth / width, 0.0, 1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        low = x**power / mid ** (power - 1.0)
-        high = 1.0 - (1.0 - x) ** power / (1.0 - mid) ** (power - 1.0)
-    y = np.where(x <= mid, low, high)
-    d = dmin + np.where(x >= 1.0, 1.0, np.where(x <= 0.0, 0.0, y)) * (dmax - dmin)
-    return np.clip(np.where(dmin == dmax, dmin, d), MIN_IMPEDANCE, MAX_IMPEDANCE)
+    with np.errstate(divide="ignore", over="ignore"):
+        below = 1.0 / mid ** (power - 1.0)
+        above = 1.0 / (1.0 - mid) ** (power - 1.0)
+    rise = dmax - dmin
+
+    def d(depth: np.ndarray) -> np.ndarray:
+        x = np.minimum(depth / width, 1.0)  # depth >= 0
+        low = x <= mid
+        t = np.where(low, x, 1.0 - x) ** power
+        y = np.where(low, below * t, 1.0 - above * t)
+        clamped: np.ndarray = np.clip(dmin + y * rise, MIN_IMPEDANCE, MAX_IMPEDANCE)
+        return clamped
+
+    return d
 
 
 def contact_rule(solref: np.ndarray, solimp: np.ndarray, gravity_mps2: float) -> Acceleration:
@@ -35,9 +48,10 @@ def contact_rule(solref: np.ndarray, solimp: np.ndarray, gravity_mps2: float) ->
     g = float(gravity_mps2)
     dmax = np.clip(solimp[..., 1], MIN_IMPEDANCE, MAX_IMPEDANCE)
     stiff, damp = -solref[..., 0] / dmax**2, -solref[..., 1] / dmax
+    impedance_at = _impedance_of(solimp)
 
     def acceleration(y: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        d = impedance(solimp, np.maximum(-y, 0.0))
+        d = impedance_at(np.maximum(-y, 0.0))
         aref = -damp * u - stiff * d * y
         force = (y < 0.0) & (aref > -g)
         return np.where(force, d * aref - (1.0 - d) * g, -g), force

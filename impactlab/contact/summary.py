@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import dataclasses
 import decimal
+import itertools
 import math
 from typing import Any
 
+import numpy as np
+
 from impactlab.contact.advice import ContactDesign, Prediction, significant
+from impactlab.contact.curvefit import CURVE_TOLERANCE, rest_sink_m
 from impactlab.contact.params import ContactParams
 from impactlab.contact.table import RESTITUTION_TOLERANCE
 
@@ -139,3 +143,76 @@ def design_dict(
         out["softer"] = params_dict(design.softer)
         out["softer"]["max_penetration_m_to_ask"] = round_up(design.softer.max_penetration_m)
     return out
+
+
+def curve_lines(design: ContactDesign, *, radius_m: float | None) -> list[str]:
+    """What ``impactlab contact`` prints for a contact designed for a target e(v)."""
+    p, pred = design.params, design.prediction
+    assert p.curve is not None and p.reference_speed_mps is not None
+    targets = p.curve.at(pred.speeds_mps)
+    worst = pred.worst_error(p.curve)
+    status = "met" if design.ok else "NOT MET"
+    lines = [
+        f"contact for a target e(v) over impact speeds {_range(p)}: timestep {p.timestep_s:g} s "
+        f"({p.integrator}), gravity along the normal {p.gravity_mps2:g} m/s^2",
+        f"  solref    {p.solref[0]!r} {p.solref[1]!r}   (stiffness {p.stiffness:.6g} 1/s^2, "
+        f"damping {p.damping:.6g} 1/s, zeta {p.zeta:.5f}; direct form, mass independent)",
+        "  solimp    " + " ".join(f"{x:.6g}" for x in p.solimp) + "   (impedance rising with "
+        "penetration)",
+        "  speed m/s   target e   e (mean over step phases)   lowest .. highest",
+    ]
+    speeds = np.array(pred.speeds_mps)
+    errors = np.maximum(
+        np.abs(np.array(pred.lowest) - targets), np.abs(np.array(pred.highest) - targets)
+    )
+    points = np.isin(speeds, p.curve.speed_mps)
+    shown = set(np.flatnonzero(points))
+    for a, b in itertools.pairwise(np.flatnonzero(points)):  # the worst speed between points
+        if b > a + 1:
+            shown.add(a + 1 + int(np.argmax(errors[a + 1 : b])))
+    for i in sorted(shown):
+        mark = "point" if points[i] else "worst between"
+        lines.append(
+            f"  {speeds[i]:9.4g}   {targets[i]:8.4f}   {pred.mean[i]:8.4f}   "
+            f"{pred.lowest[i]:.4f} .. {pred.highest[i]:.4f}   ({mark})"
+        )
+    lines += [
+        f"  worst |e - target| {worst:.4f} over {_range(p)}, at and between the points "
+        f"({status}: the tolerance for a curve is {CURVE_TOLERANCE})",
+        f"  worst penetration {_pen(p, radius_m)}",
+        f"  contact time {p.duration_s * 1e3:.4g} ms at {p.reference_speed_mps:.4g} m/s "
+        f"= {p.steps_per_contact:.1f} steps",
+        f"  a ball at rest sinks {_sink(p, radius_m)}",
+    ]
+    if design.ok:
+        return [*lines, "  " + p.mjcf_pair("GEOM1", "GEOM2")]
+    return [*lines, f"  NOT MET: {design.problem}"]
+
+
+def _sink(p: ContactParams, radius_m: float | None) -> str:
+    sink = rest_sink_m(p)
+    text = f"{sink * 1e3:.3g} mm"
+    return text + (f" ({sink / radius_m:.2%} of the radius)" if radius_m else "")
+
+
+def curve_dict(design: ContactDesign, *, radius_m: float | None) -> dict[str, Any]:
+    """A curve's design as JSON-ready data (``impactlab contact --json``)."""
+    p = design.params
+    assert p.curve is not None
+    pred = design.prediction
+    sink = rest_sink_m(p)
+    return {
+        "ok": design.ok,
+        "problem": design.problem,
+        "tolerance": CURVE_TOLERANCE,
+        **params_dict(p),
+        "predicted": {
+            **dataclasses.asdict(pred),
+            "target": [float(x) for x in p.curve.at(pred.speeds_mps)],
+            "worst_error_in_range": pred.worst_error(p.curve),
+        },
+        "rest_sink_m": sink,
+        "rest_sink_fraction_of_radius": sink / radius_m if radius_m else None,
+        "mjcf_pair": p.mjcf_pair("GEOM1", "GEOM2"),
+        "timestep_max_s": design.timestep_max_s,
+    }
