@@ -165,7 +165,7 @@ def _predict_curve(params: ContactParams) -> Prediction:
         np.array(params.solimp)[None, None, :],
         speeds[:, None],
         phases[None, :],
-        timestep_s=params.timestep_s,
+        timestep_s=curvefit.emulated_timestep(params.timestep_s, math.sqrt(params.stiffness)),
         gravity_mps2=params.gravity_mps2,
         integrator=params.integrator,
         max_time_s=40.0 / math.sqrt(params.stiffness) + 4.0 * params.solimp[2] / lo,

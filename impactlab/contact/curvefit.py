@@ -23,6 +23,14 @@ CURVE_PENETRATION_FRACTION = 0.1
 """The default penetration bound at the top speed of a curve, as a fraction of the smaller
 radius (a rising impedance lets the ball sink into a soft layer first)."""
 
+MIN_EMULATED_W0DT = 0.004
+"""Finer steps than w0 dt = 0.004 (some 800 per contact) are fitted and checked at it: the
+step error there is about 2e-4 and shrinks with the step (and the emulation's time with it
+would grow without bound)."""
+
+MAX_SPAN = 100.0
+"""The widest curve: its top speed at most this many times its lowest."""
+
 CHECK_SPEEDS, CHECK_PHASES = 41, 16
 """The check of a fit: speeds spaced geometrically over the range (the curve's points
 added) and contact-onset phases at each."""
@@ -203,6 +211,8 @@ def design_curve(
     else:
         assert bound_m is not None
         w0 = 1.2 * setting.speed_range_mps[1] / bound_m
+    dt = emulated_timestep(setting.timestep_s, w0)
+    setting = Setting(setting.speed_range_mps, dt, setting.integrator, setting.gravity_mps2)
 
     def rescaled(theta: np.ndarray, w0: float) -> Checked:
         for _ in range(8):
@@ -225,6 +235,11 @@ def design_curve(
         found = rescaled(fit_shape(curve, setting, start.w0, start.theta), start.w0)
     refit = fit_shape(curve, setting, found.fit.w0, found.fit.theta)
     return rescaled(refit, found.fit.w0)
+
+
+def emulated_timestep(timestep_s: float, w0: float) -> float:
+    """The timestep a contact of stiffness w0**2 is emulated at (MIN_EMULATED_W0DT)."""
+    return max(timestep_s, MIN_EMULATED_W0DT / w0)
 
 
 def rest_sink_m(params: ContactParams) -> float:

@@ -285,3 +285,90 @@ def test_help_lists_the_command(capsys):
     from impactlab.contact import INTEGRATORS as CALIBRATED
 
     assert INTEGRATORS == CALIBRATED
+
+
+CURVE = ["--restitution", "1:0.85,4:0.78", "--radius", "0.033", "--timestep", "1e-5"]
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--restitution", "1:0.85,0.5:0.86", "--radius", "0.033", "--timestep", "1e-5"], "strictly ascending"),
+        (["--restitution", "1:0.85,2:1.2", "--radius", "0.033", "--timestep", "1e-5"], "e[1] must be"),
+        (["--restitution", "1:0.85,2", "--radius", "0.033", "--timestep", "1e-5"], "SPEED:E"),
+        (["--restitution", "1:0.85,2:x", "--radius", "0.033", "--timestep", "1e-5"], "must be a number"),
+        (["--restitution", "1:0.85", "--radius", "0.033", "--timestep", "1e-5"], "2..64 speeds"),
+        (["--restitution", "0:0.85,1:0.8", "--radius", "0.033", "--timestep", "1e-5"], "speed_mps[0]"),
+        (["--restitution", ",".join(f"{i + 1}:0.8" for i in range(65)), "--timestep", "1e-5"], "2..64"),
+        (["--law", "0.25", "--speed", "1..8", "--timestep", "1e-5"], "C1,C2"),
+        (["--law", "0.25,0.04", "--timestep", "1e-5", "--radius", "0.033"], "--law needs --speed"),
+        (["--law", "3,0", "--speed", "1..8", "--timestep", "1e-5", "--radius", "0.033"], "e[0] must be"),
+        (["--law", "0.25,0.04", "--speed", "1", "--timestep", "1e-5", "--radius", "0.033"], "0 < lo < hi"),
+        (["--law", "0.25,0.04", *CURVE], "not both"),
+        ([*CURVE, "--speed", "0.5..4"], "outside the curve's points"),
+        ([*CURVE, "--reference-speed", "9"], "outside the speeds"),
+        ([*CURVE[:2], "--radius", "0.033"], "--timestep is required"),
+        (["--restitution", "0.01:0.9,5:0.8", "--radius", "0.033", "--timestep", "1e-5"], "narrower"),
+        ([*ALONE[1:], "--timestep", "1e-5", "--reference-speed", "2"], "for a target e(v)"),
+    ],
+)  # fmt: skip
+def test_bad_curve_input_is_one_line_and_exit_2(capsys, args, words):
+    """Every malformed table, law or request: one line, exit 2, before any fit."""
+    code, out, err = run_cli(capsys, "contact", *args)
+    assert code == 2 and not out
+    assert len(err.strip().splitlines()) == 1 and words in err, err
+
+
+def test_a_curve_needs_no_model(tmp_path, capsys):
+    model = tmp_path / "ball.xml"
+    model.write_text(BALL.format(dt="1e-5", integrator="Euler", z="0.5", r="0.05"))
+    code, out, err = run_cli(capsys, "contact", str(model), "--restitution", "1:0.85,4:0.78")
+    assert code == 2 and not out and "designed without a model" in err
+
+
+@pytest.mark.slow
+def test_curve_text_and_json(capsys):
+    """A table: solref/solimp, e at each point and the worst speed between them, the
+    penetration, the contact time and the resting sink; --json the same numbers; the pair
+    snippet runs in plain MuJoCo with e at 2.5 m/s (between the points) on the curve."""
+    code, out, _ = run_cli(capsys, "contact", *CURVE)
+    assert code == 0, out
+    for words in ("(point)", "(worst between)", "of the radius", "contact time", "sinks"):
+        assert words in out
+    code, out, _ = run_cli(capsys, "contact", *CURVE, "--json")
+    doc = json.loads(out)
+    assert code == 0 and doc["ok"] and doc["tolerance"] == 0.01
+    assert doc["curve"] == {"speed_mps": [1.0, 4.0], "e": [0.85, 0.78]}
+    assert doc["predicted"]["worst_error_in_range"] <= 0.01
+    assert 0 < doc["rest_sink_fraction_of_radius"] < 0.1
+    xml = BALL.format(dt="1e-5", integrator="Euler", z="0.5", r="0.033").replace(
+        "</worldbody>",
+        "</worldbody><contact>"
+        + doc["mjcf_pair"].replace("GEOM1", "floor").replace("GEOM2", "ballgeom")
+        + "</contact>",
+    )
+    model = mujoco.MjModel.from_xml_string(xml)
+    model.geom_condim[:] = 1
+    data = mujoco.MjData(model)
+    data.qpos[2] = 0.033 + 1e-4
+    data.qvel[2] = -2.5
+    z_prev = vz_prev = None
+    for _ in range(20000):
+        mujoco.mj_step(model, data)
+        if data.qpos[2] < 0.033 and vz_prev is None:
+            vz_prev = data.qvel[2]
+        if vz_prev is not None and data.qpos[2] >= 0.033:
+            z_prev = data.qvel[2]
+            break
+    assert z_prev is not None and vz_prev is not None
+    target = 0.85 + (0.78 - 0.85) * (-vz_prev - 1.0) / 3.0
+    assert abs(-z_prev / vz_prev - target) <= 0.01
+
+
+@pytest.mark.slow
+def test_curve_beyond_reach_exits_1(capsys):
+    code, out, _ = run_cli(
+        capsys, "contact", "--restitution", "1:0.9,3:0.75,10:0.6", "--radius", "0.033",
+        "--timestep", "1e-5",
+    )  # fmt: skip
+    assert code == 1 and "NOT MET" in out and "nearest reachable curve" in out
