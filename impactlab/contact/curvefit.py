@@ -38,7 +38,10 @@ added) and contact-onset phases at each."""
 _FIT_SPEEDS, _FIT_PHASES = 9, 4
 _BATCH_TIME = 100.0
 """A candidate of the first batch still in contact after this many 1 / w0 is a bad one."""
-_STARTS, _NFEV, _NFEV_WARM = 1, 25, 10
+_STARTS, _NFEV, _NFEV_WARM = 3, 25, 10
+_GOOD_FIT = 0.3 * CURVE_TOLERANCE
+"""A start whose fit is within this at every fit speed ends the search (the next of the
+batch's best _STARTS is tried otherwise)."""
 _LOWER = np.array([0.01, -5.0, -4.0, 0.02, 1.0])
 _UPPER = np.array([0.9, 4.0, math.log10(0.9), 0.98, 60.0])
 """Bounds of the fitted parameters: zeta, log(w0 width / v_mid), log10 dmin, midpoint,
@@ -157,6 +160,8 @@ def fit_shape(
         )
         if sol.cost < best_cost:
             best, best_cost = sol.x, sol.cost
+        if np.max(np.abs(sol.fun)) <= _GOOD_FIT:
+            break
     return np.asarray(best, float)
 
 
