@@ -112,20 +112,27 @@ def emulate(
     out, pen = np.zeros(v.size), np.zeros(v.size)
     first, last = np.zeros(v.size), np.full(v.size, np.nan)
     active = np.arange(v.size)  # the impacts not yet back at the surface
+    deepest, entered = np.zeros(v.size), np.zeros(v.size)  # of the active ones
     rule = contact_rule(refs, imps, g)
     for n in range(1, int(max_time_s / dt) + 3):
         y, u, _ = advance(y, u, dt, rule, scheme)
         inside = y < 0.0
-        first[active] = np.where(inside & (first[active] == 0), n, first[active])
-        pen[active] = np.maximum(pen[active], -y)
-        left = ~inside & (first[active] > 0)
+        deepest = np.maximum(deepest, -y)
+        if entered.all():
+            left = ~inside
+        else:
+            entered = np.where(inside & (entered == 0), n, entered)
+            left = ~inside & (entered > 0)
         if left.any():
-            out[active[left]] = np.maximum(u[left], 0.0)
-            last[active[left]] = n
+            gone = active[left]
+            out[gone], last[gone] = np.maximum(u[left], 0.0), n
+            pen[gone], first[gone] = deepest[left], entered[left]
             keep = ~left
             active, y, u = active[keep], y[keep], u[keep]
+            deepest, entered = deepest[keep], entered[keep]
             if active.size == 0:
                 break
             rule = contact_rule(refs[active], imps[active], g)
+    pen[active], first[active] = deepest, entered
     e = np.where(np.isnan(last), 0.0, out / v)
     return Impacts(e.reshape(shape), pen.reshape(shape), ((last - first) * dt).reshape(shape))
