@@ -182,6 +182,7 @@ def design_for_curve(
                 f"the speeds {lo:g}..{hi:g} m/s reach outside the curve's points "
                 f"({span[0]:g}..{span[1]:g} m/s): a curve promises no e outside them"
             )
+        lo, hi = max(lo, span[0]), min(hi, span[1])
     if hi > curvefit.MAX_SPAN * lo:
         raise ContactModelError(
             f"the speeds {lo:g}..{hi:g} m/s span more than {curvefit.MAX_SPAN:g} times: design "
