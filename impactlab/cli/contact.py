@@ -1,7 +1,7 @@
 """`impactlab contact`: MuJoCo contact parameters for a target restitution, alone or in a model.
 
-Exit codes: 0 the target is met, 1 it is not at this timestep (the advice is printed), 2 bad
-input.
+Exit codes: 0 the target is met, 1 it is not at this timestep or a curve is beyond reach (the
+advice or the nearest curve is printed), 2 bad input.
 """
 
 from __future__ import annotations
@@ -24,11 +24,14 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the `contact` subcommand."""
     p = sub.add_parser(
         "contact",
-        help="solref/solimp for a target restitution over a range of impact speeds (any MJCF)",
+        help="solref/solimp for a target restitution, or a target e(v), over a range of "
+        "impact speeds (any MJCF)",
         description="Design a MuJoCo contact (direct-form solref, constant solimp) whose "
         "coefficient of restitution is within 0.005 of a target at every impact speed of a "
         "range, for a timestep and integrator; print the parameters, the predicted e, the "
-        "penetration, the steps per contact and an MJCF <pair>. With MODEL.xml and --pair, "
+        "penetration, the steps per contact and an MJCF <pair>. A target e(v) (measured "
+        "points, or --law) gets a rising solimp fitted within 0.01 at and between the points, "
+        "with the contact time and the resting sink. With MODEL.xml and --pair, "
         "take the timestep, integrator, radii and gravity from the model and write it back "
         "with calibrated <pair> elements (-o), everything else as it was. Exit 0 when the "
         "target is met, 1 when the timestep is too coarse (with what would work), 2 on bad "
