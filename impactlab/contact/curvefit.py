@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from impactlab.contact.closed_form import bisect, contact_time_factor
+from impactlab.contact.closed_form import ContactModelError, bisect, contact_time_factor
 from impactlab.contact.closed_form import zeta_for_restitution as _zeta
 from impactlab.contact.curve import RestitutionCurve
 from impactlab.contact.params import ContactParams
@@ -27,6 +27,13 @@ MIN_EMULATED_W0DT = 0.004
 """Finer steps than w0 dt = 0.004 (some 800 per contact) are fitted and checked at it: the
 step error there is about 2e-4 and shrinks with the step (and the emulation's time with it
 would grow without bound)."""
+
+MAX_W0DT = 1.0
+"""The coarsest step a curve is fitted at (about three steps per contact; beyond, Euler's
+step of a stiff contact diverges)."""
+
+MAX_GRAVITY_RATIO = 0.3
+"""The largest g / (w0 v) at the lowest speed of a curve: above, the ball hardly leaves."""
 
 MAX_SPAN = 100.0
 """The widest curve: its top speed at most this many times its lowest."""
@@ -193,7 +200,7 @@ def check(curve: RestitutionCurve, setting: Setting, fit: Fit, reference_mps: fl
         worst,
         tuple(float(x) for x in e[n : n + m].mean(-1)),
         float(pen[n + m].max()),
-        float(np.nanmean(time[n + m + 1])),
+        float(np.mean(time[n + m + 1])),  # NaN when a ball does not leave
     )
 
 
@@ -216,6 +223,7 @@ def design_curve(
     else:
         assert bound_m is not None
         w0 = 1.2 * setting.speed_range_mps[1] / bound_m
+    within_reach(setting, w0)
     dt = emulated_timestep(setting.timestep_s, w0)
     setting = Setting(setting.speed_range_mps, dt, setting.integrator, setting.gravity_mps2)
 
@@ -240,6 +248,30 @@ def design_curve(
         found = rescaled(fit_shape(curve, setting, start.w0, start.theta), start.w0)
     refit = fit_shape(curve, setting, found.fit.w0, found.fit.theta)
     return rescaled(refit, found.fit.w0)
+
+
+def within_reach(setting: Setting, w0: float) -> None:
+    """Refuse before fitting what no fit can do: a step of more than MAX_W0DT / w0, or
+    gravity above MAX_GRAVITY_RATIO w0 v at the lowest speed (w0 from the penetration bound
+    or the contact time).
+
+    Raises:
+        ContactModelError: naming the timestep, or the speeds and penetration, that would do.
+    """
+    dt, g, lo = setting.timestep_s, setting.gravity_mps2, setting.speed_range_mps[0]
+    if w0 * dt > MAX_W0DT:
+        raise ContactModelError(
+            f"timestep {dt:g} s is too coarse for this contact (stiffness about {w0 * w0:.3g} "
+            f"1/s^2 from its penetration bound or contact time: w0 dt = {w0 * dt:.3g}): a "
+            f"curve needs timestep <= {MAX_W0DT / w0:.3g} s, or a softer contact"
+        )
+    if g / (w0 * lo) > MAX_GRAVITY_RATIO:
+        raise ContactModelError(
+            f"gravity dominates this contact at {lo:g} m/s (g / (w0 v) = {g / (w0 * lo):.3g}, "
+            f"stiffness about {w0 * w0:.3g} 1/s^2): a curve needs its lowest speed >= "
+            f"{g / (MAX_GRAVITY_RATIO * w0):.3g} m/s, or a stiffer contact (a smaller "
+            "penetration bound or a shorter contact time)"
+        )
 
 
 def emulated_timestep(timestep_s: float, w0: float) -> float:

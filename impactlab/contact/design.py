@@ -207,6 +207,11 @@ def design_for_curve(
         checked("gravity_mps2", gravity_mps2),
     )
     found = curvefit.cached_design(curve, setting, bound, duration, ref)
+    if not math.isfinite(found.contact_s):
+        raise ContactModelError(
+            f"the ball does not leave the fitted contact at {ref:g} m/s within 40 contact "
+            "times: a higher lowest speed or a stiffer contact"
+        )
     params = curve_params(curve, setting, found, ref)
     if found.worst_error <= curvefit.CURVE_TOLERANCE:
         return ContactDesign(params)

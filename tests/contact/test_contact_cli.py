@@ -310,6 +310,8 @@ CURVE = ["--restitution", "1:0.85,4:0.78", "--radius", "0.033", "--timestep", "1
         ([*CURVE[:2], "--radius", "0.033"], "--timestep is required"),
         (["--restitution", "0.01:0.9,5:0.8", "--radius", "0.033", "--timestep", "1e-5"], "narrower"),
         ([*ALONE[1:], "--timestep", "1e-5", "--reference-speed", "2"], "for a target e(v)"),
+        ([*CURVE[:4], "--timestep", "0.01"], "too coarse"),
+        (["--restitution", "1000:0.85,4000:0.8", "--radius", "0.033", "--timestep", "1e-5"], "too coarse"),
     ],
 )  # fmt: skip
 def test_bad_curve_input_is_one_line_and_exit_2(capsys, args, words):

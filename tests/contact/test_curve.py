@@ -113,6 +113,13 @@ def test_float_keeps_the_closed_form_path():
         ({"radius_m": None}, "give a radius"),
         ({"integrator": "Verlet"}, "integrator must be one of"),
         ({"timestep_s": 0.0}, "timestep_s must be a positive number"),
+        # what no fit can do: refused at once, naming what would do
+        ({"timestep_s": 1.0}, "timestep 1 s is too coarse for this contact"),
+        ({"radius_m": 1e-6}, "a curve needs timestep <= "),
+        ({"radius_m": None, "duration_s": 1e-9}, "too coarse"),
+        ({"radius_m": 1e3}, "gravity dominates this contact at 0.5 m/s"),
+        ({"radius_m": None, "duration_s": 10.0}, "lowest speed >= "),
+        ({"gravity_mps2": 1e4}, "gravity dominates"),
     ],
 )
 def test_bad_requests_for_a_curve(options, message):
