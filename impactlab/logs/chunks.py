@@ -50,7 +50,8 @@ class Block:
     @property
     def channels(self) -> list[int]:
         """The block's channel ids, one per column of its payloads."""
-        return [int(c) for c in np.atleast_1d(self.channel_id)]
+        ids: list[int] = np.atleast_1d(self.channel_id).tolist()
+        return ids
 
 
 class ChunkWriter:
@@ -134,11 +135,9 @@ class ChunkWriter:
             self._thread = None
         self._pending.clear()
 
-    def _write(
-        self, records: np.ndarray, index: dict[int, np.ndarray], span: tuple[int, int]
-    ) -> None:
-        """Compress and write a chunk's records and its message indexes (per channel its
-        messages' (log_time, offset)); count them in the summary."""
+    def _write(self, records: np.ndarray, index: Index, span: tuple[int, int]) -> None:
+        """Compress and write a chunk's records and its message indexes; count them in the
+        summary."""
         start, end = span
         compressed = self._compressor.compress(records.data)
         chunk = Chunk(
@@ -160,17 +159,13 @@ class ChunkWriter:
         )
         stats.message_end_time = max(stats.message_end_time, end)
         stats.chunk_count += 1
-        offsets, message_indexes = {}, []
-        for channel_id, pairs in index.items():
-            body = channel_id.to_bytes(2, "little") + (16 * len(pairs)).to_bytes(4, "little")
-            body += pairs.astype("<u8").tobytes()
-            record = bytes([Opcode.MESSAGE_INDEX]) + len(body).to_bytes(8, "little") + body
-            message_indexes.append(record)
-            offsets[channel_id] = position
-            position += 9 + len(body)
-            stats.channel_message_counts[channel_id] += len(pairs)
-            stats.message_count += len(pairs)
-        self.stream.write(b"".join(message_indexes))
+        message_indexes, starts = index.records()
+        offsets = dict(zip(index.channels.tolist(), (position + starts).tolist(), strict=True))
+        for channel_id, count in zip(index.channels.tolist(), index.counts.tolist(), strict=True):
+            stats.channel_message_counts[channel_id] += count
+        stats.message_count += len(index.pairs)
+        position += len(message_indexes)
+        self.stream.write(message_indexes.data)
         self.chunk_indexes.append(
             _ChunkIndex(
                 message_start_time=start,
@@ -184,6 +179,48 @@ class ChunkWriter:
                 uncompressed_size=len(records),
             )
         )
+
+
+@dataclass(frozen=True)
+class Index:
+    """A chunk's message indexes: its channels (k,) ascending, each one's number of messages
+    (k,), and their (log_time, offset) rows (n, 2), channel after channel."""
+
+    channels: np.ndarray
+    counts: np.ndarray
+    pairs: np.ndarray
+
+    def records(self) -> tuple[np.ndarray, np.ndarray]:
+        """The MESSAGE_INDEX records, one per channel in order, as bytes (uint8), and where
+        each starts in them: channels of the same number of messages side by side are
+        written as one array of records."""
+        sizes = 15 + 16 * self.counts  # opcode, length, channel id, the rows' byte length
+        starts = np.cumsum(sizes) - sizes
+        out = np.empty(int(sizes.sum()), np.uint8)
+        change = np.flatnonzero(self.counts[1:] != self.counts[:-1]) + 1
+        first = 0
+        for lo, hi in itertools.pairwise([0, *change.tolist(), self.counts.size]):
+            n = int(self.counts[lo])
+            record = np.dtype(
+                [
+                    ("op", "u1"),
+                    ("len", "<u8"),
+                    ("ch", "<u2"),
+                    ("bytes", "<u4"),
+                    ("rows", "<u8", (n, 2)),
+                ]
+            )
+            at = int(starts[lo])
+            view = out[at : at + (hi - lo) * record.itemsize].view(record)
+            view["op"], view["len"], view["ch"], view["bytes"] = (
+                Opcode.MESSAGE_INDEX,
+                6 + 16 * n,
+                self.channels[lo:hi],
+                16 * n,
+            )
+            view["rows"] = self.pairs[first : first + (hi - lo) * n].reshape(hi - lo, n, 2)
+            first += (hi - lo) * n
+        return out, starts
 
 
 class _ChunkIndex(ChunkIndex):
@@ -221,7 +258,7 @@ def _fill(
     records["data"] = payloads
 
 
-def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, Index]:
     """The records of blocks of fixed-size payloads, time-sorted, and per channel its index
     (log_time, offset) rows. The chunk's times are cut into segments in which the same blocks
     have a message at each time; a segment is a matrix, a row per time, each block's records
@@ -260,16 +297,16 @@ def _dense(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
     return out, _by_channel(*index)
 
 
-def _by_channel(channel: np.ndarray, time: np.ndarray, offset: np.ndarray) -> dict[int, np.ndarray]:
+def _by_channel(channel: np.ndarray, time: np.ndarray, offset: np.ndarray) -> Index:
     """Each channel's index rows (log_time, offset), in the order given."""
     order = np.argsort(channel, kind="stable")
     channel = channel[order]
     pairs = np.stack([time[order], offset[order]], axis=1)
     bounds = np.flatnonzero(np.r_[True, channel[1:] != channel[:-1], True])
-    return {int(channel[a]): pairs[a:b] for a, b in itertools.pairwise(bounds.tolist())}
+    return Index(channel[bounds[:-1]], np.diff(bounds), pairs)
 
 
-def _loose(blocks: Sequence[Block]) -> tuple[np.ndarray, dict[int, np.ndarray]]:
+def _loose(blocks: Sequence[Block]) -> tuple[np.ndarray, Index]:
     """The records of blocks of one channel each with payloads of any length, time-sorted
     (block order within a time), and per channel its index (log_time, offset) rows."""
     times = np.concatenate([b.log_time for b in blocks])

@@ -65,8 +65,9 @@ class LogHeader:
 class LogRows:
     """Consecutive logged rows of a run: times `t_ns` (n,) int ns; `bodies` (n, nbody, 13) in
     `RunMeta.bodies` order and `messages.BODY_FIELDS` order; `energy` (n, 3) J; `work` (n, k)
-    J since the start, `messages.WORK_FIELDS`; `contacts`, one entry per point: its row (m,),
-    sides (m, 2) (a geom id, or -1 - a flex id) and values (m, 13) in `POINT_FIELDS` order;
+    J since the start, `messages.WORK_FIELDS`; `contacts`, one entry per point: its row (m,)
+    (ascending), sides (m, 2) (a geom id, or -1 - a flex id) and values (m, 13) in
+    `POINT_FIELDS` order;
     `clearance` (n, m) m, the distances of every body of `LogHeader.clearance` side by side, in
     its order (each body's surfaces in theirs); `joint_energy` (n, 3) J or None."""
 
@@ -82,15 +83,15 @@ class LogRows:
         return int(self.t_ns.size)
 
     def slice(self, lo: int, hi: int) -> LogRows:
-        """Rows lo .. hi - 1."""
+        """Rows lo .. hi - 1 (views: the contacts' rows ascend)."""
         row, sides, values = self.contacts
-        mine = (row >= lo) & (row < hi)
+        a, b = np.searchsorted(row, (lo, hi)).tolist()
         return LogRows(
             self.t_ns[lo:hi],
             self.bodies[lo:hi],
             self.energy[lo:hi],
             self.work[lo:hi],
-            (row[mine] - lo, sides[mine], values[mine]),
+            (row[a:b] - lo, sides[a:b], values[a:b]),
             self.clearance[lo:hi],
             None if self.joint_energy is None else self.joint_energy[lo:hi],
         )

@@ -190,7 +190,9 @@ class StepContacts:
         return int(self.step.size)
 
     def take(self, keep: np.ndarray) -> StepContacts:
-        """The entries selected by `keep` (a mask or indices)."""
+        """The entries selected by `keep` (a mask or indices); itself when a mask keeps all."""
+        if keep.dtype == bool and keep.all():
+            return self
         return StepContacts(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
 
 

@@ -271,8 +271,11 @@ class _Run:
             rows = np.hstack([rows, joints.terms(states, rows)])
         # the work done before each logged step: the run's so far and the chunk's steps before
         done = self.work_done + np.vstack([np.zeros((1, work.shape[1])), np.cumsum(work, axis=0)])
-        contacts = contacts.take(np.isin(contacts.step, keep))
-        contacts = dataclasses.replace(contacts, step=np.searchsorted(keep, contacts.step))
+        if keep.size == end:  # every step logged: the rows are the steps
+            contacts = contacts.take(contacts.step < end)
+        else:
+            contacts = contacts.take(np.isin(contacts.step, keep))
+            contacts = dataclasses.replace(contacts, step=np.searchsorted(keep, contacts.step))
         t_ns = (self.step0 + keep) * self.dt_ns
         if t_ns.size:
             self.logged += t_ns.size

@@ -16,6 +16,7 @@ from impactlab.logs.chunks import (
     PRIVATE,
     Block,
     ChunkWriter,
+    Index,
     _ChunkIndex,
     _dense,
     _loose,
@@ -50,9 +51,9 @@ def test_dense_records_equal_the_general_path(n, subset_times):
     fast, fast_index = _dense(blocks)
     slow, slow_index = _loose(blocks)
     assert bytes(fast) == bytes(slow)
-    assert fast_index.keys() == slow_index.keys()
-    for channel, pairs in slow_index.items():
-        assert (fast_index[channel] == pairs).all(), channel
+    assert (fast_index.channels == slow_index.channels).all()
+    assert (fast_index.counts == slow_index.counts).all()
+    assert (fast_index.pairs == slow_index.pairs).all()
 
 
 def test_mcap_is_the_version_the_adapter_was_written_for():
@@ -124,6 +125,25 @@ def test_a_chunk_index_is_the_bytes_mcaps_record_writes(offsets):
     _ChunkIndex(**fields).write(ours)
     ChunkIndex(**fields).write(theirs)
     assert ours.end() == theirs.end()
+
+
+@pytest.mark.parametrize("counts", [[1], [3, 3, 3], [2, 2, 1, 4, 4], [5, 1, 1]])
+def test_message_indexes_are_the_bytes_mcaps_records_write(counts):
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import MessageIndex
+
+    rng = np.random.default_rng(len(counts))
+    channels = np.sort(rng.choice(2**16, len(counts), replace=False))
+    pairs = rng.integers(0, 2**63, (sum(counts), 2))
+    records, starts = Index(channels, np.array(counts), pairs).records()
+    theirs, first, at = RecordBuilder(), 0, []
+    for channel, count in zip(channels.tolist(), counts, strict=True):
+        at.append(theirs.count)
+        rows = [tuple(row) for row in pairs[first : first + count].tolist()]
+        MessageIndex(channel, rows).write(theirs)
+        first += count
+    assert bytes(records) == theirs.end()
+    assert starts.tolist() == at
 
 
 def _energy_block(channel: int, t0: int, n: int) -> Block:
