@@ -177,7 +177,7 @@ def _point_record() -> np.dtype:
 
 def _points(row: np.ndarray, sides: np.ndarray, values: np.ndarray, record: np.dtype) -> np.ndarray:
     """Points as records: `_tags(record)`, sides (m, 2) and values (m, 13) filled in."""
-    out = np.zeros(row.size, record)
+    out = np.empty(row.size, record)  # every byte is written below
     for name, tag in _tags(record).items():
         out[name] = tag
     for i, name in enumerate(POINT_FIELDS):
