@@ -116,10 +116,15 @@ class Episodes:
         `step0`); returns the episodes whose release became certain in this chunk."""
         n = rows.shape[0]
         before = len(self.closed)
-        for ep in self.open.values():  # a release after the previous chunk's last step
-            if np.isnan(ep.state_out).all() and ep.last == step0 - 1:
-                sides = np.array([[ep.side1, ep.side2]])
-                ep.state_out = self._states(rows, np.zeros(1, np.int64), sides)[0]
+        # in contact at the previous chunk's last step: the state after it is this one's first
+        ended = [
+            ep for ep in self.open.values() if ep.last == step0 - 1 and np.isnan(ep.state_out).all()
+        ]
+        if ended:
+            sides = np.array([[ep.side1, ep.side2] for ep in ended])
+            after = self._states(rows, np.zeros(len(ended), np.int64), sides)
+            for ep, state in zip(ended, after, strict=True):
+                ep.state_out = state.copy()
         runs = self._segments(contacts)
         if runs is not None:
             first, last = np.array(runs.first), np.array(runs.last)
