@@ -31,6 +31,7 @@ PRIVATE = ("_Writer__statistics", "_Writer__chunk_indices", "_Writer__attachment
 HEAD = np.dtype(
     [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("seq", "<u4"), ("lt", "<u8"), ("pt", "<u8")]
 )
+INDEX_HEAD = [("op", "u1"), ("len", "<u8"), ("ch", "<u2"), ("bytes", "<u4")]  # MESSAGE_INDEX
 PENDING = 2  # chunks built and not written yet at most (memory is bounded)
 THREADED_BYTES = 1 << 18  # smaller chunks are compressed and written by the caller
 ZSTD_LEVEL = -1  # zstd's fast mode: on contact-heavy logs half level 1's time, 2-5 % larger
@@ -194,22 +195,14 @@ class Index:
         """The MESSAGE_INDEX records, one per channel in order, as bytes (uint8), and where
         each starts in them: channels of the same number of messages side by side are
         written as one array of records."""
-        sizes = 15 + 16 * self.counts  # opcode, length, channel id, the rows' byte length
+        sizes = 15 + 16 * self.counts  # INDEX_HEAD, then 16 bytes a row
         starts = np.cumsum(sizes) - sizes
         out = np.empty(int(sizes.sum()), np.uint8)
         change = np.flatnonzero(self.counts[1:] != self.counts[:-1]) + 1
         first = 0
         for lo, hi in itertools.pairwise([0, *change.tolist(), self.counts.size]):
             n = int(self.counts[lo])
-            record = np.dtype(
-                [
-                    ("op", "u1"),
-                    ("len", "<u8"),
-                    ("ch", "<u2"),
-                    ("bytes", "<u4"),
-                    ("rows", "<u8", (n, 2)),
-                ]
-            )
+            record = np.dtype([*INDEX_HEAD, ("rows", "<u8", (n, 2))])
             at = int(starts[lo])
             view = out[at : at + (hi - lo) * record.itemsize].view(record)
             view["op"], view["len"], view["ch"], view["bytes"] = (
