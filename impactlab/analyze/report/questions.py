@@ -196,8 +196,13 @@ def restitution(t: Tables) -> Answer:
         .filter(pl.col("n") >= 2)
     )
     limit = f"{F.E_CONSTANT_SPREAD:g}"
-    if spread.is_empty():
+    curved = [k for k, b in t.briefs.items() if b.curves]  # e varies with v as asked
+    varied = spread.filter(pl.col("run_id").is_in(curved))
+    spread = spread.filter(~pl.col("run_id").is_in(curved))
+    if spread.is_empty() and varied.is_empty():
         across = "Constancy across bounces is not tested (no run has two complete bounces)"
+    elif spread.is_empty():
+        across = "No, e is not constant across bounces, as its target e(v) asks"
     else:
         worst = spread.sort("s", descending=True).row(0, named=True)
         most = number(worst["s"], 2)
@@ -205,16 +210,18 @@ def restitution(t: Tables) -> Answer:
             across = f"Yes, e is constant across bounces (spread at most {most}, below {limit})"
         else:
             within = int((spread["s"] < F.E_CONSTANT_SPREAD).sum())
-            brief = t.briefs.get(worst["run_id"])
-            asked = ", as its target e(v) asks" if brief is not None and brief.curves else ""
             across = (
                 f"No, e is not constant across bounces in every drop (spread up to {most} in "
-                f"{worst['run']}{asked}, above {limit}; {within} of {spread.height} within it)"
+                f"{worst['run']}, above {limit}; {within} of {spread.height} within it)"
             )
-        if outside.height and spread.height:
-            speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
-            es = span(outside["e_velocity"].to_list())
-            across += f" in the calibrated speed range (outside it: e {es} at {speeds})"
+    if outside.height and spread.height:
+        speeds = span((-outside["v_in_mps"]).to_list(), "m/s")
+        es = span(outside["e_velocity"].to_list())
+        across += f" in the calibrated speed range (outside it: e {es} at {speeds})"
+    if varied.height:
+        names = sorted({t.briefs[k].experiment for k in varied["run_id"]})
+        where = f"{', '.join(names)}: spread up to {number(varied['s'].max(), 2)}"
+        across += f", except as a target e(v) asks ({where})" if spread.height else f" ({where})"
     heights = [(name, _height_words(s)) for name, s in t.studies.items()]
     heights = [h for h in heights if h[1]]
     against = " and ".join(f"{words} for {n}" for n, words in heights)
@@ -343,12 +350,11 @@ def _height_words(study: pl.DataFrame) -> str:
         return ""
     study = study.sort("first_impact_speed_mps")
     es = study.filter(pl.col("e_velocity_first").is_not_null())["e_velocity_first"]
-    speeds = span(study["first_impact_speed_mps"].to_list(), "m/s")
-    if es.len() >= 2:
+    if es.len() >= 2:  # the speeds are in the table below the answer
         if es.max() - es.min() < F.E_CONSTANT_SPREAD:  # type: ignore[operator]
-            return f"does not depend on it ({span(es.to_list())} at {speeds})"
+            return f"does not depend on it ({span(es.to_list())})"
         trend = "rises" if es[-1] > es[0] else "falls"
-        return f"{trend} with it ({number(es[0])} to {number(es[-1])} at {speeds})"
+        return f"{trend} with it ({number(es[0])} to {number(es[-1])})"
     if es.len() == 1:
         return f"depends on it (only one of {study.height} drops rebounds, e = {number(es[0])})"
     return f"cannot be measured (none of {study.height} drops rebounds)"
