@@ -14,6 +14,7 @@ from impactlab.contact import (
     SPEED_FLOOR_MPS,
     ContactModelError,
     ContactParams,
+    CurveOutOfReach,
     RestitutionCurve,
     contact_params,
 )
@@ -60,6 +61,7 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
             continue
         where = f"contact.pairs.{key}" if key in con.pairs else "contact"
         field = f"{where}.restitution" if own.restitution is not None else "contact.restitution"
+        target_field = field
         if other is None:
             radius, g_normal, speed = body.radius, g_down, _plane_impact(body, g_down)
         else:  # two free balls fall together: gravity does not press them into each other
@@ -92,6 +94,8 @@ def calibrated_pairs(run: RunSpec) -> list[CalibratedPair]:
                 allow_coarse=con.allow_coarse_timestep,
                 **(at_speed if stiffness.duration_speed is not None else {}),
             )
+        except CurveOutOfReach as exc:  # the curve is what cannot be followed
+            raise SpecError(run.source, target_field, str(exc)) from None
         except ContactModelError as exc:
             raise SpecError(run.source, field, str(exc)) from None
         out.append(CalibratedPair(geom1, body.name, params))

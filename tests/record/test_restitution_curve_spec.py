@@ -160,3 +160,14 @@ def test_the_designer_gets_the_curve_its_speeds_and_the_reference_speed(monkeypa
     asked.clear()
     contact_pairs.calibrated_pairs(_run(drop(timestep=1e-5, contact={"restitution": 0.8})))
     assert "reference_speed_mps" not in asked[0][1] and asked[0][0] == 0.8
+
+
+@pytest.mark.slow  # the real fit, and its refit at half the timestep (about 10 s)
+def test_a_curve_beyond_reach_is_refused_naming_the_restitution_not_the_speeds():
+    """A curve the contact cannot follow is the table's fault, whatever range was asked."""
+    steep = {"speed_mps": [0.5, 3.0, 10.0], "e": [0.92, 0.75, 0.6]}
+    contact = {"restitution": steep, "speed_range": [0.5, 10.0]}
+    with pytest.raises(SpecError) as refused:
+        contact_pairs.calibrated_pairs(_run(drop(timestep=1e-5, contact=contact)))
+    assert refused.value.field == "contact.restitution"
+    assert "the nearest reachable curve is e = 0.5:" in str(refused.value)
