@@ -99,34 +99,48 @@ def record_case(spec: Path, out: Path, threads: int, *, with_plan: bool = False)
 def large_model_case(xml: Path, duration: float, out: Path, turns: int) -> dict:
     """A large MJCF model recorded with impactlab's API against a bare `mj_step` loop of
     the same steps (the model as MuJoCo loads it, nothing read), in one process, in turns
-    (loop, plan, record, loop, ...): the best wall and CPU seconds of each. Planning
-    (compile, instrument, attachments) is its own figure, recording the steps another."""
+    (loop, plan, record, loop, plan, record, ..., loop). Each recording is paired with the
+    loops just before and after it: its ratios (wall and CPU) are to their mean. The
+    machine's speed drifts by tens of percent from minute to minute (the same loop took
+    1.27 to 2.06 s), so the best of each side alone would pair unrelated moments. Returns
+    every turn's figures (lists); planning (compile, instrument, attachments) is apart."""
     import mujoco
 
     from impactlab.record import plan, record_runs
     from impactlab.record.work import run_steps
 
-    best = dict.fromkeys(
-        ("loop_s", "loop_cpu", "plan_s", "plan_cpu", "record_s", "record_cpu"), float("inf")
-    )
-    steps = 0
-    for _ in range(turns):
+    def loop() -> tuple[float, float]:
         model = mujoco.MjModel.from_xml_path(str(xml))
         data = mujoco.MjData(model)
-        steps = run_steps(duration, float(model.opt.timestep))
         start, cpu = time.perf_counter(), _cpu_seconds()
         for _ in range(steps):
             mujoco.mj_step(model, data)
-        _best(best, "loop", start, cpu)
+        return time.perf_counter() - start, _cpu_seconds() - cpu
+
+    steps = run_steps(duration, float(mujoco.MjModel.from_xml_path(str(xml)).opt.timestep))
+    found: dict[str, list[float]] = {key: [] for key in ("plan_s", "plan_cpu", "wall", "cpu")}
+    found |= {"loop_s": [], "loop_cpu": [], "record_s": [], "record_cpu": []}
+    before = loop()
+    for _ in range(turns):
         start, cpu = time.perf_counter(), _cpu_seconds()
         runs = plan([xml], duration=duration)
-        _best(best, "plan", start, cpu)
+        found["plan_s"].append(time.perf_counter() - start)
+        found["plan_cpu"].append(_cpu_seconds() - cpu)
         start, cpu = time.perf_counter(), _cpu_seconds()
         (result,) = record_runs(runs, out, threads=1, overwrite=True)
-        _best(best, "record", start, cpu)
+        record = time.perf_counter() - start, _cpu_seconds() - cpu
         if result.failed or result.steps != steps:
             raise RuntimeError(f"{xml.name}: {result.steps} steps recorded, not {steps}")
-    return best | {"steps": steps}
+        after = loop()
+        pair = [(b + a) / 2 for b, a in zip(before, after, strict=True)]
+        found["loop_s"].append(pair[0])
+        found["loop_cpu"].append(pair[1])
+        found["record_s"].append(record[0])
+        found["record_cpu"].append(record[1])
+        found["wall"].append(record[0] / pair[0])
+        found["cpu"].append(record[1] / pair[1])
+        before = after
+    return found | {"steps": steps}
 
 
 def _best(best: dict, stage: str, start: float, cpu: float) -> None:
