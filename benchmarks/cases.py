@@ -102,7 +102,7 @@ def large_model_case(xml: Path, duration: float, out: Path, turns: int) -> dict:
     (loop, plan, record, loop, plan, record, ..., loop). Each recording is paired with the
     loops just before and after it: its ratios (wall and CPU) are to their mean. The
     machine's speed drifts by tens of percent from minute to minute (the same loop took
-    1.27 to 2.06 s), so the best of each side alone would pair unrelated moments. Returns
+    1.27 to 2.20 s), so the best of each side alone would pair unrelated moments. Returns
     every turn's figures (lists); planning (compile, instrument, attachments) is apart."""
     import mujoco
 
@@ -118,8 +118,8 @@ def large_model_case(xml: Path, duration: float, out: Path, turns: int) -> dict:
         return time.perf_counter() - start, _cpu_seconds() - cpu
 
     steps = run_steps(duration, float(mujoco.MjModel.from_xml_path(str(xml)).opt.timestep))
-    found: dict[str, list[float]] = {key: [] for key in ("plan_s", "plan_cpu", "wall", "cpu")}
-    found |= {"loop_s": [], "loop_cpu": [], "record_s": [], "record_cpu": []}
+    keys = ("loop_s", "loop_cpu", "plan_s", "plan_cpu", "record_s", "record_cpu", "wall", "cpu")
+    found: dict[str, list[float]] = {key: [] for key in keys}
     before = loop()
     for _ in range(turns):
         start, cpu = time.perf_counter(), _cpu_seconds()
@@ -141,12 +141,6 @@ def large_model_case(xml: Path, duration: float, out: Path, turns: int) -> dict:
         found["cpu"].append(record[1] / pair[1])
         before = after
     return found | {"steps": steps}
-
-
-def _best(best: dict, stage: str, start: float, cpu: float) -> None:
-    """Keep a stage's best wall (`STAGE_s`) and CPU (`STAGE_cpu`) seconds since start, cpu."""
-    best[f"{stage}_s"] = min(best[f"{stage}_s"], time.perf_counter() - start)
-    best[f"{stage}_cpu"] = min(best[f"{stage}_cpu"], _cpu_seconds() - cpu)
 
 
 def _cpu_seconds() -> float:
